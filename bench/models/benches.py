@@ -46,8 +46,9 @@ def _tyre_parts(model: TyreModel, tyre: Tyre) -> tuple[list[Mass], list[Link], f
     links = [
         Link("air", "base", "rim", tyre.stiffness_n_per_m),
         Link("sidewall_lower", "base", "sidewall", tyre.sidewall_lower_stiffness_n_per_m),
-        Link("sidewall_upper", "sidewall", "rim", tyre.sidewall_upper_stiffness_n_per_m,
-             tyre.damping_ns_per_m),
+        Link(
+            "sidewall_upper", "sidewall", "rim", tyre.sidewall_upper_stiffness_n_per_m, tyre.damping_ns_per_m
+        ),
     ]
     return masses, links, tyre.tread_mass_kg
 

@@ -67,14 +67,16 @@ class LinearSystem:
         B = np.vstack([self.B @ pad_u1, downstream.B @ u2_u])
         C = np.block([[self.C, np.zeros((len(self.outputs), n2))], [downstream.D @ u2_x1, downstream.C]])
         D = np.vstack([self.D @ pad_u1, downstream.D @ u2_u])
-        return LinearSystem(A, B, C, D, inputs, self.outputs + downstream.outputs,
-                            self.states + downstream.states)
+        return LinearSystem(
+            A, B, C, D, inputs, self.outputs + downstream.outputs, self.states + downstream.states
+        )
 
     def select(self, outputs: Sequence[str]) -> LinearSystem:
         """The same system with only the named outputs, in the given order."""
         idx = [self.outputs.index(o) for o in outputs]
-        return LinearSystem(self.A, self.B, self.C[idx], self.D[idx], self.inputs, tuple(outputs),
-                            self.states)
+        return LinearSystem(
+            self.A, self.B, self.C[idx], self.D[idx], self.inputs, tuple(outputs), self.states
+        )
 
     def discretize_foh(self, dt_s: float) -> DiscreteSystem:
         """Exact discretisation for inputs that are linear between samples (first-order hold).

@@ -203,7 +203,9 @@ class MechanicalNetwork:
                 if sign:
                     r = link_rows[link.name]
                     contact = _OutputRow(
-                        contact.q + sign * r.q, contact.v + sign * r.v, contact.a,
+                        contact.q + sign * r.q,
+                        contact.v + sign * r.v,
+                        contact.a,
                         contact.u + sign * r.u,
                     )
             rows["f_contact"] = contact
@@ -239,9 +241,7 @@ class MechanicalNetwork:
             force = u @ self.F_in.T
             q = np.linalg.solve(dyn, force[..., None])[..., 0]
         v, a = 1j * w[:, None] * q, -(w**2)[:, None] * q
-        return {
-            name: q @ r.q + v @ r.v + a @ r.a + u @ r.u for name, r in self._rows.items()
-        }
+        return {name: q @ r.q + v @ r.v + a @ r.a + u @ r.u for name, r in self._rows.items()}
 
     def state_space(self, outputs: Sequence[str] | None = None) -> LinearSystem:
         """State-space form with state ``[q, v]`` and inputs :attr:`input_names`."""
