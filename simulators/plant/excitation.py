@@ -1,0 +1,161 @@
+"""Excitation waveforms as pure functions of time.
+
+The same objects serve the offline plant simulation and the simulated actuator controller's
+function generator, which evaluates them block by block at the sample instants it needs. Each
+waveform knows its instantaneous frequency and amplitude, which a non-linear plant uses to choose
+its operating point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+class Waveform(Protocol):
+    """A finite excitation starting at t = 0."""
+
+    @property
+    def duration_s(self) -> float: ...
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        """The excitation (displacement in m, or force in N) at times ``t_s``; zero outside."""
+        ...
+
+    def frequency_hz(self, t_s: float) -> float:
+        """Instantaneous excitation frequency at ``t_s``."""
+        ...
+
+    @property
+    def amplitude(self) -> float: ...
+
+
+def taper_envelope(t_s: np.ndarray, total_s: float, taper_in_s: float, taper_out_s: float) -> np.ndarray:
+    """Raised-cosine ramps at both ends of ``[0, total_s]``, 1 in between, 0 outside.
+
+    A raised cosine has zero slope at its ends, so neither velocity nor acceleration jumps when an
+    excitation starts or stops: every start and stop tapers.
+    """
+    t = np.asarray(t_s, dtype=float)
+    env = np.where((t >= 0) & (t <= total_s), 1.0, 0.0)
+    if taper_in_s > 0:
+        ramp = (t >= 0) & (t < taper_in_s)
+        env = np.where(ramp, 0.5 - 0.5 * np.cos(np.pi * t / taper_in_s), env)
+    if taper_out_s > 0:
+        t_out = total_s - t
+        ramp = (t_out >= 0) & (t_out < taper_out_s)
+        env = np.where(ramp, np.minimum(env, 0.5 - 0.5 * np.cos(np.pi * t_out / taper_out_s)), env)
+    return env
+
+
+def _check_taper(total_s: float, taper_in_s: float, taper_out_s: float) -> None:
+    if taper_in_s < 0 or taper_out_s < 0 or taper_in_s + taper_out_s > total_s:
+        raise ValueError(
+            f"tapers ({taper_in_s} s in, {taper_out_s} s out) must be >= 0 and fit in {total_s} s"
+        )
+
+
+@dataclass(frozen=True)
+class SineDwell:
+    """A sine at one frequency: taper in, hold, taper out (sine phase zero at t = 0)."""
+
+    freq_hz: float
+    amplitude: float
+    hold_s: float
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.freq_hz <= 0 or self.amplitude < 0 or self.hold_s < 0:
+            raise ValueError(f"invalid dwell {self}")
+        _check_taper(self.duration_s, self.taper_in_s, self.taper_out_s)
+
+    @property
+    def duration_s(self) -> float:
+        return self.taper_in_s + self.hold_s + self.taper_out_s
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        env = taper_envelope(t, self.duration_s, self.taper_in_s, self.taper_out_s)
+        return self.amplitude * env * np.sin(2 * np.pi * self.freq_hz * t)
+
+    def frequency_hz(self, t_s: float) -> float:
+        return self.freq_hz
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A sine sweep from ``start_hz`` to ``end_hz`` over ``sweep_s``, linear or logarithmic in frequency.
+
+    The tapers lie inside the sweep: the first ``taper_in_s`` and the last ``taper_out_s`` seconds
+    are ramped.
+    """
+
+    start_hz: float
+    end_hz: float
+    sweep_s: float
+    amplitude: float
+    spacing: str = "linear"
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.start_hz <= 0 or self.end_hz <= 0 or self.sweep_s <= 0 or self.amplitude < 0:
+            raise ValueError(f"invalid sweep {self}")
+        if self.spacing not in ("linear", "log"):
+            raise ValueError(f"sweep spacing must be 'linear' or 'log', got {self.spacing!r}")
+        _check_taper(self.sweep_s, self.taper_in_s, self.taper_out_s)
+
+    @property
+    def duration_s(self) -> float:
+        return self.sweep_s
+
+    def _phase_rad(self, t: np.ndarray) -> np.ndarray:
+        f0, f1, T = self.start_hz, self.end_hz, self.sweep_s
+        if self.spacing == "linear":
+            return 2 * np.pi * (f0 * t + (f1 - f0) * t**2 / (2 * T))
+        if f1 == f0:
+            return 2 * np.pi * f0 * t
+        rate = math.log(f1 / f0) / T
+        return 2 * np.pi * f0 * np.expm1(rate * t) / rate
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        env = taper_envelope(t, self.sweep_s, self.taper_in_s, self.taper_out_s)
+        return self.amplitude * env * np.sin(self._phase_rad(np.clip(t, 0, self.sweep_s)))
+
+    def frequency_hz(self, t_s: float) -> float:
+        x = min(max(t_s / self.sweep_s, 0.0), 1.0)
+        if self.spacing == "linear":
+            return self.start_hz + (self.end_hz - self.start_hz) * x
+        return self.start_hz * (self.end_hz / self.start_hz) ** x
+
+
+@dataclass(frozen=True)
+class HalfSinePulse:
+    """A hammer blow: a half-sine force pulse of ``amplitude`` newtons lasting ``width_s``."""
+
+    amplitude: float
+    width_s: float = 2e-4
+    delay_s: float = 0.01
+    record_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.width_s <= 0 or self.delay_s < 0 or self.record_s < self.delay_s + self.width_s:
+            raise ValueError(f"invalid pulse {self}")
+
+    @property
+    def duration_s(self) -> float:
+        return self.record_s
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        tau = np.asarray(t_s, dtype=float) - self.delay_s
+        inside = (tau >= 0) & (tau <= self.width_s)
+        return np.where(inside, self.amplitude * np.sin(np.pi * np.clip(tau, 0, None) / self.width_s), 0.0)
+
+    def frequency_hz(self, t_s: float) -> float:
+        """A pulse has no single frequency; its spectrum is flat to about 1 / width."""
+        return 1.0 / self.width_s
