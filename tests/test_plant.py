@@ -108,7 +108,7 @@ def test_wfs_quantisation_and_noise_levels():
     assert quantised.wfs_step_n == pytest.approx(6.0)
 
     noisy = SensorRealism(seed=3, decimation=False, quantisation=False)
-    rest = PlantSimulator(setup, realism=noisy).advance(np.zeros(20_000))
+    rest = PlantSimulator(setup, realism=noisy).advance(np.zeros(200_000))
     assert np.std(rest["fz_wfs_n"]) == pytest.approx(noisy.wfs_noise_n, rel=0.05)
     assert np.std(rest["f_plate_n"]) == pytest.approx(noisy.load_cell_noise_n, rel=0.05)
     assert np.std(rest["z_base_m"]) == pytest.approx(noisy.displacement_noise_m, rel=0.05)

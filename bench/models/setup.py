@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
+from scipy.optimize import brentq
 
 from bench.models.benches import TyreModel, free_run, hammer_test, quarter_car, shaker_bench
 from bench.models.network import MechanicalNetwork
@@ -24,8 +25,7 @@ class BenchKind(StrEnum):
     HAMMER = "hammer"  # bare sensor on a rigid foundation, hammer blow
 
 
-_BALANCE_TOLERANCE = 1e-6
-_BALANCE_MAX_ITERATIONS = 200
+_BALANCE_TOLERANCE = 1e-5  # relative, on the deflection amplitude
 
 
 @dataclass(frozen=True)
@@ -96,23 +96,29 @@ class BenchSetup:
     def linear_tyre(self, freq_hz: float, amplitude_m: float) -> Tyre:
         """The equivalent linear tyre for a base motion ``amplitude_m`` at ``freq_hz``.
 
-        Solves the describing-function fixed point ``X = |H_X(f; d_eq(X))| * amplitude``, where X is
-        the deflection amplitude of the tyre's friction element (the tyre link, or the upper
-        sidewall in Model 3). Linear tyres are returned unchanged.
+        Solves the describing-function balance ``X = |H_X(f; d_eq(X))| * amplitude`` for X, the
+        deflection amplitude of the tyre's friction element (the tyre link, or the upper sidewall
+        in Model 3), by Brent's method. Below the stick deflection the equivalent damping no longer
+        changes, so a balance below it is the response at the stick deflection. Linear tyres are
+        returned unchanged.
         """
-        if self.nonlinearity is None or not self.has_tyre:
+        if self.nonlinearity is None or not self.has_tyre or amplitude_m <= 0:
             return self.tyre
         law = self.nonlinearity
-        deflection = max(amplitude_m, law.stick_deflection_m)
-        for _ in range(_BALANCE_MAX_ITERATIONS):
-            tyre = law.linearised(self.tyre, freq_hz, deflection)
-            response = self.network(tyre).frequency_response(freq_hz)
-            lower = "z_sidewall" if self.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
-            new = float(np.abs(response[lower][0] - response["z_rim"][0])) * amplitude_m
-            if abs(new - deflection) <= _BALANCE_TOLERANCE * max(deflection, 1e-12):
-                return law.linearised(self.tyre, freq_hz, new)
-            deflection = 0.5 * (deflection + new)  # damped iteration: robust near resonance
-        raise RuntimeError(f"harmonic balance did not converge at {freq_hz} Hz, {amplitude_m} m")
+        lower = "z_sidewall" if self.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
+
+        def deflection_m(assumed_m: float) -> float:
+            response = self.network(law.linearised(self.tyre, freq_hz, assumed_m)).frequency_response(freq_hz)
+            return float(np.abs(response[lower][0] - response["z_rim"][0])) * amplitude_m
+
+        x_stick = law.stick_deflection_m
+        at_stick = deflection_m(x_stick)
+        if at_stick <= x_stick:
+            return law.linearised(self.tyre, freq_hz, at_stick)
+        # The deflection with the least friction damping bounds the balance from above.
+        x_high = 2.0 * max(at_stick, deflection_m(1e3 * max(amplitude_m, x_stick)))
+        balance = brentq(lambda x: deflection_m(x) - x, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
+        return law.linearised(self.tyre, freq_hz, balance)
 
     def operating_network(self, freq_hz: float, amplitude_m: float) -> MechanicalNetwork:
         """The linear equivalent network at an operating point (the nominal one for linear tyres)."""

@@ -28,7 +28,9 @@ class SensorRealism:
       share the filter and stay mutually aligned. Off: plain subsampling.
     - ``quantisation``: WFS forces quantised in steps of ``WFS_RANGE_N / WFS_RESOLUTION_STEPS``
       at the internal rate (the converter's resolution).
-    - ``noise``: white noise at the internal rate on every measured channel (rms levels below).
+    - ``noise``: white noise on every measured channel. The WFS noise is the converter's, at the
+      internal rate before quantisation (it dithers the quantiser); the other levels are rms at
+      the output rate, as a data sheet states them for the acquisition bandwidth.
     - ``accelerometer_dynamics``: the mass-production hub accelerometer is a second-order
       Butterworth low-pass at ``accelerometer_bandwidth_hz`` with a constant offset.
     """
@@ -106,5 +108,5 @@ class Decimator:
         data = np.concatenate([self._history, block], axis=1)
         self._history = data[:, n:]
         windows = np.lib.stride_tricks.sliding_window_view(data, self.taps.size, axis=1)
-        # output k uses inputs ending at internal index k*factor of this block
+        # output k is the window ending at block sample k * factor
         return windows[:, :: self.factor, :] @ self.taps[::-1]

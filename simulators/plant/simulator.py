@@ -2,7 +2,7 @@
 
 The linear part is exact: the continuous state space (servo actuator -> mechanical network ->
 hub accelerometer) is discretised for inputs that are linear between samples and stepped in modal
-coordinates with one first-order recursion per mode (``scipy.signal.lfilter``), never a Python loop
+coordinates with one first-order recursion per mode (``scipy.signal.sosfilt``), never a Python loop
 over samples. A non-linear tyre is handled as an equivalent linear system per operating point
 (see :class:`bench.models.parameters.TyreNonlinearity`): the physical state carries over when the
 operating point changes.
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import matrix_balance
-from scipy.signal import lfilter
+from scipy.signal import sosfilt
 
 from bench.models.linear_system import DiscreteSystem, LinearSystem
 from bench.models.setup import BenchKind, BenchSetup
@@ -94,7 +94,7 @@ class _ModalStepper:
         self.b0 = (self.V_inv @ dsys.g0)[:, 0]
         self.b1 = (self.V_inv @ dsys.g1)[:, 0]
         self.CV = (dsys.C @ self.V) * self.weight
-        self.D = dsys.D
+        self.D = dsys.D[:, 0] if np.any(dsys.D) else None  # no feedthrough from a 3rd-order actuator
 
     def run(self, x_prev: np.ndarray, u_prev: float, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Outputs for the input samples ``u`` after state ``x_prev`` under input ``u_prev``.
@@ -103,10 +103,15 @@ class _ModalStepper:
         """
         xi0 = self.V_inv @ x_prev
         modes = np.empty((self.lam.size, u.size), dtype=complex)
+        u_complex = u.astype(complex)
         for i, lam in enumerate(self.lam):
-            b = [self.b1[i], self.b0[i]]
-            modes[i], _ = lfilter(b, [1.0, -lam], u, zi=[self.b0[i] * u_prev + lam * xi0[i]])
-        y = (self.CV @ modes).real + self.D @ u[None, :]
+            # one first-order complex section: xi[k] = lam xi[k-1] + b1 u[k] + b0 u[k-1]
+            section = np.array([[self.b1[i], self.b0[i], 0.0, 1.0, -lam, 0.0]])
+            initial = np.array([[self.b0[i] * u_prev + lam * xi0[i], 0.0]])
+            modes[i], _ = sosfilt(section, u_complex, zi=initial)
+        y = (self.CV @ modes).real
+        if self.D is not None:
+            y += np.outer(self.D, u)
         x_last = (self.V @ (self.weight * modes[:, -1])).real if modes.size else x_prev
         return y, x_last
 
@@ -154,6 +159,8 @@ class PlantSimulator:
             system = self.actuator.system().then(network.state_space(outputs=wanted))
             if self.realism.accelerometer_dynamics and "a_hub" in wanted:
                 system = system.then(accelerometer_system(self.realism.accelerometer_bandwidth_hz))
+                wanted[wanted.index("a_hub")] = "a_hub_sensor"
+            system = system.select(wanted)
         self._system = system
         self._rows = self._channel_rows(system)
         return _ModalStepper(system.discretize_foh(1.0 / self.internal_rate_hz))
@@ -210,26 +217,33 @@ class PlantSimulator:
                 internal[i] = y[row]
         if self._hammer:
             internal[1] = u
-        self._apply_sensor_effects(internal)
+        self._wfs_converter(internal)
         out = self._decimator(internal)
+        self._output_noise(out)
         if not self._hammer and self.realism.accelerometer_dynamics:
             out[self.channels.index("a_hub_m_s2")] += self.realism.accelerometer_offset_m_s2
         return dict(zip(self.channels, out, strict=True))
 
-    def _apply_sensor_effects(self, signals: np.ndarray) -> None:
-        """Noise and quantisation at the internal rate, in place."""
+    def _wfs_converter(self, internal: np.ndarray) -> None:
+        """The WFS converter at the internal rate: its noise, then quantisation (in place)."""
+        r, i = self.realism, self.channels.index("fz_wfs_n")
+        if r.noise:
+            internal[i] += r.wfs_noise_n * self._rng.standard_normal(internal.shape[1])
+        if r.quantisation:
+            internal[i] = np.round(internal[i] / r.wfs_step_n) * r.wfs_step_n
+
+    def _output_noise(self, out: np.ndarray) -> None:
+        """Noise of the other transducers, rms at the output rate (in place)."""
         r = self.realism
+        if not r.noise or self._hammer:
+            return
         levels = {
             "z_base_m": r.displacement_noise_m,
             "f_plate_n": r.load_cell_noise_n,
-            "fz_wfs_n": r.wfs_noise_n,
             "a_hub_m_s2": r.accelerometer_noise_m_s2,
         }
-        for i, channel in enumerate(self.channels):
-            if r.noise and channel in levels:
-                signals[i] += levels[channel] * self._rng.standard_normal(signals.shape[1])
-            if r.quantisation and channel == "fz_wfs_n":
-                signals[i] = np.round(signals[i] / r.wfs_step_n) * r.wfs_step_n
+        for channel, rms in levels.items():
+            out[self.channels.index(channel)] += rms * self._rng.standard_normal(out.shape[1])
 
     def reset(self) -> None:
         """Back to rest: zero state, fresh filters and the seed's first noise sample."""
