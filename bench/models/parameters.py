@@ -104,7 +104,7 @@ class TyreNonlinearity:
     stiffness_rise_per_decade: float = 0.03
     reference_frequency_hz: float = 10.0
     min_frequency_hz: float = 0.5
-    friction_force_n: float = 8.0
+    friction_force_n: float = 4.0
     stick_deflection_m: float = 1e-4
 
     def stiffness_factor(self, freq_hz: float) -> float:
