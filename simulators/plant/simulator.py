@@ -69,10 +69,17 @@ class ServoActuator:
 
 
 class _ModalStepper:
-    """Exact first-order-hold stepping of a single-input discrete system in modal coordinates.
+    """Exact first-order-hold stepping of a single-input discrete system, mode by mode, in real
+    arithmetic.
 
-    Complex modes come in conjugate pairs for a real system driven by a real input, so only one
-    mode of each pair is stepped and counted twice.
+    Each mode obeys ``xi[k] = lam xi[k-1] + b1 u[k] + b0 u[k-1]``. Over a block, xi is the
+    response to the block's input from rest plus the free decay ``r lam^k`` of what the block
+    inherits (``r = lam xi[-1] + b0 u[-1]``). A conjugate pair is stepped once: its forced part
+    is the real all-pole biquad ``w = u / ((1 - lam z^-1)(1 - conj(lam) z^-1))`` with the three-tap
+    numerator ``xi = n0 w[k] + n1 w[k-1] + n2 w[k-2]``; a real mode uses a first-order section.
+    The free decays ``Re(lam^k)``, ``Im(lam^k)`` depend only on the block length and are cached.
+    So the per-sample work is one real ``sosfilt`` section per mode and two matrix products, and
+    only the physical state is kept between blocks: the system may change between any two blocks.
     """
 
     def __init__(self, dsys: DiscreteSystem):
@@ -85,34 +92,60 @@ class _ModalStepper:
             raise ValueError("state matrix is (nearly) defective: modal stepping would be inaccurate")
         v = scale[:, None] * modes
         v_inv = np.linalg.inv(modes) / scale[None, :] if modes.size else modes
-        keep = lam.imag >= -1e-12 * np.abs(lam)
-        keep &= ~((np.abs(lam.imag) <= 1e-12 * np.abs(lam)) & (lam.imag < 0))
-        self.weight = np.where(np.abs(lam.imag[keep]) > 1e-12 * np.abs(lam[keep]), 2.0, 1.0)
+        tiny = 1e-12 * np.abs(lam)
+        keep = (lam.imag > tiny) | (np.abs(lam.imag) <= tiny)  # one of each pair, and real modes
         self.lam = lam[keep]
-        self.V = v[:, keep]
+        paired = np.abs(self.lam.imag) > tiny[keep]
+        weight = np.where(paired, 2.0, 1.0)
         self.V_inv = v_inv[keep]
         self.b0 = (self.V_inv @ dsys.g0)[:, 0]
-        self.b1 = (self.V_inv @ dsys.g1)[:, 0]
-        self.CV = (dsys.C @ self.V) * self.weight
+        b1 = (self.V_inv @ dsys.g1)[:, 0]
+        conj = np.conj(self.lam)
+        a1 = np.where(paired, -2 * self.lam.real, -self.lam.real)
+        a2 = np.where(paired, np.abs(self.lam) ** 2, 0.0)
+        self.sections = [np.array([[1.0, 0.0, 0.0, 1.0, a1[i], a2[i]]]) for i in range(self.lam.size)]
+        num = np.stack(
+            [b1, np.where(paired, self.b0 - b1 * conj, self.b0), np.where(paired, -self.b0 * conj, 0)]
+        )
+        # every output and state variable as real combinations of the taps w[k], w[k-1], w[k-2]
+        out_modes = (dsys.C @ v[:, keep]) * weight
+        state_modes = v[:, keep] * weight
+        self.out_taps = (out_modes[:, :, None] * num.T[None]).real.reshape(dsys.C.shape[0], -1)
+        self.state_taps = (state_modes[:, :, None] * num.T[None]).real.reshape(v.shape[0], -1)
+        self.out_modes, self.state_modes = out_modes, state_modes
         self.D = dsys.D[:, 0] if np.any(dsys.D) else None  # no feedthrough from a 3rd-order actuator
+        self._decay: np.ndarray | None = None
+
+    def _decays(self, n: int) -> np.ndarray:
+        """Re(lam^k) and Im(lam^k) for k < n, stacked (2 * modes x n); cached per block length."""
+        if self._decay is None or self._decay.shape[1] != n:
+            powers = np.ones((self.lam.size, n), dtype=complex)
+            powers[:, 1:] = self.lam[:, None]
+            powers = np.cumprod(powers, axis=1)  # lam^k, accurate to ~k * eps
+            decay = np.concatenate([powers.real, powers.imag])
+            decay[np.abs(decay) < 1e-30] = 0.0  # decayed: and subnormal numbers are slow
+            self._decay = decay
+        return self._decay
 
     def run(self, x_prev: np.ndarray, u_prev: float, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Outputs for the input samples ``u`` after state ``x_prev`` under input ``u_prev``.
 
         Returns the outputs (outputs x samples) and the state at the last sample.
         """
-        xi0 = self.V_inv @ x_prev
-        modes = np.empty((self.lam.size, u.size), dtype=complex)
-        u_complex = u.astype(complex)
-        for i, lam in enumerate(self.lam):
-            # one first-order complex section: xi[k] = lam xi[k-1] + b1 u[k] + b0 u[k-1]
-            section = np.array([[self.b1[i], self.b0[i], 0.0, 1.0, -lam, 0.0]])
-            initial = np.array([[self.b0[i] * u_prev + lam * xi0[i], 0.0]])
-            modes[i], _ = sosfilt(section, u_complex, zi=initial)
-        y = (self.CV @ modes).real
+        taps = np.zeros((3 * self.lam.size, u.size))
+        for i, section in enumerate(self.sections):
+            w = sosfilt(section, u)
+            taps[3 * i] = w
+            taps[3 * i + 1, 1:] = w[:-1]
+            taps[3 * i + 2, 2:] = w[:-2]
+        inherited = self.lam * (self.V_inv @ x_prev) + self.b0 * u_prev
+        out_free = self.out_modes * inherited
+        state_free = self.state_modes * inherited
+        decay = self._decays(u.size)
+        y = self.out_taps @ taps + np.hstack([out_free.real, -out_free.imag]) @ decay
         if self.D is not None:
             y += np.outer(self.D, u)
-        x_last = (self.V @ (self.weight * modes[:, -1])).real if modes.size else x_prev
+        x_last = self.state_taps @ taps[:, -1] + np.hstack([state_free.real, -state_free.imag]) @ decay[:, -1]
         return y, x_last
 
 
