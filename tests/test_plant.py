@@ -198,3 +198,27 @@ def test_invalid_waveforms_are_refused():
         Sweep(1.0, 10.0, 10.0, 0.001, spacing="cubic")
     with pytest.raises(ValueError, match="invalid"):
         SineDwell(0.0, 0.001, hold_s=1.0)
+
+
+@pytest.mark.parametrize("spacing", ["linear", "log"])
+def test_sweep_frequency_is_the_derivative_of_its_phase(spacing):
+    """The zero crossings of a sweep come at the rate its frequency_hz() says."""
+    sweep = Sweep(2.0, 40.0, 10.0, 1.0, spacing=spacing, taper_in_s=0.0, taper_out_s=0.0)
+    t = np.arange(0, 10.0, 1e-5)
+    x = sweep.value(t)
+    crossings = t[1:][np.signbit(x[1:]) != np.signbit(x[:-1])]
+    half_periods = np.diff(crossings)
+    measured_hz = 0.5 / half_periods
+    expected_hz = np.array([sweep.frequency_hz(c) for c in 0.5 * (crossings[1:] + crossings[:-1])])
+    np.testing.assert_allclose(measured_hz[5:-5], expected_hz[5:-5], rtol=2e-3)
+    assert sweep.frequency_hz(0.0) == 2.0 and sweep.frequency_hz(10.0) == pytest.approx(40.0)
+
+
+def test_taper_envelope_is_smooth_and_bounded():
+    from simulators.plant.excitation import taper_envelope
+
+    t = np.linspace(-1, 11, 120_001)
+    env = taper_envelope(t, 10.0, 2.0, 3.0)
+    assert env[t < 0].max() == 0.0 and env[t > 10].max() == 0.0
+    assert env.max() == 1.0
+    assert np.max(np.abs(np.diff(env))) < 1e-3  # no step anywhere
