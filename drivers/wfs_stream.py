@@ -100,7 +100,8 @@ class StreamParser:
             if n_good:
                 chunks.append(frames[:n_good])
                 pos += n_good * FRAME_SIZE
-            if n_good < n:
+            if n_good < n and buf.startswith(SYNC_BYTES, pos):
+                # a sync word with a bad CRC: reject it and resynchronise from the next byte
                 self.counters.crc_rejects += 1
                 self.counters.bytes_discarded += 1
                 pos += 1
