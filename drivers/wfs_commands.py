@@ -9,7 +9,8 @@ Host to device, one ASCII line each, terminated by ``\\n``::
     RATE <hz>      -> $OK,RATE,<hz>*HH      set the sample rate (while stopped)
     RATE?          -> $OK,RATE,<hz>*HH
 
-A refused or unknown command answers ``$ERR,<COMMAND>,<reason>*HH``. Replies are framed like NMEA
+A refused command answers ``$ERR,<COMMAND>,<reason>*HH``; a line that is no command answers
+``$ERR,?,<reason>*HH``. Replies are framed like NMEA
 sentences: ``$``, comma-separated printable ASCII, ``*``, two hex digits of the XOR of every byte
 between ``$`` and ``*``, then ``\\r\\n``. They are interleaved with the binary frames between two
 frames; the checksum lets the stream parser tell a reply from binary bytes that look like one.
@@ -26,6 +27,7 @@ COMMANDS = ("IDENT", "START", "STOP", "TARE", "RATE")
 REPLY_START = b"$"
 REPLY_END = b"\r\n"
 MAX_REPLY_LEN = 160
+UNKNOWN = "?"  # the command field of the reply to a line that is no command
 
 
 def checksum(body: bytes) -> int:
@@ -85,6 +87,6 @@ def parse_reply(line: bytes) -> Reply:
     if checksum(body) != expected or not text.isprintable():
         raise MalformedReplyError(f"reply checksum mismatch: {line[:40]!r}")
     fields = text.split(",")
-    if len(fields) < 2 or fields[0] not in ("OK", "ERR") or fields[1] not in COMMANDS:
+    if len(fields) < 2 or fields[0] not in ("OK", "ERR") or fields[1] not in (*COMMANDS, UNKNOWN):
         raise MalformedReplyError(f"reply of unknown form: {text[:40]!r}")
     return Reply(fields[0] == "OK", fields[1], tuple(fields[2:]))
