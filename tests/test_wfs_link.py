@@ -28,7 +28,7 @@ def _rig(link, *, faults=None, speed_rad_s=0.0):
 @pytest.fixture
 def memory_rig():
     link = MemoryLink()
-    bench, device, runner = _rig(link)
+    _bench, device, runner = _rig(link)
     reader = WfsReader(link.open_host)
     reader.start()
     yield link, device, reader
@@ -57,7 +57,7 @@ def test_command_set_in_memory(memory_rig):
 
 
 def test_garbage_command_lines_get_an_error_reply_and_the_device_keeps_serving(memory_rig):
-    link, _, reader = memory_rig
+    _link, _, reader = memory_rig
     reader._write(b"\xff\xfe garbage\n" + b"x" * 100 + b"\n", 1.0)
     assert reader.identify() == IDENTITY
 
@@ -82,7 +82,7 @@ def test_no_reply_is_a_timeout(memory_rig):
 def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     link = MemoryLink()
     faults = ByteFaults(seed=11, bit_error_rate=1e-3, drop_rate=1e-4, duplicate_rate=1e-4, garbage_rate=1e-4)
-    bench, device, runner = _rig(link, faults=faults)
+    _bench, device, runner = _rig(link, faults=faults)
     reader = WfsReader(link.open_host)
     reader.start()
     try:
@@ -120,7 +120,7 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
 def test_stream_over_a_real_pseudo_terminal_with_rotation():
     link = PtyLink()
     speed = 2 * np.pi * 5  # 5 rev/s
-    bench, device, runner = _rig(link, speed_rad_s=speed)
+    _bench, device, runner = _rig(link, speed_rad_s=speed)
     reader = WfsReader.serial(link.path, baudrate=921600)
     reader.start()
     try:
