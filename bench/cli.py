@@ -1,9 +1,16 @@
-"""The ``wfsbench`` command line."""
+"""The ``wfsbench`` command line: a small front door to the links and the simulated bench."""
 
 from __future__ import annotations
 
 import argparse
+import asyncio
 import sys
+import time
+
+from drivers.actuator import ActuatorClient
+from drivers.errors import LinkError
+from drivers.wfs_reader import WfsReader
+from simulators.serve import serve  # the CLI is a composition root: it may know the simulators
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -14,18 +21,88 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sim_serve(args: argparse.Namespace) -> int:
+    asyncio.run(serve(args.host, args.port, paced=not args.fast, seed=args.seed, ready=_announce))
+    return 0
+
+
+def _announce(line: str) -> None:
+    print(line, flush=True)
+
+
+def _wfs_monitor(args: argparse.Namespace) -> int:
+    """Live values and link counters, one line per ``--interval`` seconds."""
+    with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
+        if not reader.wait_connected(5):
+            print(f"cannot open {args.port}: {reader.last_error}", file=sys.stderr)
+            return 1
+        print("identity:", ",".join(reader.identify()))
+        reader.start_stream()
+        end = time.monotonic() + args.duration if args.duration else None
+        try:
+            while end is None or time.monotonic() < end:
+                block = reader.read_frames(max(1, int(args.interval * 1000)), timeout_s=args.interval + 5)
+                f = block.frames[-1]
+                c = reader.counters
+                print(
+                    f"sample {f['sample']:>9}  Fz {f['fz']:9.1f} N  z {f['aux0'] * 1000:7.3f} mm  "
+                    f"F_plate {f['aux1']:9.1f} N  a_hub {f['aux2']:7.2f} m/s2  | ok {c.frames_ok} "
+                    f"missing {c.frames_missing} crc {c.crc_rejects} reconnects {c.reconnects}",
+                    flush=True,
+                )
+        except KeyboardInterrupt:
+            pass
+        finally:
+            reader.stop_stream()
+    return 0
+
+
+async def _actuator_status(args: argparse.Namespace) -> int:
+    client = ActuatorClient.tcp(args.host, args.port)
+    try:
+        status = await client.connect()
+    finally:
+        await client.close()
+    for name, value in vars(status).items():
+        print(f"{name:24} {getattr(value, 'name', value)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="wfsbench", description="Wheel force sensor test bench")
-    commands = parser.add_subparsers(dest="command", required=True)
-    demo = commands.add_parser("demo", help="run the paper's shaker campaign on the simulated bench")
+    parser = argparse.ArgumentParser(prog="wfsbench", description=__doc__)
+    sub = parser.add_subparsers(dest="group", required=True)
+    demo = sub.add_parser("demo", help="run the paper's shaker campaign on the simulated bench")
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
-    demo.set_defaults(handler=_demo)
+    demo.set_defaults(run=_demo)
+    sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
+    serve = sim.add_parser("serve", help="serve the simulated controller (TCP) and WFS (pty)")
+    serve.add_argument("--host", default="127.0.0.1")
+    serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
+    serve.add_argument("--seed", type=int, default=1)
+    serve.add_argument("--fast", action="store_true", help="as fast as the reader drains, not real time")
+    serve.set_defaults(run=_sim_serve)
+    wfs = sub.add_parser("wfs", help="WFS acquisition").add_subparsers(dest="action", required=True)
+    monitor = wfs.add_parser("monitor", help="show live values and link counters")
+    monitor.add_argument("--port", required=True, help="serial device or pty path")
+    monitor.add_argument("--baudrate", type=int, default=921600)
+    monitor.add_argument("--interval", type=float, default=1.0, help="seconds per line")
+    monitor.add_argument("--duration", type=float, default=0.0, help="seconds (0: until Ctrl-C)")
+    monitor.set_defaults(run=_wfs_monitor)
+    act = sub.add_parser("actuator", help="actuator controller").add_subparsers(dest="action", required=True)
+    status = act.add_parser("status", help="read the controller state")
+    status.add_argument("--host", default="127.0.0.1")
+    status.add_argument("--port", type=int, required=True)
+    status.set_defaults(run=lambda a: asyncio.run(_actuator_status(a)))
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return args.handler(args)
+    try:
+        return args.run(args)
+    except LinkError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -1,0 +1,56 @@
+"""The typed errors of the hardware links.
+
+Every failure a caller may want to react to differently has its own class: a limit violation
+(nothing was sent), a timeout, a device exception reply, a lost connection, a protocol mismatch, a
+malformed register map or command reply.
+"""
+
+from __future__ import annotations
+
+
+class LinkError(Exception):
+    """Base of every error raised by the drivers."""
+
+
+class RegisterMapError(LinkError):
+    """A register-map file is malformed; the message names the file and the key."""
+
+
+class LimitError(LinkError, ValueError):
+    """A setpoint lies outside the bench's soft limits; nothing was written."""
+
+
+class LinkTimeoutError(LinkError, TimeoutError):
+    """The device did not answer in time."""
+
+
+class CommandOutcomeUnknownError(LinkTimeoutError):
+    """A command write timed out: it may or may not have been applied, so it is not re-sent.
+
+    Read the status to learn what the device did.
+    """
+
+
+class DeviceExceptionError(LinkError):
+    """The device answered with a Modbus exception response."""
+
+    def __init__(self, operation: str, exception_code: int) -> None:
+        super().__init__(f"{operation}: device answered with Modbus exception code {exception_code}")
+        self.operation = operation
+        self.exception_code = exception_code
+
+
+class ConnectionLostError(LinkError, ConnectionError):
+    """The link to the device is down (not connected, closed, or dropped mid-request)."""
+
+
+class ProtocolMismatchError(LinkError):
+    """The device speaks another protocol version than the register map expects."""
+
+
+class CommandRejectedError(LinkError):
+    """The device refused a command (an ``ERR`` reply, or a state that does not allow it)."""
+
+
+class MalformedReplyError(LinkError):
+    """A reply could not be parsed."""

@@ -1,0 +1,266 @@
+"""The actuator controller's register map, loaded from TOML and validated.
+
+The map is data so that a lab can adapt it to its controller without code changes: addresses,
+types and word order come from the file; the names the client and the simulated controller use
+are fixed (``REQUIRED``). The protocol codes (commands, waveforms, states, flags) are fixed too and
+live here as enums.
+"""
+
+from __future__ import annotations
+
+import enum
+import itertools
+import struct
+import tomllib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from drivers.errors import RegisterMapError
+
+#: register types and their width in 16-bit registers
+TYPE_WIDTH = {"uint16": 1, "int16": 1, "uint32": 2, "float32": 2}
+_STRUCT = {"uint16": "H", "int16": "h", "uint32": "I", "float32": "f"}
+TABLES = ("holding", "input")
+WORD_ORDERS = ("big", "little")
+
+REQUIRED: dict[str, frozenset[str]] = {
+    "holding": frozenset(
+        {
+            "command", "waveform", "channel_mask", "heartbeat", "watchdog_ms", "amplitude_mm",
+            "frequency_hz", "dwell_s", "sweep_start_hz", "sweep_end_hz", "sweep_duration_s",
+            "taper_in_s", "taper_out_s", "mean_mm", "displacement_limit_mm", "force_limit_n",
+        }
+    ),
+    "input": frozenset(
+        {
+            "protocol_version", "state", "interlock_flags", "error_code", "heartbeat_echo",
+            "cycle_count", "achieved_amplitude_mm", "actual_displacement_mm", "actual_force_n",
+            "frequency_hz", "sample_count",
+        }
+    ),
+}  # fmt: skip
+_REGISTER_KEYS = {"address", "type", "unit", "doc"}
+
+
+class Command(enum.IntEnum):
+    """Codes written to the ``command`` register."""
+
+    HYDRAULICS_OFF = 1
+    HYDRAULICS_LOW = 2
+    HYDRAULICS_HIGH = 3
+    START = 4
+    STOP = 5
+    ESTOP = 6
+    RESET_INTERLOCK = 7
+
+
+class WaveformCode(enum.IntEnum):
+    """Codes of the ``waveform`` register."""
+
+    STATIC = 0
+    SINE_DWELL = 1
+    LINEAR_SWEEP = 2
+    LOG_SWEEP = 3
+
+
+class ControllerState(enum.IntEnum):
+    """Values of the ``state`` input register."""
+
+    OFF = 0
+    HYDRAULICS_LOW = 1
+    HYDRAULICS_HIGH = 2
+    RUNNING = 3
+    TAPERING = 4
+    INTERLOCK = 5
+    ESTOP = 6
+
+
+class InterlockFlag(enum.IntFlag):
+    """Bits of the ``interlock_flags`` input register."""
+
+    DISPLACEMENT = 1
+    FORCE = 2
+    WATCHDOG = 4
+    ESTOP = 8
+
+
+class ErrorCode(enum.IntEnum):
+    """Values of the ``error_code`` input register: why the last write was refused."""
+
+    NONE = 0
+    UNKNOWN_COMMAND = 1
+    NOT_ALLOWED_IN_STATE = 2
+    INVALID_SETPOINT = 3
+
+
+@dataclass(frozen=True)
+class Register:
+    """One named value: ``width`` consecutive registers from ``address`` in ``table``."""
+
+    table: str
+    name: str
+    address: int
+    type: str
+    unit: str = ""
+    doc: str = ""
+
+    @property
+    def width(self) -> int:
+        return TYPE_WIDTH[self.type]
+
+
+@dataclass(frozen=True)
+class RegisterMap:
+    """A validated register map: named registers of the holding and input tables and the word order."""
+
+    name: str
+    protocol_version: int
+    word_order: str
+    device_id: int
+    holding: Mapping[str, Register]
+    input: Mapping[str, Register]
+    source: str = "<built-in>"
+
+    def table(self, table: str) -> Mapping[str, Register]:
+        return self.holding if table == "holding" else self.input
+
+    def encode(self, register: Register, value: float) -> list[int]:
+        """The 16-bit register values for ``value``, in the map's word order."""
+        fmt = _STRUCT[register.type]
+        try:
+            raw = struct.pack(">" + fmt, int(value) if fmt != "f" else float(value))
+        except struct.error as exc:
+            raise ValueError(f"{register.name}: {value!r} does not fit a {register.type}") from exc
+        words = [int.from_bytes(raw[i : i + 2], "big") for i in range(0, len(raw), 2)]
+        return words if self.word_order == "big" else words[::-1]
+
+    def decode(self, register: Register, words: Iterable[int]) -> float | int:
+        """The value held in ``words`` (exactly ``register.width`` registers)."""
+        words = list(words)
+        if len(words) != register.width:
+            raise ValueError(f"{register.name}: expected {register.width} registers, got {len(words)}")
+        if self.word_order == "little":
+            words = words[::-1]
+        raw = b"".join(int(w).to_bytes(2, "big") for w in words)
+        return struct.unpack(">" + _STRUCT[register.type], raw)[0]
+
+    def encode_many(self, table: str, values: Mapping[str, float]) -> list[tuple[int, list[int]]]:
+        """Encode named values into runs of consecutive registers: ``[(start_address, words), ...]``.
+
+        Gaps between registers split the runs, so each run is one multi-register write.
+        """
+        regs = sorted((self.table(table)[name] for name in values), key=lambda r: r.address)
+        runs: list[tuple[int, list[int]]] = []
+        for reg in regs:
+            words = self.encode(reg, values[reg.name])
+            if runs and runs[-1][0] + len(runs[-1][1]) == reg.address:
+                runs[-1][1].extend(words)
+            else:
+                runs.append((reg.address, words))
+        return runs
+
+    def span(self, table: str) -> tuple[int, int]:
+        """``(first_address, count)`` covering every register of ``table``."""
+        regs = self.table(table).values()
+        first = min(r.address for r in regs)
+        return first, max(r.address + r.width for r in regs) - first
+
+    def decode_span(self, table: str, first: int, words: list[int]) -> dict[str, float | int]:
+        """Decode every register of ``table`` contained in ``words`` read from ``first``."""
+        out: dict[str, float | int] = {}
+        for reg in self.table(table).values():
+            lo = reg.address - first
+            if lo >= 0 and lo + reg.width <= len(words):
+                out[reg.name] = self.decode(reg, words[lo : lo + reg.width])
+        return out
+
+
+def default_map_path() -> Path:
+    """The register map shipped with the package."""
+    return Path(str(resources.files("drivers") / "register_map.toml"))
+
+
+def load_register_map(path: str | Path | None = None) -> RegisterMap:
+    """Load and validate a register map; errors name the file and the key."""
+    path = Path(path) if path is not None else default_map_path()
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise RegisterMapError(f"{path}: cannot read register map: {exc}") from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RegisterMapError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_register_map(data, source=str(path))
+
+
+def _fail(source: str, key: str, message: str) -> RegisterMapError:
+    return RegisterMapError(f"{source}: [{key}] {message}")
+
+
+def _parse_header(data: dict, source: str) -> tuple[str, int, str, int]:
+    header = data.get("map")
+    if not isinstance(header, dict):
+        raise _fail(source, "map", "missing table (name, protocol_version, word_order, device_id)")
+    unknown = set(header) - {"name", "protocol_version", "word_order", "device_id"}
+    if unknown:
+        raise _fail(source, "map", f"unknown keys {sorted(unknown)}")
+    version = header.get("protocol_version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 0 <= version <= 0xFFFF:
+        raise _fail(source, "map.protocol_version", f"must be an integer 0..65535, got {version!r}")
+    order = header.get("word_order", "big")
+    if order not in WORD_ORDERS:
+        raise _fail(source, "map.word_order", f"must be one of {list(WORD_ORDERS)}, got {order!r}")
+    device_id = header.get("device_id", 1)
+    if not isinstance(device_id, int) or isinstance(device_id, bool) or not 1 <= device_id <= 247:
+        raise _fail(source, "map.device_id", f"must be an integer 1..247, got {device_id!r}")
+    return str(header.get("name", "")), version, order, device_id
+
+
+def _parse_register(table: str, name: str, entry: object, source: str) -> Register:
+    key = f"{table}.{name}"
+    if not isinstance(entry, dict):
+        raise _fail(source, key, "must be a table with address and type")
+    unknown = set(entry) - _REGISTER_KEYS
+    if unknown:
+        raise _fail(source, key, f"unknown keys {sorted(unknown)}; allowed {sorted(_REGISTER_KEYS)}")
+    address, rtype = entry.get("address"), entry.get("type")
+    if not isinstance(address, int) or isinstance(address, bool) or not 0 <= address <= 0xFFFF:
+        raise _fail(source, f"{key}.address", f"must be an integer 0..65535, got {address!r}")
+    if rtype not in TYPE_WIDTH:
+        raise _fail(source, f"{key}.type", f"unknown type {rtype!r}; use one of {sorted(TYPE_WIDTH)}")
+    if address + TYPE_WIDTH[rtype] > 0x10000:
+        raise _fail(source, f"{key}.address", "register runs past address 65535")
+    return Register(table, name, address, rtype, str(entry.get("unit", "")), str(entry.get("doc", "")))
+
+
+def _check_overlaps(table: str, regs: dict[str, Register], source: str) -> None:
+    ordered = sorted(regs.values(), key=lambda r: r.address)
+    for prev, cur in itertools.pairwise(ordered):
+        if cur.address < prev.address + prev.width:
+            raise _fail(
+                source,
+                f"{table}.{cur.name}",
+                f"address {cur.address} overlaps {table}.{prev.name} "
+                f"(addresses {prev.address}..{prev.address + prev.width - 1})",
+            )
+
+
+def parse_register_map(data: dict, source: str = "<built-in>") -> RegisterMap:
+    """Validate a register map given as parsed TOML (a dict)."""
+    unknown = set(data) - {"map", *TABLES}
+    if unknown:
+        raise _fail(source, ", ".join(sorted(unknown)), f"unknown tables; allowed: map, {', '.join(TABLES)}")
+    name, version, order, device_id = _parse_header(data, source)
+    tables: dict[str, dict[str, Register]] = {}
+    for table in TABLES:
+        raw = data.get(table, {})
+        if not isinstance(raw, dict):
+            raise _fail(source, table, "must be a table of registers")
+        regs = {reg_name: _parse_register(table, reg_name, entry, source) for reg_name, entry in raw.items()}
+        missing = REQUIRED[table] - set(regs)
+        if missing:
+            raise _fail(source, table, f"missing required registers {sorted(missing)}")
+        _check_overlaps(table, regs, source)
+        tables[table] = regs
+    return RegisterMap(name, version, order, device_id, tables["holding"], tables["input"], source)

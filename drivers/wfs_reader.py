@@ -1,0 +1,257 @@
+"""Serial reader of the WFS acquisition: a thread with blocking reads, off the event loop.
+
+The thread reads whatever the port delivers, feeds the stream parser, and hands out
+:class:`SampleBlock` s through a bounded queue (when the consumer falls behind the reader waits,
+so a device that is paced by its consumer slows down instead of losing data; a device that is
+not paced overflows its own buffers and the sequence counter reports the loss). Replies to text
+commands are routed to :meth:`WfsReader.command`. A port error closes the port and the thread
+reopens it until stopped: a disconnect and reconnect resume the stream, the frames lost in between
+show up as a gap.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+import serial
+
+from drivers.errors import CommandRejectedError, ConnectionLostError, LinkTimeoutError
+from drivers.wfs_commands import Reply, format_command
+from drivers.wfs_stream import Gap, LinkCounters, StreamParser
+
+log = logging.getLogger(__name__)
+
+
+class SerialLike(Protocol):
+    """The part of ``serial.Serial`` the reader uses (a pty, a USB adapter or an in-memory port)."""
+
+    def read(self, size: int = 1) -> bytes: ...
+
+    def write(self, data: bytes) -> int | None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class SampleBlock:
+    """Consecutive frames as delivered (FRAME_DTYPE array) and the gaps before some of them."""
+
+    frames: np.ndarray
+    gaps: tuple[Gap, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+class WfsReader:
+    """Owns the serial port, the reader thread and the stream parser."""
+
+    def __init__(
+        self,
+        open_port: Callable[[], SerialLike],
+        *,
+        read_size: int = 4096,
+        max_blocks: int = 256,
+        reconnect_interval_s: float = 0.1,
+    ) -> None:
+        self._open_port = open_port
+        self.read_size = read_size
+        self.reconnect_interval_s = reconnect_interval_s
+        self._blocks: queue.Queue[SampleBlock] = queue.Queue(maxsize=max_blocks)
+        self._replies: queue.Queue[Reply] = queue.Queue()
+        self._parser = StreamParser()
+        self._lock = threading.Lock()
+        self._port: SerialLike | None = None
+        self._stop = threading.Event()
+        self._connected = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.last_error: str | None = None
+
+    @classmethod
+    def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.05, **kwargs) -> WfsReader:
+        """A reader on a serial port or pyserial URL (``/dev/ttyUSB0``, a pty path, ``socket://...``)."""
+        return cls(lambda: serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s), **kwargs)
+
+    # -- life cycle ---------------------------------------------------------------------------
+
+    def start(self) -> None:
+        if self._thread is not None:
+            raise RuntimeError("reader already started")
+        self._thread = threading.Thread(target=self._run, name="wfs-reader", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the thread and close the port."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+            self._thread = None
+        self._close_port()
+
+    def __enter__(self) -> WfsReader:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def wait_connected(self, timeout_s: float) -> bool:
+        return self._connected.wait(timeout_s)
+
+    @property
+    def counters(self) -> LinkCounters:
+        """A consistent snapshot of the link counters."""
+        with self._lock:
+            return replace(self._parser.counters)
+
+    # -- data ---------------------------------------------------------------------------------
+
+    def get_block(self, timeout_s: float | None = None) -> SampleBlock | None:
+        """The next block of frames, or None if none arrived within ``timeout_s``."""
+        try:
+            return self._blocks.get(timeout=timeout_s)
+        except queue.Empty:
+            return None
+
+    def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
+        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps re-indexed."""
+        deadline = time.monotonic() + timeout_s
+        parts: list[np.ndarray] = []
+        gaps: list[Gap] = []
+        have = 0
+        while have < n:
+            block = self.get_block(max(deadline - time.monotonic(), 0.0))
+            if block is None:
+                raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
+            gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
+            parts.append(block.frames)
+            have += len(block)
+        return SampleBlock(np.concatenate(parts), tuple(gaps))
+
+    # -- commands -----------------------------------------------------------------------------
+
+    def command(
+        self, name: str, argument: str | float | None = None, *, timeout_s: float = 1.0, attempts: int = 3
+    ) -> Reply:
+        """Send a text command and wait for its reply; re-sent on timeout (WFS commands move nothing).
+
+        Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives.
+        """
+        line = format_command(name, argument)
+        answered = name.rstrip("?").upper()
+        for _ in range(attempts):
+            self._drain_replies()
+            self._write(line, timeout_s)
+            deadline = time.monotonic() + timeout_s
+            while (left := deadline - time.monotonic()) > 0:
+                try:
+                    reply = self._replies.get(timeout=left)
+                except queue.Empty:
+                    break
+                if reply.command != answered:
+                    continue
+                if not reply.ok:
+                    reason = ",".join(reply.fields)
+                    raise CommandRejectedError(f"WFS refused {line.decode().strip()}: {reason}")
+                return reply
+            log.warning("no reply to %r within %s s", line, timeout_s)
+        raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
+
+    def identify(self) -> tuple[str, ...]:
+        return self.command("IDENT").fields
+
+    def start_stream(self) -> None:
+        self.command("START")
+
+    def stop_stream(self) -> None:
+        self.command("STOP")
+
+    def tare(self) -> None:
+        self.command("TARE")
+
+    def set_rate(self, rate_hz: int) -> int:
+        return int(self.command("RATE", int(rate_hz)).fields[0])
+
+    def _drain_replies(self) -> None:
+        with contextlib.suppress(queue.Empty):
+            while True:
+                self._replies.get_nowait()
+
+    def _write(self, data: bytes, timeout_s: float) -> None:
+        if not self._connected.wait(timeout_s):
+            raise ConnectionLostError(f"WFS port not open ({self.last_error})")
+        port = self._port
+        try:
+            if port is None:
+                raise ConnectionLostError("WFS port closed")
+            port.write(data)
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLostError(f"writing to the WFS port failed: {exc}") from exc
+
+    # -- thread -------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        opened_before = False
+        while not self._stop.is_set():
+            if self._port is None:
+                if not self._try_open(opened_before):
+                    self._stop.wait(self.reconnect_interval_s)
+                    continue
+                opened_before = True
+            try:
+                data = self._port.read(self.read_size)
+            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+                # pyserial raises TypeError/AttributeError when the port is closed under a read
+                self.last_error = f"read failed: {exc}"
+                log.warning("WFS %s; reopening", self.last_error)
+                self._close_port()
+                continue
+            if data:
+                self._consume(data)
+
+    def _try_open(self, reopening: bool) -> bool:
+        try:
+            port = self._open_port()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self.last_error = f"open failed: {exc}"
+            return False
+        self._port = port
+        if reopening:
+            with self._lock:
+                self._parser.counters.reconnects += 1
+        self._connected.set()
+        return True
+
+    def _close_port(self) -> None:
+        self._connected.clear()
+        port, self._port = self._port, None
+        if port is not None:
+            with contextlib.suppress(serial.SerialException, OSError):
+                port.close()
+
+    def _consume(self, data: bytes) -> None:
+        with self._lock:
+            result = self._parser.feed(data)
+        for reply in result.replies:
+            self._replies.put(reply)
+        if len(result.frames) == 0 and not result.gaps:
+            return
+        block = SampleBlock(result.frames, tuple(result.gaps))
+        while not self._stop.is_set():
+            try:
+                self._blocks.put(block, timeout=0.1)
+                return
+            except queue.Full:
+                continue

@@ -1,0 +1,162 @@
+"""Find WFS frames and replies in an arbitrary byte stream, and account for every lost frame.
+
+The parser accepts bytes in chunks of any size (split anywhere), checks sync word and CRC of
+candidate frames a block at a time, resynchronises byte by byte after a bad candidate, and keeps
+the text replies that are interleaved with the frames. Every frame that does not arrive intact is
+counted through the sequence counter: a jump in ``seq`` is a gap, reported with its position;
+samples are never interpolated. A frame whose ``seq`` is not newer than the last one delivered is a
+duplicate and is dropped (and counted).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.errors import MalformedReplyError
+from drivers.wfs_commands import MAX_REPLY_LEN, REPLY_END, REPLY_START, Reply, parse_reply
+from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, valid
+
+_SEQ_MOD = 1 << 32
+_WINDOW_FRAMES = 1024  # frames checked per vectorised step
+
+
+@dataclass(frozen=True)
+class Gap:
+    """``missing`` frames absent before position ``index`` of a block (``seq`` from ``first_seq``)."""
+
+    index: int
+    first_seq: int
+    missing: int
+
+
+@dataclass
+class LinkCounters:
+    """Cumulative link statistics."""
+
+    frames_ok: int = 0
+    frames_missing: int = 0  # by sequence counter: dropped or rejected
+    gaps: int = 0
+    crc_rejects: int = 0  # candidates with a sync word whose CRC failed
+    duplicates: int = 0
+    bytes_discarded: int = 0  # bytes that belonged to no intact frame or reply
+    replies: int = 0
+    reconnects: int = 0
+
+
+@dataclass
+class ParseResult:
+    """What one :meth:`StreamParser.feed` produced."""
+
+    frames: np.ndarray
+    gaps: list[Gap] = field(default_factory=list)
+    replies: list[Reply] = field(default_factory=list)
+
+
+class StreamParser:
+    """Incremental frame/reply parser with loss accounting (not thread-safe: one reader owns it)."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self.counters = LinkCounters()
+        self.last_seq: int | None = None
+
+    def feed(self, data: bytes) -> ParseResult:
+        """Add ``data`` to the stream; return the frames, gaps and replies completed by it."""
+        self._buf += data
+        buf = bytes(self._buf)
+        chunks: list[np.ndarray] = []
+        replies: list[Reply] = []
+        pos = 0
+        while True:
+            start = self._next_candidate(buf, pos)
+            if start < 0:
+                # keep a trailing byte that may begin a sync word or a reply
+                keep = 1 if buf[-1:] in (SYNC_BYTES[:1], REPLY_START) else 0
+                self.counters.bytes_discarded += len(buf) - pos - keep
+                pos = len(buf) - keep
+                break
+            self.counters.bytes_discarded += start - pos
+            pos = start
+            if buf.startswith(REPLY_START, pos):
+                consumed, reply = self._try_reply(buf, pos)
+                if consumed == 0:
+                    break  # incomplete reply: wait for more bytes
+                if reply is None:
+                    self.counters.bytes_discarded += 1
+                    pos += 1
+                else:
+                    replies.append(reply)
+                    self.counters.replies += 1
+                    pos += consumed
+                continue
+            n = min((len(buf) - pos) // FRAME_SIZE, _WINDOW_FRAMES)
+            if n == 0:
+                break  # incomplete frame: wait for more bytes
+            frames = np.frombuffer(buf, dtype=FRAME_DTYPE, count=n, offset=pos)
+            ok = valid(frames)
+            n_good = n if ok.all() else int(np.argmin(ok))
+            if n_good:
+                chunks.append(frames[:n_good])
+                pos += n_good * FRAME_SIZE
+            if n_good < n and buf.startswith(SYNC_BYTES, pos):
+                # a sync word with a bad CRC: reject it and resynchronise from the next byte
+                self.counters.crc_rejects += 1
+                self.counters.bytes_discarded += 1
+                pos += 1
+        del self._buf[:pos]
+        good = np.concatenate(chunks) if chunks else np.zeros(0, FRAME_DTYPE)
+        frames, gaps = self._account(good)
+        return ParseResult(frames, gaps, replies)
+
+    @staticmethod
+    def _next_candidate(buf: bytes, pos: int) -> int:
+        sync = buf.find(SYNC_BYTES, pos)
+        reply = buf.find(REPLY_START, pos, sync if sync >= 0 else len(buf))
+        return reply if reply >= 0 else sync
+
+    @staticmethod
+    def _try_reply(buf: bytes, pos: int) -> tuple[int, Reply | None]:
+        """``(bytes consumed, reply)``; ``(0, None)`` when the line may still be incomplete."""
+        end = buf.find(REPLY_END, pos, pos + MAX_REPLY_LEN)
+        if end < 0:
+            return (0, None) if len(buf) - pos < MAX_REPLY_LEN else (1, None)
+        line = buf[pos : end + len(REPLY_END)]
+        try:
+            return len(line), parse_reply(line)
+        except MalformedReplyError:
+            return 1, None
+
+    def _account(self, frames: np.ndarray) -> tuple[np.ndarray, list[Gap]]:
+        """Drop duplicates and report gaps in ``seq`` against the last frame delivered."""
+        if len(frames) == 0:
+            return frames, []
+        seq = frames["seq"].astype(np.int64)
+        prev = np.empty_like(seq)
+        prev[0] = seq[0] - 1 if self.last_seq is None else self.last_seq
+        prev[1:] = seq[:-1]
+        step = (seq - prev) % _SEQ_MOD
+        fresh = (step > 0) & (step < _SEQ_MOD // 2)
+        if not fresh.all():
+            # a duplicate: recompute the steps against the last fresh frame only
+            keep, last = [], prev[0]
+            for i, s in enumerate(seq):
+                d = (s - last) % _SEQ_MOD
+                if 0 < d < _SEQ_MOD // 2:
+                    keep.append(i)
+                    last = s
+            self.counters.duplicates += len(seq) - len(keep)
+            frames, seq = frames[keep], seq[keep]
+            if len(frames) == 0:
+                return frames, []
+            prev = np.concatenate(([prev[0]], seq[:-1]))
+            step = (seq - prev) % _SEQ_MOD
+        gaps = [
+            Gap(int(i), int((prev[i] + 1) % _SEQ_MOD), int(step[i] - 1)) for i in np.flatnonzero(step > 1)
+        ]
+        self.counters.frames_ok += len(frames)
+        self.counters.gaps += len(gaps)
+        self.counters.frames_missing += sum(g.missing for g in gaps)
+        self.last_seq = int(seq[-1])
+        return frames.copy(), gaps

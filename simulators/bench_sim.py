@@ -1,0 +1,139 @@
+"""One simulated bench shared by the simulated controller and the simulated WFS.
+
+The bench is advanced by the samples it produces: :class:`BenchRunner` advances it block by block,
+either paced to real time or as fast as the streaming WFS device's port drains (backpressure from a
+blocking write). Each block goes from the controller's function generator (the displacement
+command) through the plant (servo actuator, specimen, sensors) to the controller's readbacks and to
+every sink (the WFS device). A lock keeps the controller consistent between the runner thread and
+the Modbus server's event loop.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from bench.models.setup import BenchSetup
+from simulators.controller_model import ControllerModel
+from simulators.plant import PlantSimulator, SensorRealism
+
+log = logging.getLogger(__name__)
+
+#: a sweep's operating point is renewed when its frequency has moved by this fraction
+_RESCHEDULE_FRACTION = 0.02
+
+
+@dataclass(frozen=True)
+class BenchBlock:
+    """One block of the bench's output at the output rate, with its first sample index."""
+
+    first_sample: int
+    channels: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(next(iter(self.channels.values())))
+
+
+class BenchSink(Protocol):
+    """A device fed by the bench (the WFS device)."""
+
+    @property
+    def streaming(self) -> bool: ...
+
+    def deliver(self, block: BenchBlock) -> None: ...
+
+
+class SimulatedBench:
+    """Plant plus controller model, advanced in whole output samples."""
+
+    def __init__(self, plant: PlantSimulator, clock: Callable[[], float] = time.monotonic) -> None:
+        self.plant = plant
+        self.lock = threading.RLock()
+        self.controller = ControllerModel(plant.internal_rate_hz, plant.output_rate_hz, clock)
+        self.sample_index = 0
+        self._scheduled: tuple[float, float] | None = None
+
+    @classmethod
+    def paper_shaker(cls, pressure_bar: float = 2.5, seed: int = 1) -> SimulatedBench:
+        setup = BenchSetup.paper_shaker(pressure_bar=pressure_bar)
+        return cls(PlantSimulator(setup, SensorRealism(seed=seed)))
+
+    @property
+    def output_rate_hz(self) -> float:
+        return self.plant.output_rate_hz
+
+    def advance(self, n_samples: int) -> BenchBlock:
+        """Advance ``n_samples`` output samples: command -> plant -> controller readbacks."""
+        with self.lock:
+            ctrl = self.controller
+            command = ctrl.command_block(n_samples * self.plant.oversampling)
+            self._schedule(ctrl.current_frequency_hz(), ctrl.amplitude_m)
+            channels = self.plant.advance(command)
+            ctrl.observe(channels["z_base_m"], channels["f_plate_n"])
+            block = BenchBlock(self.sample_index, channels)
+            self.sample_index += n_samples
+            return block
+
+    def _schedule(self, freq_hz: float, amplitude_m: float) -> None:
+        """Keep a non-linear tyre at the excitation's operating point."""
+        if freq_hz <= 0 or amplitude_m <= 0:
+            return
+        if self._scheduled is not None:
+            f0, a0 = self._scheduled
+            if abs(freq_hz - f0) <= _RESCHEDULE_FRACTION * f0 and a0 == amplitude_m:
+                return
+        self._scheduled = (freq_hz, amplitude_m)
+        self.plant.set_operating_point(freq_hz, amplitude_m)
+
+
+class BenchRunner:
+    """The thread that advances the bench and feeds its sinks.
+
+    Paced: one block per ``block_samples / rate`` of wall-clock time (deadline based, no drift).
+    Unpaced: as fast as the streaming sinks accept the blocks; while no sink streams, the bench
+    still runs in real time so that the controller's tapers and watchdog behave as on a real bench.
+    """
+
+    def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_samples: int = 10) -> None:
+        self.bench = bench
+        self.paced = paced
+        self.block_samples = block_samples
+        self.sinks: list[BenchSink] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.error: BaseException | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="bench-runner", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+            self._thread = None
+
+    def _run(self) -> None:
+        period_s = self.block_samples / self.bench.output_rate_hz
+        next_due = time.monotonic()
+        try:
+            while not self._stop.is_set():
+                if self.paced or not any(s.streaming for s in self.sinks):
+                    next_due = max(next_due + period_s, time.monotonic() - 0.5)
+                    delay = next_due - time.monotonic()
+                    if delay > 0 and self._stop.wait(delay):
+                        break
+                else:
+                    next_due = time.monotonic()
+                block = self.bench.advance(self.block_samples)
+                for sink in self.sinks:
+                    sink.deliver(block)
+        except Exception as exc:  # a broken bench must be visible, not a silent dead thread
+            self.error = exc
+            log.exception("bench runner stopped")

@@ -1,0 +1,211 @@
+"""Transports for the simulated serial devices: an in-memory link and a pseudo-terminal.
+
+Both can be disconnected and reconnected, as a USB-serial adapter that is pulled and plugged back:
+the host's reads fail while the link is down and the host reopens the same name afterwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import tempfile
+import threading
+import time
+import tty
+from pathlib import Path
+
+import serial
+
+
+class _Pipe:
+    """A one-way byte pipe with blocking reads (timeout) and a bounded buffer (blocking writes)."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.buf = bytearray()
+        self.cond = threading.Condition()
+        self.closed = False
+
+    def write(self, data: bytes, timeout_s: float | None = None) -> int:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self.cond:
+            sent = 0
+            while sent < len(data):
+                if self.closed:
+                    raise serial.SerialException("link is down")
+                room = self.capacity - len(self.buf)
+                if room <= 0:
+                    left = None if deadline is None else deadline - time.monotonic()
+                    if left is not None and left <= 0:
+                        break
+                    self.cond.wait(left)
+                    continue
+                self.buf += data[sent : sent + room]
+                sent += min(room, len(data) - sent)
+                self.cond.notify_all()
+            return sent
+
+    def read(self, size: int, timeout_s: float | None) -> bytes:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self.cond:
+            while len(self.buf) < size and not self.closed:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                self.cond.wait(left)
+            if self.closed:
+                raise serial.SerialException("link is down")
+            out = bytes(self.buf[:size])
+            del self.buf[:size]
+            self.cond.notify_all()
+            return out
+
+    def read_some(self, size: int, timeout_s: float) -> bytes:
+        """Whatever is there (at most ``size``) as soon as anything is, or b"" after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        with self.cond:
+            while not self.buf and not self.closed and (left := deadline - time.monotonic()) > 0:
+                self.cond.wait(left)
+            if self.closed:
+                raise serial.SerialException("link is down")
+            out = bytes(self.buf[:size])
+            del self.buf[:size]
+            self.cond.notify_all()
+            return out
+
+    def close(self) -> None:
+        with self.cond:
+            self.closed = True
+            self.cond.notify_all()
+
+
+class MemoryEnd:
+    """One end of a :class:`MemoryLink`, with the ``read``/``write``/``close`` of a serial port."""
+
+    def __init__(self, rx: _Pipe, tx: _Pipe, timeout: float | None) -> None:
+        self._rx, self._tx = rx, tx
+        self.timeout = timeout
+
+    def read(self, size: int = 1) -> bytes:
+        return self._rx.read(size, self.timeout)
+
+    def write(self, data: bytes) -> int:
+        return self._tx.write(bytes(data))
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self._rx.buf)
+
+    def close(self) -> None:
+        self._rx.close()
+        self._tx.close()
+
+
+class MemoryLink:
+    """A bidirectional in-memory serial link between a device and a host, for fast unit tests."""
+
+    def __init__(self, capacity: int = 65536) -> None:
+        self.capacity = capacity
+        self._lock = threading.Lock()
+        self._connect()
+
+    def _connect(self) -> None:
+        self._to_host, self._to_device = _Pipe(self.capacity), _Pipe(self.capacity)
+        self.device_end = MemoryEnd(self._to_device, self._to_host, timeout=0.05)
+        self._host_taken = False
+
+    def open_host(self, timeout_s: float = 0.05) -> MemoryEnd:
+        """The host's end (what the reader opens); fails while the link is down."""
+        with self._lock:
+            if self._to_host.closed or self._host_taken:
+                raise serial.SerialException("memory link is down")
+            self._host_taken = True
+            return MemoryEnd(self._to_host, self._to_device, timeout=timeout_s)
+
+    def device_read(self, size: int, timeout_s: float) -> bytes:
+        """What the host sent (up to ``size`` bytes, waiting at most ``timeout_s``); raises while down."""
+        return self._to_device.read_some(size, timeout_s)
+
+    def device_write(self, data: bytes, timeout_s: float) -> int:
+        """Queue bytes for the host; blocks while the host lags (backpressure); raises while down."""
+        return self._to_host.write(data, timeout_s)
+
+    def disconnect(self) -> None:
+        with self._lock:
+            self._to_host.close()
+            self._to_device.close()
+
+    def reconnect(self) -> None:
+        with self._lock:
+            self._connect()
+
+
+class PtyLink:
+    """A pseudo-terminal: the device holds the master, the host opens ``path`` like a serial port.
+
+    ``path`` is a stable symlink to the current slave (as udev's /dev/serial/by-id names): a
+    reconnect creates a fresh pty and moves the link, and the host reopens the same name.
+    """
+
+    def __init__(self, link_dir: str | None = None) -> None:
+        self._dir = Path(link_dir or tempfile.mkdtemp(prefix="wfs-pty-"))
+        self.path = str(self._dir / "wfs")
+        self.master_fd = -1
+        self._slave_fd = -1
+        self._connect()
+
+    def _connect(self) -> None:
+        master, slave = os.openpty()
+        tty.setraw(master)
+        tty.setraw(slave)  # no echo, no line discipline: a binary link
+        os.set_blocking(master, False)
+        self.master_fd, self._slave_fd = master, slave
+        tmp = self.path + ".new"
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        os.symlink(os.ttyname(slave), tmp)
+        os.replace(tmp, self.path)
+
+    def device_read(self, size: int, timeout_s: float) -> bytes:
+        """What the host sent, or b"" after ``timeout_s``; raises OSError while down."""
+        fd = self.master_fd
+        if fd < 0:
+            raise OSError("pty link is down")
+        ready, _, _ = select.select([fd], [], [], timeout_s)
+        return os.read(fd, size) if ready else b""
+
+    def device_write(self, data: bytes, timeout_s: float) -> int:
+        """Write to the host; waits while the pty buffer is full (backpressure), up to ``timeout_s``."""
+        fd = self.master_fd
+        if fd < 0:
+            raise OSError("pty link is down")
+        deadline = time.monotonic() + timeout_s
+        sent = 0
+        view = memoryview(data)
+        while sent < len(data):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            _, ready, _ = select.select([], [fd], [], left)
+            if ready:
+                with contextlib.suppress(BlockingIOError):
+                    sent += os.write(fd, view[sent:])
+        return sent
+
+    def disconnect(self) -> None:
+        """Close both sides: the host's reads fail, as when an adapter is pulled."""
+        for fd in (self.master_fd, self._slave_fd):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        self.master_fd = self._slave_fd = -1
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.path)
+
+    def reconnect(self) -> None:
+        self._connect()
+
+    def close(self) -> None:
+        self.disconnect()
+        with contextlib.suppress(OSError):
+            self._dir.rmdir()

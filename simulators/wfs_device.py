@@ -1,0 +1,265 @@
+"""The simulated WFS acquisition: streams frames of the simulated bench and answers the command set.
+
+Channels: Fz is the plant's WFS force; Fx, Fy, Mx, My, Mz are crosstalk of Fz (seeded factors within
+the ±0.5 % specification; moments over a 0.3 m lever) plus seeded noise; aux0/aux1/aux2 carry the
+bench displacement, plate force and hub acceleration, sampled in the same frame. With a wheel speed
+set, the wheel angle advances and the loads are expressed in the rotating sensor frame, so a host
+that applies the rotating-to-non-rotating transformation recovers the wheel-frame loads.
+
+Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (frames produced
+meanwhile are lost, the sequence counter runs on), a disconnect and reconnect of the link.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from typing import Protocol
+
+import numpy as np
+import serial
+
+from drivers.wfs_commands import UNKNOWN, Reply, parse_command
+from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, Status, encode
+from drivers.wfs_transform import rotate_to_wheel_frame
+from simulators.bench_sim import BenchBlock
+from simulators.faults import ByteFaults
+
+log = logging.getLogger(__name__)
+
+IDENTITY = ("WFSBENCH", "SIM-WFS6", "0001", "1.0")
+LOAD_RANGE = np.array([24_000.0, 24_000.0, 24_000.0, 4_000.0, 4_000.0, 4_000.0])  # N, N m
+CROSSTALK_SPEC = 0.005
+LEVER_M = 0.3
+_MAX_LINE = 64
+_WRITE_TIMEOUT_S = 0.2
+
+
+class DeviceLink(Protocol):
+    """The device's side of a transport (:class:`MemoryLink`, :class:`PtyLink`)."""
+
+    def device_read(self, size: int, timeout_s: float) -> bytes: ...
+
+    def device_write(self, data: bytes, timeout_s: float) -> int: ...
+
+    def disconnect(self) -> None: ...
+
+    def reconnect(self) -> None: ...
+
+
+class WfsDevice:
+    """A WFS acquisition on a serial link, fed blocks by the bench runner (a :class:`BenchSink`)."""
+
+    def __init__(
+        self,
+        link: DeviceLink,
+        *,
+        seed: int = 0,
+        output_rate_hz: float = 1000.0,
+        faults: ByteFaults | None = None,
+        noise_n: float = 1.0,
+        speed_rad_s: float = 0.0,
+        angle_rad: float = 0.0,
+    ) -> None:
+        self.link = link
+        self.output_rate_hz = output_rate_hz
+        self.rate_hz = int(output_rate_hz)
+        self.faults = faults or ByteFaults(seed=seed)
+        self.noise_n = noise_n
+        self.speed_rad_s = speed_rad_s
+        self.angle_rad = angle_rad
+        self._rng = np.random.default_rng(seed)
+        # crosstalk of Fz into Fx, Fy (N/N) and Mx, My, Mz (N m / N)
+        scale = np.array([1.0, 1.0, LEVER_M, LEVER_M, LEVER_M])
+        self.crosstalk = self._rng.uniform(-CROSSTALK_SPEC, CROSSTALK_SPEC, 5) * scale
+        self.tare_offset = np.zeros(6)
+        self._recent = np.zeros((0, 6))
+        self._write_lock = threading.Lock()
+        self._streaming = False
+        self._seq = 0
+        self._sample = 0
+        self._decimation_phase = 0
+        self._stall_until = 0.0
+        self._link_up = True
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.frames_sent = 0
+        self.frames_unsent = 0  # produced while stalled or disconnected (the host sees a gap)
+
+    # -- life cycle -----------------------------------------------------------------------------
+
+    @property
+    def streaming(self) -> bool:
+        return self._streaming
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._serve_commands, name="wfs-device", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+            self._thread = None
+
+    # -- faults ---------------------------------------------------------------------------------
+
+    def stall(self, duration_s: float) -> None:
+        """Send nothing for ``duration_s`` (frames produced meanwhile are lost)."""
+        self._stall_until = time.monotonic() + duration_s
+
+    def disconnect(self) -> None:
+        with self._write_lock:
+            self._link_up = False
+            self.link.disconnect()
+
+    def reconnect(self) -> None:
+        with self._write_lock:
+            self.link.reconnect()
+            self._link_up = True
+
+    # -- streaming ------------------------------------------------------------------------------
+
+    def deliver(self, block: BenchBlock) -> None:
+        """Turn a bench block into frames and send them (called by the bench runner)."""
+        frames = self._frames(block)
+        if not self._streaming or len(frames) == 0:
+            return
+        if not self._link_up or time.monotonic() < self._stall_until:
+            self.frames_unsent += len(frames)
+            return
+        data = self.faults.apply(encode(frames))
+        with self._write_lock:
+            if not self._link_up:
+                self.frames_unsent += len(frames)
+                return
+            try:
+                self._write_all(data)
+                self.frames_sent += len(frames)
+            except (serial.SerialException, OSError) as exc:
+                log.debug("WFS device write failed: %s", exc)
+                self.frames_unsent += len(frames)
+
+    def _write_all(self, data: bytes) -> None:
+        """Write everything, waiting for the host to drain (a paced device would overflow instead)."""
+        sent = 0
+        while sent < len(data) and self._link_up and not self._stop.is_set():
+            sent += self.link.device_write(data[sent:], _WRITE_TIMEOUT_S)
+
+    def _frames(self, block: BenchBlock) -> np.ndarray:
+        """Frames for the samples of ``block`` at the device's rate (every k-th bench sample)."""
+        ch = block.channels
+        n = len(block)
+        step = round(self.output_rate_hz / self.rate_hz)
+        pick = np.arange((-self._decimation_phase) % step, n, step)
+        self._decimation_phase = (self._decimation_phase + n) % step
+        fz = ch["fz_wfs_n"][pick]
+        m = len(pick)
+        loads = np.empty((m, 6))
+        loads[:, 2] = fz
+        noise = self.noise_n * self._rng.standard_normal((m, 5))
+        loads[:, [0, 1, 3, 4, 5]] = fz[:, None] * self.crosstalk + noise
+        t = (block.first_sample + pick) / self.output_rate_hz
+        angle = np.mod(self.angle_rad + self.speed_rad_s * t, 2 * np.pi)
+        loads = rotate_to_wheel_frame(loads, -angle)  # the sensor turns with the wheel
+        self._recent = np.concatenate([self._recent, loads])[-100:]
+        if not self._streaming:
+            return np.zeros(0, FRAME_DTYPE)
+        frames = np.zeros(m, FRAME_DTYPE)
+        frames["seq"] = (self._seq + np.arange(m)) % (1 << 32)
+        frames["sample"] = (self._sample + np.arange(m)) % (1 << 32)
+        self._seq += m
+        self._sample += m
+        out = loads - self.tare_offset
+        for i, name in enumerate(FORCE_FIELDS):
+            frames[name] = out[:, i]
+        frames["angle_rad"] = angle
+        frames["speed_rad_s"] = self.speed_rad_s
+        frames["aux0"] = ch["z_base_m"][pick]
+        frames["aux1"] = ch["f_plate_n"][pick]
+        frames["aux2"] = ch["a_hub_m_s2"][pick]
+        overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
+        frames["status"] = overload.sum(axis=1) | (Status.TARED if self.tare_offset.any() else 0)
+        return frames
+
+    # -- commands -------------------------------------------------------------------------------
+
+    def _serve_commands(self) -> None:
+        line = bytearray()
+        while not self._stop.is_set():
+            try:
+                data = self.link.device_read(256, 0.05) if self._link_up else b""
+            except (serial.SerialException, OSError):
+                data = b""
+            if not data:
+                if not self._link_up:
+                    self._stop.wait(0.05)
+                continue
+            for byte in data:
+                if byte == 0x0A:
+                    self._answer(bytes(line))
+                    line.clear()
+                elif len(line) < _MAX_LINE:
+                    line.append(byte)
+                else:
+                    line.clear()
+                    self._reply(Reply(False, UNKNOWN, ("line too long",)))
+
+    def _answer(self, line: bytes) -> None:
+        try:
+            name, args = parse_command(line)
+        except ValueError:
+            self._reply(Reply(False, UNKNOWN, ("unknown command",)))
+            return
+        self._reply(self.execute(name, args))
+
+    def execute(self, name: str, args: list[str]) -> Reply:
+        """Carry out one command and return the reply."""
+        if name == "RATE" and len(args) == 1:
+            return self._set_rate(args[0])
+        handler = (
+            {
+                "IDENT": lambda: Reply(True, "IDENT", IDENTITY),
+                "START": self._start,
+                "STOP": self._stop_streaming,
+                "TARE": self._tare,
+                "RATE?": lambda: Reply(True, "RATE", (str(self.rate_hz),)),
+            }.get(name)
+            if not args
+            else None
+        )
+        return handler() if handler else Reply(False, name.rstrip("?"), ("bad arguments",))
+
+    def _start(self) -> Reply:
+        self._sample = 0
+        self._streaming = True
+        return Reply(True, "START")
+
+    def _stop_streaming(self) -> Reply:
+        self._streaming = False
+        return Reply(True, "STOP")
+
+    def _tare(self) -> Reply:
+        if len(self._recent) == 0:
+            return Reply(False, "TARE", ("no samples yet",))
+        self.tare_offset = self._recent.mean(axis=0)
+        return Reply(True, "TARE")
+
+    def _set_rate(self, text: str) -> Reply:
+        if self._streaming:
+            return Reply(False, "RATE", ("stop first",))
+        try:
+            rate = int(text)
+        except ValueError:
+            return Reply(False, "RATE", ("not an integer",))
+        if rate <= 0 or self.output_rate_hz % rate:
+            return Reply(False, "RATE", (f"must divide {self.output_rate_hz:g}",))
+        self.rate_hz = rate
+        return Reply(True, "RATE", (str(rate),))
+
+    def _reply(self, reply: Reply) -> None:
+        with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
+            if self._link_up:
+                self._write_all(reply.encode())

@@ -1,0 +1,234 @@
+"""Actuator client against the simulated controller over Modbus TCP on 127.0.0.1."""
+
+from __future__ import annotations
+
+import asyncio
+import re
+import shutil
+import subprocess
+import time
+
+import pytest
+from conftest import async_wait_until
+
+from drivers.actuator import ActuatorClient
+from drivers.errors import (
+    CommandOutcomeUnknownError,
+    CommandRejectedError,
+    ConnectionLostError,
+    DeviceExceptionError,
+    LimitError,
+    ProtocolMismatchError,
+)
+from drivers.register_map import (
+    ControllerState,
+    ErrorCode,
+    InterlockFlag,
+    default_map_path,
+    load_register_map,
+)
+from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+
+DWELL = DwellSetpoint(freq_hz=10.0, amplitude_mm=2.0, taper_in_s=0.2, taper_out_s=0.2)
+
+
+async def _arm(client: ActuatorClient) -> None:
+    await client.hydraulics_low()
+    await client.hydraulics_high()
+
+
+async def _state_is(client: ActuatorClient, *states: ControllerState):
+    status = await client.read_status()
+    return status if status.state in states else None
+
+
+async def test_connect_reads_protocol_version_and_state(client):
+    status = await client.read_status()
+    assert status.protocol_version == 1
+    assert status.state == ControllerState.OFF
+
+
+async def test_dwell_runs_reaches_amplitude_and_stop_tapers(client, bench):
+    await _arm(client)
+    await client.configure(DWELL)
+    await client.start()
+    status = await async_wait_until(
+        lambda: _running_at_amplitude(client), 3.0, "the dwell to reach its amplitude"
+    )
+    assert status.frequency_hz == 10.0
+    assert status.achieved_amplitude_mm == pytest.approx(2.0, rel=0.05)
+    await client.stop()
+    assert (await client.read_status()).state in (ControllerState.TAPERING, ControllerState.HYDRAULICS_HIGH)
+    status = await async_wait_until(lambda: _state_is(client, ControllerState.HYDRAULICS_HIGH), 2.0, "stop")
+    assert abs(status.displacement_mm) < 0.05
+    assert status.cycle_count >= 3
+
+
+async def _running_at_amplitude(client):
+    status = await client.read_status()
+    ok = status.state == ControllerState.RUNNING and status.achieved_amplitude_mm > 1.9
+    return status if ok else None
+
+
+async def test_sweep_is_configured_and_finishes_by_itself(client):
+    await _arm(client)
+    await client.configure(SweepSetpoint(2.0, 8.0, 0.8, 1.0, spacing="log", taper_in_s=0.2, taper_out_s=0.2))
+    await client.start()
+    done = await async_wait_until(lambda: _state_is(client, ControllerState.HYDRAULICS_HIGH), 3.0, "end")
+    assert done.interlock == InterlockFlag(0)
+
+
+@pytest.mark.parametrize(
+    "setpoint",
+    [
+        DwellSetpoint(freq_hz=10.0, amplitude_mm=50.0),
+        DwellSetpoint(freq_hz=500.0, amplitude_mm=1.0),
+        SweepSetpoint(0.01, 30.0, 20.0, 1.0),
+        DwellSetpoint(freq_hz=10.0, amplitude_mm=1.0, taper_in_s=0.0),
+    ],
+)
+async def test_out_of_limit_setpoints_refused_before_anything_is_written(client, controller, setpoint):
+    before = controller.writes_received
+    with pytest.raises(LimitError):
+        await client.configure(setpoint)
+    assert controller.writes_received == before
+
+
+async def test_command_not_allowed_in_state_is_a_typed_refusal(client):
+    with pytest.raises(CommandRejectedError, match="NOT_ALLOWED_IN_STATE"):
+        await client.start()  # hydraulics are off
+    assert (await client.read_status()).error == ErrorCode.NOT_ALLOWED_IN_STATE
+
+
+async def test_garbage_writes_are_refused_by_the_controller(client):
+    with pytest.raises(DeviceExceptionError):
+        await client.write({"command": 999})
+    with pytest.raises(DeviceExceptionError):
+        await client.write({"taper_out_s": float("nan")})
+    # half of a float32 is refused too
+    response = await client._modbus.write_register(11, 0x4000, device_id=1)
+    assert response.isError()
+
+
+async def test_heartbeat_loss_tapers_to_a_stop_within_watchdog_plus_taper(client):
+    watchdog_s, taper_s = 0.3, 0.2
+    await _arm(client)
+    await client.configure(DWELL)
+    await client.start_heartbeat(period_s=0.05, watchdog_ms=int(watchdog_s * 1000))
+    await client.start()
+    # while the heartbeat runs, the excitation keeps running beyond several watchdog periods
+    await asyncio.sleep(4 * watchdog_s)
+    assert (await client.read_status()).state == ControllerState.RUNNING
+    await client.stop_heartbeat()
+    lost_at = time.monotonic()
+    status = await async_wait_until(
+        lambda: _state_is(client, ControllerState.INTERLOCK), watchdog_s + taper_s + 1.0, "the watchdog stop"
+    )
+    elapsed = time.monotonic() - lost_at
+    assert InterlockFlag.WATCHDOG in status.interlock
+    assert elapsed <= watchdog_s + taper_s + 0.15  # scheduling margin
+    assert abs(status.displacement_mm) < 0.05
+    await client.reset_interlock()
+    assert (await client.read_status()).state == ControllerState.HYDRAULICS_LOW
+
+
+async def test_estop_freezes_and_needs_a_reset(client):
+    await _arm(client)
+    await client.configure(DWELL)
+    await client.start()
+    await client.estop()
+    status = await client.read_status()
+    assert status.state == ControllerState.ESTOP
+    assert InterlockFlag.ESTOP in status.interlock
+    with pytest.raises(CommandRejectedError):
+        await client.start()
+    await client.reset_interlock()
+    assert (await client.read_status()).state == ControllerState.HYDRAULICS_LOW
+
+
+async def test_displacement_limit_trips_the_interlock(client):
+    client.limits = SoftLimits(displacement_limit_mm=15.0)
+    await _arm(client)
+    await client.configure(DWELL)
+    # a lab limit set directly on the controller, below the running amplitude
+    await client.write({"displacement_limit_mm": 1.0})
+    await client.start()
+    status = await async_wait_until(lambda: _state_is(client, ControllerState.INTERLOCK), 3.0, "interlock")
+    assert InterlockFlag.DISPLACEMENT in status.interlock
+
+
+async def test_read_timeout_is_retried(client, controller):
+    controller.faults.delay_next, controller.faults.delay_s = 1, 0.5
+    status = await client.read_status()  # first attempt times out (0.3 s), the retry answers
+    assert status.protocol_version == 1
+
+
+async def test_write_timeout_is_not_resent(client, controller):
+    controller.faults.delay_next, controller.faults.delay_s = 1, 0.5
+    before = controller.writes_received
+    with pytest.raises(CommandOutcomeUnknownError):
+        await client.hydraulics_low()
+    await asyncio.sleep(0.4)  # let the late reply of the delayed write arrive and be discarded
+    assert controller.writes_received == before + 1
+
+
+async def test_exception_reply_is_typed(client, controller):
+    controller.faults.exception_next = 3  # as many as the read attempts
+    with pytest.raises(DeviceExceptionError) as err:
+        await client.read_status()
+    assert err.value.exception_code == 4
+
+
+async def test_dropped_connection_is_typed(client, controller):
+    controller.faults.delay_next, controller.faults.delay_s = 1, 0.25
+    pending = asyncio.create_task(client.hydraulics_low())
+    await async_wait_until(_true_when(lambda: controller.faults.delay_next == 0), 1.0, "the request")
+    controller.drop_connections()
+    with pytest.raises((ConnectionLostError, CommandOutcomeUnknownError)):
+        await pending
+
+
+def _true_when(predicate):
+    async def check():
+        return predicate()
+
+    return check
+
+
+async def test_refused_connection_and_wrong_protocol_are_typed(controller, tmp_path):
+    closed = ActuatorClient.tcp("127.0.0.1", 1, timeout_s=0.2)
+    with pytest.raises(ConnectionLostError):
+        await closed.connect()
+    lab = tmp_path / "lab.toml"
+    lab.write_text(default_map_path().read_text().replace("protocol_version = 1", "protocol_version = 2"))
+    host, port = controller.address
+    other = ActuatorClient.tcp(host, port, register_map=load_register_map(lab), timeout_s=0.3)
+    with pytest.raises(ProtocolMismatchError, match="version 1"):
+        await other.connect()
+    await other.close()
+
+
+@pytest.mark.skipif(shutil.which("mbpoll") is None, reason="mbpoll (Debian) not installed")
+async def test_mbpoll_reads_status_and_protocol_version_as_documented(controller, client):
+    """An independent Modbus implementation reads the registers at the documented addresses."""
+    await _arm(client)
+    host, port = controller.address
+    args = ["mbpoll", "-m", "tcp", "-a", "1", "-p", str(port), "-1"]
+    # mbpoll references are 1-based: input registers 0 (protocol_version) and 1 (state) are 1 and 2
+    values = _mbpoll_values(await _run(*args, "-t", "3", "-r", "1", "-c", "2", host))
+    assert values == {1: "1", 2: str(int(ControllerState.HYDRAULICS_HIGH))}
+    # holding float32 amplitude_mm at address 10..11 (reference 11), high word first
+    await client.configure(DWELL)
+    values = _mbpoll_values(await _run(*args, "-t", "4:float", "-B", "-r", "11", "-c", "1", host))
+    assert float(values[11]) == pytest.approx(2.0)
+
+
+def _mbpoll_values(out: str) -> dict[int, str]:
+    return {int(ref): value for ref, value in re.findall(r"^\[(\d+)\]:\s*(\S+)", out, re.MULTILINE)}
+
+
+async def _run(*cmd: str) -> str:
+    proc = await asyncio.create_subprocess_exec(*cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    out, _ = await asyncio.wait_for(proc.communicate(), 10)
+    assert proc.returncode == 0, out.decode()
+    return out.decode()

@@ -1,0 +1,99 @@
+"""WFS frame codec and command set: byte-exact layout, CRC, garbage replies."""
+
+import struct
+
+import numpy as np
+import pytest
+
+from drivers.errors import MalformedReplyError
+from drivers.wfs_commands import Reply, format_command, parse_command, parse_reply
+from drivers.wfs_frame import (
+    FRAME_SIZE,
+    crc16_ccitt,
+    crc16_rows,
+    decode,
+    encode,
+    new_frames,
+)
+
+
+def test_crc16_ccitt_false_check_value():
+    assert crc16_ccitt(b"123456789") == 0x29B1
+
+
+def test_vectorised_crc_agrees_with_bytewise():
+    rows = np.random.default_rng(3).integers(0, 256, (500, 58), dtype=np.uint8)
+    assert crc16_rows(rows).tolist() == [crc16_ccitt(r.tobytes()) for r in rows]
+
+
+def test_frame_layout_is_byte_exact():
+    f = new_frames(1)
+    f["seq"], f["sample"], f["fz"], f["aux2"], f["status"] = 7, 3, 1.5, -2.0, 0x0104
+    data = encode(f)
+    assert FRAME_SIZE == 62 == len(data)
+    assert data[0:2] == b"\xa5\x5a"
+    assert data[2:6] == struct.pack("<I", 7)
+    assert data[6:10] == struct.pack("<I", 3)
+    assert data[18:22] == struct.pack("<f", 1.5)  # fz: third force channel at offset 10 + 8
+    assert data[50:54] == struct.pack("<f", -2.0)  # aux2 at 42 + 8
+    assert data[58:60] == b"\x04\x01"
+    assert data[60:62] == struct.pack("<H", crc16_ccitt(data[2:60]))
+
+
+def test_encode_decode_round_trip_and_single_bit_errors_detected():
+    f = new_frames(200)
+    f["seq"] = np.arange(200)
+    f["fx"] = np.linspace(-1, 1, 200)
+    data = bytearray(encode(f))
+    frames, ok = decode(bytes(data))
+    assert ok.all()
+    assert np.array_equal(frames["fx"], f["fx"])
+    rng = np.random.default_rng(1)
+    hit = sorted(rng.choice(200, 40, replace=False))
+    for i in hit:
+        data[i * FRAME_SIZE + int(rng.integers(0, FRAME_SIZE))] ^= 1 << int(rng.integers(0, 8))
+    _, ok = decode(bytes(data))
+    assert np.flatnonzero(~ok).tolist() == hit
+
+
+def test_decode_refuses_partial_frames():
+    with pytest.raises(ValueError, match="whole number"):
+        decode(b"\xa5\x5a" + bytes(10))
+
+
+def test_command_lines_byte_exact():
+    assert format_command("IDENT") == b"IDENT\n"
+    assert format_command("RATE", 1000) == b"RATE 1000\n"
+    assert format_command("RATE?") == b"RATE?\n"
+    with pytest.raises(ValueError, match="unknown WFS command"):
+        format_command("FIRE")
+
+
+def test_device_side_command_parsing():
+    assert parse_command(b"rate 500\r\n") == ("RATE", ["500"])
+    for garbage in (b"", b"\xff\xfe", b"LAUNCH 3"):
+        with pytest.raises(ValueError):
+            parse_command(garbage)
+
+
+def test_reply_byte_exact_and_round_trip():
+    line = Reply(True, "RATE", ("1000",)).encode()
+    assert line == b"$OK,RATE,1000*07\r\n"
+    assert parse_reply(line) == Reply(True, "RATE", ("1000",))
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        b"$OK,RATE,1000*00\r\n",  # wrong checksum
+        b"$OK,RATE,1000\r\n",  # no checksum
+        b"OK,RATE*1F\r\n",  # no $
+        b"$\xff\xfe*00\r\n",
+        b"$MAYBE,RATE*" + b"00\r\n",
+        b"$OK,RATE*ZZ\r\n",
+        b"$" + b"A" * 300 + b"*00\r\n",
+    ],
+)
+def test_garbage_replies_are_malformed(line):
+    with pytest.raises(MalformedReplyError):
+        parse_reply(line)

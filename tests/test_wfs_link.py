@@ -1,0 +1,146 @@
+"""WFS reader against the simulated WFS device: in memory, over a real pty, with faults."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import wait_until
+
+from drivers.errors import CommandRejectedError, LinkTimeoutError
+from drivers.wfs_reader import WfsReader
+from drivers.wfs_transform import LoadProcessor
+from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.faults import ByteFaults
+from simulators.ports import MemoryLink, PtyLink
+from simulators.wfs_device import IDENTITY, WfsDevice
+
+
+def _rig(link, *, faults=None, speed_rad_s=0.0):
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(link, seed=3, faults=faults, speed_rad_s=speed_rad_s)
+    device.start()
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    runner.start()
+    return bench, device, runner
+
+
+@pytest.fixture
+def memory_rig():
+    link = MemoryLink()
+    _bench, device, runner = _rig(link)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    yield link, device, reader
+    reader.close()
+    runner.stop()
+    device.stop()
+    assert runner.error is None
+
+
+def test_command_set_in_memory(memory_rig):
+    _, device, reader = memory_rig
+    assert reader.identify() == IDENTITY
+    assert reader.set_rate(500) == 500
+    assert reader.command("RATE?").fields == ("500",)
+    with pytest.raises(CommandRejectedError, match="must divide"):
+        reader.set_rate(300)
+    reader.start_stream()
+    with pytest.raises(CommandRejectedError, match="stop first"):
+        reader.set_rate(1000)
+    block = reader.read_frames(500, timeout_s=5)
+    assert np.all(np.diff(block.frames["seq"].astype(np.int64)) == 1)
+    assert block.frames["sample"][0] == 0
+    reader.tare()
+    reader.stop_stream()
+    assert not device.streaming
+
+
+def test_garbage_command_lines_get_an_error_reply_and_the_device_keeps_serving(memory_rig):
+    _link, _, reader = memory_rig
+    reader._write(b"\xff\xfe garbage\n" + b"x" * 100 + b"\n", 1.0)
+    assert reader.identify() == IDENTITY
+
+
+def test_frames_carry_the_bench_channels(memory_rig):
+    _, _, reader = memory_rig
+    reader.start_stream()
+    frames = reader.read_frames(2000, timeout_s=10).frames
+    # at rest the WFS reads the static wheel load on the tyre contact: tens of newtons of noise at most
+    assert np.all(np.isfinite(frames["fz"]))
+    assert np.abs(frames["fx"]).max() < 0.005 * np.abs(frames["fz"]).max() + 10
+    assert np.all(frames["angle_rad"] == 0)
+
+
+def test_no_reply_is_a_timeout(memory_rig):
+    _, device, reader = memory_rig
+    device.stop()  # the command thread no longer answers
+    with pytest.raises(LinkTimeoutError):
+        reader.command("IDENT", timeout_s=0.1, attempts=2)
+
+
+def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
+    link = MemoryLink()
+    faults = ByteFaults(seed=11, bit_error_rate=1e-3, drop_rate=1e-4, duplicate_rate=1e-4, garbage_rate=1e-4)
+    _bench, device, runner = _rig(link, faults=faults)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        reader.start_stream()
+        got = reader.read_frames(5000, timeout_s=20)
+        # stall: nothing for a while, then the stream resumes with a gap
+        device.stall(0.2)
+        got2 = reader.read_frames(3000, timeout_s=20)
+        # disconnect and reconnect: the reader reopens the link and the stream resumes
+        device.disconnect()
+        wait_until(lambda: not reader.wait_connected(0), 5, "the reader to see the link drop")
+        device.reconnect()
+        assert reader.wait_connected(5)
+        got3 = reader.read_frames(3000, timeout_s=20)
+        assert reader.running
+        reader.command("STOP")
+        counters = reader.counters
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    seqs = np.concatenate([b.frames["seq"] for b in (got, got2, got3)]).astype(np.int64)
+    assert np.all(np.diff(seqs) > 0)
+    span = int(seqs[-1] - seqs[0] + 1)
+    # consecutive blocks: every frame between the first and the last delivered one is either
+    # delivered or marked missing by a gap
+    marked = sum(g.missing for b in (got, got2, got3) for g in b.gaps)
+    assert marked == span - len(seqs) > 0
+    assert counters.frames_missing >= marked
+    assert counters.crc_rejects > 0
+    assert counters.reconnects == 1
+    assert device.frames_unsent > 0  # the stall and the disconnect really lost frames
+
+
+def test_stream_over_a_real_pseudo_terminal_with_rotation():
+    link = PtyLink()
+    speed = 2 * np.pi * 5  # 5 rev/s
+    _bench, device, runner = _rig(link, speed_rad_s=speed)
+    reader = WfsReader.serial(link.path, baudrate=921600)
+    reader.start()
+    try:
+        assert reader.wait_connected(5)
+        assert reader.identify() == IDENTITY
+        reader.start_stream()
+        block = reader.read_frames(3000, timeout_s=20)
+        reader.stop_stream()
+        counters = reader.counters
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+        link.close()
+    frames = block.frames
+    assert counters.frames_missing == 0 and counters.crc_rejects == 0
+    assert np.all(np.diff(frames["seq"].astype(np.int64)) == 1)
+    # the angle turns; in the sensor frame Fz leaks into Fx, in the wheel frame it does not
+    assert np.ptp(frames["angle_rad"]) > 6
+    wheel = LoadProcessor().wheel_loads(frames)
+    fz = wheel[:, 2]
+    assert np.abs(frames["fx"]).max() > 0.5 * np.abs(fz).max()
+    assert np.abs(wheel[:, 0]).max() < 0.01 * np.abs(fz).max() + 10

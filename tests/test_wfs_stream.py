@@ -1,0 +1,111 @@
+"""Stream parser: frames found in any byte stream, bad ones rejected, every loss counted."""
+
+import numpy as np
+import pytest
+
+from drivers.wfs_commands import Reply
+from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, encode, new_frames
+from drivers.wfs_stream import StreamParser
+from simulators.faults import ByteFaults, FaultLog
+
+
+def _frames(n: int, first_seq: int = 0) -> np.ndarray:
+    f = new_frames(n)
+    f["seq"] = np.arange(first_seq, first_seq + n)
+    f["sample"] = f["seq"]
+    f["fz"] = np.sin(np.arange(n) * 0.1) * 1000
+    return np.frombuffer(encode(f), dtype=FRAME_DTYPE).copy()
+
+
+def _feed_in_chunks(parser: StreamParser, data: bytes, rng: np.random.Generator):
+    frames, gaps, replies, pos, delivered = [], [], [], 0, 0
+    while pos < len(data):
+        step = int(rng.integers(1, 700))
+        result = parser.feed(data[pos : pos + step])
+        pos += step
+        frames.append(result.frames)
+        gaps.extend((g.index + delivered, g.missing) for g in result.gaps)
+        delivered += len(result.frames)
+        replies.extend(result.replies)
+    return np.concatenate(frames), gaps, replies
+
+
+def test_clean_stream_split_anywhere():
+    sent = _frames(3000)
+    got, gaps, _ = _feed_in_chunks(StreamParser(), encode(sent), np.random.default_rng(0))
+    assert np.array_equal(got, sent)
+    assert gaps == []
+
+
+def test_leading_garbage_and_partial_frame_are_skipped():
+    parser = StreamParser()
+    data = encode(_frames(10))
+    result = parser.feed(b"\x5a\xa5\x00garbage$$\xa5" + data[30:FRAME_SIZE] + data)
+    assert result.frames["seq"].tolist() == list(range(10))
+    # the partial first frame shows up as discarded bytes, not as a frame
+    assert parser.counters.bytes_discarded >= FRAME_SIZE - 30
+    assert parser.counters.frames_missing == 0
+
+
+def test_gap_reported_where_frames_are_missing():
+    sent = _frames(100)
+    data = encode(np.concatenate([sent[:40], sent[47:]]))
+    parser = StreamParser()
+    result = parser.feed(data)
+    assert [(g.index, g.first_seq, g.missing) for g in result.gaps] == [(40, 40, 7)]
+    assert parser.counters.frames_missing == 7
+    assert len(result.frames) == 93
+
+
+def test_duplicated_frames_are_dropped_and_counted():
+    sent = _frames(20)
+    data = encode(np.concatenate([sent[:10], sent[8:12], sent[12:]]))
+    parser = StreamParser()
+    result = parser.feed(data)
+    assert result.frames["seq"].tolist() == list(range(20))
+    assert parser.counters.duplicates == 2
+
+
+def test_sequence_counter_wraps_without_a_gap():
+    parser = StreamParser()
+    result = parser.feed(encode(_frames(10, first_seq=2**32 - 5)[:5]) + encode(_frames(5, first_seq=0)))
+    assert len(result.frames) == 10
+    assert result.gaps == []
+
+
+def test_replies_interleaved_with_frames_are_extracted():
+    sent = _frames(50)
+    data = encode(sent)
+    reply = Reply(True, "IDENT", ("SIM", "WFS-6", "0001", "1.0")).encode()
+    stream = data[: 20 * FRAME_SIZE] + reply + data[20 * FRAME_SIZE :] + b"$OK,STOP*00\r\n"
+    got, gaps, replies = _feed_in_chunks(StreamParser(), stream, np.random.default_rng(5))
+    assert np.array_equal(got, sent)
+    # the reply with a bad checksum is dropped
+    assert replies == [Reply(True, "IDENT", ("SIM", "WFS-6", "0001", "1.0"))]
+    assert gaps == []
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_bit_errors_drops_duplicates_and_garbage_every_intact_frame_delivered(seed):
+    n = 20_000
+    sent = _frames(n)
+    log = FaultLog()
+    faults = ByteFaults(
+        seed=seed, bit_error_rate=1e-3, drop_rate=2e-4, duplicate_rate=1e-4, garbage_rate=2e-4, log=log
+    )
+    data = encode(sent)
+    corrupted = b"".join(faults.apply(data[i : i + 997]) for i in range(0, len(data), 997))
+    parser = StreamParser()
+    got, gaps, _ = _feed_in_chunks(parser, corrupted, np.random.default_rng(seed))
+    intact = set(range(n)) - log.damaged_frames(FRAME_SIZE)
+    assert 0.4 * n < len(intact) < 0.9 * n  # the faults really bite
+    delivered = got["seq"].tolist()
+    # every frame that went out intact is delivered; whatever is delivered is bit-exact
+    # (a fault may by chance leave a frame's bytes unchanged, so delivered may exceed intact)
+    assert intact <= set(delivered)
+    assert np.array_equal(got, sent[delivered])
+    assert delivered == sorted(set(delivered))
+    # every frame between the first and the last delivered one that is missing is counted
+    missing = (delivered[-1] - delivered[0] + 1) - len(delivered)
+    assert parser.counters.frames_missing == missing == sum(m for _, m in gaps)
+    assert parser.counters.crc_rejects > 0
