@@ -266,6 +266,6 @@ class MechanicalNetwork:
         return LinearSystem(A, B, C, Dm, inputs=self.input_names, outputs=names, states=states)
 
     def eigenfrequencies_hz(self) -> np.ndarray:
-        """Damped natural frequencies of the network with the base held still, ascending."""
+        """Undamped natural frequencies |lambda| / 2 pi of the oscillating modes, base held still."""
         lam = np.linalg.eigvals(self.state_space(outputs=()).A)
-        return np.sort(np.abs(lam.imag[lam.imag > 0])) / (2 * np.pi)
+        return np.sort(np.abs(lam[lam.imag > 0])) / (2 * np.pi)

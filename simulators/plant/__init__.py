@@ -1,0 +1,15 @@
+"""The simulated plant: a bench and its specimen in the time domain, as its sensors see it."""
+
+from simulators.plant.excitation import HalfSinePulse, SineDwell, Sweep, Waveform
+from simulators.plant.sensors import SensorRealism
+from simulators.plant.simulator import PlantSimulator, ServoActuator
+
+__all__ = [
+    "HalfSinePulse",
+    "PlantSimulator",
+    "SensorRealism",
+    "ServoActuator",
+    "SineDwell",
+    "Sweep",
+    "Waveform",
+]

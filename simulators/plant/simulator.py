@@ -1,0 +1,263 @@
+"""Time-domain simulation of a bench: actuator, specimen network and sensors, block by block.
+
+The linear part is exact: the continuous state space (servo actuator -> mechanical network ->
+hub accelerometer) is discretised for inputs that are linear between samples and stepped in modal
+coordinates with one first-order recursion per mode (``scipy.signal.lfilter``), never a Python loop
+over samples. A non-linear tyre is handled as an equivalent linear system per operating point
+(see :class:`bench.models.parameters.TyreNonlinearity`): the physical state carries over when the
+operating point changes.
+
+The plant runs at ``oversampling`` times the output rate (10 kHz for a 1 kHz WFS stream), where
+noise and quantisation act like the WFS's own converters, then decimates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import matrix_balance
+from scipy.signal import lfilter
+
+from bench.models.linear_system import DiscreteSystem, LinearSystem
+from bench.models.setup import BenchKind, BenchSetup
+from simulators.plant.excitation import Waveform
+from simulators.plant.sensors import Decimator, SensorRealism, accelerometer_system
+
+#: Output channels: name -> network output it measures.
+_MEASURED = {
+    "z_base_m": "z_base",
+    "f_plate_n": "f_plate",
+    "fz_wfs_n": "f_wfs",
+    "a_hub_m_s2": "a_hub",
+    "f_contact_n": "f_contact",
+}
+_HAMMER_CHANNELS = ("fz_wfs_n", "f_hammer_n")
+#: A sweep's operating point is renewed when its frequency has moved by this fraction.
+_RESCHEDULE_FRACTION = 0.02
+_RESCHEDULE_CHECK_S = 0.05
+
+
+@dataclass(frozen=True)
+class ServoActuator:
+    """Position-controlled hydraulic actuator: third-order Butterworth low-pass from command to motion.
+
+    Third order because the servo valve's flow lags its current: acceleration follows the command
+    only through the dynamics, with no direct feedthrough, as in a real servo-hydraulic axis.
+    """
+
+    bandwidth_hz: float = 200.0
+
+    def system(self) -> LinearSystem:
+        w = 2 * math.pi * self.bandwidth_hz
+        jerk_row = np.array([[-(w**3), -2 * w**2, -2 * w]])
+        return LinearSystem(
+            A=np.vstack([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], jerk_row]),
+            B=np.array([[0.0], [0.0], [w**3]]),
+            C=np.eye(3),
+            D=np.zeros((3, 1)),
+            inputs=("z_command",),
+            outputs=("z_base", "v_base", "a_base"),
+            states=("actuator_z", "actuator_v", "actuator_a"),
+        )
+
+    def gain(self, freq_hz: float) -> complex:
+        """Actual base displacement per unit command at ``freq_hz``."""
+        s = 1j * freq_hz / self.bandwidth_hz
+        return 1.0 / (s**3 + 2 * s**2 + 2 * s + 1)
+
+
+class _ModalStepper:
+    """Exact first-order-hold stepping of a single-input discrete system in modal coordinates.
+
+    Complex modes come in conjugate pairs for a real system driven by a real input, so only one
+    mode of each pair is stepped and counted twice.
+    """
+
+    def __init__(self, dsys: DiscreteSystem):
+        if dsys.g0.shape[1] != 1:
+            raise ValueError("modal stepping is implemented for single-input systems")
+        # Balance first: states range from metres to m/s^3, which wrecks the eigenvector basis.
+        balanced, (scale, _) = matrix_balance(dsys.phi, permute=False, separate=True)
+        lam, modes = np.linalg.eig(balanced)
+        if modes.size and np.linalg.cond(modes) > 1e8:
+            raise ValueError("state matrix is (nearly) defective: modal stepping would be inaccurate")
+        v = scale[:, None] * modes
+        v_inv = np.linalg.inv(modes) / scale[None, :] if modes.size else modes
+        keep = lam.imag >= -1e-12 * np.abs(lam)
+        keep &= ~((np.abs(lam.imag) <= 1e-12 * np.abs(lam)) & (lam.imag < 0))
+        self.weight = np.where(np.abs(lam.imag[keep]) > 1e-12 * np.abs(lam[keep]), 2.0, 1.0)
+        self.lam = lam[keep]
+        self.V = v[:, keep]
+        self.V_inv = v_inv[keep]
+        self.b0 = (self.V_inv @ dsys.g0)[:, 0]
+        self.b1 = (self.V_inv @ dsys.g1)[:, 0]
+        self.CV = (dsys.C @ self.V) * self.weight
+        self.D = dsys.D
+
+    def run(self, x_prev: np.ndarray, u_prev: float, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs for the input samples ``u`` after state ``x_prev`` under input ``u_prev``.
+
+        Returns the outputs (outputs x samples) and the state at the last sample.
+        """
+        xi0 = self.V_inv @ x_prev
+        modes = np.empty((self.lam.size, u.size), dtype=complex)
+        for i, lam in enumerate(self.lam):
+            b = [self.b1[i], self.b0[i]]
+            modes[i], _ = lfilter(b, [1.0, -lam], u, zi=[self.b0[i] * u_prev + lam * xi0[i]])
+        y = (self.CV @ modes).real + self.D @ u[None, :]
+        x_last = (self.V @ (self.weight * modes[:, -1])).real if modes.size else x_prev
+        return y, x_last
+
+
+class PlantSimulator:
+    """A simulated bench producing what its sensors would read, block by block.
+
+    ``advance(command)`` takes the actuator displacement command (m) at the internal rate (the
+    hammer force in N for the hammer setup) and returns each channel at the output rate. With
+    decimation on, outputs lag the command by :attr:`latency_samples` output samples (the group
+    delay of the anti-alias filter, as in a real acquisition); all channels share that delay.
+    ``f_contact_n`` is the true contact force: a reference for tests, not a sensor.
+    """
+
+    def __init__(
+        self,
+        setup: BenchSetup,
+        realism: SensorRealism | None = None,
+        actuator: ServoActuator | None = None,
+        output_rate_hz: float = 1000.0,
+        oversampling: int = 10,
+    ):
+        self.setup = setup
+        self.realism = realism or SensorRealism()
+        self.actuator = actuator or ServoActuator()
+        self.output_rate_hz = float(output_rate_hz)
+        self.oversampling = int(oversampling)
+        self.internal_rate_hz = self.output_rate_hz * self.oversampling
+        self._hammer = setup.kind is BenchKind.HAMMER
+        self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
+        self._rng = np.random.default_rng(self.realism.seed)
+        self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
+        self.latency_samples = self._decimator.latency_samples
+        self._operating_point: tuple[float, float] | None = None
+        self._stepper = self._build_stepper(setup.network())
+        self._x = np.zeros(len(self._system.states))
+        self._u_prev = 0.0
+
+    # ------------------------------------------------------------------ system assembly
+    def _build_stepper(self, network) -> _ModalStepper:
+        if self._hammer:
+            system = network.state_space(outputs=("f_wfs",))
+        else:
+            wanted = [o for o in _MEASURED.values() if o in network.output_names]
+            system = self.actuator.system().then(network.state_space(outputs=wanted))
+            if self.realism.accelerometer_dynamics and "a_hub" in wanted:
+                system = system.then(accelerometer_system(self.realism.accelerometer_bandwidth_hz))
+        self._system = system
+        self._rows = self._channel_rows(system)
+        return _ModalStepper(system.discretize_foh(1.0 / self.internal_rate_hz))
+
+    def _channel_rows(self, system: LinearSystem) -> list[int | None]:
+        """Index of the system output behind each channel (None: the channel reads zero signal)."""
+        if self._hammer:
+            return [0, None]
+        rows: list[int | None] = []
+        for channel, network_output in _MEASURED.items():
+            output = network_output
+            if channel == "a_hub_m_s2" and "a_hub_sensor" in system.outputs:
+                output = "a_hub_sensor"
+            rows.append(system.outputs.index(output) if output in system.outputs else None)
+        return rows
+
+    def set_operating_point(self, freq_hz: float, amplitude_m: float) -> None:
+        """Tell a non-linear tyre the excitation's frequency and commanded amplitude.
+
+        The tyre is linearised for the base amplitude the actuator achieves at that frequency. Has
+        no effect on linear setups.
+        """
+        if self.setup.nonlinearity is None or not self.setup.has_tyre:
+            return
+        base_amplitude_m = abs(self.actuator.gain(freq_hz)) * amplitude_m
+        point = (float(freq_hz), float(base_amplitude_m))
+        if point != self._operating_point:
+            self._operating_point = point
+            self._stepper = self._build_stepper(self.setup.operating_network(*point))
+
+    def exact_response(self, freq_hz: float, amplitude_m: float) -> dict[str, complex]:
+        """The plant's exact response per metre of base displacement at an operating point.
+
+        Keys are network outputs (``f_wfs``, ``f_contact``, ``f_plate``, ``a_hub``, ``z_rim``, ...);
+        ``amplitude_m`` is the commanded amplitude as for :meth:`set_operating_point`.
+        """
+        base_amplitude_m = abs(self.actuator.gain(freq_hz)) * amplitude_m
+        network = self.setup.operating_network(freq_hz, base_amplitude_m)
+        return {k: complex(v[0]) for k, v in network.frequency_response(freq_hz).items()}
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, command: np.ndarray) -> dict[str, np.ndarray]:
+        """Advance by ``len(command)`` internal samples; return the channels at the output rate."""
+        u = np.asarray(command, dtype=float).ravel()
+        if u.size == 0 or u.size % self.oversampling:
+            raise ValueError(f"command length must be a positive multiple of {self.oversampling}")
+        if not np.all(np.isfinite(u)):
+            raise ValueError("command contains NaN or infinite values")
+        y, self._x = self._stepper.run(self._x, self._u_prev, u)
+        self._u_prev = float(u[-1])
+        internal = np.zeros((len(self.channels), u.size))
+        for i, row in enumerate(self._rows):
+            if row is not None:
+                internal[i] = y[row]
+        if self._hammer:
+            internal[1] = u
+        self._apply_sensor_effects(internal)
+        out = self._decimator(internal)
+        if not self._hammer and self.realism.accelerometer_dynamics:
+            out[self.channels.index("a_hub_m_s2")] += self.realism.accelerometer_offset_m_s2
+        return dict(zip(self.channels, out, strict=True))
+
+    def _apply_sensor_effects(self, signals: np.ndarray) -> None:
+        """Noise and quantisation at the internal rate, in place."""
+        r = self.realism
+        levels = {
+            "z_base_m": r.displacement_noise_m,
+            "f_plate_n": r.load_cell_noise_n,
+            "fz_wfs_n": r.wfs_noise_n,
+            "a_hub_m_s2": r.accelerometer_noise_m_s2,
+        }
+        for i, channel in enumerate(self.channels):
+            if r.noise and channel in levels:
+                signals[i] += levels[channel] * self._rng.standard_normal(signals.shape[1])
+            if r.quantisation and channel == "fz_wfs_n":
+                signals[i] = np.round(signals[i] / r.wfs_step_n) * r.wfs_step_n
+
+    def reset(self) -> None:
+        """Back to rest: zero state, fresh filters and the seed's first noise sample."""
+        self.__init__(self.setup, self.realism, self.actuator, self.output_rate_hz, self.oversampling)
+
+    # ------------------------------------------------------------------ offline runs
+    def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:
+        """Run a whole waveform from rest; channels aligned with the waveform's time axis.
+
+        The record covers ``waveform.duration_s + extra_s``; a non-linear tyre is rescheduled as
+        a sweep's frequency moves. Returns the channels and ``t_s``.
+        """
+        self.reset()
+        n_out = round((waveform.duration_s + extra_s) * self.output_rate_hz)
+        n_total = n_out + self.latency_samples
+        t_internal = np.arange(n_total * self.oversampling) / self.internal_rate_hz
+        command = waveform.value(t_internal)
+        chunk = max(1, round(_RESCHEDULE_CHECK_S * self.output_rate_hz)) * self.oversampling
+        blocks: list[dict[str, np.ndarray]] = []
+        start, scheduled_hz = 0, None
+        while start < command.size:
+            stop = min(start + chunk, command.size)
+            f = waveform.frequency_hz(t_internal[start])
+            if scheduled_hz is None or abs(f - scheduled_hz) > _RESCHEDULE_FRACTION * scheduled_hz:
+                self.set_operating_point(f, waveform.amplitude)
+                scheduled_hz = f
+            blocks.append(self.advance(command[start:stop]))
+            start = stop
+        record = {c: np.concatenate([b[c] for b in blocks])[self.latency_samples :] for c in self.channels}
+        record["t_s"] = np.arange(n_out) / self.output_rate_hz
+        return record

@@ -1,0 +1,200 @@
+"""The time-domain plant against the frequency response, and its sensor models."""
+
+import numpy as np
+import pytest
+
+from bench.models.benches import TyreModel
+from bench.models.parameters import WfsSensor
+from bench.models.setup import BenchKind, BenchSetup
+from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism, SineDwell, Sweep
+
+NO_NOISE = SensorRealism(noise=False, quantisation=False)
+
+
+def fundamental(signal: np.ndarray, freq_hz: float, rate_hz: float, cycles: int) -> complex:
+    """Complex amplitude at ``freq_hz`` over the last ``cycles`` whole cycles (exact for a sine)."""
+    n = round(cycles * rate_hz / freq_hz)
+    t = np.arange(signal.size)[-n:] / rate_hz
+    return 2 * np.mean(signal[-n:] * np.exp(-2j * np.pi * freq_hz * t))
+
+
+@pytest.mark.parametrize("freq_hz", [0.5, 10.0, 40.0, 70.0])
+@pytest.mark.parametrize("kind", [BenchKind.SHAKER, BenchKind.QUARTER_CAR])
+def test_dwell_in_time_domain_matches_the_frequency_response(freq_hz, kind):
+    """Issue 2: 0.1 % and 0.1 degree after settling, noise off, at 0.5, 10, 40 and 70 Hz.
+
+    Sensor dynamics stay on: the anti-alias filter is common to all channels and the measured
+    ratios (F_WFS / z_base, F_WFS / F_contact, F_plate / z_base) are independent of it; the
+    hub accelerometer's own low-pass is checked separately.
+    """
+    setup = BenchSetup(kind, TyreModel.WHEEL_TREAD_SIDEWALL)
+    plant = PlantSimulator(setup, realism=NO_NOISE)
+    cycles = 4 if freq_hz < 1 else round(2 * freq_hz)
+    settle_s = 12.0 if kind is BenchKind.QUARTER_CAR else 3.0  # body mode decays in ~ 1/(zeta w)
+    rec = plant.simulate(SineDwell(freq_hz, 0.002, hold_s=settle_s + cycles / freq_hz, taper_out_s=0.0))
+    amp = {c: fundamental(rec[c], freq_hz, 1000.0, cycles) for c in plant.channels}
+    exact = plant.exact_response(freq_hz, 0.002)
+    for measured, (num, den) in {
+        amp["fz_wfs_n"] / amp["z_base_m"]: ("f_wfs", None),
+        amp["fz_wfs_n"] / amp["f_contact_n"]: ("f_wfs", "f_contact"),
+        amp["f_plate_n"] / amp["z_base_m"]: ("f_plate", None),
+    }.items():
+        truth = exact[num] / (exact[den] if den else 1.0)
+        assert abs(measured / truth) - 1 == pytest.approx(0, abs=1e-3)
+        assert np.degrees(np.angle(measured / truth)) == pytest.approx(0, abs=0.1)
+
+
+def test_commanded_and_actual_displacement_differ_by_the_actuator_response():
+    plant = PlantSimulator(BenchSetup.paper_shaker(nonlinear=False), realism=SensorRealism.ideal())
+    rec = plant.simulate(SineDwell(30.0, 0.001, hold_s=2.0, taper_out_s=0.0))
+    measured = fundamental(rec["z_base_m"], 30.0, 1000.0, 30) / (-1j * 0.001)  # sin -> phasor -j
+    assert measured == pytest.approx(plant.actuator.gain(30.0), rel=1e-4)
+
+
+def test_hub_accelerometer_sees_offset_and_lags_in_phase():
+    setup = BenchSetup.paper_quarter_car(nonlinear=False)
+    plant = PlantSimulator(setup, realism=NO_NOISE)
+    rec = plant.simulate(SineDwell(20.0, 0.002, hold_s=14.0, taper_out_s=0.0))
+    a = fundamental(rec["a_hub_m_s2"], 20.0, 1000.0, 40)
+    z = fundamental(rec["z_base_m"], 20.0, 1000.0, 40)
+    exact = plant.exact_response(20.0, 0.002)
+    lag_deg = np.degrees(np.angle((a / z) / exact["a_hub"]))
+    r = 20.0 / plant.realism.accelerometer_bandwidth_hz
+    expected = -np.degrees(np.arctan2(np.sqrt(2) * r, 1 - r**2))  # 2nd-order Butterworth
+    assert lag_deg == pytest.approx(expected, abs=0.05)
+    assert np.mean(rec["a_hub_m_s2"][-1000:]) == pytest.approx(
+        plant.realism.accelerometer_offset_m_s2, abs=0.05
+    )
+
+
+def test_load_cell_sees_the_plate_mass():
+    setup = BenchSetup.paper_shaker(nonlinear=False)
+    plant = PlantSimulator(setup, realism=SensorRealism.ideal())
+    rec = plant.simulate(SineDwell(25.0, 0.002, hold_s=1.0, taper_out_s=0.0))
+    w = 2 * np.pi * 25.0
+    plate_inertia = fundamental(rec["f_plate_n"] - rec["f_contact_n"], 25.0, 1000.0, 20)
+    z = fundamental(rec["z_base_m"], 25.0, 1000.0, 20)
+    assert plate_inertia / (-(w**2) * z) == pytest.approx(setup.rig.plate_mass_kg, rel=1e-3)
+
+
+def test_blocks_of_any_size_give_the_same_stream():
+    """Continuity: the stream does not depend on how the consumer slices it."""
+    setup = BenchSetup.paper_quarter_car(nonlinear=False)
+    command = Sweep(1.0, 30.0, 3.0, 0.003).value(np.arange(30_000) / 10_000.0)
+    one = PlantSimulator(setup, realism=NO_NOISE).advance(command)
+    plant = PlantSimulator(setup, realism=NO_NOISE)
+    parts = [plant.advance(command[a:b]) for a, b in [(0, 10), (10, 7_000), (7_000, 7_500), (7_500, 30_000)]]
+    for c in one:
+        np.testing.assert_allclose(np.concatenate([p[c] for p in parts]), one[c], rtol=1e-9, atol=1e-9)
+
+
+def test_streaming_output_lags_by_the_filter_latency_and_simulate_removes_it():
+    setup = BenchSetup.paper_shaker(nonlinear=False)
+    plant = PlantSimulator(setup, realism=NO_NOISE)
+    wave = SineDwell(5.0, 0.001, hold_s=1.0)
+    streamed = plant.advance(wave.value(np.arange(30_000) / 10_000.0))["z_base_m"]
+    aligned = plant.simulate(wave, extra_s=1.0)["z_base_m"]
+    lag = plant.latency_samples
+    assert lag == 8
+    np.testing.assert_allclose(streamed[lag:], aligned[: 3000 - lag], atol=1e-12)
+
+
+def test_wfs_quantisation_and_noise_levels():
+    setup = BenchSetup.paper_shaker(nonlinear=False)
+    quantised = SensorRealism(decimation=False, noise=False)
+    rec = PlantSimulator(setup, realism=quantised).simulate(SineDwell(10.0, 0.002, hold_s=1.0))
+    steps = rec["fz_wfs_n"] / quantised.wfs_step_n
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+    assert quantised.wfs_step_n == pytest.approx(6.0)
+
+    noisy = SensorRealism(seed=3, decimation=False, quantisation=False)
+    rest = PlantSimulator(setup, realism=noisy).advance(np.zeros(20_000))
+    assert np.std(rest["fz_wfs_n"]) == pytest.approx(noisy.wfs_noise_n, rel=0.05)
+    assert np.std(rest["f_plate_n"]) == pytest.approx(noisy.load_cell_noise_n, rel=0.05)
+    assert np.std(rest["z_base_m"]) == pytest.approx(noisy.displacement_noise_m, rel=0.05)
+    np.testing.assert_array_equal(rest["f_contact_n"], 0.0)  # the truth is never noisy
+
+
+def test_decimation_filters_noise_to_the_output_band():
+    """White noise at 10 kHz through an anti-alias filter cut at ~400 Hz keeps ~8 % of its power."""
+    realism = SensorRealism(seed=5, quantisation=False)
+    rest = PlantSimulator(BenchSetup.paper_shaker(), realism=realism).advance(np.zeros(200_000))
+    ratio = np.std(rest["fz_wfs_n"][20:]) / realism.wfs_noise_n
+    assert ratio == pytest.approx(np.sqrt(0.08), rel=0.1)
+
+
+def test_same_seed_same_record_other_seed_other_noise():
+    setup = BenchSetup.paper_shaker()
+    wave = SineDwell(12.0, 0.001, hold_s=0.5)
+    a = PlantSimulator(setup, realism=SensorRealism(seed=7)).simulate(wave)
+    b = PlantSimulator(setup, realism=SensorRealism(seed=7)).simulate(wave)
+    c = PlantSimulator(setup, realism=SensorRealism(seed=8)).simulate(wave)
+    np.testing.assert_array_equal(a["fz_wfs_n"], b["fz_wfs_n"])
+    assert not np.array_equal(a["fz_wfs_n"], c["fz_wfs_n"])
+
+
+def test_nonlinear_sweep_reschedules_without_jumps():
+    """Changing the operating point carries the physical state over: no step in any channel."""
+    setup = BenchSetup.paper_shaker(nonlinear=True)
+    rec = PlantSimulator(setup, realism=SensorRealism.ideal()).simulate(Sweep(5.0, 60.0, 4.0, 0.002))
+    for c in ("fz_wfs_n", "f_contact_n", "z_base_m"):
+        jumps = np.abs(np.diff(rec[c]))
+        peak = np.max(np.abs(rec[c]))
+        w_max = 2 * np.pi * 60.0 / 1000.0  # largest phase step per sample
+        assert jumps.max() < 1.5 * w_max * peak
+
+
+def test_nonlinear_dwell_matches_the_operating_point_response():
+    setup = BenchSetup.paper_shaker(nonlinear=True)
+    plant = PlantSimulator(setup, realism=NO_NOISE)
+    rec = plant.simulate(SineDwell(38.0, 0.001, hold_s=3.0, taper_out_s=0.0))
+    h = fundamental(rec["fz_wfs_n"], 38.0, 1000.0, 38) / fundamental(rec["f_contact_n"], 38.0, 1000.0, 38)
+    exact = plant.exact_response(38.0, 0.001)
+    assert h == pytest.approx(exact["f_wfs"] / exact["f_contact"], rel=1e-3)
+    linear = PlantSimulator(BenchSetup.paper_shaker(nonlinear=False)).exact_response(38.0, 0.001)
+    assert abs(h - linear["f_wfs"] / linear["f_contact"]) > 0.05 * abs(h)  # the non-linearity shows
+
+
+def test_hammer_blow_rings_at_the_sensor_eigenfrequency():
+    sensor = WfsSensor(eigenfrequency_hz=2200.0, damping_ratio=0.02)
+    plant = PlantSimulator(
+        BenchSetup(BenchKind.HAMMER, sensor=sensor), realism=NO_NOISE, output_rate_hz=10_000, oversampling=4
+    )
+    pulse = HalfSinePulse(amplitude=2000.0, width_s=1e-4, delay_s=0.001, record_s=0.05)
+    rec = plant.simulate(pulse)
+    assert set(plant.channels) == {"fz_wfs_n", "f_hammer_n"}
+    force = rec["fz_wfs_n"][20:]
+    spectrum = np.abs(np.fft.rfft(force * np.hanning(force.size), 1 << 16))
+    peak_hz = np.fft.rfftfreq(1 << 16, 1e-4)[np.argmax(spectrum)]
+    assert peak_hz == pytest.approx(2200.0 * np.sqrt(1 - 0.02**2), rel=0.01)
+    # The decimated hammer channel keeps the impulse of the force the plant received, to the
+    # anti-alias filter's stop-band leakage at multiples of the output rate (~1e-5).
+    internal_dt_s = 1.0 / plant.internal_rate_hz
+    applied_n_s = np.sum(pulse.value(np.arange(0.0, 0.05, internal_dt_s))) * internal_dt_s
+    assert np.sum(rec["f_hammer_n"]) * 1e-4 == pytest.approx(applied_n_s, rel=1e-4)
+
+
+def test_free_run_has_no_wfs_signal():
+    plant = PlantSimulator(BenchSetup.paper_free_run(), realism=NO_NOISE)
+    rec = plant.simulate(SineDwell(50.0, 0.001, hold_s=0.5))
+    np.testing.assert_array_equal(rec["fz_wfs_n"], 0.0)
+    assert np.max(np.abs(rec["f_plate_n"])) > 100.0
+
+
+@pytest.mark.parametrize(
+    ("command", "message"),
+    [(np.zeros(15), "multiple"), (np.zeros(0), "multiple"), (np.full(10, np.nan), "NaN")],
+)
+def test_bad_commands_are_refused(command, message):
+    plant = PlantSimulator(BenchSetup.paper_shaker())
+    with pytest.raises(ValueError, match=message):
+        plant.advance(command)
+
+
+def test_invalid_waveforms_are_refused():
+    with pytest.raises(ValueError, match="tapers"):
+        SineDwell(10.0, 0.001, hold_s=0.0, taper_in_s=-1.0)
+    with pytest.raises(ValueError, match="spacing"):
+        Sweep(1.0, 10.0, 10.0, 0.001, spacing="cubic")
+    with pytest.raises(ValueError, match="invalid"):
+        SineDwell(0.0, 0.001, hold_s=1.0)
