@@ -81,13 +81,38 @@ def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int) -> _Fit:
     for k in range(1, n_harm + 1):
         cols += [np.cos(k * w * t), np.sin(k * w * t)]
     X = np.stack(cols, axis=1)
+    w_dt = w * (t[1] - t[0]) if t.size > 1 else 0.0
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     res = y - X @ coef
     dof = max(t.size - X.shape[1], 1)
     var = np.sum(res**2, axis=0) / dof
     cov = np.linalg.inv(X.T @ X)
-    fundamental_sigma = np.sqrt(var * (cov[1, 1] + cov[2, 2]))
+    white = var * (cov[1, 1] + cov[2, 2])
+    local = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
+    fundamental_sigma = np.sqrt(white if local is None else local)
     return _Fit(coef, np.sqrt(np.mean(res**2, axis=0)), fundamental_sigma)
+
+
+def _local_noise_variance(res: np.ndarray, w_dt: float, n_harm: int, dof_factor: float) -> np.ndarray | None:
+    """``E|dA|^2 = 2 G(f) / T`` from the residual's one-sided PSD ``G`` near the fundamental.
+
+    Sensor noise is not white after the acquisition's anti-alias filter (and rarely is in a lab):
+    the fundamental's error depends on the noise density at the excitation frequency only. ``G`` is
+    averaged over the periodogram bins within 25 % (at least 8 bins) of the fundamental, except the
+    bins of the fitted components; ``None`` when fewer than 6 bins qualify.
+    """
+    n = res.shape[0]
+    spec = np.fft.rfft(res, axis=0)
+    k = np.arange(spec.shape[0])
+    cycles = w_dt * n / (2 * np.pi)  # the fundamental's bin (whole cycles in the window)
+    near = (np.abs(k - cycles) <= max(0.25 * cycles, 8)) & (k > 0) & (k < n // 2)
+    for h in range(1, n_harm + 1):
+        near &= np.abs(k - h * cycles) > 1.5
+    if near.sum() < 6:
+        return None
+    # |R_k|^2 / n estimates the two-sided density times fs; E|dA|^2 = 2 G / T = 4 S / n^2 * n.
+    density = np.mean(np.abs(spec[near]) ** 2, axis=0) / n
+    return 4.0 * density / n * dof_factor
 
 
 def _phasors(coef: np.ndarray, k: int) -> np.ndarray:
