@@ -52,12 +52,16 @@ class RubberTerms:
         return tyre.damping_ns_per_m + self.hysteretic_damping_n_per_m / w
 
 
+#: No rubber terms: the paper's linear spring and damper.
+LINEAR = RubberTerms()
+
+
 def shaker_response(
     model: TyreModel,
     tyre: Tyre,
     sensor: WfsSensor,
     freq_hz: np.ndarray,
-    rubber: RubberTerms = RubberTerms(),
+    rubber: RubberTerms = LINEAR,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(F_wfs / Z, F_contact / Z)`` of the shaker bench, complex, N/m (see the module docstring)."""
     f = np.asarray(freq_hz, dtype=float)
@@ -81,3 +85,41 @@ def shaker_response(
     tyre_el = k + loss
     z_r = tyre_el / (-(tyre.wheel_mass_kg - m_t) * w**2 + tyre_el + ks)
     return ks * z_r, -m_t * w**2 + tyre_el * (1 - z_r)
+
+
+def hub_driven_response(
+    model: TyreModel,
+    tyre: Tyre,
+    sensor: WfsSensor,
+    freq_hz: np.ndarray,
+    rubber: RubberTerms = LINEAR,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(F_wfs / z_hub, F_contact / z_hub)`` with the contact held still and the hub moved, N/m.
+
+    Together with :func:`shaker_response` (hub held, contact moved) this is the whole linear
+    behaviour of what lies below the sensor, whatever stands above it (suspension, body). Models 1/2::
+
+        (-m_r w^2 + T + K_s) z_r = K_s z_hub,  F_wfs = K_s (z_r - z_hub),  F_contact = -T z_r
+
+    Model 3: the sidewall equations with ``Z = 0`` and ``K_s z_hub`` driving the rim;
+    ``F_contact = -A z_r - L z_sw``.
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    w = 2 * np.pi * f
+    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
+    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
+    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    model = TyreModel(model)
+    if model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
+        lower = tyre.sidewall_lower_stiffness_n_per_m
+        upper = tyre.sidewall_upper_stiffness_n_per_m + loss
+        a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
+        a22 = -m_r * w**2 + k + upper + ks
+        det = a11 * a22 - upper**2
+        z_r, z_sw = a11 * ks / det, upper * ks / det
+        return ks * (z_r - 1), -k * z_r - lower * z_sw
+    m_t = tyre.tread_mass_kg if model is TyreModel.WHEEL_TREAD else 0.0
+    tyre_el = k + loss
+    z_r = ks / (-(tyre.wheel_mass_kg - m_t) * w**2 + tyre_el + ks)
+    return ks * (z_r - 1), -tyre_el * z_r
