@@ -5,7 +5,11 @@ Hub acceleration (paper, section 5): ``F_contact ~ F_wfs + m_wheel a_hub``. ``m_
 or estimated from a run where the contact force is measured (four-post), by least squares on
 band-passed signals: ``F_contact - F_wfs = m_rim a_hub (+ m_contact a_contact)``; the second
 regressor, the contact-patch acceleration from the post's displacement, separates the mass that
-moves with the contact (the tread) so that ``m_wheel = m_rim + m_contact`` is not biased by it.
+moves with the contact (the tread) so that ``m_wheel = m_rim + m_contact`` is not biased by it. A
+third regressor, the derivative of the measured hub acceleration, absorbs a small lag of the
+accelerometer against the force channels (``a(t) ~ a_meas(t) + tau a_meas'(t)``; a mass-production
+sensor's low-pass or a separate acquisition path): without it the lag leaks into the masses.
+:func:`advance_acceleration` removes that lag before compensating.
 
 Model-based: below the sensor the tyre/wheel is linear in the contact displacement ``Z`` and the hub
 displacement ``z_h``::
@@ -48,13 +52,15 @@ class WheelMass:
     """Mass below the sensor from a run: ``mass_kg`` (m_wheel, used by the hub-acceleration
     compensation) with standard uncertainty ``sigma_kg``; ``rim_side_kg`` multiplies the hub
     acceleration, ``contact_side_kg`` the contact acceleration (0 when not estimated);
-    ``explained_fraction``: share of the force difference's variance the fit explains."""
+    ``explained_fraction``: share of the force difference's variance the fit explains;
+    ``accelerometer_delay_s``: the lag of the hub acceleration behind the forces (0 when not fitted)."""
 
     mass_kg: float
     sigma_kg: float
     rim_side_kg: float
     contact_side_kg: float
     explained_fraction: float
+    accelerometer_delay_s: float
     band_hz: tuple[float, float]
 
 
@@ -66,6 +72,7 @@ def estimate_wheel_mass(
     *,
     a_contact: np.ndarray | None = None,
     band_hz: tuple[float, float] = (1.0, 25.0),
+    fit_delay: bool = True,
 ) -> WheelMass:
     """Least squares of ``F_contact - F_wfs`` on ``a_hub`` (and ``a_contact``), all band-passed
     with the same zero-phase filter (offsets and out-of-band noise removed).
@@ -81,23 +88,35 @@ def estimate_wheel_mass(
     edge = int(2 * fs / band_hz[0])
     filt = {k: sosfiltfilt(sos, v)[edge:-edge] for k, v in sig.items()}
     y = filt["f_contact"] - filt["f_wfs"]
-    cols = [filt["a_hub"]] + ([filt["a_contact"]] if a_contact is not None else [])
+    cols = [filt["a_hub"]]
+    if a_contact is not None:
+        cols.append(filt["a_contact"])
+    if fit_delay:
+        cols.append(np.gradient(filt["a_hub"]) * fs)
     X = np.stack(cols, axis=1)
-    if np.sqrt(np.mean(X**2)) == 0:
+    if np.sqrt(np.mean(X[:, 0] ** 2)) == 0:
         raise AnalysisInputError("no acceleration in the band: the wheel mass cannot be estimated")
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     res = y - X @ coef
     n_eff = max(y.size * 2 * (band_hz[1] - band_hz[0]) / fs - len(coef), 1.0)
     cov = np.linalg.inv(X.T @ X) * np.sum(res**2) / n_eff * (y.size / n_eff)
-    total_var = float(np.ones(len(coef)) @ cov @ np.ones(len(coef)))
+    n_mass = 2 if a_contact is not None else 1
+    total_var = float(np.sum(cov[:n_mass, :n_mass]))
     return WheelMass(
-        mass_kg=float(coef.sum()),
+        mass_kg=float(coef[:n_mass].sum()),
         sigma_kg=float(np.sqrt(total_var)),
         rim_side_kg=float(coef[0]),
-        contact_side_kg=float(coef[1]) if len(coef) > 1 else 0.0,
+        contact_side_kg=float(coef[1]) if a_contact is not None else 0.0,
         explained_fraction=float(1 - np.sum(res**2) / np.sum(y**2)),
+        accelerometer_delay_s=float(coef[-1] / coef[0]) if fit_delay else 0.0,
         band_hz=band_hz,
     )
+
+
+def advance_acceleration(a_hub: np.ndarray, fs_hz: float, delay_s: float) -> np.ndarray:
+    """``a(t + tau) ~ a(t) + tau a'(t)``: undo a small lag ``tau`` (first order, central differences)."""
+    a = np.asarray(a_hub, dtype=float)
+    return a + delay_s * np.gradient(a) * as_sample_rate(fs_hz)
 
 
 def inverse_response(

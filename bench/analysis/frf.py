@@ -69,6 +69,7 @@ def phasor_ratio(
 class ValidBand:
     """The band in which a measured force ratio (measured / true contact force) can be trusted.
 
+    ``lowest_hz`` is the lowest reliable point (where the data begins to say anything);
     ``upper_hz`` is the highest frequency up to which every point from ``lowest_hz`` on keeps
     ``| |H| - 1 | <= amplitude_tolerance`` and ``|phase H| <= phase_tolerance_deg``; it is the last
     point that passes (no interpolation: conservative), 0.0 when the first point already fails.
@@ -98,6 +99,10 @@ def valid_band(
         raise AnalysisInputError("valid band needs equal-length, non-empty frequency and ratio arrays")
     if np.any(np.diff(f) <= 0):
         raise AnalysisInputError("valid band needs strictly ascending frequencies")
+    if not ok_points.any():
+        raise AnalysisInputError("valid band needs at least one reliable point")
+    start = int(np.argmax(ok_points))  # the band begins at the lowest reliable point
+    f, h, ok_points = f[start:], h[start:], ok_points[start:]
     amp_bad = ~(np.abs(np.abs(h) - 1.0) <= amplitude_tolerance)
     phase_bad = ~(np.abs(np.degrees(np.angle(h))) <= phase_tolerance_deg)
     causes = (("unreliable point", ~ok_points), ("amplitude", amp_bad), ("phase", phase_bad))

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from bench.analysis.dwell import DwellFit, fit_dwell
+from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre
 from bench.models.setup import BenchSetup
-from simulators.plant import PlantSimulator, SensorRealism, SineDwell
+from simulators.plant import PlantSimulator, SensorRealism, SineDwell, Sweep
 
 FS = 1000.0
 #: A dwell grid like the paper's, 0.5-70 Hz, denser around the tread resonance of any plausible tyre.
@@ -61,3 +62,14 @@ def shaker_other_tyre() -> DwellRun:
 def shaker_nonlinear() -> dict[float, DwellRun]:
     setup = BenchSetup.paper_shaker(2.5, nonlinear=True)
     return {a: run_dwells(setup, SHAKER_GRID_HZ, a, seed=20 + i) for i, a in enumerate((1e-3, 2e-3, 5e-3))}
+
+
+@pytest.fixture(
+    scope="session", params=[TyreModel.WHEEL_TREAD, TyreModel.WHEEL_TREAD_SIDEWALL], ids=["m2", "m3"]
+)
+def four_post(request) -> tuple[BenchSetup, dict[str, np.ndarray]]:
+    """One corner of the paper's vehicle (non-linear tyre, Model 2 or 3 as the truth) on a linear
+    sine sweep 0.1-30 Hz over 60 s at 2 mm."""
+    setup = BenchSetup.paper_quarter_car(2.5, model=request.param)
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=30 + int(request.param)))
+    return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
