@@ -8,7 +8,7 @@ import pytest
 from bench.analysis.dwell import DwellFit, fit_dwell
 from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre
-from bench.models.setup import BenchSetup
+from bench.models.setup import BenchKind, BenchSetup
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell, Sweep
 
 FS = 1000.0
@@ -73,3 +73,10 @@ def four_post(request) -> tuple[BenchSetup, dict[str, np.ndarray]]:
     setup = BenchSetup.paper_quarter_car(2.5, model=request.param)
     plant = PlantSimulator(setup, realism=SensorRealism(seed=30 + int(request.param)))
     return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
+
+
+@pytest.fixture(scope="session")
+def four_post_free_run() -> DwellRun:
+    """The four-post rig's post without a vehicle: its own plate mass (m_comp) to identify."""
+    rig = BenchSetup.paper_quarter_car().rig
+    return run_dwells(BenchSetup(BenchKind.FREE_RUN, rig=rig), FREE_RUN_GRID_HZ, 2e-3, seed=14)
