@@ -9,7 +9,6 @@ import subprocess
 import time
 
 import pytest
-from conftest import async_wait_until
 
 from drivers.actuator import ActuatorClient
 from drivers.errors import (
@@ -28,6 +27,7 @@ from drivers.register_map import (
     load_register_map,
 )
 from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from tests.waiting import async_wait_until
 
 DWELL = DwellSetpoint(freq_hz=10.0, amplitude_mm=2.0, taper_in_s=0.2, taper_out_s=0.2)
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import wait_until
 
 from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_reader import WfsReader
@@ -13,6 +12,7 @@ from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.faults import ByteFaults
 from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
+from tests.waiting import wait_until
 
 
 def _rig(link, *, faults=None, speed_rad_s=0.0):

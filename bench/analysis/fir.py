@@ -1,0 +1,123 @@
+"""FIR filters designed by weighted complex least squares, applied offline or as a stream.
+
+A filter ``h`` (``n_taps`` real taps at ``fs``) approximates a target response that includes a
+fixed latency ``L`` samples, ``D(f) = G(f) exp(-j 2 pi f L / fs)``::
+
+    min_h  sum_k W_k |sum_n h_n exp(-j 2 pi f_k n / fs) - D(f_k)|^2 + lam ||h||^2
+
+solved as one real linear least-squares problem (real and imaginary rows stacked). A FIR is
+stable by construction and causal; the output at sample ``n`` describes the input instant
+``n - L``. The small ridge term ``lam`` bounds the taps, so the gain outside the weighted band
+stays bounded.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import lfilter
+
+from bench.analysis.validation import AnalysisInputError
+
+
+def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndarray:
+    """Complex frequency response of FIR ``taps`` at ``freq_hz``."""
+    n = np.arange(np.asarray(taps).size)
+    return np.exp(-2j * np.pi * np.outer(np.asarray(freq_hz, dtype=float) / fs_hz, n)) @ taps
+
+
+def design_fir(
+    freq_hz: np.ndarray,
+    target: np.ndarray,
+    weight: np.ndarray,
+    *,
+    n_taps: int,
+    latency_samples: int,
+    fs_hz: float,
+    ridge: float = 0.0,
+) -> np.ndarray:
+    """Taps approximating ``target * exp(-j w latency)`` (see the module docstring).
+
+    ``ridge`` is relative: ``lam = ridge * mean(W)`` times the grid size.
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    if not 0 <= latency_samples < n_taps:
+        raise AnalysisInputError(f"latency {latency_samples} must lie within the {n_taps} taps")
+    if np.any(f < 0) or np.any(f > fs_hz / 2):
+        raise AnalysisInputError("design frequencies must lie in [0, fs/2]")
+    d = np.asarray(target, dtype=complex) * np.exp(-2j * np.pi * f * latency_samples / fs_hz)
+    sw = np.sqrt(np.asarray(weight, dtype=float))
+    basis = np.exp(-2j * np.pi * np.outer(f / fs_hz, np.arange(n_taps))) * sw[:, None]
+    rows = [basis.real, basis.imag]
+    rhs = [(d * sw).real, (d * sw).imag]
+    if ridge > 0:
+        rows.append(np.sqrt(ridge * np.mean(sw**2) * f.size) * np.eye(n_taps))
+        rhs.append(np.zeros(n_taps))
+    taps, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
+    return taps
+
+
+def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.ndarray:
+    """Filter a whole record and undo the latency: ``y[n]`` describes instant ``n``.
+
+    The last ``latency_samples`` outputs would need future input: they are NaN, never a guess.
+    """
+    y = lfilter(taps, [1.0], np.asarray(x, dtype=float))
+    out = np.full(y.size, np.nan)
+    out[: y.size - latency_samples] = y[latency_samples:]
+    return out
+
+
+@dataclass
+class StreamingFir:
+    """A multi-input FIR, ``y = sum_i h_i * x_i``, fed block by block (state kept between blocks).
+
+    Output sample ``n`` of the stream describes the input instant ``n - latency_samples``.
+    """
+
+    taps: Sequence[np.ndarray]
+    latency_samples: int
+    _zi: list[np.ndarray] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.taps = [np.asarray(t, dtype=float) for t in self.taps]
+        self._zi = [np.zeros(t.size - 1) for t in self.taps]
+
+    def process(self, *blocks: np.ndarray) -> np.ndarray:
+        if len(blocks) != len(self.taps):
+            raise AnalysisInputError(f"expected {len(self.taps)} input blocks, got {len(blocks)}")
+        sizes = {np.asarray(b).size for b in blocks}
+        if len(sizes) != 1:
+            raise AnalysisInputError(f"input blocks have different lengths: {sorted(sizes)}")
+        out = np.zeros(sizes.pop())
+        for i, (h, block) in enumerate(zip(self.taps, blocks, strict=True)):
+            x = np.asarray(block, dtype=float)
+            if not np.all(np.isfinite(x)):
+                raise AnalysisInputError("streaming filter input contains NaN or infinite values")
+            y, self._zi[i] = lfilter(h, [1.0], x, zi=self._zi[i])
+            out += y
+        return out
+
+
+def double_differentiator(fs_hz: float, *, band_hz: float, n_taps: int = 61) -> tuple[np.ndarray, int]:
+    """Taps and latency of ``d^2/dt^2`` accurate over ``[0, band_hz]`` and rolling off above.
+
+    Used to turn a measured displacement into acceleration (plate-mass correction). Above the band
+    the target falls to zero with a half-cosine, weighted lightly, so noise is not amplified as w^2.
+    """
+    latency = (n_taps - 1) // 2
+    f = np.linspace(0, fs_hz / 2, 8 * n_taps)
+    stop = min(1.4 * band_hz, fs_hz / 2)
+    roll = np.where(
+        f <= band_hz,
+        1.0,
+        np.where(f >= stop, 0.0, 0.5 + 0.5 * np.cos(np.pi * (f - band_hz) / (stop - band_hz))),
+    )
+    target = -((2 * np.pi * f) ** 2) * roll
+    # relative accuracy in the band: |error|^2 weighted by 1 / |target|^2 (floored below 0.5 Hz)
+    w_floor = 2 * np.pi * np.maximum(f, 0.5)
+    weight = np.where(f <= band_hz, 1.0, 1e-3) * (2 * np.pi * band_hz / w_floor) ** 4
+    taps = design_fir(f, target, weight, n_taps=n_taps, latency_samples=latency, fs_hz=fs_hz)
+    return taps, latency

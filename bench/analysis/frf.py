@@ -1,0 +1,126 @@
+"""Frequency response functions, ratios of phasors with their uncertainty, and the valid band.
+
+Conventions: a channel oscillating at circular frequency w is ``x(t) = Re(X exp(j w t))``; ``X`` is
+its complex amplitude (phasor). An FRF value is the ratio of two phasors. ``sigma`` is the standard
+uncertainty of a complex value, ``sqrt(E |error|^2)``; each of its real and imaginary parts has the
+standard deviation ``sigma / sqrt(2)`` when the error is circular.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.analysis.validation import AnalysisInputError
+
+#: Default valid-band tolerances: | |H| - 1 | <= 10 % and |phase H| <= 10 degrees.
+AMPLITUDE_TOLERANCE = 0.10
+PHASE_TOLERANCE_DEG = 10.0
+
+
+@dataclass(frozen=True)
+class Frf:
+    """A frequency response ``output / input`` sampled at ``freq_hz``.
+
+    ``value`` is complex (output units per input unit), ``sigma`` its standard uncertainty (same
+    units, ``sqrt(E|error|^2)``), ``reliable`` marks the points the data supports (a dwell that
+    settled, a sweep bin with excitation energy and coherence).
+    """
+
+    freq_hz: np.ndarray
+    value: np.ndarray
+    sigma: np.ndarray
+    reliable: np.ndarray
+    output: str
+    input: str
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.freq_hz).size
+        for name in ("value", "sigma", "reliable"):
+            if np.asarray(getattr(self, name)).shape != (n,):
+                raise AnalysisInputError(f"Frf.{name} must have shape ({n},)")
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        return np.abs(self.value)
+
+    @property
+    def phase_deg(self) -> np.ndarray:
+        return np.degrees(np.angle(self.value))
+
+
+def phasor_ratio(
+    num: np.ndarray | complex, num_sigma: np.ndarray | float, den: np.ndarray | complex, den_sigma
+) -> tuple[np.ndarray, np.ndarray]:
+    """``num / den`` and its standard uncertainty by first-order propagation (independent errors).
+
+    ``d(N/D) = (dN - H dD) / D``, so ``sigma_H^2 = (sigma_N^2 + |H|^2 sigma_D^2) / |D|^2``.
+    """
+    num, den = np.asarray(num, dtype=complex), np.asarray(den, dtype=complex)
+    if np.any(den == 0):
+        raise AnalysisInputError("ratio with a zero denominator phasor")
+    h = num / den
+    sigma = np.sqrt(np.asarray(num_sigma) ** 2 + np.abs(h) ** 2 * np.asarray(den_sigma) ** 2) / np.abs(den)
+    return h, sigma
+
+
+@dataclass(frozen=True)
+class ValidBand:
+    """The band in which a measured force ratio (measured / true contact force) can be trusted.
+
+    ``lowest_hz`` is the lowest reliable point (where the data begins to say anything: with a
+    ``sigma``, a point is reliable only if its standard uncertainty is at most half the tolerances,
+    so that noise alone can neither pass nor fail it);
+    ``upper_hz`` is the highest frequency up to which every point from ``lowest_hz`` on keeps
+    ``| |H| - 1 | <= amplitude_tolerance`` and ``|phase H| <= phase_tolerance_deg``; it is the last
+    point that passes (no interpolation: conservative), 0.0 when the first point already fails.
+    ``limited_by`` says what ended the band: ``"amplitude"``, ``"phase"``, ``"unreliable point"`` or
+    ``"end of data"`` (the band may extend beyond the data).
+    """
+
+    upper_hz: float
+    lowest_hz: float
+    limited_by: str
+    amplitude_tolerance: float
+    phase_tolerance_deg: float
+
+
+def valid_band(
+    freq_hz: np.ndarray,
+    ratio: np.ndarray,
+    reliable: np.ndarray | None = None,
+    *,
+    amplitude_tolerance: float = AMPLITUDE_TOLERANCE,
+    phase_tolerance_deg: float = PHASE_TOLERANCE_DEG,
+    sigma: np.ndarray | None = None,
+) -> ValidBand:
+    """Valid band of a force ratio sampled at ascending ``freq_hz`` (see :class:`ValidBand`)."""
+    f = np.asarray(freq_hz, dtype=float)
+    h = np.asarray(ratio, dtype=complex)
+    ok_points = np.ones(f.size, bool) if reliable is None else np.asarray(reliable, bool)
+    if f.size == 0 or f.shape != h.shape or f.shape != ok_points.shape:
+        raise AnalysisInputError("valid band needs equal-length, non-empty frequency and ratio arrays")
+    if sigma is not None:
+        relative = np.asarray(sigma, dtype=float) / np.abs(h)
+        determined = (relative <= 0.5 * amplitude_tolerance) & (
+            np.degrees(relative) <= 0.5 * phase_tolerance_deg
+        )
+        ok_points = ok_points & determined
+    if np.any(np.diff(f) <= 0):
+        raise AnalysisInputError("valid band needs strictly ascending frequencies")
+    if not ok_points.any():
+        raise AnalysisInputError("valid band needs at least one reliable point")
+    start = int(np.argmax(ok_points))  # the band begins at the lowest reliable point
+    f, h, ok_points = f[start:], h[start:], ok_points[start:]
+    amp_bad = ~(np.abs(np.abs(h) - 1.0) <= amplitude_tolerance)
+    phase_bad = ~(np.abs(np.degrees(np.angle(h))) <= phase_tolerance_deg)
+    causes = (("unreliable point", ~ok_points), ("amplitude", amp_bad), ("phase", phase_bad))
+    first_bad = f.size
+    limited_by = "end of data"
+    for cause, bad in causes:
+        idx = np.flatnonzero(bad)
+        if idx.size and idx[0] < first_bad:
+            first_bad, limited_by = int(idx[0]), cause
+    upper = float(f[first_bad - 1]) if first_bad > 0 else 0.0
+    return ValidBand(upper, float(f[0]), limited_by, amplitude_tolerance, phase_tolerance_deg)

@@ -1,0 +1,125 @@
+"""Closed-form shaker-bench responses of the paper's Models 1-3, for fast identification.
+
+The shaker bench clamps the hub; the plate displacement ``Z`` drives the contact. With the sensor
+as a spring/damper ``K_s = k_s + j w d_s`` between the rim and the clamped hub, and the tyre
+element ``T = k(f) + j (w d + h)``:
+
+- Models 1 and 2 (rim mass ``m_r``; tread ``m_T`` moving with the plate, zero in Model 1)::
+
+      (-m_r w^2 + T + K_s) z_r = T Z,   F_wfs = K_s z_r,   F_contact = -m_T w^2 Z + T (Z - z_r)
+
+- Model 3 (air spring ``A = k(f)`` base-rim; sidewall mass ``m_sw`` on ``L = k_lower`` from the
+  base and ``U = k_upper + j (w d + h)`` to the rim)::
+
+      (-m_sw w^2 + L + U) z_sw - U z_r = L Z
+      -U z_sw + (-m_r w^2 + A + U + K_s) z_r = A Z
+      F_wfs = K_s z_r,   F_contact = -m_T w^2 Z + A (Z - z_r) + L (Z - z_sw)
+
+The rubber terms beyond the paper's linear elements are optional: a stiffness rising with the
+logarithm of frequency, ``k(f) = k (1 + rate log10(max(f, f_min) / f_ref))``, and a hysteretic
+(rate-independent) damping ``h`` in N/m next to the viscous ``d``. With both zero this is exactly
+the linear network of :func:`bench.models.benches.shaker_bench` (tested equal).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.models.benches import TyreModel
+from bench.models.parameters import Tyre, WfsSensor
+
+#: Reference and lowest frequency of the logarithmic stiffness law.
+STIFFNESS_REFERENCE_HZ = 10.0
+STIFFNESS_MIN_HZ = 0.5
+
+
+@dataclass(frozen=True)
+class RubberTerms:
+    """Departures from the linear spring/damper: ``k(f)`` rise per decade and hysteretic damping."""
+
+    stiffness_rise_per_decade: float = 0.0
+    hysteretic_damping_n_per_m: float = 0.0
+
+    def stiffness_factor(self, freq_hz: np.ndarray) -> np.ndarray:
+        f = np.maximum(np.asarray(freq_hz, dtype=float), STIFFNESS_MIN_HZ)
+        return 1.0 + self.stiffness_rise_per_decade * np.log10(f / STIFFNESS_REFERENCE_HZ)
+
+    def equivalent_damping_ns_per_m(self, tyre: Tyre, freq_hz: np.ndarray) -> np.ndarray:
+        """Viscous damping equivalent to ``d`` plus the hysteretic term at each frequency."""
+        w = 2 * np.pi * np.asarray(freq_hz, dtype=float)
+        return tyre.damping_ns_per_m + self.hysteretic_damping_n_per_m / w
+
+
+#: No rubber terms: the paper's linear spring and damper.
+LINEAR = RubberTerms()
+
+
+def shaker_response(
+    model: TyreModel,
+    tyre: Tyre,
+    sensor: WfsSensor,
+    freq_hz: np.ndarray,
+    rubber: RubberTerms = LINEAR,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(F_wfs / Z, F_contact / Z)`` of the shaker bench, complex, N/m (see the module docstring)."""
+    f = np.asarray(freq_hz, dtype=float)
+    w = 2 * np.pi * f
+    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
+    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
+    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    model = TyreModel(model)
+    if model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
+        lower = tyre.sidewall_lower_stiffness_n_per_m
+        upper = tyre.sidewall_upper_stiffness_n_per_m + loss
+        a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
+        a22 = -m_r * w**2 + k + upper + ks
+        det = a11 * a22 - upper**2
+        z_sw = (lower * a22 + upper * k) / det
+        z_r = (a11 * k + upper * lower) / det
+        contact = -tyre.tread_mass_kg * w**2 + k * (1 - z_r) + lower * (1 - z_sw)
+        return ks * z_r, contact
+    m_t = tyre.tread_mass_kg if model is TyreModel.WHEEL_TREAD else 0.0
+    tyre_el = k + loss
+    z_r = tyre_el / (-(tyre.wheel_mass_kg - m_t) * w**2 + tyre_el + ks)
+    return ks * z_r, -m_t * w**2 + tyre_el * (1 - z_r)
+
+
+def hub_driven_response(
+    model: TyreModel,
+    tyre: Tyre,
+    sensor: WfsSensor,
+    freq_hz: np.ndarray,
+    rubber: RubberTerms = LINEAR,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(F_wfs / z_hub, F_contact / z_hub)`` with the contact held still and the hub moved, N/m.
+
+    Together with :func:`shaker_response` (hub held, contact moved) this is the whole linear
+    behaviour of what lies below the sensor, whatever stands above it (suspension, body). Models 1/2::
+
+        (-m_r w^2 + T + K_s) z_r = K_s z_hub,  F_wfs = K_s (z_r - z_hub),  F_contact = -T z_r
+
+    Model 3: the sidewall equations with ``Z = 0`` and ``K_s z_hub`` driving the rim;
+    ``F_contact = -A z_r - L z_sw``.
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    w = 2 * np.pi * f
+    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
+    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
+    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    model = TyreModel(model)
+    if model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
+        lower = tyre.sidewall_lower_stiffness_n_per_m
+        upper = tyre.sidewall_upper_stiffness_n_per_m + loss
+        a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
+        a22 = -m_r * w**2 + k + upper + ks
+        det = a11 * a22 - upper**2
+        z_r, z_sw = a11 * ks / det, upper * ks / det
+        return ks * (z_r - 1), -k * z_r - lower * z_sw
+    m_t = tyre.tread_mass_kg if model is TyreModel.WHEEL_TREAD else 0.0
+    tyre_el = k + loss
+    z_r = ks / (-(tyre.wheel_mass_kg - m_t) * w**2 + tyre_el + ks)
+    return ks * (z_r - 1), -tyre_el * z_r

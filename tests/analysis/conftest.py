@@ -1,0 +1,82 @@
+"""Simulated runs shared by the analysis tests (session-scoped: each run is simulated once)."""
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from bench.analysis.dwell import DwellFit, fit_dwell
+from bench.models.benches import TyreModel
+from bench.models.parameters import Tyre
+from bench.models.setup import BenchKind, BenchSetup
+from simulators.plant import PlantSimulator, SensorRealism, SineDwell, Sweep
+
+FS = 1000.0
+#: A dwell grid like the paper's, 0.5-70 Hz, denser around the tread resonance of any plausible tyre.
+SHAKER_GRID_HZ = np.r_[0.5, 1, 2, 4, 7, 10, 14, 18, 22, 25, 28, 31, 34, 37, 40, 43, 46, 50, 55, 60, 65, 70]
+FREE_RUN_GRID_HZ = np.r_[1, 2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100]
+#: A tyre that is not the paper's: softer, heavier tread, more damping, lighter wheel.
+OTHER_TYRE = Tyre(stiffness_n_per_m=290e3, damping_ns_per_m=125.0, wheel_mass_kg=26.0, tread_mass_kg=4.6)
+
+
+@dataclass
+class DwellRun:
+    plant: PlantSimulator
+    amplitude_m: float
+    fits: list[DwellFit]
+
+
+def run_dwells(setup, freqs, amplitude_m, seed) -> DwellRun:
+    """A dwell per frequency: 0.3 s tapers, a hold of at least 1 s and 2 cycles; the first 0.2 s of
+    the hold are left for settling."""
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
+    fits = []
+    for f in freqs:
+        hold = max(1.0, 2.2 / f + 0.2)
+        dwell = SineDwell(
+            freq_hz=float(f), amplitude=amplitude_m, hold_s=hold, taper_in_s=0.3, taper_out_s=0.3
+        )
+        rec = plant.simulate(dwell)
+        channels = {k: v for k, v in rec.items() if k not in ("t_s", "f_contact_n")}
+        fits.append(fit_dwell(channels, FS, float(f), start_s=0.5, stop_s=0.3 + hold))
+    return DwellRun(plant, amplitude_m, fits)
+
+
+@pytest.fixture(scope="session")
+def free_run() -> DwellRun:
+    return run_dwells(BenchSetup.paper_free_run(), FREE_RUN_GRID_HZ, 2e-3, seed=11)
+
+
+@pytest.fixture(scope="session")
+def shaker_linear() -> DwellRun:
+    return run_dwells(BenchSetup.paper_shaker(2.5, nonlinear=False), SHAKER_GRID_HZ, 2e-3, seed=12)
+
+
+@pytest.fixture(scope="session")
+def shaker_other_tyre() -> DwellRun:
+    setup = BenchSetup.paper_shaker(2.5, nonlinear=False).with_tyre(OTHER_TYRE)
+    return run_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=13)
+
+
+@pytest.fixture(scope="session")
+def shaker_nonlinear() -> dict[float, DwellRun]:
+    setup = BenchSetup.paper_shaker(2.5, nonlinear=True)
+    return {a: run_dwells(setup, SHAKER_GRID_HZ, a, seed=20 + i) for i, a in enumerate((1e-3, 2e-3, 5e-3))}
+
+
+@pytest.fixture(
+    scope="session", params=[TyreModel.WHEEL_TREAD, TyreModel.WHEEL_TREAD_SIDEWALL], ids=["m2", "m3"]
+)
+def four_post(request) -> tuple[BenchSetup, dict[str, np.ndarray]]:
+    """One corner of the paper's vehicle (non-linear tyre, Model 2 or 3 as the truth) on a linear
+    sine sweep 0.1-30 Hz over 60 s at 2 mm."""
+    setup = BenchSetup.paper_quarter_car(2.5, model=request.param)
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=30 + int(request.param)))
+    return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
+
+
+@pytest.fixture(scope="session")
+def four_post_free_run() -> DwellRun:
+    """The four-post rig's post without a vehicle: its own plate mass (m_comp) to identify."""
+    rig = BenchSetup.paper_quarter_car().rig
+    return run_dwells(BenchSetup(BenchKind.FREE_RUN, rig=rig), FREE_RUN_GRID_HZ, 2e-3, seed=14)
