@@ -17,22 +17,12 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one core, as the target states
 
 import argparse
-import time
 
 import numpy as np
 
 from bench.models.setup import BenchSetup
+from benchmarks.timing import best_time_s
 from simulators.plant import PlantSimulator, SensorRealism, Sweep
-
-
-def best_time_s(run, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        run()
-        best = min(best, time.perf_counter() - start)
-    return best
-
 
 DWELL_S = 10
 

@@ -7,23 +7,14 @@ Run: python benchmarks/wfs_decode.py [--frames N]
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
+from benchmarks.timing import best_time_s
 from drivers.wfs_frame import FRAME_SIZE, decode, encode, new_frames
 from drivers.wfs_stream import StreamParser
 
 LINE_RATE_FPS = 921600 / 10 / FRAME_SIZE  # 8N1: 10 bits per byte
-
-
-def _best(fn, repeats: int = 5) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def main() -> None:
@@ -34,15 +25,15 @@ def main() -> None:
     frames["seq"] = np.arange(n)
     frames["fz"] = np.random.default_rng(0).normal(0, 100, n)
     data = encode(frames)
-    copy_s = _best(lambda: np.frombuffer(data, np.uint8).copy())
-    decode_s = _best(lambda: decode(data))
+    copy_s = best_time_s(lambda: np.frombuffer(data, np.uint8).copy())
+    decode_s = best_time_s(lambda: decode(data))
 
     def stream():
         p = StreamParser()
         for i in range(0, len(data), 4096):
             p.feed(data[i : i + 4096])
 
-    stream_s = _best(stream, repeats=3)
+    stream_s = best_time_s(stream, repeats=3)
     print(f"line rate at 921600 baud: {LINE_RATE_FPS:.0f} frames/s")
     print(f"baseline copy           : {n / copy_s:,.0f} frames/s")
     for name, seconds in (("block decode + CRC", decode_s), ("stream parser, 4 KiB reads", stream_s)):
