@@ -6,6 +6,9 @@ bench displacement, plate force and hub acceleration, sampled in the same frame.
 set, the wheel angle advances and the loads are expressed in the rotating sensor frame, so a host
 that applies the rotating-to-non-rotating transformation recovers the wheel-frame loads.
 
+The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
+anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
+
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (frames produced
 meanwhile are lost, the sequence counter runs on), a disconnect and reconnect of the link.
 """
