@@ -82,7 +82,7 @@ class FunctionGenerator:
             raise ValueError(f"taper_out_s must be > 0, got {taper_out_s}")
         self._waveform, self._start_n, self._taper_out_s = waveform, self.n, taper_out_s
         self._stop_n, self._stopping = None, False
-        self._mean.move(self.n, self._mean_now(), mean_m)
+        self._mean.move(self.n, self.mean_m(), mean_m)
 
     def stop(self) -> None:
         """Taper the excitation out over ``taper_out_s`` from the next sample; the mean ramps to 0."""
@@ -91,7 +91,7 @@ class FunctionGenerator:
         self._stopping = True
         if self._waveform is not None:
             self._stop_n = self.n
-        self._mean.move(self.n, self._mean_now(), 0.0)
+        self._mean.move(self.n, self.mean_m(), 0.0)
 
     def freeze(self) -> None:
         """E-stop: hold the last command sample (no taper: the valves close where they are)."""
@@ -107,10 +107,6 @@ class FunctionGenerator:
         self._mean.move(self.n, frozen, 0.0)
 
     # -- state --------------------------------------------------------------------------------
-
-    @property
-    def frozen(self) -> bool:
-        return self._frozen_m is not None
 
     @property
     def stopping(self) -> bool:
@@ -137,10 +133,7 @@ class FunctionGenerator:
         return (self.n - self._start_n) / self.rate_hz
 
     def mean_m(self) -> float:
-        """The mean position (m) at the next sample."""
-        return self._mean_now()
-
-    def _mean_now(self) -> float:
+        """The mean position (m) at the next sample (the frozen command during an e-stop)."""
         if self._frozen_m is not None:
             return self._frozen_m
         return float(self._mean.values(np.array([self.n]))[0])

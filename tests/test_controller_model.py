@@ -190,6 +190,18 @@ def test_mean_position_ramps_in_and_out_at_the_stated_rate():
     assert np.max(np.abs(np.diff(back))) * RATE * 1000 <= math.pi / 2 * MEAN_RATE_MM_S * (1 + 1e-6)
 
 
+def test_stop_during_the_mean_ramp_returns_from_where_the_mean_is():
+    model = armed({**DWELL, "waveform": WaveformCode.STATIC, "mean_mm": 5.0})
+    act(model, C.START)
+    out = run(model, 0.2)
+    act(model, C.STOP)
+    back = run_until(model, S.HYDRAULICS_HIGH, 1.0)
+    assert len(back) <= abs(out[-1]) * 1000 / MEAN_RATE_MM_S * RATE + BLOCK
+    whole = np.concatenate([out, back])
+    assert np.max(np.abs(np.diff(whole))) * RATE * 1000 <= math.pi / 2 * MEAN_RATE_MM_S * (1 + 1e-6)
+    assert whole[-1] == 0.0
+
+
 def test_displacement_limit_is_measured_from_the_present_mean():
     # a 5 mm mean with a 1 mm limit: following the ramp closely must not trip
     model = armed({**DWELL, "amplitude_mm": 0.5, "mean_mm": 5.0, "displacement_limit_mm": 1.0})
