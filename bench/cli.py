@@ -58,7 +58,10 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
 
 
 async def _actuator_status(args: argparse.Namespace) -> int:
-    client = ActuatorClient.tcp(args.host, args.port)
+    if args.serial:
+        client = ActuatorClient.rtu(args.serial, baudrate=args.baudrate)
+    else:
+        client = ActuatorClient.tcp(args.host, args.port)
     try:
         status = await client.connect()
     finally:
@@ -75,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
     demo.set_defaults(run=_demo)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
-    serve = sim.add_parser("serve", help="serve the simulated controller (TCP) and WFS (pty)")
+    serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
     serve.add_argument("--seed", type=int, default=1)
@@ -89,9 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
     monitor.add_argument("--duration", type=float, default=0.0, help="seconds (0: until Ctrl-C)")
     monitor.set_defaults(run=_wfs_monitor)
     act = sub.add_parser("actuator", help="actuator controller").add_subparsers(dest="action", required=True)
-    status = act.add_parser("status", help="read the controller state")
+    status = act.add_parser("status", help="read the controller state (Modbus TCP, or RTU with --serial)")
+    link = status.add_mutually_exclusive_group(required=True)
+    link.add_argument("--port", type=int, help="Modbus TCP port on --host")
+    link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
     status.add_argument("--host", default="127.0.0.1")
-    status.add_argument("--port", type=int, required=True)
+    status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
     status.set_defaults(run=lambda a: asyncio.run(_actuator_status(a)))
     return parser
 

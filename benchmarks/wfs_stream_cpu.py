@@ -38,7 +38,7 @@ def main() -> None:
     seconds = parser.parse_args().seconds
     link = PtyLink()
     bench = SimulatedBench.paper_shaker(seed=1)
-    device = WfsDevice(link, seed=1)
+    device = WfsDevice(link, bench, seed=1)
     runner = BenchRunner(bench, paced=True)
     runner.sinks.append(device)
     device.start()

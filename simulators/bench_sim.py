@@ -31,9 +31,10 @@ _RESCHEDULE_FRACTION = 0.02
 
 @dataclass(frozen=True)
 class BenchBlock:
-    """One block of the bench's output at the output rate, with its first sample index."""
+    """One block of the bench's output: ``channels`` sampled at ``rate_hz`` from ``start_s`` on."""
 
-    first_sample: int
+    start_s: float
+    rate_hz: float
     channels: dict[str, np.ndarray]
 
     def __len__(self) -> int:
@@ -55,8 +56,8 @@ class SimulatedBench:
     def __init__(self, plant: PlantSimulator, clock: Callable[[], float] = time.monotonic) -> None:
         self.plant = plant
         self.lock = threading.RLock()
-        self.controller = ControllerModel(plant.internal_rate_hz, plant.output_rate_hz, clock)
-        self.sample_index = 0
+        self.controller = ControllerModel(plant.internal_rate_hz, clock)
+        self._internal_samples = 0
         self._scheduled: tuple[float, float] | None = None
 
     @classmethod
@@ -68,17 +69,23 @@ class SimulatedBench:
     def output_rate_hz(self) -> float:
         return self.plant.output_rate_hz
 
+    def set_output_rate(self, rate_hz: float) -> None:
+        """Change the acquisition's output rate (the plant's decimation); ValueError if not possible."""
+        with self.lock:
+            self.plant.set_output_rate(rate_hz)
+
     def advance(self, n_samples: int) -> BenchBlock:
         """Advance ``n_samples`` output samples: command -> plant -> controller readbacks."""
         with self.lock:
-            ctrl = self.controller
-            command = ctrl.command_block(n_samples * self.plant.oversampling)
+            ctrl, plant = self.controller, self.plant
+            start_s = self._internal_samples / plant.internal_rate_hz
+            n_internal = n_samples * plant.oversampling
+            command = ctrl.command_block(n_internal)
             self._schedule(ctrl.current_frequency_hz(), ctrl.amplitude_m)
-            channels = self.plant.advance(command)
-            ctrl.observe(channels["z_base_m"], channels["f_plate_n"])
-            block = BenchBlock(self.sample_index, channels)
-            self.sample_index += n_samples
-            return block
+            channels = plant.advance(command)
+            ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
+            self._internal_samples += n_internal
+            return BenchBlock(start_s, plant.output_rate_hz, channels)
 
     def _schedule(self, freq_hz: float, amplitude_m: float) -> None:
         """Keep a non-linear tyre at the excitation's operating point."""
@@ -95,15 +102,17 @@ class SimulatedBench:
 class BenchRunner:
     """The thread that advances the bench and feeds its sinks.
 
-    Paced: one block per ``block_samples / rate`` of wall-clock time (deadline based, no drift).
-    Unpaced: as fast as the streaming sinks accept the blocks; while no sink streams, the bench
-    still runs in real time so that the controller's tapers and watchdog behave as on a real bench.
+    Blocks last about ``block_s`` (a whole number of output samples, at least one, at the output
+    rate of the moment). Paced: one block per its duration of wall-clock time (deadline based, no
+    drift). Unpaced: as fast as the streaming sinks accept the blocks; while no sink streams, the
+    bench still runs in real time so that the controller's tapers and watchdog behave as on a real
+    bench.
     """
 
-    def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_samples: int = 10) -> None:
+    def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_s: float = 0.01) -> None:
         self.bench = bench
         self.paced = paced
-        self.block_samples = block_samples
+        self.block_s = block_s
         self.sinks: list[BenchSink] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -120,10 +129,12 @@ class BenchRunner:
             self._thread = None
 
     def _run(self) -> None:
-        period_s = self.block_samples / self.bench.output_rate_hz
         next_due = time.monotonic()
         try:
             while not self._stop.is_set():
+                rate_hz = self.bench.output_rate_hz
+                n_samples = max(1, round(self.block_s * rate_hz))
+                period_s = n_samples / rate_hz
                 if self.paced or not any(s.streaming for s in self.sinks):
                     next_due = max(next_due + period_s, time.monotonic() - 0.5)
                     delay = next_due - time.monotonic()
@@ -131,7 +142,7 @@ class BenchRunner:
                         break
                 else:
                     next_due = time.monotonic()
-                block = self.bench.advance(self.block_samples)
+                block = self.bench.advance(n_samples)
                 for sink in self.sinks:
                     sink.deliver(block)
         except Exception as exc:  # a broken bench must be visible, not a silent dead thread

@@ -1,12 +1,14 @@
-"""The actuator controller's behaviour, independent of Modbus: states, function generator, interlocks.
+"""The actuator controller's behaviour, independent of Modbus: states, commands, interlocks, readbacks.
 
-The function generator evaluates the excitation waveform objects (:mod:`simulators.plant.excitation`)
-at the internal sample instants of each block. Run time is counted in samples, so the model runs as
-fast or as slowly as the bench is advanced; only the heartbeat watchdog reads the wall clock.
+The displacement command comes from a :class:`~simulators.function_generator.FunctionGenerator`
+counted in internal samples, so the model runs as fast or as slowly as the bench is advanced. Only
+the heartbeat watchdog needs a clock: by default the controller's own sample clock; the simulated
+bench passes the wall clock, so that a bench that runs faster than real time does not trip it.
 
 Every stop tapers: a stop command, a finished waveform, a tripped limit and an expired watchdog
-all multiply the running output by a raised-cosine ramp of ``taper_out_s``. Only the e-stop does
-not taper: it freezes the command (the valves close and the actuator locks where it is).
+taper the excitation out over ``taper_out_s`` and ramp the mean back to zero. Only the e-stop does
+not taper: it freezes the command (the valves close and the actuator locks where it is); the reset
+that releases it ramps back to rest.
 """
 
 from __future__ import annotations
@@ -18,14 +20,31 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers.register_map import Command, ControllerState, ErrorCode, InterlockFlag, WaveformCode
-from simulators.plant.excitation import SineDwell, Sweep, Waveform, taper_envelope
+from simulators.function_generator import FunctionGenerator
+from simulators.plant.excitation import SineDwell, Sweep, Waveform
 
 PROTOCOL_VERSION = 1
 #: hold time of a dwell that runs until a stop command (about 11 days)
 UNTIL_STOPPED_S = 1e6
-_MOVING = (ControllerState.RUNNING, ControllerState.TAPERING)
-_NON_NEGATIVE = ("taper_in_s", "taper_out_s", "dwell_s", "sweep_duration_s", "amplitude_mm", "watchdog_ms")
+#: rate of the ``sample_count`` readback (the controller's clock, Hz)
+CONTROLLER_CLOCK_HZ = 1000
+#: shortest taper the controller accepts (s): a shorter one would be a step
+MIN_TAPER_S = 0.05
+MOVING = (ControllerState.RUNNING, ControllerState.TAPERING)
+_NON_NEGATIVE = ("dwell_s", "sweep_duration_s", "amplitude_mm", "watchdog_ms")
 _POSITIVE = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")
+_TAPERS = ("taper_in_s", "taper_out_s")
+_IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
+#: the states each command is accepted in (a command in another state is refused)
+ALLOWED: dict[Command, tuple[ControllerState, ...]] = {
+    Command.HYDRAULICS_OFF: _IDLE,
+    Command.HYDRAULICS_LOW: _IDLE,
+    Command.HYDRAULICS_HIGH: (ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH),
+    Command.START: (ControllerState.HYDRAULICS_HIGH,),
+    Command.STOP: tuple(ControllerState),
+    Command.ESTOP: tuple(ControllerState),
+    Command.RESET_INTERLOCK: (ControllerState.INTERLOCK, ControllerState.ESTOP),
+}
 
 
 @dataclass
@@ -41,16 +60,19 @@ class Readback:
 
 
 class ControllerModel:
-    """State machine and function generator of the simulated servo controller."""
+    """State machine, interlocks and readbacks of the simulated servo controller.
+
+    ``internal_rate_hz`` is the rate of the displacement command (the plant's internal rate);
+    ``clock`` returns seconds for the heartbeat watchdog (None: the controller's sample clock).
+    """
 
     #: hardware limits that apply when the host has not set its own (mm, N)
     HARDWARE_STROKE_MM = 50.0
     HARDWARE_FORCE_N = 50_000.0
 
-    def __init__(self, internal_rate_hz: float, output_rate_hz: float, clock: Callable[[], float]) -> None:
-        self.internal_rate_hz = internal_rate_hz
-        self.output_rate_hz = output_rate_hz
-        self._clock = clock
+    def __init__(self, internal_rate_hz: float, clock: Callable[[], float] | None = None) -> None:
+        self.generator = FunctionGenerator(internal_rate_hz)
+        self._clock = clock or (lambda: self.generator.n / internal_rate_hz)
         self.state = ControllerState.OFF
         self.flags = InterlockFlag(0)
         self.error = ErrorCode.NONE
@@ -61,24 +83,18 @@ class ControllerModel:
             "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
         }  # fmt: skip
         self.readback = Readback()
-        self._last_heartbeat_s = clock()
-        # function generator
-        self._waveform: Waveform | None = None
-        self._mean_m = 0.0
-        self._taper_in_s = 1.0
-        self._taper_out_s = 1.0
-        self._k = 0  # internal samples since the start of the run
-        self._stop_at_s: float | None = None
-        self._frozen_m: float | None = None
-        self._running_source = False
-        self._last_command_m = 0.0
+        self._last_heartbeat_s = self._clock()
+        self._rest_state = ControllerState.HYDRAULICS_HIGH  # where a taper to rest ends
         self._phase_cycles = 0.0
         self._history = np.zeros(0)
 
     # -- host side ------------------------------------------------------------------------------
 
     def write_setpoints(self, values: dict[str, float]) -> ErrorCode | None:
-        """Apply written holding registers (other than ``command``); refuse invalid ones."""
+        """Apply written holding registers (other than ``command``); refuse invalid ones, all or none.
+
+        Setpoints take effect at the next start; a running excitation keeps its own.
+        """
         for name, value in values.items():
             if not math.isfinite(value):
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
@@ -86,11 +102,11 @@ class ControllerModel:
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
             if name in _POSITIVE and value <= 0:
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
+            if name in _TAPERS and value < MIN_TAPER_S:
+                return self._refuse(ErrorCode.INVALID_SETPOINT)
             if name == "waveform" and value not in tuple(WaveformCode):
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
-        if "heartbeat" in values:
-            self._last_heartbeat_s = self._clock()
-        if "watchdog_ms" in values:
+        if "heartbeat" in values or "watchdog_ms" in values:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
         return None
@@ -101,36 +117,19 @@ class ControllerModel:
             command = Command(code)
         except ValueError:
             return self._refuse(ErrorCode.UNKNOWN_COMMAND)
-        s = self.state
-        allowed = {
-            Command.HYDRAULICS_OFF: s in (ControllerState.OFF, ControllerState.HYDRAULICS_LOW,
-                                          ControllerState.HYDRAULICS_HIGH),
-            Command.HYDRAULICS_LOW: s in (ControllerState.OFF, ControllerState.HYDRAULICS_LOW,
-                                          ControllerState.HYDRAULICS_HIGH),
-            Command.HYDRAULICS_HIGH: s in (ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH),
-            Command.START: s == ControllerState.HYDRAULICS_HIGH,
-            Command.STOP: True,
-            Command.ESTOP: True,
-            Command.RESET_INTERLOCK: s in (ControllerState.INTERLOCK, ControllerState.ESTOP),
-        }[command]  # fmt: skip
-        if not allowed:
+        if self.state not in ALLOWED[command]:
             return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
         if command is Command.START:
             return self._start()
         if command is Command.STOP:
-            if s == ControllerState.RUNNING:
-                self._begin_stop(ControllerState.TAPERING)
+            if self.state == ControllerState.RUNNING:
+                self._stop()
         elif command is Command.ESTOP:
-            self._frozen_m = self._last_command_m
+            self.generator.freeze()
             self.flags |= InterlockFlag.ESTOP
             self.state = ControllerState.ESTOP
         elif command is Command.RESET_INTERLOCK:
-            self.flags = InterlockFlag(0)
-            self.state = ControllerState.HYDRAULICS_LOW
-            if self._frozen_m is not None:  # return from the frozen position with a taper
-                frozen, self._frozen_m = self._frozen_m, None
-                self._start_source(None, frozen, 0.0, self._taper_out_s)
-                self._begin_stop(ControllerState.HYDRAULICS_LOW)
+            self._reset()
         else:
             self.state = {
                 Command.HYDRAULICS_OFF: ControllerState.OFF,
@@ -145,133 +144,120 @@ class ControllerModel:
         return reason
 
     def _start(self) -> ErrorCode | None:
-        sp = self.setpoints
-        amplitude_m = sp["amplitude_mm"] / 1000
-        taper_in, taper_out = sp["taper_in_s"], sp["taper_out_s"]
-        code = WaveformCode(int(sp["waveform"]))
         try:
-            if code == WaveformCode.SINE_DWELL:
-                hold = sp["dwell_s"] if sp["dwell_s"] > 0 else UNTIL_STOPPED_S
-                waveform: Waveform | None = SineDwell(
-                    sp["frequency_hz"], amplitude_m, hold, taper_in, taper_out
-                )
-            elif code in (WaveformCode.LINEAR_SWEEP, WaveformCode.LOG_SWEEP):
-                spacing = "linear" if code == WaveformCode.LINEAR_SWEEP else "log"
-                waveform = Sweep(
-                    sp["sweep_start_hz"], sp["sweep_end_hz"], sp["sweep_duration_s"], amplitude_m,
-                    spacing, taper_in, taper_out,
-                )  # fmt: skip
-            else:
-                waveform = None
+            waveform = self._waveform()
         except ValueError:
             return self._refuse(ErrorCode.INVALID_SETPOINT)
-        self._start_source(waveform, sp["mean_mm"] / 1000, taper_in, taper_out)
+        self.generator.start(waveform, self.setpoints["mean_mm"] / 1000, self.setpoints["taper_out_s"])
         self._phase_cycles = 0.0
         self.readback.cycle_count = 0
+        self._rest_state = ControllerState.HYDRAULICS_HIGH
         self.state = ControllerState.RUNNING
         self.error = ErrorCode.NONE
         self._last_heartbeat_s = self._clock()
         return None
 
-    def _start_source(
-        self, waveform: Waveform | None, mean_m: float, taper_in_s: float, taper_out_s: float
-    ) -> None:
-        self._waveform = waveform
-        self._mean_m = mean_m
-        self._taper_in_s = taper_in_s
-        self._taper_out_s = taper_out_s
-        self._k = 0
-        self._stop_at_s = None
-        self._running_source = True
+    def _waveform(self) -> Waveform | None:
+        """The excitation the setpoints describe (None: hold the mean); ValueError if inconsistent."""
+        sp = self.setpoints
+        amplitude_m = sp["amplitude_mm"] / 1000
+        taper_in, taper_out = sp["taper_in_s"], sp["taper_out_s"]
+        code = WaveformCode(int(sp["waveform"]))
+        if code == WaveformCode.SINE_DWELL:
+            hold = sp["dwell_s"] if sp["dwell_s"] > 0 else UNTIL_STOPPED_S
+            return SineDwell(sp["frequency_hz"], amplitude_m, hold, taper_in, taper_out)
+        if code in (WaveformCode.LINEAR_SWEEP, WaveformCode.LOG_SWEEP):
+            spacing = "linear" if code == WaveformCode.LINEAR_SWEEP else "log"
+            start, end, duration = sp["sweep_start_hz"], sp["sweep_end_hz"], sp["sweep_duration_s"]
+            return Sweep(start, end, duration, amplitude_m, spacing, taper_in, taper_out)
+        return None
 
-    def _begin_stop(self, state: ControllerState) -> None:
-        """Taper the output to zero over ``taper_out_s`` from now."""
-        if self._stop_at_s is None:
-            self._stop_at_s = self._k / self.internal_rate_hz
-        self.state = state
+    def _stop(self) -> None:
+        """Taper to rest; the state follows the generator (see :meth:`_follow_generator`)."""
+        self.generator.stop()
+        self.state = ControllerState.TAPERING
+
+    def _reset(self) -> None:
+        self.flags = InterlockFlag(0)
+        self._rest_state = ControllerState.HYDRAULICS_LOW
+        if self.state == ControllerState.ESTOP:
+            self.generator.release()
+            self.state = ControllerState.TAPERING
+            self._follow_generator()
+        else:
+            self.state = ControllerState.HYDRAULICS_LOW
+
+    def _follow_generator(self) -> None:
+        """Move RUNNING -> TAPERING when the generator stops by itself, TAPERING -> rest when at rest."""
+        if self.state == ControllerState.RUNNING and self.generator.stopping:
+            self.state = ControllerState.TAPERING
+        if self.state == ControllerState.TAPERING and self.generator.at_rest:
+            self.state = ControllerState.INTERLOCK if self.flags else self._rest_state
 
     # -- bench side -----------------------------------------------------------------------------
 
     def check_watchdog(self) -> None:
-        """Taper to a stop when the host's heartbeat has not changed within the watchdog time."""
+        """Taper to a stop when the host's heartbeat has not changed within the watchdog time.
+
+        Watched while RUNNING only: a taper under way reaches rest by itself whatever the host does.
+        """
         watchdog_s = self.setpoints["watchdog_ms"] / 1000
-        if watchdog_s <= 0 or self.state not in _MOVING:
+        if watchdog_s <= 0 or self.state != ControllerState.RUNNING:
             return
         if self._clock() - self._last_heartbeat_s > watchdog_s:
             self.flags |= InterlockFlag.WATCHDOG
-            self._begin_stop(ControllerState.TAPERING)
+            self._stop()
 
     def command_block(self, n: int) -> np.ndarray:
         """The displacement command (m) for the next ``n`` internal samples."""
         self.check_watchdog()
-        if self._frozen_m is not None:
-            out = np.full(n, self._frozen_m)
-        elif not self._running_source:
-            out = np.zeros(n)
-        else:
-            out = self._generate(n)
-        if n:
-            self._last_command_m = float(out[-1])
+        out = self.generator.block(n)
+        self._follow_generator()
         return out
 
-    def _generate(self, n: int) -> np.ndarray:
-        t = (self._k + np.arange(n)) / self.internal_rate_hz
-        self._k += n
-        mean_env = taper_envelope(t, math.inf, self._taper_in_s, 0.0) if self._taper_in_s > 0 else 1.0
-        out = self._mean_m * mean_env
-        if self._waveform is not None:
-            out = out + self._waveform.value(t)
-            if self._stop_at_s is None and t[-1] >= self._waveform.duration_s:
-                self._begin_stop(ControllerState.TAPERING)
-        if self._stop_at_s is not None:
-            tau = t - self._stop_at_s
-            if self._taper_out_s > 0:
-                out = out * taper_envelope(tau, self._taper_out_s, 0.0, self._taper_out_s)
-            else:
-                out = np.where(tau < 0, out, 0.0)
-            if tau[-1] >= self._taper_out_s:
-                self._running_source = False
-                self._waveform = None
-                if self.state in _MOVING:
-                    self.state = ControllerState.INTERLOCK if self.flags else ControllerState.HYDRAULICS_HIGH
-        return np.asarray(out, dtype=float)
-
     def current_frequency_hz(self) -> float:
-        if self._waveform is None or self.state not in _MOVING:
+        waveform = self.generator.waveform
+        if waveform is None or self.state not in MOVING:
             return 0.0
-        return float(self._waveform.frequency_hz(self._k / self.internal_rate_hz))
+        return float(waveform.frequency_hz(self.generator.elapsed_s))
 
     @property
     def amplitude_m(self) -> float:
-        return float(self._waveform.amplitude) if self._waveform is not None else 0.0
+        waveform = self.generator.waveform
+        return float(waveform.amplitude) if waveform is not None else 0.0
 
-    def observe(self, z_base_m: np.ndarray, f_plate_n: np.ndarray) -> None:
-        """Update readbacks, achieved amplitude, cycle count and the limit interlocks from a block."""
+    def observe(self, z_base_m: np.ndarray, f_plate_n: np.ndarray, rate_hz: float) -> None:
+        """Update readbacks and the limit interlocks from a block measured at ``rate_hz``.
+
+        Achieved amplitude: half the peak-to-peak displacement over the last two cycles (at least
+        0.2 s). The displacement limit applies to the distance from the present mean position.
+        """
         rb = self.readback
-        rb.sample_count += len(z_base_m)
+        g = self.generator
+        rb.sample_count = g.n * CONTROLLER_CLOCK_HZ // round(g.rate_hz)
         if len(z_base_m) == 0:
             return
         rb.displacement_mm = float(z_base_m[-1] * 1000)
         rb.force_n = float(f_plate_n[-1])
         rb.frequency_hz = self.current_frequency_hz()
-        # achieved amplitude: half the peak-to-peak over the last two cycles (at least 0.2 s)
-        window = int(self.output_rate_hz * max(0.2, 2.0 / rb.frequency_hz if rb.frequency_hz else 0.2))
+        window = int(rate_hz * max(0.2, 2.0 / rb.frequency_hz if rb.frequency_hz else 0.2))
         self._history = np.concatenate([self._history, z_base_m])[-window:]
-        moving = self.state in _MOVING
+        moving = self.state in MOVING
         rb.achieved_amplitude_mm = float(np.ptp(self._history) / 2 * 1000) if moving else 0.0
         if moving:
-            self._phase_cycles += rb.frequency_hz * len(z_base_m) / self.output_rate_hz
+            self._phase_cycles += rb.frequency_hz * len(z_base_m) / rate_hz
             rb.cycle_count = int(self._phase_cycles)
         self._check_limits(z_base_m, f_plate_n)
 
     def _check_limits(self, z_base_m: np.ndarray, f_plate_n: np.ndarray) -> None:
-        disp_limit = self.setpoints["displacement_limit_mm"] or self.HARDWARE_STROKE_MM
+        disp_limit_m = (self.setpoints["displacement_limit_mm"] or self.HARDWARE_STROKE_MM) / 1000
         force_limit = self.setpoints["force_limit_n"] or self.HARDWARE_FORCE_N
         tripped = InterlockFlag(0)
-        if np.max(np.abs(z_base_m * 1000 - self.setpoints["mean_mm"])) > disp_limit:
+        if np.max(np.abs(z_base_m - self.generator.mean_m())) > disp_limit_m:
             tripped |= InterlockFlag.DISPLACEMENT
         if np.max(np.abs(f_plate_n)) > force_limit:
             tripped |= InterlockFlag.FORCE
-        if tripped and self.state in _MOVING:
+        if tripped and self.state in MOVING:
             self.flags |= tripped
-            self._begin_stop(ControllerState.TAPERING)
+            if self.state == ControllerState.RUNNING:
+                self._stop()

@@ -1,7 +1,9 @@
-"""Transports for the simulated serial devices: an in-memory link and a pseudo-terminal.
+"""Transports for the simulated serial devices: an in-memory link, a pseudo-terminal, a pty pair.
 
-Both can be disconnected and reconnected, as a USB-serial adapter that is pulled and plugged back:
-the host's reads fail while the link is down and the host reopens the same name afterwards.
+The in-memory link and the pty link carry the WFS stream; both can be disconnected and reconnected,
+as a USB-serial adapter that is pulled and plugged back: the host's reads fail while the link is
+down and the host reopens the same name afterwards. The pty bridge joins two serial ports for a
+device that opens its port by name (the Modbus RTU server).
 """
 
 from __future__ import annotations
@@ -207,5 +209,59 @@ class PtyLink:
 
     def close(self) -> None:
         self.disconnect()
+        with contextlib.suppress(OSError):
+            self._dir.rmdir()
+
+
+class PtyBridge:
+    """Two pseudo-terminals joined back to back, as a null-modem cable between two serial ports.
+
+    A program opens ``device_path`` (the simulated controller's serial port) and another opens
+    ``host_path`` (the host's): bytes written to one arrive at the other. Both are raw (no echo, no
+    line discipline); a pty carries no parity or modem lines, so use 8N1 and leave RTS/DTR alone.
+    A thread copies between the two masters until :meth:`close`.
+    """
+
+    def __init__(self, name: str, link_dir: str | None = None) -> None:
+        self._dir = Path(link_dir or tempfile.mkdtemp(prefix="wfs-pty-"))
+        self.host_path = str(self._dir / name)
+        self.device_path = str(self._dir / f"{name}-device")
+        self._fds: list[int] = []
+        masters = []
+        for path in (self.host_path, self.device_path):
+            master, slave = os.openpty()
+            tty.setraw(master)
+            tty.setraw(slave)
+            os.symlink(os.ttyname(slave), path)
+            self._fds += [master, slave]  # the slave stays open so the master never reads EIO
+            masters.append(master)
+        self._masters = masters
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._copy, name=f"pty-bridge-{name}", daemon=True)
+        self._thread.start()
+
+    def _copy(self) -> None:
+        host, device = self._masters
+        peer = {host: device, device: host}
+        while not self._stop.is_set():
+            ready, _, _ = select.select(self._masters, [], [], 0.05)
+            for fd in ready:
+                try:
+                    data = os.read(fd, 4096)
+                except OSError:
+                    continue
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(peer[fd], view) :]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        for fd in self._fds:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        for path in (self.host_path, self.device_path):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(path)
         with contextlib.suppress(OSError):
             self._dir.rmdir()

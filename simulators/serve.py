@@ -1,15 +1,17 @@
-"""Run the simulated bench as a standalone process: the controller on TCP, the WFS on a pty."""
+"""Run the simulated bench as a standalone process: the controller on Modbus TCP and on Modbus RTU
+over a pseudo-terminal, the WFS on another pseudo-terminal."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import signal
+from collections.abc import Callable
 
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
-from simulators.ports import PtyLink
+from simulators.ports import PtyBridge, PtyLink
 from simulators.wfs_device import WfsDevice
 
 
@@ -20,20 +22,23 @@ async def serve(
     paced: bool = True,
     seed: int = 1,
     bit_error_rate: float = 0.0,
-    ready=print,
+    ready: Callable[[str], None] = print,
 ) -> None:
     """Serve until SIGINT/SIGTERM; ``ready`` receives the lines announcing the addresses."""
     bench = SimulatedBench.paper_shaker(seed=seed)
     link = PtyLink()
-    device = WfsDevice(link, seed=seed, faults=ByteFaults(seed=seed, bit_error_rate=bit_error_rate))
+    rtu_line = PtyBridge("actuator")
+    device = WfsDevice(link, bench, seed=seed, faults=ByteFaults(seed=seed, bit_error_rate=bit_error_rate))
     runner = BenchRunner(bench, paced=paced)
     runner.sinks.append(device)
-    controller = ControllerServer(bench)
+    tcp, rtu = ControllerServer(bench), ControllerServer(bench)
     device.start()
     runner.start()
     try:
-        bound_host, bound_port = await controller.serve_tcp(host, port)
+        bound_host, bound_port = await tcp.serve_tcp(host, port)
+        await rtu.serve_rtu(rtu_line.device_path)
         ready(f"actuator controller: modbus tcp {bound_host}:{bound_port}")
+        ready(f"actuator controller: modbus rtu {rtu_line.host_path} (8N1)")
         ready(f"wfs acquisition: serial {link.path}")
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
@@ -42,7 +47,9 @@ async def serve(
                 loop.add_signal_handler(sig, stop.set)
         await stop.wait()
     finally:
-        await controller.close()
+        await tcp.close()
+        await rtu.close()
         runner.stop()
         device.stop()
         link.close()
+        rtu_line.close()

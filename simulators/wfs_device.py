@@ -6,6 +6,9 @@ bench displacement, plate force and hub acceleration, sampled in the same frame.
 set, the wheel angle advances and the loads are expressed in the rotating sensor frame, so a host
 that applies the rotating-to-non-rotating transformation recovers the wheel-frame loads.
 
+The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
+anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
+
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (frames produced
 meanwhile are lost, the sequence counter runs on), a disconnect and reconnect of the link.
 """
@@ -22,9 +25,9 @@ import numpy as np
 import serial
 
 from drivers.wfs_commands import UNKNOWN, Reply, parse_command
-from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, Status, encode
+from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, Status, encode
 from drivers.wfs_transform import rotate_to_wheel_frame
-from simulators.bench_sim import BenchBlock
+from simulators.bench_sim import BenchBlock, SimulatedBench
 from simulators.faults import ByteFaults
 
 log = logging.getLogger(__name__)
@@ -34,6 +37,8 @@ LOAD_RANGE = np.array([24_000.0, 24_000.0, 24_000.0, 4_000.0, 4_000.0, 4_000.0])
 CROSSTALK_SPEC = 0.005
 LEVER_M = 0.3
 _MAX_LINE = 64
+#: the lowest output rate RATE accepts (Hz)
+MIN_RATE_HZ = 100
 _WRITE_TIMEOUT_S = 0.2
 
 
@@ -55,17 +60,18 @@ class WfsDevice:
     def __init__(
         self,
         link: DeviceLink,
+        bench: SimulatedBench,
         *,
         seed: int = 0,
-        output_rate_hz: float = 1000.0,
+        baudrate: int = 921600,
         faults: ByteFaults | None = None,
         noise_n: float = 1.0,
         speed_rad_s: float = 0.0,
         angle_rad: float = 0.0,
     ) -> None:
         self.link = link
-        self.output_rate_hz = output_rate_hz
-        self.rate_hz = int(output_rate_hz)
+        self.bench = bench
+        self.baudrate = baudrate
         self.faults = faults or ByteFaults(seed=seed)
         self.noise_n = noise_n
         self.speed_rad_s = speed_rad_s
@@ -80,13 +86,25 @@ class WfsDevice:
         self._streaming = False
         self._seq = 0
         self._sample = 0
-        self._decimation_phase = 0
         self._stall_until = 0.0
         self._link_up = True
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.frames_sent = 0
         self.frames_unsent = 0  # produced while stalled or disconnected (the host sees a gap)
+
+    @property
+    def rate_hz(self) -> int:
+        """The output rate (frames per second) of the acquisition."""
+        return round(self.bench.output_rate_hz)
+
+    def valid_rates(self) -> list[int]:
+        """Rates ``RATE`` accepts: a whole oversampling of the converter, from
+        :data:`MIN_RATE_HZ` up to the frames per second the serial line carries (10 bits per byte).
+        """
+        converter_hz = round(self.bench.plant.internal_rate_hz)
+        line_max = self.baudrate // (10 * FRAME_SIZE)
+        return [r for r in range(MIN_RATE_HZ, min(line_max, converter_hz) + 1) if converter_hz % r == 0]
 
     # -- life cycle -----------------------------------------------------------------------------
 
@@ -149,19 +167,15 @@ class WfsDevice:
             sent += self.link.device_write(data[sent:], _WRITE_TIMEOUT_S)
 
     def _frames(self, block: BenchBlock) -> np.ndarray:
-        """Frames for the samples of ``block`` at the device's rate (every k-th bench sample)."""
+        """Frames for the samples of ``block`` (the bench's output is the acquisition's, filtered)."""
         ch = block.channels
-        n = len(block)
-        step = round(self.output_rate_hz / self.rate_hz)
-        pick = np.arange((-self._decimation_phase) % step, n, step)
-        self._decimation_phase = (self._decimation_phase + n) % step
-        fz = ch["fz_wfs_n"][pick]
-        m = len(pick)
+        fz = ch["fz_wfs_n"]
+        m = len(block)
         loads = np.empty((m, 6))
         loads[:, 2] = fz
         noise = self.noise_n * self._rng.standard_normal((m, 5))
         loads[:, [0, 1, 3, 4, 5]] = fz[:, None] * self.crosstalk + noise
-        t = (block.first_sample + pick) / self.output_rate_hz
+        t = block.start_s + np.arange(m) / block.rate_hz
         angle = np.mod(self.angle_rad + self.speed_rad_s * t, 2 * np.pi)
         loads = rotate_to_wheel_frame(loads, -angle)  # the sensor turns with the wheel
         self._recent = np.concatenate([self._recent, loads])[-100:]
@@ -177,9 +191,9 @@ class WfsDevice:
             frames[name] = out[:, i]
         frames["angle_rad"] = angle
         frames["speed_rad_s"] = self.speed_rad_s
-        frames["aux0"] = ch["z_base_m"][pick]
-        frames["aux1"] = ch["f_plate_n"][pick]
-        frames["aux2"] = ch["a_hub_m_s2"][pick]
+        frames["aux0"] = ch["z_base_m"]
+        frames["aux1"] = ch["f_plate_n"]
+        frames["aux2"] = ch["a_hub_m_s2"]
         overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
         frames["status"] = overload.sum(axis=1) | (Status.TARED if self.tare_offset.any() else 0)
         return frames
@@ -188,6 +202,7 @@ class WfsDevice:
 
     def _serve_commands(self) -> None:
         line = bytearray()
+        too_long = False  # an over-long line is refused once and skipped up to its end
         while not self._stop.is_set():
             try:
                 data = self.link.device_read(256, 0.05) if self._link_up else b""
@@ -199,13 +214,16 @@ class WfsDevice:
                 continue
             for byte in data:
                 if byte == 0x0A:
-                    self._answer(bytes(line))
+                    if too_long:
+                        self._reply(Reply(False, UNKNOWN, ("line too long",)))
+                    else:
+                        self._answer(bytes(line))
                     line.clear()
+                    too_long = False
                 elif len(line) < _MAX_LINE:
                     line.append(byte)
                 else:
-                    line.clear()
-                    self._reply(Reply(False, UNKNOWN, ("line too long",)))
+                    too_long = True
 
     def _answer(self, line: bytes) -> None:
         try:
@@ -250,14 +268,16 @@ class WfsDevice:
     def _set_rate(self, text: str) -> Reply:
         if self._streaming:
             return Reply(False, "RATE", ("stop first",))
+        valid = self.valid_rates()
+        choices = "valid rates " + " ".join(map(str, valid)) + " Hz"
         try:
             rate = int(text)
         except ValueError:
-            return Reply(False, "RATE", ("not an integer",))
-        if rate <= 0 or self.output_rate_hz % rate:
-            return Reply(False, "RATE", (f"must divide {self.output_rate_hz:g}",))
-        self.rate_hz = rate
-        return Reply(True, "RATE", (str(rate),))
+            return Reply(False, "RATE", (f"{text[:12]!r} is not a whole number of Hz", choices))
+        if rate not in valid:
+            return Reply(False, "RATE", (f"{rate} Hz not possible", choices))
+        self.bench.set_output_rate(rate)
+        return Reply(True, "RATE", (str(self.rate_hz),))
 
     def _reply(self, reply: Reply) -> None:
         with self._write_lock, contextlib.suppress(serial.SerialException, OSError):

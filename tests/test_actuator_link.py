@@ -9,6 +9,8 @@ import subprocess
 import time
 
 import pytest
+from pymodbus.client import AsyncModbusTcpClient
+from pymodbus.constants import ExcCodes
 
 from drivers.actuator import ActuatorClient
 from drivers.errors import (
@@ -100,14 +102,25 @@ async def test_command_not_allowed_in_state_is_a_typed_refusal(client):
     assert (await client.read_status()).error == ErrorCode.NOT_ALLOWED_IN_STATE
 
 
-async def test_garbage_writes_are_refused_by_the_controller(client):
+async def test_garbage_writes_are_refused_by_the_controller(client, controller):
     with pytest.raises(DeviceExceptionError):
         await client.write({"command": 999})
     with pytest.raises(DeviceExceptionError):
         await client.write({"taper_out_s": float("nan")})
-    # half of a float32 is refused too
-    response = await client._modbus.write_register(11, 0x4000, device_id=1)
+    before = await client.read_table("holding")
+    # half of a float32, from an independent raw Modbus client: refused, nothing applied
+    host, port = controller.address
+    raw = AsyncModbusTcpClient(host, port=port, timeout=1, retries=0)
+    assert await raw.connect()
+    try:
+        response = await raw.write_register(11, 0x4000, device_id=1)
+    finally:
+        raw.close()
     assert response.isError()
+    assert response.exception_code == ExcCodes.ILLEGAL_ADDRESS
+    after = await client.read_table("holding")
+    assert after == before
+    assert (await client.read_status()).state == ControllerState.OFF
 
 
 async def test_heartbeat_loss_tapers_to_a_stop_within_watchdog_plus_taper(client):
@@ -143,7 +156,10 @@ async def test_estop_freezes_and_needs_a_reset(client):
     with pytest.raises(CommandRejectedError):
         await client.start()
     await client.reset_interlock()
-    assert (await client.read_status()).state == ControllerState.HYDRAULICS_LOW
+    # the release ramps from the frozen position back to rest, then hydraulics are low
+    status = await async_wait_until(lambda: _state_is(client, ControllerState.HYDRAULICS_LOW), 2.0, "rest")
+    assert status.interlock == InterlockFlag(0)
+    assert abs(status.displacement_mm) < 0.05
 
 
 async def test_displacement_limit_trips_the_interlock(client):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -16,13 +17,15 @@ def sim_process():
         stdout=subprocess.PIPE,
         text=True,
     )
-    lines = [proc.stdout.readline(), proc.stdout.readline()]
-    tcp = re.search(r"modbus tcp ([\d.]+):(\d+)", lines[0])
-    pty = re.search(r"serial (\S+)", lines[1])
-    assert tcp and pty, lines
-    yield tcp.group(1), tcp.group(2), pty.group(1)
+    lines = [proc.stdout.readline() for _ in range(3)]
+    tcp = re.fullmatch(r"actuator controller: modbus tcp (127\.0\.0\.1):(\d+)\n", lines[0])
+    rtu = re.fullmatch(r"actuator controller: modbus rtu (/\S+) \(8N1\)\n", lines[1])
+    wfs = re.fullmatch(r"wfs acquisition: serial (/\S+)\n", lines[2])
+    assert tcp and rtu and wfs, lines
+    yield {"host": tcp.group(1), "port": tcp.group(2), "rtu": rtu.group(1), "wfs": wfs.group(1)}
     proc.terminate()
     assert proc.wait(timeout=10) == 0
+    assert not os.path.exists(rtu.group(1)) and not os.path.exists(wfs.group(1))  # cleaned up
 
 
 def _cli(*args: str) -> str:
@@ -33,12 +36,14 @@ def _cli(*args: str) -> str:
     return out.stdout
 
 
-def test_actuator_status_and_wfs_monitor_against_sim_serve(sim_process):
-    host, port, pty = sim_process
-    status = _cli("actuator", "status", "--host", host, "--port", port)
+def test_actuator_status_over_tcp_and_rtu_and_wfs_monitor_against_sim_serve(sim_process):
+    status = _cli("actuator", "status", "--host", sim_process["host"], "--port", sim_process["port"])
     assert re.search(r"protocol_version\s+1", status)
     assert re.search(r"state\s+OFF", status)
-    monitor = _cli("wfs", "monitor", "--port", pty, "--interval", "0.3", "--duration", "0.5")
+    status = _cli("actuator", "status", "--serial", sim_process["rtu"])
+    assert re.search(r"protocol_version\s+1", status)
+    assert re.search(r"state\s+OFF", status)
+    monitor = _cli("wfs", "monitor", "--port", sim_process["wfs"], "--interval", "0.3", "--duration", "0.5")
     assert "identity: WFSBENCH,SIM-WFS6" in monitor
     assert re.search(r"missing 0 crc 0", monitor)
 

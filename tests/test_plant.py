@@ -222,3 +222,32 @@ def test_taper_envelope_is_smooth_and_bounded():
     assert env[t < 0].max() == 0.0 and env[t > 10].max() == 0.0
     assert env.max() == 1.0
     assert np.max(np.abs(np.diff(env))) < 1e-3  # no step anywhere
+
+
+def test_a_lower_output_rate_is_filtered_not_aliased():
+    """RATE of the WFS: 10 kHz converter, decimated by 80 to 125 Hz. A 90 Hz motion would alias to
+    35 Hz under plain subsampling; the anti-alias filter removes it and passes 20 Hz unchanged."""
+    setup = BenchSetup.paper_shaker(nonlinear=False)
+    filtered = PlantSimulator(setup, realism=NO_NOISE)
+    plain = PlantSimulator(setup, realism=SensorRealism.ideal())
+    for plant in (filtered, plain):
+        plant.set_output_rate(125.0)
+        assert (plant.oversampling, plant.internal_rate_hz, plant.output_rate_hz) == (80, 10_000.0, 125.0)
+    t = np.arange(30_000) / 10_000
+    command = 0.001 * (np.sin(2 * np.pi * 90.0 * t) + np.sin(2 * np.pi * 20.0 * t))
+    z_filtered = filtered.advance(command)["z_base_m"]
+    z_plain = plain.advance(command)["z_base_m"]
+    alias_plain = abs(fundamental(z_plain, 35.0, 125.0, 35))
+    alias_filtered = abs(fundamental(z_filtered, 35.0, 125.0, 35))
+    assert alias_plain > 0.5e-3
+    assert alias_filtered < 1e-3 * alias_plain
+    in_band = abs(fundamental(z_filtered, 20.0, 125.0, 20))
+    assert in_band == pytest.approx(0.001 * abs(filtered.actuator.gain(20.0)), rel=1e-3)
+
+
+@pytest.mark.parametrize("rate_hz", [300.0, 0.0, -1000.0, 20_000.0])
+def test_output_rates_without_a_whole_oversampling_are_refused(rate_hz):
+    plant = PlantSimulator(BenchSetup.paper_shaker(nonlinear=False), realism=NO_NOISE)
+    with pytest.raises(ValueError, match="whole number"):
+        plant.set_output_rate(rate_hz)
+    assert (plant.output_rate_hz, plant.oversampling) == (1000.0, 10)

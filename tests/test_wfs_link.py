@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import serial
 
 from drivers.errors import CommandRejectedError, LinkTimeoutError
+from drivers.wfs_commands import Reply, parse_reply
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_transform import LoadProcessor
 from simulators.bench_sim import BenchRunner, SimulatedBench
@@ -17,7 +19,7 @@ from tests.waiting import wait_until
 
 def _rig(link, *, faults=None, speed_rad_s=0.0):
     bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(link, seed=3, faults=faults, speed_rad_s=speed_rad_s)
+    device = WfsDevice(link, bench, seed=3, faults=faults, speed_rad_s=speed_rad_s)
     device.start()
     runner = BenchRunner(bench, paced=False)
     runner.sinks.append(device)
@@ -43,7 +45,7 @@ def test_command_set_in_memory(memory_rig):
     assert reader.identify() == IDENTITY
     assert reader.set_rate(500) == 500
     assert reader.command("RATE?").fields == ("500",)
-    with pytest.raises(CommandRejectedError, match="must divide"):
+    with pytest.raises(CommandRejectedError, match="300 Hz not possible"):
         reader.set_rate(300)
     reader.start_stream()
     with pytest.raises(CommandRejectedError, match="stop first"):
@@ -56,10 +58,54 @@ def test_command_set_in_memory(memory_rig):
     assert not device.streaming
 
 
-def test_garbage_command_lines_get_an_error_reply_and_the_device_keeps_serving(memory_rig):
-    _link, _, reader = memory_rig
-    reader._write(b"\xff\xfe garbage\n" + b"x" * 100 + b"\n", 1.0)
-    assert reader.identify() == IDENTITY
+def test_garbage_command_lines_get_an_error_reply_and_the_device_keeps_serving():
+    """Raw bytes on a real pty: every bad line gets its error reply, then the device still serves."""
+    link = PtyLink()
+    _bench, device, runner = _rig(link)
+    try:
+        with serial.Serial(link.path, baudrate=921600, timeout=2) as raw:
+            raw.write(b"\xff\xfe garbage\n" + b"x" * 100 + b"\n" + b"RATE fast\n" + b"IDENT\n")
+            replies = [parse_reply(raw.read_until(b"\r\n")) for _ in range(4)]
+        assert replies[0] == Reply(False, "?", ("unknown command",))
+        assert replies[1] == Reply(False, "?", ("line too long",))
+        assert not replies[2].ok and replies[2].command == "RATE"
+        assert "not a whole number" in replies[2].fields[0]
+        assert replies[3] == Reply(True, "IDENT", IDENTITY)
+        with WfsReader.serial(link.path) as reader:
+            assert reader.wait_connected(5)
+            assert reader.identify() == IDENTITY
+            assert reader.command("RATE?").fields == ("1000",)
+    finally:
+        runner.stop()
+        device.stop()
+        link.close()
+
+
+def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
+    link = MemoryLink()
+    speed = 2 * np.pi * 5  # 5 rev/s: the wheel angle advances speed / rate per frame
+    bench, device, runner = _rig(link, speed_rad_s=speed)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        assert reader.set_rate(250) == 250
+        assert bench.plant.oversampling == 40  # from the 10 kHz converter
+        reader.start_stream()
+        frames = reader.read_frames(500, timeout_s=10).frames
+        reader.stop_stream()
+        valid = "valid rates 100 125 200 250 400 500 625 1000 1250 Hz"
+        for bad in (300, 2000, 10_000, 50, 0, -250):
+            with pytest.raises(CommandRejectedError, match=f"{bad} Hz not possible,{valid}"):
+                reader.set_rate(bad)
+        assert reader.command("RATE?").fields == ("250",)
+        assert bench.plant.oversampling == 40
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    step = np.diff(np.unwrap(frames["angle_rad"].astype(float)))
+    assert step == pytest.approx(np.full(len(step), speed / 250), abs=2e-6)
+    assert np.all(np.diff(frames["sample"].astype(np.int64)) == 1)
 
 
 def test_frames_carry_the_bench_channels(memory_rig):

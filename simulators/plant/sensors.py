@@ -84,6 +84,7 @@ class Decimator:
         if factor < 1:
             raise ValueError("decimation factor must be >= 1")
         self.factor = factor
+        self.filtered = filtered
         self.latency_samples = latency_samples if filtered and factor > 1 else 0
         n_taps = 2 * self.latency_samples * factor + 1
         if n_taps > 1:
@@ -93,6 +94,21 @@ class Decimator:
         else:
             self.taps = np.ones(1)
         self._history = np.zeros((n_channels, n_taps - 1))
+
+    def with_factor(self, factor: int) -> Decimator:
+        """A decimator by ``factor`` for the same channels that continues this one's input history.
+
+        The new filter's history is filled with the most recent input samples (the oldest one
+        repeated if this history is shorter), so a rate change does not restart the filter from zero.
+        An unfiltered decimator keeps no history: after it the new filter starts from zero.
+        """
+        new = Decimator(factor, self._history.shape[0], filtered=self.filtered)
+        if self._history.shape[1] == 0 or new._history.shape[1] == 0:
+            return new
+        keep = min(self._history.shape[1], new._history.shape[1])
+        new._history[:, -keep:] = self._history[:, -keep:]
+        new._history[:, :-keep] = self._history[:, -keep : -keep + 1]
+        return new
 
     def prime(self, values: np.ndarray) -> None:
         """Fill the history as if each channel had held ``values`` for ever (a plant at rest)."""

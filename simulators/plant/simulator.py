@@ -234,6 +234,24 @@ class PlantSimulator:
         network = self.setup.operating_network(freq_hz, base_amplitude_m)
         return {k: complex(v[0]) for k, v in network.frequency_response(freq_hz).items()}
 
+    def set_output_rate(self, output_rate_hz: float) -> None:
+        """Change the output rate at the same internal (converter) rate; the plant's state carries over.
+
+        Only rates whose oversampling ``internal_rate_hz / output_rate_hz`` is a whole number are
+        possible (ValueError otherwise); the decimation filter is rebuilt for the new factor and
+        continues from the recent input, and :attr:`latency_samples` stays in output samples.
+        """
+        ratio = self.internal_rate_hz / output_rate_hz if output_rate_hz > 0 else 0.0
+        oversampling = round(ratio)
+        if oversampling < 1 or abs(ratio - oversampling) > 1e-9 * ratio:
+            raise ValueError(
+                f"output rate {output_rate_hz:g} Hz: {self.internal_rate_hz:g} Hz / rate not a whole number"
+            )
+        self._decimator = self._decimator.with_factor(oversampling)
+        self.latency_samples = self._decimator.latency_samples
+        self.oversampling = oversampling
+        self.output_rate_hz = self.internal_rate_hz / oversampling
+
     # ------------------------------------------------------------------ stepping
     def advance(self, command: np.ndarray) -> dict[str, np.ndarray]:
         """Advance by ``len(command)`` internal samples; return the channels at the output rate."""

@@ -1,0 +1,176 @@
+"""The actuator controller's function generator: excitation, tapers and mean position, in samples.
+
+The displacement command is the sum of two parts, both evaluated at the controller's internal
+sample instants (time is counted in samples, never read from a clock):
+
+- the *excitation*, a waveform of :mod:`simulators.plant.excitation` (it carries its own raised-
+  cosine taper in and out); an early stop multiplies it by a raised cosine falling from 1 to 0 over
+  ``taper_out_s``;
+- the *mean position*, which never steps: every change (to the setpoint at a start, back to zero at
+  a stop, from the frozen position back to zero after an e-stop) follows a raised cosine whose
+  length is the distance over :data:`MEAN_RATE_MM_S` (so the mean moves at that rate on average
+  and at pi/2 times it at most, with zero velocity at both ends).
+
+An e-stop freezes the command at its last value; :meth:`FunctionGenerator.release` returns from
+there to rest along a mean-position ramp.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from simulators.plant.excitation import Waveform, taper_envelope
+
+#: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
+MEAN_RATE_MM_S = 10.0
+
+
+class MeanRamp:
+    """A position that moves between targets along raised cosines at :data:`MEAN_RATE_MM_S`."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.rate_hz = rate_hz
+        self._from_m = 0.0
+        self._to_m = 0.0
+        self._start_n = 0
+        self._length_s = 0.0
+
+    @property
+    def target_m(self) -> float:
+        return self._to_m
+
+    def values(self, n: np.ndarray) -> np.ndarray:
+        """The position (m) at the absolute sample indices ``n``."""
+        t = (np.asarray(n, dtype=float) - self._start_n) / self.rate_hz
+        return self._from_m + (self._to_m - self._from_m) * taper_envelope(t, math.inf, self._length_s, 0.0)
+
+    def move(self, n: int, from_m: float, to_m: float) -> None:
+        """Start at sample ``n`` a ramp from ``from_m`` to ``to_m`` (m)."""
+        self._from_m, self._to_m, self._start_n = from_m, to_m, n
+        self._length_s = abs(to_m - from_m) * 1000 / MEAN_RATE_MM_S
+
+    def settled(self, n: int) -> bool:
+        """True if sample ``n`` is on the target (always, for a ramp of no length)."""
+        return self._length_s == 0 or (n - self._start_n) / self.rate_hz >= self._length_s
+
+
+class FunctionGenerator:
+    """Produces the displacement command (m) block by block at ``rate_hz`` internal samples per second."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.rate_hz = rate_hz
+        self.n = 0  # internal samples generated since power-up
+        self.last_m = 0.0  # the last command sample
+        self._mean = MeanRamp(rate_hz)
+        self._waveform: Waveform | None = None
+        self._start_n = 0
+        self._taper_out_s = 0.0
+        self._stop_n: int | None = None
+        self._stopping = False
+        self._frozen_m: float | None = None
+
+    # -- control ------------------------------------------------------------------------------
+
+    def start(self, waveform: Waveform | None, mean_m: float, taper_out_s: float) -> None:
+        """Run ``waveform`` from the next sample on ``mean_m`` (reached along a mean ramp).
+
+        ``taper_out_s`` (> 0) is the length of the taper of an early :meth:`stop`.
+        """
+        if taper_out_s <= 0:
+            raise ValueError(f"taper_out_s must be > 0, got {taper_out_s}")
+        self._waveform, self._start_n, self._taper_out_s = waveform, self.n, taper_out_s
+        self._stop_n, self._stopping = None, False
+        self._mean.move(self.n, self.mean_m(), mean_m)
+
+    def stop(self) -> None:
+        """Taper the excitation out over ``taper_out_s`` from the next sample; the mean ramps to 0."""
+        if self._frozen_m is not None or self._stopping:
+            return
+        self._stopping = True
+        if self._waveform is not None:
+            self._stop_n = self.n
+        self._mean.move(self.n, self.mean_m(), 0.0)
+
+    def freeze(self) -> None:
+        """E-stop: hold the last command sample (no taper: the valves close where they are)."""
+        self._frozen_m = self.last_m
+        self._waveform, self._stop_n = None, None
+
+    def release(self) -> None:
+        """Leave an e-stop: ramp from the frozen position back to rest."""
+        if self._frozen_m is None:
+            return
+        frozen, self._frozen_m = self._frozen_m, None
+        self._stopping = True
+        self._mean.move(self.n, frozen, 0.0)
+
+    # -- state --------------------------------------------------------------------------------
+
+    @property
+    def stopping(self) -> bool:
+        """A stop (commanded, or the excitation's natural end, or a release) is under way or done."""
+        return self._stopping
+
+    @property
+    def at_rest(self) -> bool:
+        """No excitation, not frozen, and the last sample put the mean at zero."""
+        return (
+            self._waveform is None
+            and self._frozen_m is None
+            and self._mean.target_m == 0.0
+            and self._mean.settled(self.n - 1)
+        )
+
+    @property
+    def waveform(self) -> Waveform | None:
+        return self._waveform
+
+    @property
+    def elapsed_s(self) -> float:
+        """Time since the last start (s), in samples of the internal rate."""
+        return (self.n - self._start_n) / self.rate_hz
+
+    def mean_m(self) -> float:
+        """The mean position (m) at the next sample (the frozen command during an e-stop)."""
+        if self._frozen_m is not None:
+            return self._frozen_m
+        return float(self._mean.values(np.array([self.n]))[0])
+
+    # -- generation ---------------------------------------------------------------------------
+
+    def block(self, count: int) -> np.ndarray:
+        """The command (m) for the next ``count`` internal samples."""
+        n = self.n + np.arange(count)
+        if self._frozen_m is not None:
+            out = np.full(count, self._frozen_m)
+        else:
+            out = self._mean.values(n)
+            if self._waveform is not None:
+                out = out + self._excitation(n)
+        self.n += count
+        if count:
+            self.last_m = float(out[-1])
+            self._end_excitation(self.n - 1)
+        return out
+
+    def _excitation(self, n: np.ndarray) -> np.ndarray:
+        assert self._waveform is not None
+        value = self._waveform.value((n - self._start_n) / self.rate_hz)
+        if self._stop_n is not None:
+            tau = (n - self._stop_n) / self.rate_hz
+            value = value * taper_envelope(tau, self._taper_out_s, 0.0, self._taper_out_s)
+        return value
+
+    def _end_excitation(self, last_n: int) -> None:
+        """Drop the excitation once it is zero for good: its stop taper or its own end is complete."""
+        waveform = self._waveform
+        if waveform is None:
+            return
+        if self._stop_n is not None:
+            if (last_n - self._stop_n) / self.rate_hz >= self._taper_out_s:
+                self._waveform, self._stop_n = None, None
+        elif (last_n - self._start_n) / self.rate_hz >= waveform.duration_s:
+            self._waveform = None
+            self.stop()
