@@ -67,7 +67,8 @@ async def _actuator_status(args: argparse.Namespace) -> int:
     finally:
         await client.close()
     for name, value in vars(status).items():
-        print(f"{name:24} {getattr(value, 'name', value)}")
+        shown = f"{value:.6g}" if isinstance(value, float) else getattr(value, "name", value)
+        print(f"{name:24} {shown}")
     return 0
 
 
