@@ -40,14 +40,13 @@ def taper_envelope(t_s: np.ndarray, total_s: float, taper_in_s: float, taper_out
     excitation starts or stops: every start and stop tapers.
     """
     t = np.asarray(t_s, dtype=float)
-    env = np.where((t >= 0) & (t <= total_s), 1.0, 0.0)
+    env = ((t >= 0) & (t <= total_s)).astype(float)
     if taper_in_s > 0:
-        ramp = (t >= 0) & (t < taper_in_s)
-        env = np.where(ramp, 0.5 - 0.5 * np.cos(np.pi * t / taper_in_s), env)
+        ramp = np.flatnonzero((t >= 0) & (t < taper_in_s))
+        env[ramp] = 0.5 - 0.5 * np.cos(np.pi * t[ramp] / taper_in_s)
     if taper_out_s > 0:
-        t_out = total_s - t
-        ramp = (t_out >= 0) & (t_out < taper_out_s)
-        env = np.where(ramp, np.minimum(env, 0.5 - 0.5 * np.cos(np.pi * t_out / taper_out_s)), env)
+        ramp = np.flatnonzero((t <= total_s) & (t > total_s - taper_out_s))
+        env[ramp] = np.minimum(env[ramp], 0.5 - 0.5 * np.cos(np.pi * (total_s - t[ramp]) / taper_out_s))
     return env
 
 
