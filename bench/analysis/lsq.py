@@ -7,7 +7,8 @@ that all of them state their uncertainty the same way:
   order one; bounds are scaled alike;
 - covariance ``s^2 (J^T J)^+`` with ``s^2 = chi^2 / dof`` (the residuals' own scatter, so a model
   error widens the intervals instead of hiding), times ``covariance_factor`` for data whose points
-  are correlated (Welch bins of one window share information); 95 % half-widths are 1.96 sigma;
+  are correlated: a number, or a function of the final residuals (see
+  :func:`correlated_residual_factor`); 95 % half-widths are 1.96 sigma;
 - a parameter is *not determined* when its 95 % half-width exceeds its ``resolution`` (a function
   of its name and all fitted values; by default half its value), when it ends on a bound, or when
   it lies in the null space of ``J`` (singular values below 1e-9 of the largest).
@@ -51,6 +52,21 @@ def relative_resolution(name: str, values: Mapping[str, float]) -> float:
     return UNDETERMINED_RELATIVE_CI * abs(values[name])
 
 
+def correlated_residual_factor(n_blocks: int, floor: float = 1.0) -> Callable[[np.ndarray], float]:
+    """Covariance inflation for residuals correlated along their sequence (neighbouring frequency
+    bins): ``(1 + rho) / (1 - rho)``, the ratio of all residuals to the independent ones for a
+    first-order autoregressive sequence, with ``rho`` the lag-1 correlation pooled over ``n_blocks``
+    equal consecutive blocks (one per FRF and real/imaginary part); at least ``floor``."""
+
+    def factor(residuals: np.ndarray) -> float:
+        blocks = residuals.reshape(n_blocks, -1)
+        rho = float(np.sum(blocks[:, 1:] * blocks[:, :-1]) / max(np.sum(blocks**2), 1e-300))
+        rho = min(max(rho, 0.0), 0.99)
+        return max((1 + rho) / (1 - rho), floor)
+
+    return factor
+
+
 def weighted_fit(
     residuals: Callable[[Mapping[str, float]], np.ndarray],
     start: Mapping[str, float],
@@ -58,7 +74,7 @@ def weighted_fit(
     *,
     scale: Mapping[str, float] | None = None,
     resolution: Callable[[str, Mapping[str, float]], float] = relative_resolution,
-    covariance_factor: float = 1.0,
+    covariance_factor: float | Callable[[np.ndarray], float] = 1.0,
     max_nfev_per_parameter: int = 200,
 ) -> LsqResult:
     """Minimise ``sum(residuals(values)^2)`` (real residuals already divided by their standard
@@ -80,7 +96,8 @@ def weighted_fit(
     _, sv, vt = np.linalg.svd(sol.jac, full_matrices=False)
     null = sv < sv[0] * _NULL_SPACE
     inv_sv2 = np.where(null, 0.0, 1.0 / np.where(null, 1.0, sv) ** 2)
-    cov_x = (vt.T * inv_sv2) @ vt * (chi2 / max(n_res - p, 1)) * covariance_factor
+    inflation = covariance_factor(sol.fun) if callable(covariance_factor) else covariance_factor
+    cov_x = (vt.T * inv_sv2) @ vt * (chi2 / max(n_res - p, 1)) * inflation
     cov = cov_x * np.outer(sc, sc)
     half = Z95 * np.sqrt(np.diag(cov))
     in_null = np.any(np.abs(vt[null]) > 0.1, axis=0) if null.any() else np.zeros(p, bool)
