@@ -5,7 +5,8 @@ free run (13 frequencies 1-100 Hz), a four-post sweep (0.1-30 Hz over 60 s) and 
 (10 kHz). The records are simulated first (not timed); the analysis then fits every dwell, finds
 m_comp, corrects the contact force, identifies Models 1-3 per grid and the amplitude dependence per
 pressure, designs the model compensator, estimates m_wheel, compensates the four-post run, computes
-its sweep FRFs and valid bands, and analyses the hammer blow. The baseline, timed in the same run,
+its sweep FRFs and valid bands, identifies the quarter car above the sensor (with its body and wheel
+modes), and analyses the hammer blow. The baseline, timed in the same run,
 is a plain numpy FFT of every recorded channel (the same data volume).
 
 Run: ``OMP_NUM_THREADS=1 python benchmarks/analysis_speed.py`` (one core, as the target states).
@@ -28,8 +29,10 @@ from bench.analysis.fir import apply_aligned, double_differentiator
 from bench.analysis.frf import valid_band
 from bench.analysis.hammer import analyse_hammer
 from bench.analysis.plate_mass import identify_plate_mass, shaker_frfs
+from bench.analysis.quarter_car_fit import fit_quarter_car, four_post_frfs
 from bench.analysis.sweep import sweep_frfs
 from bench.analysis.tyre_fit import amplitude_dependence, identify_shaker
+from bench.models.benches import TyreModel
 from bench.models.setup import BenchKind, BenchSetup
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism, SineDwell, Sweep
 
@@ -55,7 +58,7 @@ def simulate_campaign():
         for i, (p, a) in enumerate((p, a) for p in (1.5, 2.5, 3.5) for a in (1e-3, 2e-3, 5e-3))
     }
     free = _dwells(BenchSetup.paper_free_run(), FREE_HZ, 2e-3, seed=99)
-    qc = BenchSetup.paper_quarter_car(2.5)
+    qc = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)  # the shaker campaign's tyre
     post_free = _dwells(BenchSetup(BenchKind.FREE_RUN, rig=qc.rig), FREE_HZ, 2e-3, seed=98)
     sweep = PlantSimulator(qc, realism=SensorRealism(seed=7)).simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
     hammer_setup = BenchSetup.paper_hammer()
@@ -116,9 +119,16 @@ def analyse_campaign(grids, free, four_post, hammer):
         k: valid_band(c.freq_hz, frfs[k].frf.value / c.value, c.reliable & frfs[k].frf.reliable)
         for k in forces
     }
+    car = fit_quarter_car(
+        four_post_frfs(rec, FS, post, band_hz=(0.3, 30.0)),
+        model=fit.model,
+        tyre=fit.tyre,
+        sensor=sensor,
+        rubber=fit.rubber,
+    )
     hsetup, hrec = hammer
     hres = analyse_hammer(hrec["fz_wfs_n"], 10 * FS, hsetup.sensor.mass_kg, hammer_n=hrec["f_hammer_n"])
-    return plate, idents, mass, bands, hres
+    return plate, idents, mass, bands, car, hres
 
 
 def baseline(grids, free, four_post, hammer):
@@ -136,7 +146,7 @@ def main() -> None:
     n_samples = baseline(*data)
     t_base = time.perf_counter() - t0
     t0 = time.perf_counter()
-    plate, idents, mass, bands, hres = analyse_campaign(*data)
+    plate, idents, mass, bands, car, hres = analyse_campaign(*data)
     t_analysis = time.perf_counter() - t0
     print(f"data volume: {n_samples} samples ({n_samples * 8 / 1e6:.1f} MB as float64)")
     print(f"baseline numpy FFT of every channel: {1e3 * t_base:.1f} ms")
@@ -150,6 +160,13 @@ def main() -> None:
     k = {p: idents[(p, 2e-3)].best_fit.tyre.stiffness_n_per_m / 1e3 for p in (1.5, 2.5, 3.5)}
     print("k at 10 Hz, 2 mm [kN/m]: " + ", ".join(f"{p} bar {v:.1f}" for p, v in k.items()))
     print("four-post valid bands: " + ", ".join(f"{n} {b.upper_hz:.1f} Hz" for n, b in bands.items()))
+    s = car.suspension
+    print(
+        f"quarter car: m_h {s.unsprung_mass_above_kg:.2f} kg, k_s {s.stiffness_n_per_m / 1e3:.2f} kN/m,"
+        f" d_s {s.damping_ns_per_m:.0f} Ns/m, m_B {s.body_mass_kg:.1f} kg;"
+        f" body {car.body_frequency_hz:.3f} Hz, wheel {car.wheel_frequency_hz:.2f} Hz,"
+        f" reduced chi^2 {car.reduced_chi2:.1f}, not determined: {list(car.undetermined) or 'none'}"
+    )
 
 
 if __name__ == "__main__":

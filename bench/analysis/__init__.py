@@ -6,12 +6,13 @@ script or a notebook. Every module has one job:
 - :mod:`~bench.analysis.validation`: input checks shared by all estimators (clear errors).
 - :mod:`~bench.analysis.frf`: the FRF type, point ratios with uncertainty, the valid band.
 - :mod:`~bench.analysis.dwell`: sine-dwell fit of every channel.
-- :mod:`~bench.analysis.sweep`: H1/H2 and coherence from a sweep.
+- :mod:`~bench.analysis.sweep`: H1 or H2 (chosen from the noise floors) and coherence from a sweep.
+- :mod:`~bench.analysis.lsq`: bounded weighted least squares with intervals and 'not determined'.
 - :mod:`~bench.analysis.fir`: weighted complex least-squares FIR design and a streaming FIR.
 - :mod:`~bench.analysis.plate_mass`: m_comp from the free run, contact-force correction.
 - :mod:`~bench.analysis.shaker_models`: closed-form shaker responses of Models 1-3.
 - :mod:`~bench.analysis.tyre_fit`: identification of Models 1-3 on shaker FRFs.
 - :mod:`~bench.analysis.hammer`: sensor eigenfrequency, damping ratio and stiffness.
-- :mod:`~bench.analysis.quarter_car_fit`: suspension above the sensor from four-post data.
+- :mod:`~bench.analysis.quarter_car_fit`: quarter car above the sensor from a four-post sweep.
 - :mod:`~bench.analysis.compensation`: hub-acceleration and model-based compensation.
 """

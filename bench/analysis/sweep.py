@@ -1,14 +1,34 @@
-"""FRFs from a sine sweep: H1, H2 and coherence from Welch cross-spectra.
+"""FRFs from a sine sweep: H1 or H2 (chosen per FRF from the data), and coherence, by Welch.
 
-``H1 = S_xy / S_xx`` is unbiased by noise on the response, ``H2 = S_yy / S_yx`` by noise on the
-reference; their ratio is the coherence ``H1 / H2 = gamma^2``. Segments are Hann-windowed with 50 %
-overlap; by default the segment length is the longest power of two that still gives at least
+``H1 = S_xy / S_xx`` is unbiased by noise on the response ``y`` and biased low by noise on the
+reference ``x`` (``H1 = H / (1 + N_x / S_xx,true)``); ``H2 = S_yy / S_yx`` is the opposite
+(``H2 = H (1 + N_y / S_yy,true)``). Their ratio is the coherence ``H1 / H2 = gamma^2``, which is
+symmetric and so cannot tell which channel is noisy. Segments are Hann-windowed with 50 % overlap;
+by default the segment length is the longest power of two that still gives at least
 ``MIN_AVERAGES`` averages (overridable). The standard uncertainty of a point is
 ``|H| sqrt((1 - gamma^2) / (gamma^2 n_avg))``.
 
+**Choice of estimator** (``estimator="auto"``, the default; ``"h1"``/``"h2"`` override it): per
+FRF, the relative bias each estimator would have is judged from the channels' noise densities
+``N`` against their in-band spectra: ``e_x = N_x / (S_xx - N_x)`` (H1's bias) and
+``e_y = N_y / (S_yy - N_y)`` (H2's), medians over the excited in-band bins. H2 is chosen when
+``e_x > e_y`` (the reference is the noisier channel), H1 otherwise. The noise densities are the
+known sensor floors when given (``noise_psd``, one-sided, units^2/Hz: white noise of rms ``s`` at
+sample rate ``fs`` is ``2 s^2 / fs``), otherwise the median of each channel's own spectrum in
+``noise_band_hz`` (default ``(2 f_max, 0.4 fs)``: above the sweep and its second harmonic, below the
+anti-alias roll-off), where a band-limited sweep leaves only noise. Without either, ``"auto"``
+raises rather than guess.
+
 A bin is *reliable* when it lies in the requested band, the reference carries at least
-``energy_floor`` of the band's median power there, and the coherence reaches ``min_coherence``.
-A band without any reliable bin raises an error: no number is made up where the sweep put no energy.
+``energy_floor`` of the band's median power there, the coherence reaches ``min_coherence``, and the
+excitation of that bin arrived at least half a segment after the record's start and before its
+end. The last condition is specific to swept excitation: a bin swept in the first (last) half
+segment is seen by one segment only, on its window's flank, where windowing the response and
+windowing the excitation are not interchangeable; H1 is then biased by tens of percent while the
+coherence, from a single effective average, stays near one. The excitation time of each bin is the
+energy centroid of the reference's short-window spectrogram (segment / 8), so broadband excitation
+(centroid mid-record) is unaffected. A band without any reliable bin raises an error: no number is
+made up where the sweep put no energy.
 """
 
 from __future__ import annotations
@@ -17,18 +37,26 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import csd, welch
+from scipy.signal import csd, spectrogram, welch
 
 from bench.analysis.frf import Frf
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 
 MIN_AVERAGES = 7
+ESTIMATORS = ("auto", "h1", "h2")
+#: Fewest noise-band bins from which a channel's noise floor is estimated.
+MIN_NOISE_BINS = 8
+#: Short spectrogram segments for the excitation time of each bin: a fraction of the Welch segment.
+TIME_RESOLUTION_DIVISOR = 8
 
 
 @dataclass(frozen=True)
 class SweepFrf:
-    """``frf`` (H1 or H2 as chosen, with sigma and the reliable mask) plus both estimators and the
-    ``coherence`` per bin; ``n_averages`` Welch segments of ``resolution_hz``."""
+    """``frf`` (the chosen estimator, with sigma and the reliable mask) plus both estimators and the
+    ``coherence`` per bin; ``n_averages`` Welch segments of ``resolution_hz``. ``estimator`` is the
+    one used (``"h1"`` or ``"h2"``); ``reference_noise_ratio`` and ``response_noise_ratio`` are the
+    median ``N/(S - N)`` of reference and response over the excited band (what ``"auto"`` compares;
+    NaN when the choice was given)."""
 
     frf: Frf
     h1: np.ndarray
@@ -36,12 +64,49 @@ class SweepFrf:
     coherence: np.ndarray
     n_averages: int
     resolution_hz: float
+    estimator: str
+    reference_noise_ratio: float
+    response_noise_ratio: float
 
 
 def default_segment(n_samples: int) -> int:
     """Longest power-of-two segment with at least ``MIN_AVERAGES`` half-overlapping averages."""
     nperseg = 2 ** int(np.floor(np.log2(max(2 * n_samples / (MIN_AVERAGES + 1), 2))))
     return max(nperseg, 16)
+
+
+def _noise_floor(
+    name: str, psd: np.ndarray, f: np.ndarray, noise_psd: Mapping[str, float] | None, noise_band: tuple
+) -> float:
+    """The channel's noise density: given, or the median of its spectrum in the noise band."""
+    if noise_psd is not None and name in noise_psd:
+        return float(noise_psd[name])
+    quiet = (f >= noise_band[0]) & (f <= noise_band[1])
+    if quiet.sum() < MIN_NOISE_BINS:
+        raise AnalysisInputError(
+            f"{name}: no noise floor given and only {int(quiet.sum())} bins in the noise band"
+            f" {noise_band} Hz; give noise_psd or choose the estimator ('h1' or 'h2')"
+        )
+    return float(np.median(psd[quiet]))
+
+
+def _noise_ratio(psd: np.ndarray, floor: float, excited: np.ndarray) -> float:
+    """Median of ``N / (S - N)`` over the excited bins (infinite where the signal is below the noise)."""
+    signal = psd[excited] - floor
+    with np.errstate(divide="ignore"):
+        ratio = np.where(signal > 0, floor / np.where(signal > 0, signal, 1.0), np.inf)
+    return float(np.median(ratio))
+
+
+def _excitation_time_s(x: np.ndarray, fs: float, seg: int, f: np.ndarray) -> np.ndarray:
+    """Energy centroid in time of the reference at each frequency ``f`` (short-window spectrogram)."""
+    short = max(seg // TIME_RESOLUTION_DIVISOR, 16)
+    fc, tc, sxx = spectrogram(
+        x, fs=fs, window="hann", nperseg=short, noverlap=short - max(short // 4, 1), detrend="constant"
+    )
+    total = np.sum(sxx, axis=1)
+    centroid = np.divide(sxx @ tc, total, out=np.full(fc.size, x.size / (2 * fs)), where=total > 0)
+    return np.interp(f, fc, centroid)
 
 
 def sweep_frfs(
@@ -52,14 +117,20 @@ def sweep_frfs(
     band_hz: tuple[float, float],
     reference_name: str = "reference",
     nperseg: int | None = None,
-    estimator: str = "h1",
+    estimator: str = "auto",
+    noise_psd: Mapping[str, float] | None = None,
+    noise_band_hz: tuple[float, float] | None = None,
     min_coherence: float = 0.9,
     energy_floor: float = 1e-3,
 ) -> dict[str, SweepFrf]:
-    """FRFs of every response channel over ``reference`` (see the module docstring)."""
+    """FRFs of every response channel over ``reference`` (see the module docstring).
+
+    ``noise_psd`` maps channel names (``reference_name`` and response names) to known one-sided
+    noise densities; channels not in it have their floor estimated in ``noise_band_hz``.
+    """
     fs = as_sample_rate(fs_hz)
-    if estimator not in ("h1", "h2"):
-        raise AnalysisInputError(f"estimator must be 'h1' or 'h2', got {estimator!r}")
+    if estimator not in ESTIMATORS:
+        raise AnalysisInputError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
     sig = as_signals({reference_name: reference, **responses}, min_samples=64)
     x = sig.pop(reference_name)
     n = x.size
@@ -73,7 +144,11 @@ def sweep_frfs(
     in_band = (f >= lo) & (f <= hi)
     if not in_band.any():
         raise AnalysisInputError(f"band {band_hz} Hz holds no frequency bin (resolution {fs / seg:.3g} Hz)")
-    floor = energy_floor * np.median(sxx[in_band])
+    excited = in_band & (sxx >= energy_floor * np.median(sxx[in_band]))
+    t_exc = _excitation_time_s(x, fs, seg, f)
+    half_seg_s = 0.5 * seg / fs
+    covered = (t_exc >= half_seg_s) & (t_exc <= n / fs - half_seg_s)
+    noise_band = noise_band_hz or (2.0 * hi, 0.4 * fs)
     out = {}
     for name, y in sig.items():
         _, sxy = csd(x, y, **kw)
@@ -83,13 +158,23 @@ def sweep_frfs(
             h2 = syy / np.conj(sxy)
             coh = np.abs(sxy) ** 2 / (sxx * syy)
         coh = np.nan_to_num(coh, nan=0.0)
-        reliable = in_band & (sxx >= floor) & (coh >= min_coherence)
+        reliable = excited & covered & (coh >= min_coherence)
         if not reliable.any():
-            raise AnalysisInputError(f"{name}: no bin in {band_hz} Hz with excitation energy and coherence")
-        value = np.where(in_band, h1 if estimator == "h1" else h2, np.nan)
+            raise AnalysisInputError(
+                f"{name}: no bin in {band_hz} Hz with excitation energy, coherence and full window coverage"
+            )
+        chosen, ref_ratio, resp_ratio = estimator, np.nan, np.nan
+        if estimator == "auto":
+            ref_floor = _noise_floor(reference_name, sxx, f, noise_psd, noise_band)
+            ref_ratio = _noise_ratio(sxx, ref_floor, excited)
+            resp_ratio = _noise_ratio(syy, _noise_floor(name, syy, f, noise_psd, noise_band), excited)
+            chosen = "h2" if ref_ratio > resp_ratio else "h1"
+        value = np.where(in_band, h1 if chosen == "h1" else h2, np.nan)
         with np.errstate(divide="ignore", invalid="ignore"):
             sigma = np.abs(value) * np.sqrt((1 - coh) / (coh * n_avg))
         keep = in_band
         frf = Frf(f[keep], value[keep], sigma[keep], reliable[keep], name, reference_name)
-        out[name] = SweepFrf(frf, h1[keep], h2[keep], coh[keep], n_avg, fs / seg)
+        out[name] = SweepFrf(
+            frf, h1[keep], h2[keep], coh[keep], n_avg, fs / seg, chosen, float(ref_ratio), float(resp_ratio)
+        )
     return out

@@ -25,9 +25,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from bench.analysis.frf import Frf
+from bench.analysis.lsq import relative_resolution, weighted_fit
 from bench.analysis.shaker_models import RubberTerms, shaker_response
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
@@ -48,8 +48,6 @@ TYRE_PARAMETERS: dict[TyreModel, tuple[str, ...]] = {
 RATE, HYST = "stiffness_rise_per_decade", "hysteretic_damping_n_per_m"
 #: Relative floor on point uncertainties (model-form and rounding), so that no point gets infinite weight.
 RELATIVE_SIGMA_FLOOR = 1e-4
-UNDETERMINED_RELATIVE_CI = 0.5
-Z95 = 1.959964
 
 
 @dataclass(frozen=True)
@@ -175,13 +173,13 @@ def _bounds(name: str, wheel_mass_kg: float, k: float) -> tuple[float, float]:
     }[name]
 
 
-def _resolution(name: str, value: float, k: float) -> float:
+def _resolution(name: str, values: Mapping[str, float]) -> float:
     """Half-width of the 95 % interval above which a parameter counts as not determined."""
     if name == RATE:
         return 0.01
     if name == HYST:
-        return max(UNDETERMINED_RELATIVE_CI * abs(value), 0.01 * k)
-    return UNDETERMINED_RELATIVE_CI * abs(value)
+        return max(relative_resolution(name, values), 0.01 * values["stiffness_n_per_m"])
+    return relative_resolution(name, values)
 
 
 def _model_objects(
@@ -210,38 +208,23 @@ def fit_tyre_model(
     names = TYRE_PARAMETERS[model] + ((RATE,) if stiffness_rise else ()) + ((HYST,) if hysteretic else ())
     start = _start_values(data, model, names, wheel_mass_kg)
     k0 = start["stiffness_n_per_m"]
-    scale = np.array(
-        [abs(start[n]) if abs(start[n]) > 0 else (0.01 if n == RATE else 0.01 * k0) for n in names]
-    )
-    lo, hi = np.array([_bounds(n, wheel_mass_kg, k0) for n in names]).T
-    x0 = np.clip(np.array([start[n] for n in names]), lo, hi) / scale
+    scale = {n: abs(start[n]) if abs(start[n]) > 0 else (0.01 if n == RATE else 0.01 * k0) for n in names}
     n_pts = data.w.size
 
-    def residuals(x: np.ndarray) -> np.ndarray:
-        tyre, rubber = _model_objects(model, dict(zip(names, x * scale, strict=True)), wheel_mass_kg)
+    def residuals(values: Mapping[str, float]) -> np.ndarray:
+        tyre, rubber = _model_objects(model, values, wheel_mass_kg)
         wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
         r = (np.concatenate([wfs, contact]) - data.h) / data.sigma * np.sqrt(2.0)
         return np.concatenate([r.real, r.imag])
 
-    sol = least_squares(
-        residuals, x0, bounds=(lo / scale, hi / scale), x_scale=1.0, max_nfev=200 * len(names)
+    fit = weighted_fit(
+        residuals,
+        start,
+        {n: _bounds(n, wheel_mass_kg, k0) for n in names},
+        scale=scale,
+        resolution=_resolution,
     )
-    values = dict(zip(names, sol.x * scale, strict=True))
-    chi2 = float(np.sum(sol.fun**2))
-    n_res, p = sol.fun.size, len(names)
-    _, sv, vt = np.linalg.svd(sol.jac, full_matrices=False)
-    null = sv < sv[0] * 1e-9
-    inv_sv2 = np.where(null, 0.0, 1.0 / np.where(null, 1.0, sv) ** 2)
-    cov = (vt.T * inv_sv2) @ vt * (chi2 / max(n_res - p, 1))
-    half = Z95 * np.sqrt(np.diag(cov)) * scale
-    in_null = np.any(np.abs(vt[null]) > 0.1, axis=0) if null.any() else np.zeros(p, bool)
-    undetermined = tuple(
-        n
-        for i, n in enumerate(names)
-        if in_null[i]
-        or sol.active_mask[i] != 0
-        or half[i] > _resolution(n, values[n], values["stiffness_n_per_m"])
-    )
+    values, chi2, n_res, p = fit.values, fit.chi2, fit.n_residuals, fit.n_parameters
     tyre, rubber = _model_objects(model, values, wheel_mass_kg)
     wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
     ratio_meas = data.h[:n_pts] / data.h[n_pts:]
@@ -251,15 +234,15 @@ def fit_tyre_model(
         tyre=tyre,
         rubber=rubber,
         values=values,
-        ci95=dict(zip(names, half, strict=True)),
-        undetermined=undetermined,
+        ci95=fit.ci95,
+        undetermined=fit.undetermined,
         chi2=chi2,
         n_residuals=n_res,
         n_parameters=p,
         aic=chi2 + 2 * p,
         bic=chi2 + p * np.log(n_res),
         ratio_relative_rms=float(np.sqrt(np.mean(ratio_rel**2))),
-        converged=bool(sol.success),
+        converged=fit.converged,
     )
 
 

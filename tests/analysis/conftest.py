@@ -1,13 +1,13 @@
 """Simulated runs shared by the analysis tests (session-scoped: each run is simulated once)."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
 
 from bench.analysis.dwell import DwellFit, fit_dwell
 from bench.models.benches import TyreModel
-from bench.models.parameters import Tyre
+from bench.models.parameters import Suspension, Tyre
 from bench.models.setup import BenchKind, BenchSetup
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell, Sweep
 
@@ -80,3 +80,33 @@ def four_post_free_run() -> DwellRun:
     """The four-post rig's post without a vehicle: its own plate mass (m_comp) to identify."""
     rig = BenchSetup.paper_quarter_car().rig
     return run_dwells(BenchSetup(BenchKind.FREE_RUN, rig=rig), FREE_RUN_GRID_HZ, 2e-3, seed=14)
+
+
+#: A quarter car that is not the paper's: heavier hub carrier, lighter and softer-sprung body, softer
+#: damper (body mode 1.5 Hz, wheel mode 11.9 Hz with OTHER_TYRE).
+OTHER_SUSPENSION = Suspension(
+    unsprung_mass_above_kg=33.0, stiffness_n_per_m=26e3, damping_ns_per_m=2100.0, body_mass_kg=290.0
+)
+
+
+@pytest.fixture(scope="session")
+def shaker_other_tyre_nonlinear() -> DwellRun:
+    """OTHER_TYRE with the simulator's rubber non-linearity on the shaker, 2 mm."""
+    setup = BenchSetup.paper_shaker(2.5, nonlinear=True).with_tyre(OTHER_TYRE)
+    return run_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=15)
+
+
+@pytest.fixture(scope="session")
+def four_post_other_car() -> tuple[BenchSetup, dict[str, np.ndarray]]:
+    """OTHER_TYRE (non-linear, Model 2) under OTHER_SUSPENSION on the same post as the paper's car."""
+    paper = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
+    setup = replace(paper, tyre=OTHER_TYRE, suspension=OTHER_SUSPENSION)
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=40))
+    return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
+
+
+@pytest.fixture(scope="session")
+def shaker_model3_nonlinear() -> DwellRun:
+    """The paper's tyre at 2.5 bar with Model 3 (sidewall) as the truth on the shaker, 2 mm."""
+    setup = BenchSetup.paper_shaker(2.5, model=TyreModel.WHEEL_TREAD_SIDEWALL, nonlinear=True)
+    return run_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=16)

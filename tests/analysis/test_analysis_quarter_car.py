@@ -1,0 +1,168 @@
+"""Quarter-car identification from the four-post sweep: closed form against the network, recovery of
+the simulator's truth for the paper's car and another one, what the data cannot determine."""
+
+import numpy as np
+import pytest
+
+from bench.analysis.dwell import dwell_frf
+from bench.analysis.plate_mass import identify_plate_mass, shaker_frfs
+from bench.analysis.quarter_car_fit import (
+    apparent_mass_above,
+    fit_quarter_car,
+    four_post_frfs,
+    quarter_car_modes,
+    quarter_car_response,
+)
+from bench.analysis.shaker_models import RubberTerms
+from bench.analysis.tyre_fit import identify_shaker
+from bench.analysis.validation import AnalysisInputError
+from bench.models.benches import TyreModel, quarter_car
+from bench.models.parameters import Suspension, WfsSensor, paper_tyre
+from tests.analysis.conftest import OTHER_SUSPENSION, OTHER_TYRE
+
+FS = 1000.0
+SUSPENSION_TRUTH = {
+    "unsprung_mass_above_kg": "unsprung_mass_above_kg",
+    "suspension_stiffness_n_per_m": "stiffness_n_per_m",
+    "suspension_damping_ns_per_m": "damping_ns_per_m",
+    "body_mass_kg": "body_mass_kg",
+}
+
+
+@pytest.mark.parametrize("model", list(TyreModel))
+@pytest.mark.parametrize(
+    ("tyre", "suspension"), [(paper_tyre(1.5), Suspension()), (OTHER_TYRE, OTHER_SUSPENSION)]
+)
+def test_closed_form_equals_network(model, tyre, suspension):
+    """Closed forms of F_wfs/Z, F_contact/Z, a_hub/Z and the apparent mass F_wfs/a_hub against the
+    assembled network, 0.2-100 Hz through the body and wheel modes: 1e-9 relative (both are exact;
+    the difference is rounding in solves with a 1e8 N/m sensor next to 1e4 N/m springs)."""
+    f = np.geomspace(0.2, 100, 120)
+    net = quarter_car(model, tyre, suspension, WfsSensor()).frequency_response(f)
+    wfs, contact, accel = quarter_car_response(model, tyre, suspension, WfsSensor(), f)
+    for mine, name in ((wfs, "f_wfs"), (contact, "f_contact"), (accel, "a_hub")):
+        np.testing.assert_allclose(mine, net[name], rtol=1e-9, err_msg=name)
+    np.testing.assert_allclose(apparent_mass_above(suspension, f), net["f_wfs"] / net["a_hub"], rtol=1e-9)
+
+
+def _shaker_tyre(run, free_run):
+    plate = identify_plate_mass(dwell_frf(free_run.fits, "f_plate_n", "z_base_m"))
+    frfs = shaker_frfs(run.fits, plate)
+    setup = run.plant.setup
+    fit = identify_shaker(
+        frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=setup.tyre.wheel_mass_kg, sensor=setup.sensor
+    ).best_fit
+    return fit
+
+
+def _same_tyre_on_shaker(setup, request):
+    """The shaker campaign (2 mm) of the tyre the four-post car stands on."""
+    if setup.model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        return request.getfixturevalue("shaker_model3_nonlinear")
+    return request.getfixturevalue("shaker_nonlinear")[2e-3]
+
+
+def _identify(record, post_free_run, tyre_fit, sensor):
+    post = identify_plate_mass(dwell_frf(post_free_run.fits, "f_plate_n", "z_base_m"))
+    frfs = four_post_frfs(record, FS, post, band_hz=(0.3, 30.0))
+    return frfs, fit_quarter_car(
+        frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=sensor, rubber=tyre_fit.rubber
+    )
+
+
+def _check_recovered(setup, fit, capsys, label):
+    """Every suspension parameter within 3 % of the truth and within 1.5x its 95 % half-width (about
+    3 sigma); the body and wheel modes of the identified car within 1 % of the truth's (the plant's
+    tyre with its stiffness rise at each mode) and within 1.5x their half-widths.
+
+    Why 3 %: the sweep's H1 is accurate to 0.9 % per bin on a linear noise-free plant (window bias of
+    the swept excitation), and the non-linear tyre's friction varies along the sweep, which a constant
+    hysteretic loss describes only approximately; both are correlated along frequency, which the
+    stated intervals account for. Measured errors are below 1 %, so 3 % fails on any real bias (a
+    wrong closed form, a lost plate-mass correction or accelerometer lag shifts them by 5-50 %)."""
+    truth = setup.suspension
+    # the plant's tyre stiffens with log frequency (same law and reference as RubberTerms); its
+    # friction only damps the modes
+    rise = RubberTerms(stiffness_rise_per_decade=setup.nonlinearity.stiffness_rise_per_decade)
+    (f_b, _), (f_w, _) = quarter_car_modes(setup.model, setup.tyre, truth, setup.sensor, rise)
+    errors = {}
+    for name, attr in SUSPENSION_TRUTH.items():
+        true = getattr(truth, attr)
+        errors[name] = fit.values[name] / true - 1
+        assert abs(fit.values[name] - true) <= 0.03 * true, name
+        assert abs(fit.values[name] - true) <= 1.5 * fit.ci95[name], name
+    for found, ci, true, name in (
+        (fit.body_frequency_hz, fit.body_frequency_ci95_hz, f_b, "body"),
+        (fit.wheel_frequency_hz, fit.wheel_frequency_ci95_hz, f_w, "wheel"),
+    ):
+        errors[name] = found / true - 1
+        assert abs(found - true) <= 0.01 * true, name
+        assert abs(found - true) <= 1.5 * ci, name
+    assert fit.converged and fit.reduced_chi2 < 30
+    assert not set(fit.undetermined) & set(SUSPENSION_TRUTH)
+    with capsys.disabled():
+        print(f"\n  quarter car {label}: " + ", ".join(f"{k} {100 * v:+.2f} %" for k, v in errors.items()))
+
+
+def test_paper_quarter_car_recovered(four_post, four_post_free_run, free_run, request, capsys):
+    """The paper's corner (non-linear tyre, sensor noise, Model 2 or 3 truth) with the tyre from the
+    shaker identification of the same tyre at the same pressure and 2 mm, as a lab would. (Given the
+    Model 2 tyre instead, the Model 3 car fits with a reduced chi^2 above 1000: the mismatch shows.)"""
+    setup, rec = four_post
+    tyre_fit = _shaker_tyre(_same_tyre_on_shaker(setup, request), free_run)
+    frfs, fit = _identify(rec, four_post_free_run, tyre_fit, setup.sensor)
+    _check_recovered(setup, fit, capsys, f"paper {setup.model.name}")
+    assert all(s.estimator == "h1" for s in frfs.sweeps.values())  # the post displacement is the cleanest
+    assert fit.band_hz[0] > 1.5 and fit.band_hz[1] < 30  # flanks of the sweep are not used
+    assert any("shaker" in g for g in fit.taken_as_given)
+    # the mass-production accelerometer's lag: 600 Hz second-order Butterworth, sqrt(2)/(2 pi 600) s
+    assert fit.accelerometer_delay_s == pytest.approx(np.sqrt(2) / (2 * np.pi * 600), rel=0.15)
+
+
+def test_other_quarter_car_recovered(
+    four_post_other_car, four_post_free_run, shaker_other_tyre_nonlinear, free_run, capsys
+):
+    """A car unlike the paper's (other tyre, hub carrier, body, spring and damper) on the same post."""
+    setup, rec = four_post_other_car
+    tyre_fit = _shaker_tyre(shaker_other_tyre_nonlinear, free_run)
+    _, fit = _identify(rec, four_post_free_run, tyre_fit, setup.sensor)
+    _check_recovered(setup, fit, capsys, "other")
+
+
+def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(
+    four_post, four_post_free_run, free_run, request
+):
+    """Data from 15 Hz up (10x the 1.6 Hz body mode, above the wheel mode): the body and spring enter
+    only through ``K m_B / (K - m_B w^2) ~ -(k_s + j w d_s) / w^2 - ...``, where k_s is a 2 %
+    correction to the hub's 25 kg and m_B a smaller one. Both must be reported as not determined
+    (measured: determined, within 35 %, from a 12 Hz start), while m_h and d_s stay determined."""
+    setup, rec = four_post
+    tyre_fit = _shaker_tyre(_same_tyre_on_shaker(setup, request), free_run)
+    post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
+    frfs = four_post_frfs(rec, FS, post, band_hz=(15.0, 30.0))
+    fit = fit_quarter_car(
+        frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=setup.sensor, rubber=tyre_fit.rubber
+    )
+    assert {"body_mass_kg", "suspension_stiffness_n_per_m"} <= set(fit.undetermined)
+    assert not {"unsprung_mass_above_kg", "suspension_damping_ns_per_m"} & set(fit.undetermined)
+
+
+def test_garbage_in(four_post, four_post_free_run):
+    setup, rec = four_post
+    post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
+    with pytest.raises(AnalysisInputError, match="no channel"):
+        four_post_frfs({k: v for k, v in rec.items() if k != "a_hub_m_s2"}, FS, post, band_hz=(0.3, 30.0))
+    short = {k: v[:3000] for k, v in rec.items()}
+    with pytest.raises(AnalysisInputError):
+        frfs = four_post_frfs(short, FS, post, band_hz=(0.3, 30.0))
+        fit_quarter_car(frfs, model=TyreModel.WHEEL_TREAD, tyre=setup.tyre, sensor=setup.sensor)
+    broken = dict(rec)
+    broken["fz_wfs_n"] = replace_nan(rec["fz_wfs_n"])
+    with pytest.raises(AnalysisInputError, match="non-finite"):
+        four_post_frfs(broken, FS, post, band_hz=(0.3, 30.0))
+
+
+def replace_nan(x):
+    y = x.copy()
+    y[500] = np.nan
+    return y
