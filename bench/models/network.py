@@ -81,7 +81,7 @@ class MechanicalNetwork:
     base: Base | None = None
     fixed: Sequence[str] = ("ground",)
     force_inputs: Sequence[str] = ()
-    _rows: dict[str, _OutputRow] = field(init=False, repr=False)
+    _rows: dict[str, _OutputRow] = field(init=False, repr=False)  # filled on first use
 
     def __post_init__(self) -> None:
         self.masses = tuple(self.masses)
@@ -92,7 +92,7 @@ class MechanicalNetwork:
         self._free = [m.name for m in self.masses]
         self._index = {name: i for i, name in enumerate(self._free)}
         self._assemble()
-        self._rows = self._output_rows()
+        self._rows = {}
 
     # ----------------------------------------------------------------------------- structure
     def _validate(self) -> None:
@@ -125,7 +125,10 @@ class MechanicalNetwork:
 
     @property
     def output_names(self) -> tuple[str, ...]:
-        return tuple(self._rows)
+        nodes = [*self._free, *self.fixed] + ([self.base.name] if self.base is not None else [])
+        motion = [f"{prefix}_{node}" for node in nodes for prefix in "zva"]
+        forces = [f"f_{link.name}" for link in self.links]
+        return tuple(motion + forces + (["f_contact", "f_plate"] if self.base is not None else []))
 
     def _assemble(self) -> None:
         """Mass, stiffness and damping matrices of free nodes, and their coupling to the base."""
@@ -184,6 +187,14 @@ class MechanicalNetwork:
             u=k * (lo_z.u - up_z.u) + d * (lo_v.u - up_v.u),
         )
 
+    def _row(self, name: str) -> _OutputRow:
+        """The output's coefficient row; built once, all rows together (they share link rows)."""
+        if not self._rows:
+            self._rows = self._output_rows()
+        if name not in self._rows:
+            raise ValueError(f"unknown output {name!r}; available: {self.output_names}")
+        return self._rows[name]
+
     def _output_rows(self) -> dict[str, _OutputRow]:
         rows: dict[str, _OutputRow] = {}
         nodes = list(self._free) + list(self.fixed)
@@ -216,9 +227,12 @@ class MechanicalNetwork:
 
     # ----------------------------------------------------------------------------- evaluation
     def frequency_response(
-        self, freq_hz: np.ndarray | float, input_name: str | None = None
+        self,
+        freq_hz: np.ndarray | float,
+        input_name: str | None = None,
+        outputs: Sequence[str] | None = None,
     ) -> dict[str, np.ndarray]:
-        """Complex response of every output per unit input at ``freq_hz``.
+        """Complex response of the outputs (all by default) per unit input at ``freq_hz``.
 
         ``input_name`` is ``"z_base"`` (per metre of base displacement, the default when the
         network has a base) or ``"f_<node>"`` (per newton of external force).
@@ -241,14 +255,12 @@ class MechanicalNetwork:
             force = u @ self.F_in.T
             q = np.linalg.solve(dyn, force[..., None])[..., 0]
         v, a = 1j * w[:, None] * q, -(w**2)[:, None] * q
-        return {name: q @ r.q + v @ r.v + a @ r.a + u @ r.u for name, r in self._rows.items()}
+        rows = {name: self._row(name) for name in (outputs if outputs is not None else self.output_names)}
+        return {name: q @ r.q + v @ r.v + a @ r.a + u @ r.u for name, r in rows.items()}
 
     def state_space(self, outputs: Sequence[str] | None = None) -> LinearSystem:
         """State-space form with state ``[q, v]`` and inputs :attr:`input_names`."""
         names = tuple(outputs) if outputs is not None else self.output_names
-        unknown = [o for o in names if o not in self._rows]
-        if unknown:
-            raise ValueError(f"unknown outputs {unknown}; available: {self.output_names}")
         n = len(self._free)
         m_inv = np.linalg.inv(self.M) if n else np.zeros((0, 0))
         acc_x = np.hstack([-m_inv @ self.K, -m_inv @ self.D])
@@ -256,7 +268,7 @@ class MechanicalNetwork:
         A = np.vstack([np.hstack([np.zeros((n, n)), np.eye(n)]), acc_x])
         B = np.vstack([np.zeros((n, len(self.input_names))), acc_u])
         n_in, n_out = len(self.input_names), len(names)
-        rows = [self._rows[o] for o in names]
+        rows = [self._row(o) for o in names]
         C = np.array([np.concatenate([r.q, r.v]) for r in rows]).reshape(n_out, 2 * n)
         Dm = np.array([r.u for r in rows]).reshape(n_out, n_in)
         acc_rows = np.array([r.a for r in rows]).reshape(n_out, n)

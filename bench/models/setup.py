@@ -108,7 +108,8 @@ class BenchSetup:
         lower = "z_sidewall" if self.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
 
         def deflection_m(assumed_m: float) -> float:
-            response = self.network(law.linearised(self.tyre, freq_hz, assumed_m)).frequency_response(freq_hz)
+            network = self.network(law.linearised(self.tyre, freq_hz, assumed_m))
+            response = network.frequency_response(freq_hz, outputs=(lower, "z_rim"))
             return float(np.abs(response[lower][0] - response["z_rim"][0])) * amplitude_m
 
         x_stick = law.stick_deflection_m
