@@ -25,9 +25,6 @@ from simulators.plant import PlantSimulator, SensorRealism
 
 log = logging.getLogger(__name__)
 
-#: a sweep's operating point is renewed when its frequency has moved by this fraction
-_RESCHEDULE_FRACTION = 0.02
-
 
 @dataclass(frozen=True)
 class BenchBlock:
@@ -58,7 +55,6 @@ class SimulatedBench:
         self.lock = threading.RLock()
         self.controller = ControllerModel(plant.internal_rate_hz, clock)
         self._internal_samples = 0
-        self._scheduled: tuple[float, float] | None = None
 
     @classmethod
     def paper_shaker(cls, pressure_bar: float = 2.5, seed: int = 1) -> SimulatedBench:
@@ -81,22 +77,11 @@ class SimulatedBench:
             start_s = self._internal_samples / plant.internal_rate_hz
             n_internal = n_samples * plant.oversampling
             command = ctrl.command_block(n_internal)
-            self._schedule(ctrl.current_frequency_hz(), ctrl.amplitude_m)
+            plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
             channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
             self._internal_samples += n_internal
             return BenchBlock(start_s, plant.output_rate_hz, channels)
-
-    def _schedule(self, freq_hz: float, amplitude_m: float) -> None:
-        """Keep a non-linear tyre at the excitation's operating point."""
-        if freq_hz <= 0 or amplitude_m <= 0:
-            return
-        if self._scheduled is not None:
-            f0, a0 = self._scheduled
-            if abs(freq_hz - f0) <= _RESCHEDULE_FRACTION * f0 and a0 == amplitude_m:
-                return
-        self._scheduled = (freq_hz, amplitude_m)
-        self.plant.set_operating_point(freq_hz, amplitude_m)
 
 
 class BenchRunner:

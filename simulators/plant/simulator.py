@@ -34,8 +34,9 @@ _MEASURED = {
     "f_contact_n": "f_contact",
 }
 _HAMMER_CHANNELS = ("fz_wfs_n", "f_hammer_n")
-#: A sweep's operating point is renewed when its frequency has moved by this fraction.
+#: A non-linear tyre is re-linearised when the excitation frequency has moved by this fraction.
 _RESCHEDULE_FRACTION = 0.02
+#: ``simulate`` reports a waveform's operating point at this interval.
 _RESCHEDULE_CHECK_S = 0.05
 
 
@@ -213,16 +214,22 @@ class PlantSimulator:
     def set_operating_point(self, freq_hz: float, amplitude_m: float) -> None:
         """Tell a non-linear tyre the excitation's frequency and commanded amplitude.
 
-        The tyre is linearised for the base amplitude the actuator achieves at that frequency. Has
-        no effect on linear setups.
+        The tyre is linearised for the base amplitude the actuator achieves at that frequency. A
+        point within 2 % in frequency of the current one at the same amplitude keeps the current
+        linearisation, so callers may report the operating point as often as they like (every block
+        of a sweep). Has no effect on linear setups or without excitation.
         """
-        if self.setup.nonlinearity is None or not self.setup.has_tyre:
+        if self.setup.nonlinearity is None or not self.setup.has_tyre or freq_hz <= 0 or amplitude_m <= 0:
             return
+        if self._operating_point is not None:
+            current_hz, current_amplitude_m = self._operating_point
+            if abs(freq_hz - current_hz) <= _RESCHEDULE_FRACTION * current_hz and (
+                amplitude_m == current_amplitude_m
+            ):
+                return
+        self._operating_point = (float(freq_hz), float(amplitude_m))
         base_amplitude_m = abs(self.actuator.gain(freq_hz)) * amplitude_m
-        point = (float(freq_hz), float(base_amplitude_m))
-        if point != self._operating_point:
-            self._operating_point = point
-            self._stepper = self._build_stepper(self.setup.operating_network(*point))
+        self._stepper = self._build_stepper(self.setup.operating_network(freq_hz, base_amplitude_m))
 
     def exact_response(self, freq_hz: float, amplitude_m: float) -> dict[str, complex]:
         """The plant's exact response per metre of base displacement at an operating point.
@@ -314,13 +321,10 @@ class PlantSimulator:
         command = waveform.value(t_internal)
         chunk = max(1, round(_RESCHEDULE_CHECK_S * self.output_rate_hz)) * self.oversampling
         blocks: list[dict[str, np.ndarray]] = []
-        start, scheduled_hz = 0, None
+        start = 0
         while start < command.size:
             stop = min(start + chunk, command.size)
-            f = waveform.frequency_hz(t_internal[start])
-            if scheduled_hz is None or abs(f - scheduled_hz) > _RESCHEDULE_FRACTION * scheduled_hz:
-                self.set_operating_point(f, waveform.amplitude)
-                scheduled_hz = f
+            self.set_operating_point(waveform.frequency_hz(t_internal[start]), waveform.amplitude)
             blocks.append(self.advance(command[start:stop]))
             start = stop
         record = {c: np.concatenate([b[c] for b in blocks])[self.latency_samples :] for c in self.channels}
