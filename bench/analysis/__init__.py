@@ -1,8 +1,13 @@
 """Post-run analysis: FRF estimation, identification, compensation and valid frequency bands.
 
 Pure functions on arrays and parameter objects (no device, engine or UI imports), usable from a
-script or a notebook. Every module has one job:
+script or a notebook. The top-level API turns whole recorded runs into typed results with a short
+report (``summary_lines()``): :func:`analyse_shaker_campaign`, :func:`analyse_four_post`,
+:func:`analyse_hammer` and :func:`analyse_free_run` on :class:`DwellRecord`, :class:`SweepRecord`
+and :class:`HammerRecord`. Every module has one job:
 
+- :mod:`~bench.analysis.records`: the recorded runs the analysis takes, checked by record.
+- :mod:`~bench.analysis.runs`: the top-level API and its result types.
 - :mod:`~bench.analysis.validation`: input checks shared by all estimators (clear errors).
 - :mod:`~bench.analysis.frf`: the FRF type, point ratios with uncertainty, the valid band.
 - :mod:`~bench.analysis.dwell`: sine-dwell fit of every channel.
@@ -16,3 +21,31 @@ script or a notebook. Every module has one job:
 - :mod:`~bench.analysis.quarter_car_fit`: quarter car above the sensor from a four-post sweep.
 - :mod:`~bench.analysis.compensation`: hub-acceleration and model-based compensation.
 """
+
+from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+from bench.analysis.runs import (
+    FourPostResult,
+    FreeRunResult,
+    ShakerAmplitudeResult,
+    ShakerCampaignResult,
+    analyse_four_post,
+    analyse_free_run,
+    analyse_hammer,
+    analyse_shaker_campaign,
+)
+from bench.analysis.validation import AnalysisInputError
+
+__all__ = [
+    "AnalysisInputError",
+    "DwellRecord",
+    "FourPostResult",
+    "FreeRunResult",
+    "HammerRecord",
+    "ShakerAmplitudeResult",
+    "ShakerCampaignResult",
+    "SweepRecord",
+    "analyse_four_post",
+    "analyse_free_run",
+    "analyse_hammer",
+    "analyse_shaker_campaign",
+]

@@ -103,6 +103,21 @@ def shaker_frfs(
     )
 
 
+def base_acceleration_signal(
+    displacement_m: np.ndarray, fs_hz: float, *, band_hz: float = 120.0
+) -> np.ndarray:
+    """``z''`` of a measured displacement, aligned with it: accurate to about 0.1 % up to ``band_hz``
+    and rolling off above (a least-squares FIR double differentiator). The first and last
+    ``latency`` samples (30 at the default length), where the differentiator lacks history or
+    future, are NaN."""
+    fs = as_sample_rate(fs_hz)
+    z = as_signals({"displacement": displacement_m}, min_samples=61)["displacement"]
+    taps, latency = double_differentiator(fs, band_hz=band_hz)
+    accel = apply_aligned(taps, z, latency)
+    accel[:latency] = np.nan
+    return accel
+
+
 def contact_force_signal(
     shaker_force_n: np.ndarray,
     displacement_m: np.ndarray,
@@ -111,15 +126,8 @@ def contact_force_signal(
     *,
     band_hz: float = 120.0,
 ) -> np.ndarray:
-    """Time-domain contact force ``F_shaker - m_comp z''``, aligned with the inputs.
-
-    ``z''`` is accurate to about 0.1 % up to ``band_hz`` and rolls off above. The first and last
-    ``latency`` samples (30 at the default length), where the differentiator lacks history or
-    future, are NaN.
-    """
-    fs = as_sample_rate(fs_hz)
+    """Time-domain contact force ``F_shaker - m_comp z''``, aligned with the inputs, with ``z''``
+    from :func:`base_acceleration_signal` (NaN at its edges)."""
     sig = as_signals({"shaker_force": shaker_force_n, "displacement": displacement_m}, min_samples=61)
-    taps, latency = double_differentiator(fs, band_hz=band_hz)
-    accel = apply_aligned(taps, sig["displacement"], latency)
-    accel[:latency] = np.nan
+    accel = base_acceleration_signal(sig["displacement"], fs_hz, band_hz=band_hz)
     return sig["shaker_force"] - plate.mass_kg * accel

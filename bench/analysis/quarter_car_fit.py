@@ -132,20 +132,31 @@ def four_post_frfs(
     wfs: str = "fz_wfs_n",
     hub_acceleration: str = "a_hub_m_s2",
     nperseg: int | None = None,
+    extra_responses: Mapping[str, np.ndarray] | None = None,
 ) -> FourPostFrfs:
     """The FRFs of a four-post sweep ``record`` (channels by name); the post's m_comp corrects the
-    load cell (``F_contact / Z = F_plate / Z + m_comp w^2``, its uncertainty propagated)."""
+    load cell (``F_contact / Z = F_plate / Z + m_comp w^2``, its uncertainty propagated).
+
+    ``extra_responses`` (compensated forces, as long as the record) are estimated over ``Z`` with
+    the same segments, so their FRFs share the bins of the others; they are in ``sweeps``. They are
+    H1 estimates: a filtered force (the model compensator rolls off above its band) has no noise
+    left above the sweep, so the automatic rule would take its noise floor for zero and pick H2,
+    while the post displacement is the cleanest channel (the rule picks H1 for every raw channel)."""
     for name in (displacement, post_force, wfs, hub_acceleration):
         if name not in record:
             raise AnalysisInputError(f"the four-post record has no channel {name!r}")
+    clash = {"f_plate", "f_wfs", "a_hub", "z_base"} & set(extra_responses or {})
+    if clash:
+        raise AnalysisInputError(f"extra responses may not be named {sorted(clash)}")
+    kw = {"band_hz": band_hz, "reference_name": "z_base", "nperseg": nperseg}
     res = sweep_frfs(
         record[displacement],
         {"f_plate": record[post_force], "f_wfs": record[wfs], "a_hub": record[hub_acceleration]},
         fs_hz,
-        band_hz=band_hz,
-        reference_name="z_base",
-        nperseg=nperseg,
+        **kw,
     )
+    if extra_responses:
+        res.update(sweep_frfs(record[displacement], extra_responses, fs_hz, estimator="h1", **kw))
     plate_frf = res["f_plate"].frf
     w2 = (2 * np.pi * plate_frf.freq_hz) ** 2
     contact = Frf(

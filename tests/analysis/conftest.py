@@ -5,7 +5,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from bench.analysis.dwell import DwellFit, fit_dwell
+from bench.analysis.dwell import DwellFit
+from bench.analysis.records import DwellRecord, SweepRecord, fit_dwell_record
+from bench.analysis.runs import (
+    FourPostResult,
+    ShakerCampaignResult,
+    analyse_four_post,
+    analyse_shaker_campaign,
+)
 from bench.models.benches import TyreModel
 from bench.models.parameters import Suspension, Tyre
 from bench.models.setup import BenchKind, BenchSetup
@@ -21,25 +28,32 @@ OTHER_TYRE = Tyre(stiffness_n_per_m=290e3, damping_ns_per_m=125.0, wheel_mass_kg
 
 @dataclass
 class DwellRun:
+    """A simulated dwell grid: the ``records`` as the run engine stores them and their ``fits``."""
+
     plant: PlantSimulator
     amplitude_m: float
+    records: list[DwellRecord]
     fits: list[DwellFit]
 
 
 def run_dwells(setup, freqs, amplitude_m, seed) -> DwellRun:
-    """A dwell per frequency: 0.3 s tapers, a hold of at least 1 s and 2 cycles; the first 0.2 s of
-    the hold are left for settling."""
+    """A dwell per frequency: 0.3 s tapers, a hold of at least 1 s and 2 cycles; the analysis leaves
+    the first 0.2 s of the hold for settling (the records' default)."""
     plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
-    fits = []
+    records = []
     for f in freqs:
         hold = max(1.0, 2.2 / f + 0.2)
         dwell = SineDwell(
             freq_hz=float(f), amplitude=amplitude_m, hold_s=hold, taper_in_s=0.3, taper_out_s=0.3
         )
         rec = plant.simulate(dwell)
-        channels = {k: v for k, v in rec.items() if k not in ("t_s", "f_contact_n")}
-        fits.append(fit_dwell(channels, FS, float(f), start_s=0.5, stop_s=0.3 + hold))
-    return DwellRun(plant, amplitude_m, fits)
+        records.append(DwellRecord(float(f), amplitude_m, FS, rec, hold_s=(0.3, 0.3 + hold)))
+    channels = tuple(c for c in records[0].channels if c not in ("t_s", "f_contact_n"))
+    return DwellRun(plant, amplitude_m, records, [fit_dwell_record(r, channels) for r in records])
+
+
+def sweep_record(rec: dict[str, np.ndarray], sweep: Sweep) -> SweepRecord:
+    return SweepRecord(sweep.start_hz, sweep.end_hz, sweep.amplitude, FS, rec)
 
 
 @pytest.fixture(scope="session")
@@ -67,12 +81,13 @@ def shaker_nonlinear() -> dict[float, DwellRun]:
 @pytest.fixture(
     scope="session", params=[TyreModel.WHEEL_TREAD, TyreModel.WHEEL_TREAD_SIDEWALL], ids=["m2", "m3"]
 )
-def four_post(request) -> tuple[BenchSetup, dict[str, np.ndarray]]:
+def four_post(request) -> tuple[BenchSetup, SweepRecord]:
     """One corner of the paper's vehicle (non-linear tyre, Model 2 or 3 as the truth) on a linear
     sine sweep 0.1-30 Hz over 60 s at 2 mm."""
     setup = BenchSetup.paper_quarter_car(2.5, model=request.param)
     plant = PlantSimulator(setup, realism=SensorRealism(seed=30 + int(request.param)))
-    return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
+    sweep = Sweep(0.1, 30.0, 60.0, 2e-3)
+    return setup, sweep_record(plant.simulate(sweep), sweep)
 
 
 @pytest.fixture(scope="session")
@@ -97,12 +112,13 @@ def shaker_other_tyre_nonlinear() -> DwellRun:
 
 
 @pytest.fixture(scope="session")
-def four_post_other_car() -> tuple[BenchSetup, dict[str, np.ndarray]]:
+def four_post_other_car() -> tuple[BenchSetup, SweepRecord]:
     """OTHER_TYRE (non-linear, Model 2) under OTHER_SUSPENSION on the same post as the paper's car."""
     paper = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
     setup = replace(paper, tyre=OTHER_TYRE, suspension=OTHER_SUSPENSION)
     plant = PlantSimulator(setup, realism=SensorRealism(seed=40))
-    return setup, plant.simulate(Sweep(0.1, 30.0, 60.0, 2e-3))
+    sweep = Sweep(0.1, 30.0, 60.0, 2e-3)
+    return setup, sweep_record(plant.simulate(sweep), sweep)
 
 
 @pytest.fixture(scope="session")
@@ -110,3 +126,45 @@ def shaker_model3_nonlinear() -> DwellRun:
     """The paper's tyre at 2.5 bar with Model 3 (sidewall) as the truth on the shaker, 2 mm."""
     setup = BenchSetup.paper_shaker(2.5, model=TyreModel.WHEEL_TREAD_SIDEWALL, nonlinear=True)
     return run_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=16)
+
+
+def analyse_runs(runs: list[DwellRun], free: DwellRun) -> ShakerCampaignResult:
+    """The shaker campaign of the dwell grids ``runs`` (one tyre, one or more amplitudes)."""
+    setup = runs[0].plant.setup
+    return analyse_shaker_campaign(
+        [r for run in runs for r in run.records],
+        free.records,
+        wheel_mass_kg=setup.tyre.wheel_mass_kg,
+        sensor=setup.sensor,
+    )
+
+
+@pytest.fixture(scope="session")
+def shaker_nonlinear_campaign(shaker_nonlinear, free_run) -> ShakerCampaignResult:
+    return analyse_runs(list(shaker_nonlinear.values()), free_run)
+
+
+@pytest.fixture(scope="session")
+def shaker_model3_campaign(shaker_model3_nonlinear, free_run) -> ShakerCampaignResult:
+    return analyse_runs([shaker_model3_nonlinear], free_run)
+
+
+def same_tyre_campaign(setup: BenchSetup, request) -> ShakerCampaignResult:
+    """The shaker campaign of the tyre a four-post car of the paper stands on (same model)."""
+    if setup.model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        return request.getfixturevalue("shaker_model3_campaign")
+    return request.getfixturevalue("shaker_nonlinear_campaign")
+
+
+@pytest.fixture(scope="session")
+def four_post_analysis(four_post, four_post_free_run, request) -> tuple[BenchSetup, FourPostResult]:
+    """The paper's four-post run analysed with its post's free run and the same tyre's shaker campaign."""
+    setup, sweep = four_post
+    result = analyse_four_post(
+        sweep,
+        four_post_free_run.records,
+        tyre=same_tyre_campaign(setup, request),
+        wheel_mass_kg=setup.tyre.wheel_mass_kg,
+        sensor=setup.sensor,
+    )
+    return setup, result

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from bench.analysis.hammer import analyse_hammer
+from bench.analysis.hammer import analyse_hammer_decay
 from bench.analysis.validation import AnalysisInputError
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
@@ -27,7 +27,7 @@ def test_hammer_recovers_sensor(sensor):
     """Issue 3: eigenfrequency within 1 %, damping ratio within 10 % by both methods; the stiffness
     follows from the known mass, so it must be within 2 % (twice the frequency error)."""
     rec = _record(sensor, seed=4)
-    res = analyse_hammer(rec["fz_wfs_n"], FS, sensor.mass_kg, hammer_n=rec["f_hammer_n"])
+    res = analyse_hammer_decay(rec["fz_wfs_n"], FS, sensor.mass_kg, hammer_n=rec["f_hammer_n"])
     assert res.eigenfrequency_hz == pytest.approx(sensor.eigenfrequency_hz, rel=0.01)
     assert res.damping_ratio_half_power == pytest.approx(sensor.damping_ratio, rel=0.10)
     assert res.damping_ratio_log_decrement == pytest.approx(sensor.damping_ratio, rel=0.10)
@@ -38,4 +38,4 @@ def test_hammer_recovers_sensor(sensor):
 def test_hammer_without_blow_raises():
     rng = np.random.default_rng(0)
     with pytest.raises(AnalysisInputError, match="noise"):
-        analyse_hammer(rng.standard_normal(3000), FS, 3.82)
+        analyse_hammer_decay(rng.standard_normal(3000), FS, 3.82)

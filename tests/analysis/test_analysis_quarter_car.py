@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from bench.analysis.dwell import dwell_frf
-from bench.analysis.plate_mass import identify_plate_mass, shaker_frfs
+from bench.analysis.plate_mass import identify_plate_mass
 from bench.analysis.quarter_car_fit import (
     apparent_mass_above,
     fit_quarter_car,
@@ -13,12 +13,12 @@ from bench.analysis.quarter_car_fit import (
     quarter_car_modes,
     quarter_car_response,
 )
+from bench.analysis.runs import analyse_four_post
 from bench.analysis.shaker_models import RubberTerms
-from bench.analysis.tyre_fit import identify_shaker
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel, quarter_car
 from bench.models.parameters import Suspension, WfsSensor, paper_tyre
-from tests.analysis.conftest import OTHER_SUSPENSION, OTHER_TYRE
+from tests.analysis.conftest import OTHER_SUSPENSION, OTHER_TYRE, analyse_runs, same_tyre_campaign
 
 FS = 1000.0
 SUSPENSION_TRUTH = {
@@ -45,28 +45,10 @@ def test_closed_form_equals_network(model, tyre, suspension):
     np.testing.assert_allclose(apparent_mass_above(suspension, f), net["f_wfs"] / net["a_hub"], rtol=1e-9)
 
 
-def _shaker_tyre(run, free_run):
-    plate = identify_plate_mass(dwell_frf(free_run.fits, "f_plate_n", "z_base_m"))
-    frfs = shaker_frfs(run.fits, plate)
-    setup = run.plant.setup
-    fit = identify_shaker(
-        frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=setup.tyre.wheel_mass_kg, sensor=setup.sensor
-    ).best_fit
-    return fit
-
-
-def _same_tyre_on_shaker(setup, request):
-    """The shaker campaign (2 mm) of the tyre the four-post car stands on."""
-    if setup.model is TyreModel.WHEEL_TREAD_SIDEWALL:
-        return request.getfixturevalue("shaker_model3_nonlinear")
-    return request.getfixturevalue("shaker_nonlinear")[2e-3]
-
-
-def _identify(record, post_free_run, tyre_fit, sensor):
-    post = identify_plate_mass(dwell_frf(post_free_run.fits, "f_plate_n", "z_base_m"))
-    frfs = four_post_frfs(record, FS, post, band_hz=(0.3, 30.0))
-    return frfs, fit_quarter_car(
-        frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=sensor, rubber=tyre_fit.rubber
+def _identify(sweep, post_free_run, campaign, sensor):
+    """The quarter car of the whole four-post analysis, with the tyre of the shaker campaign."""
+    return analyse_four_post(
+        sweep, post_free_run.records, tyre=campaign, wheel_mass_kg=campaign.wheel_mass_kg, sensor=sensor
     )
 
 
@@ -104,15 +86,16 @@ def _check_recovered(setup, fit, capsys, label):
         print(f"\n  quarter car {label}: " + ", ".join(f"{k} {100 * v:+.2f} %" for k, v in errors.items()))
 
 
-def test_paper_quarter_car_recovered(four_post, four_post_free_run, free_run, request, capsys):
+def test_paper_quarter_car_recovered(four_post_analysis, capsys):
     """The paper's corner (non-linear tyre, sensor noise, Model 2 or 3 truth) with the tyre from the
     shaker identification of the same tyre at the same pressure and 2 mm, as a lab would. (Given the
     Model 2 tyre instead, the Model 3 car fits with a reduced chi^2 above 1000: the mismatch shows.)"""
-    setup, rec = four_post
-    tyre_fit = _shaker_tyre(_same_tyre_on_shaker(setup, request), free_run)
-    frfs, fit = _identify(rec, four_post_free_run, tyre_fit, setup.sensor)
+    setup, result = four_post_analysis
+    fit = result.quarter_car
     _check_recovered(setup, fit, capsys, f"paper {setup.model.name}")
-    assert all(s.estimator == "h1" for s in frfs.sweeps.values())  # the post displacement is the cleanest
+    frfs = result.frfs
+    # the post displacement is the cleanest channel: H1 for every response, compensated forces included
+    assert all(s.estimator == "h1" for s in frfs.sweeps.values())
     assert fit.band_hz[0] > 1.5 and fit.band_hz[1] < 30  # flanks of the sweep are not used
     assert any("shaker" in g for g in fit.taken_as_given)
     # the mass-production accelerometer's lag: 600 Hz second-order Butterworth, sqrt(2)/(2 pi 600) s
@@ -123,23 +106,23 @@ def test_other_quarter_car_recovered(
     four_post_other_car, four_post_free_run, shaker_other_tyre_nonlinear, free_run, capsys
 ):
     """A car unlike the paper's (other tyre, hub carrier, body, spring and damper) on the same post."""
-    setup, rec = four_post_other_car
-    tyre_fit = _shaker_tyre(shaker_other_tyre_nonlinear, free_run)
-    _, fit = _identify(rec, four_post_free_run, tyre_fit, setup.sensor)
+    setup, sweep = four_post_other_car
+    campaign = analyse_runs([shaker_other_tyre_nonlinear], free_run)
+    fit = _identify(sweep, four_post_free_run, campaign, setup.sensor).quarter_car
     _check_recovered(setup, fit, capsys, "other")
 
 
 def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(
-    four_post, four_post_free_run, free_run, request
+    four_post, four_post_free_run, request
 ):
     """Data from 15 Hz up (10x the 1.6 Hz body mode, above the wheel mode): the body and spring enter
     only through ``K m_B / (K - m_B w^2) ~ -(k_s + j w d_s) / w^2 - ...``, where k_s is a 2 %
     correction to the hub's 25 kg and m_B a smaller one. Both must be reported as not determined
     (measured: determined, within 35 %, from a 12 Hz start), while m_h and d_s stay determined."""
-    setup, rec = four_post
-    tyre_fit = _shaker_tyre(_same_tyre_on_shaker(setup, request), free_run)
+    setup, sweep = four_post
+    tyre_fit = same_tyre_campaign(setup, request).nearest(sweep.amplitude_m).identification.best_fit
     post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
-    frfs = four_post_frfs(rec, FS, post, band_hz=(15.0, 30.0))
+    frfs = four_post_frfs(sweep.channels, FS, post, band_hz=(15.0, 30.0))
     fit = fit_quarter_car(
         frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=setup.sensor, rubber=tyre_fit.rubber
     )
@@ -148,7 +131,8 @@ def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(
 
 
 def test_garbage_in(four_post, four_post_free_run):
-    setup, rec = four_post
+    setup, sweep = four_post
+    rec = sweep.channels
     post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
     with pytest.raises(AnalysisInputError, match="no channel"):
         four_post_frfs({k: v for k, v in rec.items() if k != "a_hub_m_s2"}, FS, post, band_hz=(0.3, 30.0))

@@ -1,0 +1,123 @@
+"""Recorded runs as the analysis takes them: one dwell, one sweep, one hammer blow.
+
+These are the units the run engine and the data store produce: the sampled channels of one
+excitation, by name (the bench's channel names, units in the names), with the sample rate and what
+the excitation was. Channels a given analysis does not use are ignored (a time axis, a reference
+channel of the simulator). Every check names the record, so an error in a campaign of a hundred
+dwells says which one is broken.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.analysis.dwell import DwellFit, fit_dwell
+from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
+
+#: The bench's channel names (as the simulated plant and the acquisition name them).
+DISPLACEMENT = "z_base_m"
+PLATE_FORCE = "f_plate_n"
+WFS_FORCE = "fz_wfs_n"
+HUB_ACCELERATION = "a_hub_m_s2"
+HAMMER_FORCE = "f_hammer_n"
+
+#: Channels of a dwell or sweep with a wheel on the bench, and of a free run (no wheel).
+WHEEL_CHANNELS = (DISPLACEMENT, PLATE_FORCE, WFS_FORCE, HUB_ACCELERATION)
+FREE_RUN_CHANNELS = (DISPLACEMENT, PLATE_FORCE)
+
+#: Time left for settling at the start of a dwell's hold phase before the analysed window.
+DEFAULT_SETTLE_S = 0.2
+
+
+@dataclass(frozen=True)
+class DwellRecord:
+    """One sine dwell: the base moved at ``freq_hz`` with amplitude ``amplitude_m`` (as commanded).
+
+    ``channels``: sampled signals by name at ``sample_rate_hz``, all of one length, time zero at the
+    first sample. ``hold_s``: start and end of the constant-amplitude hold in record time (after
+    the taper-in, before the taper-out), as the run engine knows it; ``None`` when the whole record
+    is the hold. The analysis leaves a settling time at the start of the hold and checks that the
+    dwell settled (:func:`bench.analysis.dwell.fit_dwell`).
+    """
+
+    freq_hz: float
+    amplitude_m: float
+    sample_rate_hz: float
+    channels: Mapping[str, np.ndarray]
+    hold_s: tuple[float, float] | None = None
+
+    @property
+    def label(self) -> str:
+        """How errors and reports name this record."""
+        return f"dwell {1e3 * self.amplitude_m:g} mm at {self.freq_hz:g} Hz"
+
+
+@dataclass(frozen=True)
+class SweepRecord:
+    """One sine sweep of the base from ``start_hz`` to ``end_hz`` at amplitude ``amplitude_m``;
+    ``channels`` by name at ``sample_rate_hz``, all of one length."""
+
+    start_hz: float
+    end_hz: float
+    amplitude_m: float
+    sample_rate_hz: float
+    channels: Mapping[str, np.ndarray]
+
+    @property
+    def label(self) -> str:
+        return f"sweep {self.start_hz:g}-{self.end_hz:g} Hz at {1e3 * self.amplitude_m:g} mm"
+
+    @property
+    def duration_s(self) -> float:
+        return len(next(iter(self.channels.values()), ())) / float(self.sample_rate_hz)
+
+
+@dataclass(frozen=True)
+class HammerRecord:
+    """One hammer blow on the bare sensor: the WFS force and, when recorded, the hammer's force,
+    at ``sample_rate_hz`` (fast: the sensor rings at kilohertz)."""
+
+    sample_rate_hz: float
+    channels: Mapping[str, np.ndarray]
+
+    @property
+    def label(self) -> str:
+        return f"hammer blow at {self.sample_rate_hz:g} Hz sampling"
+
+
+def record_channels(
+    record: DwellRecord | SweepRecord | HammerRecord, required: Sequence[str], *, min_samples: int = 1
+) -> dict[str, np.ndarray]:
+    """The ``required`` channels of ``record``, checked (finite, 1-D, equal lengths); every error
+    names the record."""
+    missing = [name for name in required if name not in record.channels]
+    if missing:
+        raise AnalysisInputError(
+            f"{record.label}: no channel {', '.join(map(repr, missing))} (has {sorted(record.channels)})"
+        )
+    try:
+        as_sample_rate(record.sample_rate_hz)
+        return as_signals({name: record.channels[name] for name in required}, min_samples=min_samples)
+    except AnalysisInputError as err:
+        raise AnalysisInputError(f"{record.label}: {err}") from err
+
+
+def fit_dwell_record(
+    record: DwellRecord, required: Sequence[str], *, settle_s: float = DEFAULT_SETTLE_S
+) -> DwellFit:
+    """Fit the ``required`` channels of a dwell over its hold, ``settle_s`` after the hold begins."""
+    if not (np.isfinite(record.freq_hz) and record.freq_hz > 0):
+        raise AnalysisInputError(f"{record.label}: frequency must be positive")
+    if not (np.isfinite(record.amplitude_m) and record.amplitude_m > 0):
+        raise AnalysisInputError(f"{record.label}: amplitude must be positive")
+    channels = record_channels(record, required)
+    start, stop = record.hold_s if record.hold_s is not None else (0.0, None)
+    try:
+        return fit_dwell(
+            channels, record.sample_rate_hz, record.freq_hz, start_s=start + settle_s, stop_s=stop
+        )
+    except AnalysisInputError as err:
+        raise AnalysisInputError(f"{record.label}: {err}") from err

@@ -1,0 +1,609 @@
+"""Whole recorded runs in, typed self-describing results out: the top-level analysis API.
+
+- :func:`analyse_free_run`: m_comp of a bench's plate from its free run (no wheel).
+- :func:`analyse_shaker_campaign`: the dwell grids of one tyre (one or more amplitudes) with the
+  shaker's free run: m_comp, plate-mass corrected FRFs, Models 1-3 per amplitude with the model
+  the data supports and what it cannot determine, the amplitude dependence of stiffness and
+  damping, the model compensator of each amplitude and the valid bands raw and compensated.
+- :func:`analyse_four_post`: a four-post sweep with the post's free run and the tyre's shaker
+  identification: m_comp of the post, m_wheel and the accelerometer's lag from the run, the FRFs
+  and the hub-acceleration relation, the valid bands raw / hub-acceleration / model compensated,
+  the quarter car above the sensor and its body and wheel modes.
+- :func:`analyse_hammer`: the sensor's eigenfrequency, damping and stiffness from a hammer blow.
+
+Every result has ``summary_lines()``: a short report with units, the valid bands, and an explicit
+line for whatever is not determined or flagged (an unsettled dwell, unreliable bins). Every error
+names the record or the amplitude it comes from.
+
+The model compensator is designed over ``DESIGN_BAND_MARGIN`` times the highest analysed frequency
+(the FIR rolls off above its band, so the band must cover the data with some room).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.analysis.compensation import (
+    ModelCompensator,
+    WheelMass,
+    advance_acceleration,
+    design_model_compensator,
+    estimate_wheel_mass,
+    hub_acceleration_compensation,
+)
+from bench.analysis.dwell import DwellFit, dwell_frf
+from bench.analysis.frf import Frf, ValidBand, phasor_ratio, valid_band
+from bench.analysis.hammer import HammerResult, analyse_hammer_decay
+from bench.analysis.plate_mass import (
+    PlateMass,
+    ShakerFrfs,
+    base_acceleration_signal,
+    identify_plate_mass,
+    shaker_frfs,
+)
+from bench.analysis.quarter_car_fit import FourPostFrfs, QuarterCarFit, fit_quarter_car, four_post_frfs
+from bench.analysis.records import (
+    DEFAULT_SETTLE_S,
+    DISPLACEMENT,
+    FREE_RUN_CHANNELS,
+    HAMMER_FORCE,
+    HUB_ACCELERATION,
+    PLATE_FORCE,
+    WFS_FORCE,
+    WHEEL_CHANNELS,
+    DwellRecord,
+    HammerRecord,
+    SweepRecord,
+    fit_dwell_record,
+    record_channels,
+)
+from bench.analysis.shaker_models import LINEAR, RubberTerms
+from bench.analysis.tyre_fit import (
+    AmplitudeDependence,
+    ShakerIdentification,
+    TyreFit,
+    amplitude_dependence,
+    identify_shaker,
+)
+from bench.analysis.validation import AnalysisInputError
+from bench.models.benches import TyreModel
+from bench.models.parameters import Tyre, WfsSensor
+
+#: Design band of the model compensator over the highest analysed frequency.
+DESIGN_BAND_MARGIN = 1.15
+#: The wheel mass is estimated from the sweep between 1 Hz (or the sweep's start) and this fraction
+#: of its end: the band-pass's skirts then stay inside the swept band.
+WHEEL_MASS_BAND_TOP_FRACTION = 5 / 6
+
+
+@contextmanager
+def _named(label: str) -> Iterator[None]:
+    """Prefix any input error raised inside with ``label`` (which record or amplitude)."""
+    try:
+        yield
+    except AnalysisInputError as err:
+        raise AnalysisInputError(f"{label}: {err}") from err
+
+
+def _positive(name: str, value: float) -> float:
+    if not (np.isfinite(value) and value > 0):
+        raise AnalysisInputError(f"{name} must be positive and finite, got {value}")
+    return float(value)
+
+
+def _unsettled(records: Sequence[DwellRecord], fits: Sequence[DwellFit]) -> tuple[str, ...]:
+    return tuple(
+        f"{r.label}: " + ("; ".join(f.notes) or "not settled")
+        for r, f in zip(records, fits, strict=True)
+        if not f.settled
+    )
+
+
+def _fit_grid(
+    records: Sequence[DwellRecord], channels: tuple[str, ...], settle_s: float, what: str
+) -> tuple[list[DwellRecord], list[DwellFit]]:
+    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error."""
+    if not records:
+        raise AnalysisInputError(f"{what}: no dwell records given")
+    ordered = sorted(records, key=lambda r: r.freq_hz)
+    for a, b in itertools.pairwise(ordered):
+        if a.freq_hz == b.freq_hz:
+            raise AnalysisInputError(f"{what}: two records of the same dwell ({a.label})")
+    return ordered, [fit_dwell_record(r, channels, settle_s=settle_s) for r in ordered]
+
+
+def _band_text(band: ValidBand) -> str:
+    if band.upper_hz == 0.0:
+        return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
+    return f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (ends: {band.limited_by})"
+
+
+def _tolerance_text(band: ValidBand) -> str:
+    return f"| |H|-1 | <= {100 * band.amplitude_tolerance:g} %, |phase| <= {band.phase_tolerance_deg:g} deg"
+
+
+def _values_text(values: dict[str, float], ci95: dict[str, float]) -> str:
+    return ", ".join(f"{name} {v:.6g} +/- {ci95[name]:.2g}" for name, v in values.items())
+
+
+# ---------------------------------------------------------------------------------------- free run
+
+
+@dataclass(frozen=True)
+class FreeRunResult:
+    """m_comp of a bench's plate from its free run: ``plate`` (mass, sigma, residual), the dwell
+    ``fits`` (ascending frequency) and ``unsettled``: the dwells that did not settle, with why
+    (their points are left out of m_comp)."""
+
+    plate: PlateMass
+    fits: tuple[DwellFit, ...]
+    unsettled: tuple[str, ...]
+
+    def summary_lines(self) -> list[str]:
+        p = self.plate
+        lines = [
+            f"m_comp {p.mass_kg:.4f} +/- {p.sigma_kg:.1g} kg from {p.n_points} of {len(self.fits)} free-run"
+            f" dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz"
+            f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
+        ]
+        lines += [f"FLAG free run not settled: {u}" for u in self.unsettled]
+        return lines
+
+
+def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
+    """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``)."""
+    ordered, fits = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
+    with _named("free run"):
+        plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
+    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits))
+
+
+# ---------------------------------------------------------------------------------------- shaker
+
+
+@dataclass(frozen=True)
+class ShakerAmplitudeResult:
+    """One amplitude's dwell grid of a shaker campaign.
+
+    ``fits``: the dwells (ascending frequency); ``frfs``: F_wfs/Z, F_contact/Z (N/m) and
+    F_wfs/F_contact, plate-mass corrected, with uncertainties; ``identification``: Models 1-3 and
+    the one the data supports (lowest BIC); ``compensator``: the model-based inverse of the selected
+    model; ``compensated_per_contact``: compensated force over the contact force at each dwell (the
+    compensator's response applied to the dwell phasors); ``valid_band_raw`` (F_wfs/F_contact) and
+    ``valid_band_compensated``, both uncertainty-aware; ``unsettled``: dwells that did not settle
+    (unreliable points, left out of the fits), with why.
+    """
+
+    amplitude_m: float
+    fits: tuple[DwellFit, ...]
+    frfs: ShakerFrfs
+    identification: ShakerIdentification
+    compensator: ModelCompensator
+    compensated_per_contact: Frf
+    valid_band_raw: ValidBand
+    valid_band_compensated: ValidBand
+    unsettled: tuple[str, ...]
+
+    @property
+    def label(self) -> str:
+        return f"{1e3 * self.amplitude_m:g} mm"
+
+    def summary_lines(self) -> list[str]:
+        ident = self.identification
+        best = ident.best_fit
+        bics = ", ".join(f"Model {int(m)} {f.bic:.1f}" for m, f in ident.fits.items())
+        rise = "fitted" if ident.frequency_dependent_stiffness else "not needed"
+        hysteretic = "fitted" if ident.hysteretic_damping else "not needed"
+        rubber = f"stiffness rise with frequency {rise}, hysteretic damping {hysteretic}"
+        lines = [
+            f"{self.label}: {len(self.fits)} dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz;"
+            f" Model {int(ident.best)} selected (BIC {bics}); {rubber}",
+            f"{self.label} Model {int(ident.best)} (95 %): {_values_text(best.values, best.ci95)};"
+            f" F_wfs/F_contact rms error {100 * best.ratio_relative_rms:.2f} %",
+        ]
+        missing = "; ".join(
+            f"Model {int(model)}: {', '.join(fit.undetermined)}"
+            for model, fit in ident.fits.items()
+            if fit.undetermined
+        )
+        lines.append(f"{self.label} not determined: {missing or 'none'}")
+        for model, fit in ident.fits.items():
+            if not fit.converged:
+                lines.append(f"FLAG {self.label} Model {int(model)}: the fit did not converge")
+        lines.append(
+            f"{self.label} valid band ({_tolerance_text(self.valid_band_raw)}):"
+            f" raw {_band_text(self.valid_band_raw)},"
+            f" model-compensated {_band_text(self.valid_band_compensated)}"
+            f" (compensator design error {100 * self.compensator.design_error:.2f} %)"
+        )
+        lines += [f"FLAG not settled: {u}" for u in self.unsettled]
+        return lines
+
+
+@dataclass(frozen=True)
+class ShakerCampaignResult:
+    """The shaker campaign of one tyre: ``free_run`` (m_comp), ``amplitudes`` (ascending amplitude
+    in m -> :class:`ShakerAmplitudeResult`), ``amplitude_dependence`` (Model 2 per amplitude with
+    the rubber terms any amplitude needed; ``None`` with a single amplitude), and the given
+    ``wheel_mass_kg`` (weighed) and ``sensor`` (hammer test)."""
+
+    wheel_mass_kg: float
+    sensor: WfsSensor
+    free_run: FreeRunResult
+    amplitudes: dict[float, ShakerAmplitudeResult]
+    amplitude_dependence: AmplitudeDependence | None
+
+    def nearest(self, amplitude_m: float) -> ShakerAmplitudeResult:
+        """The amplitude's result closest to ``amplitude_m``."""
+        return self.amplitudes[min(self.amplitudes, key=lambda a: abs(a - amplitude_m))]
+
+    def summary_lines(self) -> list[str]:
+        amps = ", ".join(r.label for r in self.amplitudes.values())
+        lines = [
+            f"shaker campaign: amplitudes {amps}; wheel mass {self.wheel_mass_kg:g} kg (given),"
+            f" sensor {self.sensor.mass_kg:g} kg at {self.sensor.eigenfrequency_hz:g} Hz (given)",
+            *self.free_run.summary_lines(),
+        ]
+        for result in self.amplitudes.values():
+            lines += result.summary_lines()
+        dep = self.amplitude_dependence
+        if dep is None:
+            lines.append("amplitude dependence: not determined (one amplitude only)")
+        else:
+            per = "; ".join(
+                f"{1e3 * a:g} mm k {k / 1e3:.2f} +/- {ci / 1e3:.2f} kN/m ({100 * dk:+.2f} %),"
+                f" d {d:.1f} Ns/m ({100 * dd:+.1f} %)"
+                for a, k, ci, dk, d, dd in zip(
+                    dep.amplitude_m,
+                    dep.stiffness_n_per_m,
+                    dep.stiffness_ci95_n_per_m,
+                    dep.stiffness_change,
+                    dep.equivalent_damping_ns_per_m,
+                    dep.damping_change,
+                    strict=True,
+                )
+            )
+            lines.append(
+                f"amplitude dependence (Model 2, d at the tread resonance; change vs smallest): {per}"
+            )
+        return lines
+
+
+def _design_band(highest_hz: float, given_hz: float | None) -> float:
+    return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
+
+
+def _compensated_ratio(fits: Sequence[DwellFit], frfs: ShakerFrfs, comp: ModelCompensator) -> Frf:
+    """(G_F F_wfs + G_A a_hub) / F_contact per dwell, all over Z, with propagated uncertainty."""
+    accel = dwell_frf(fits, HUB_ACCELERATION, DISPLACEMENT)
+    g_f, g_a = comp.response(accel.freq_hz)
+    num = g_f * frfs.wfs_per_z.value + g_a * accel.value
+    num_sigma = np.hypot(np.abs(g_f) * frfs.wfs_per_z.sigma, np.abs(g_a) * accel.sigma)
+    contact = frfs.contact_per_z
+    ratio, sigma = phasor_ratio(num, num_sigma, contact.value, contact.sigma)
+    reliable = frfs.wfs_per_z.reliable & accel.reliable & contact.reliable
+    return Frf(accel.freq_hz, ratio, sigma, reliable, "f_compensated", "f_contact")
+
+
+def _analyse_amplitude(
+    amplitude_m: float,
+    records: Sequence[DwellRecord],
+    *,
+    plate: PlateMass,
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    settle_s: float,
+    band_hz: float | None,
+) -> ShakerAmplitudeResult:
+    label = f"{1e3 * amplitude_m:g} mm"
+    ordered, fits = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
+    rates = {r.sample_rate_hz for r in ordered}
+    if len(rates) != 1:
+        raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
+    with _named(label):
+        frfs = shaker_frfs(fits, plate, wfs=WFS_FORCE, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+        ident = identify_shaker(
+            frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor
+        )
+        best = ident.best_fit
+        comp = design_model_compensator(
+            best.model,
+            best.tyre,
+            sensor,
+            best.rubber,
+            fs_hz=rates.pop(),
+            band_hz=_design_band(fits[-1].freq_hz, band_hz),
+        )
+        compensated = _compensated_ratio(fits, frfs, comp)
+        raw = frfs.wfs_per_contact
+        band_raw = valid_band(raw.freq_hz, raw.value, raw.reliable, sigma=raw.sigma)
+        band_comp = valid_band(
+            compensated.freq_hz, compensated.value, compensated.reliable, sigma=compensated.sigma
+        )
+    return ShakerAmplitudeResult(
+        amplitude_m,
+        tuple(fits),
+        frfs,
+        ident,
+        comp,
+        compensated,
+        band_raw,
+        band_comp,
+        _unsettled(ordered, fits),
+    )
+
+
+def analyse_shaker_campaign(
+    records: Sequence[DwellRecord],
+    free_run: Sequence[DwellRecord],
+    *,
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    settle_s: float = DEFAULT_SETTLE_S,
+    compensation_band_hz: float | None = None,
+) -> ShakerCampaignResult:
+    """Analyse the shaker campaign of one tyre (at one pressure).
+
+    ``records``: every dwell with the wheel (channels ``z_base_m``, ``f_plate_n``, ``fz_wfs_n``,
+    ``a_hub_m_s2``), grouped by their commanded ``amplitude_m``; ``free_run``: the dwells without a
+    wheel (``z_base_m``, ``f_plate_n``). ``wheel_mass_kg``: the weighed mass below the sensor;
+    ``sensor``: from the hammer test. ``compensation_band_hz``: the compensator's design band
+    (default ``DESIGN_BAND_MARGIN`` times the highest dwell frequency of each amplitude).
+    """
+    _positive("wheel mass", wheel_mass_kg)
+    if not records:
+        raise AnalysisInputError("shaker campaign: no dwell records given")
+    free = analyse_free_run(free_run, settle_s=settle_s)
+    groups: dict[float, list[DwellRecord]] = {}
+    for r in records:
+        _positive(f"{r.label}: amplitude", r.amplitude_m)
+        groups.setdefault(float(r.amplitude_m), []).append(r)
+    results = {
+        a: _analyse_amplitude(
+            a,
+            groups[a],
+            plate=free.plate,
+            wheel_mass_kg=wheel_mass_kg,
+            sensor=sensor,
+            settle_s=settle_s,
+            band_hz=compensation_band_hz,
+        )
+        for a in sorted(groups)
+    }
+    dependence = None
+    if len(results) > 1:
+        idents = [r.identification for r in results.values()]
+        with _named("amplitude dependence"):
+            dependence = amplitude_dependence(
+                {a: (r.frfs.wfs_per_z, r.frfs.contact_per_z) for a, r in results.items()},
+                wheel_mass_kg=wheel_mass_kg,
+                sensor=sensor,
+                stiffness_rise=any(i.frequency_dependent_stiffness for i in idents),
+                hysteretic=any(i.hysteretic_damping for i in idents),
+            )
+    return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence)
+
+
+# ---------------------------------------------------------------------------------------- four-post
+
+
+@dataclass(frozen=True)
+class FourPostResult:
+    """A four-post sweep analysed.
+
+    ``post_free_run``: m_comp of the post; ``wheel_mass``: m_wheel, its sigma and the accelerometer's
+    lag estimated from this run, against ``wheel_mass_given_kg`` (weighed); ``tyre_model``,
+    ``tyre``, ``rubber``, ``tyre_source``: the tyre below the sensor and where it comes from;
+    ``frfs``: F_wfs/Z, F_contact/Z (post force, plate-mass corrected), a_hub/Z and the sweep
+    details; ``apparent_mass_above``: the hub-acceleration relation F_wfs/a_hub (kg);
+    ``wfs_per_contact`` (F_WFS/F_post), ``hub_compensated_per_contact`` and
+    ``model_compensated_per_contact``: measured over true contact force, with their valid bands
+    ``valid_band_raw``, ``valid_band_hub_compensated``, ``valid_band_model_compensated``
+    (uncertainty-aware); ``compensator``: the model compensator applied; ``quarter_car``: the car
+    above the sensor with its modes, what it does not determine and what it took as given;
+    ``unreliable_bins``: bins of the swept band not reliable in all three FRFs.
+    """
+
+    label: str
+    post_free_run: FreeRunResult
+    wheel_mass: WheelMass
+    wheel_mass_given_kg: float
+    tyre_model: TyreModel
+    tyre: Tyre
+    rubber: RubberTerms
+    tyre_source: str
+    frfs: FourPostFrfs
+    apparent_mass_above: Frf
+    wfs_per_contact: Frf
+    hub_compensated_per_contact: Frf
+    model_compensated_per_contact: Frf
+    valid_band_raw: ValidBand
+    valid_band_hub_compensated: ValidBand
+    valid_band_model_compensated: ValidBand
+    compensator: ModelCompensator
+    quarter_car: QuarterCarFit
+    unreliable_bins: int
+
+    def summary_lines(self) -> list[str]:
+        m, car, s = self.wheel_mass, self.quarter_car, self.quarter_car.suspension
+        f = self.frfs.wfs_per_z.freq_hz
+        lines = [
+            f"four-post {self.label}; tyre: Model {int(self.tyre_model)} from {self.tyre_source}",
+            *(f"post {line}" for line in self.post_free_run.summary_lines()),
+            f"m_wheel {m.mass_kg:.2f} +/- {m.sigma_kg:.2f} kg from the run"
+            f" ({m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz; weighed {self.wheel_mass_given_kg:g} kg,"
+            f" {100 * (m.mass_kg / self.wheel_mass_given_kg - 1):+.1f} %),"
+            f" accelerometer lag {1e3 * m.accelerometer_delay_s:.3f} ms",
+            f"valid band ({_tolerance_text(self.valid_band_raw)}): raw {_band_text(self.valid_band_raw)},"
+            f" hub-acceleration compensated {_band_text(self.valid_band_hub_compensated)},"
+            f" model-compensated {_band_text(self.valid_band_model_compensated)}",
+            f"quarter car (95 %): {_values_text(car.values, car.ci95)}; reduced chi^2 {car.reduced_chi2:.1f}"
+            f" over {car.band_hz[0]:.4g}-{car.band_hz[1]:.4g} Hz",
+            f"modes: body {car.body_frequency_hz:.3f} +/- {car.body_frequency_ci95_hz:.3f} Hz"
+            f" (damping ratio {car.body_damping_ratio:.3f}), wheel {car.wheel_frequency_hz:.2f}"
+            f" +/- {car.wheel_frequency_ci95_hz:.2f} Hz (damping ratio {car.wheel_damping_ratio:.3f});"
+            f" unsprung mass above the sensor {s.unsprung_mass_above_kg:.2f} kg",
+            f"quarter car not determined: {', '.join(car.undetermined) or 'none'}",
+            f"quarter car taken as given: {'; '.join(car.taken_as_given)}",
+        ]
+        if self.unreliable_bins:
+            lines.append(
+                f"FLAG {self.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
+                " (sweep flanks, low excitation or coherence): not used"
+            )
+        if not car.converged:
+            lines.append("FLAG the quarter-car fit did not converge")
+        return lines
+
+
+def _tyre_below(
+    tyre: ShakerCampaignResult | TyreFit | Tyre, tyre_model: TyreModel | None, amplitude_m: float
+) -> tuple[TyreModel, Tyre, RubberTerms, str, ModelCompensator | None]:
+    """The tyre below the sensor as (model, tyre, rubber, source, shaker compensator or None)."""
+    if isinstance(tyre, Tyre):
+        if tyre_model is None:
+            raise AnalysisInputError("a given Tyre needs tyre_model (which of Models 1-3 it describes)")
+        return TyreModel(tyre_model), tyre, LINEAR, "given parameters (linear)", None
+    if tyre_model is not None:
+        raise AnalysisInputError("tyre_model is only for a given Tyre: an identification has its own model")
+    if isinstance(tyre, TyreFit):
+        return tyre.model, tyre.tyre, tyre.rubber, "a given shaker identification", None
+    if not isinstance(tyre, ShakerCampaignResult):
+        raise AnalysisInputError(
+            f"tyre must be a shaker campaign result, a TyreFit or a Tyre, got {type(tyre)}"
+        )
+    shaker = tyre.nearest(amplitude_m)
+    fit = shaker.identification.best_fit
+    return fit.model, fit.tyre, fit.rubber, f"the shaker identification at {shaker.label}", shaker.compensator
+
+
+def analyse_four_post(
+    sweep: SweepRecord,
+    free_run: Sequence[DwellRecord],
+    *,
+    tyre: ShakerCampaignResult | TyreFit | Tyre,
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    tyre_model: TyreModel | None = None,
+    settle_s: float = DEFAULT_SETTLE_S,
+    compensation_band_hz: float | None = None,
+) -> FourPostResult:
+    """Analyse a four-post sweep (channels ``z_base_m``, ``f_plate_n`` of the post's load cell,
+    ``fz_wfs_n``, ``a_hub_m_s2``) with the post's free-run dwells.
+
+    ``tyre``: the shaker campaign of the same tyre at the same pressure (its amplitude closest to
+    the sweep's is used, with its compensator), one identification, or given parameters (then
+    ``tyre_model`` says which model). ``wheel_mass_kg``: weighed, must be the mass the tyre
+    describes. The compensator is the shaker campaign's (redesigned with its band if the sample
+    rates differ), else designed over ``compensation_band_hz`` (default ``DESIGN_BAND_MARGIN``
+    times the sweep's end).
+    """
+    label = sweep.label
+    _positive("wheel mass", wheel_mass_kg)
+    model, tyre_obj, rubber, source, shaker_comp = _tyre_below(tyre, tyre_model, sweep.amplitude_m)
+    if not np.isclose(tyre_obj.wheel_mass_kg, wheel_mass_kg, rtol=1e-9, atol=0.0):
+        raise AnalysisInputError(
+            f"wheel mass {wheel_mass_kg:g} kg differs from the {tyre_obj.wheel_mass_kg:g} kg"
+            " the tyre describes"
+        )
+    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+    fs = float(sweep.sample_rate_hz)
+    with _named(label):
+        if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
+            raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
+        _positive("amplitude", sweep.amplitude_m)
+    post = analyse_free_run(free_run, settle_s=settle_s)
+    with _named(label):
+        if shaker_comp is not None and shaker_comp.fs_hz == fs:
+            comp = shaker_comp
+        else:
+            band = (
+                shaker_comp.band_hz
+                if shaker_comp is not None
+                else _design_band(sweep.end_hz, compensation_band_hz)
+            )
+            comp = design_model_compensator(model, tyre_obj, sensor, rubber, fs_hz=fs, band_hz=band)
+        a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
+        f_contact = rec[PLATE_FORCE] - post.plate.mass_kg * a_contact
+        inner = np.isfinite(a_contact)
+        mass = estimate_wheel_mass(
+            f_contact[inner],
+            rec[WFS_FORCE][inner],
+            rec[HUB_ACCELERATION][inner],
+            fs,
+            a_contact=a_contact[inner],
+            band_hz=(max(1.0, sweep.start_hz), WHEEL_MASS_BAND_TOP_FRACTION * sweep.end_hz),
+        )
+        accel = advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
+        compensated = {
+            "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
+            "model_compensated": comp.apply(rec[WFS_FORCE], accel),
+        }
+        # the differentiator's edges and the compensator's latency leave NaN at the ends: cut them
+        idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
+        keep = slice(int(idx[0]), int(idx[-1]) + 1)
+        frfs = four_post_frfs(
+            {name: x[keep] for name, x in rec.items()},
+            fs,
+            post.plate,
+            band_hz=(sweep.start_hz, sweep.end_hz),
+            displacement=DISPLACEMENT,
+            post_force=PLATE_FORCE,
+            wfs=WFS_FORCE,
+            hub_acceleration=HUB_ACCELERATION,
+            extra_responses={name: x[keep] for name, x in compensated.items()},
+        )
+        contact = frfs.contact_per_z
+        ratios, bands = {}, {}
+        for name, per_z in (
+            ("raw", frfs.wfs_per_z),
+            ("hub_compensated", frfs.sweeps["hub_compensated"].frf),
+            ("model_compensated", frfs.sweeps["model_compensated"].frf),
+        ):
+            h, sigma = phasor_ratio(per_z.value, per_z.sigma, contact.value, contact.sigma)
+            ratios[name] = Frf(
+                contact.freq_hz, h, sigma, per_z.reliable & contact.reliable, name, "f_contact"
+            )
+            bands[name] = valid_band(contact.freq_hz, h, ratios[name].reliable, sigma=sigma)
+        car = fit_quarter_car(frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber)
+    all_reliable = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
+    return FourPostResult(
+        label=f"{label}, {sweep.duration_s:.1f} s at {fs:g} Hz",
+        post_free_run=post,
+        wheel_mass=mass,
+        wheel_mass_given_kg=float(wheel_mass_kg),
+        tyre_model=model,
+        tyre=tyre_obj,
+        rubber=rubber,
+        tyre_source=source,
+        frfs=frfs,
+        apparent_mass_above=frfs.apparent_mass_above(),
+        wfs_per_contact=ratios["raw"],
+        hub_compensated_per_contact=ratios["hub_compensated"],
+        model_compensated_per_contact=ratios["model_compensated"],
+        valid_band_raw=bands["raw"],
+        valid_band_hub_compensated=bands["hub_compensated"],
+        valid_band_model_compensated=bands["model_compensated"],
+        compensator=comp,
+        quarter_car=car,
+        unreliable_bins=int(np.sum(~all_reliable)),
+    )
+
+
+# ---------------------------------------------------------------------------------------- hammer
+
+
+def analyse_hammer(record: HammerRecord, *, sensor_mass_kg: float) -> HammerResult:
+    """The bare sensor's eigenfrequency, damping ratios (two methods) and stiffness from a hammer
+    blow (channel ``fz_wfs_n``, and ``f_hammer_n`` when recorded, which marks the release)."""
+    names = (WFS_FORCE, HAMMER_FORCE) if HAMMER_FORCE in record.channels else (WFS_FORCE,)
+    sig = record_channels(record, names, min_samples=64)
+    with _named(record.label):
+        return analyse_hammer_decay(
+            sig[WFS_FORCE], record.sample_rate_hz, sensor_mass_kg, hammer_n=sig.get(HAMMER_FORCE)
+        )
