@@ -19,54 +19,14 @@ import time
 
 import numpy as np
 
-from bench.analysis.records import WHEEL_CHANNELS, DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.runs import analyse_four_post, analyse_hammer, analyse_shaker_campaign
-from bench.models.benches import TyreModel
-from bench.models.setup import BenchKind, BenchSetup
-from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism, SineDwell, Sweep
-
-FS = 1000.0
-SHAKER_HZ = np.r_[0.5, 1, 2, 4, 7, 10, 14, 18, 22, 25, 28, 31, 34, 37, 40, 43, 46, 50, 55, 60, 65, 70]
-FREE_HZ = np.r_[1, 2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100]
-PRESSURES_BAR = (1.5, 2.5, 3.5)
-AMPLITUDES_M = (1e-3, 2e-3, 5e-3)
-TAPER_S = 0.3
-
-
-def _dwells(setup, freqs, amplitude, seed) -> list[DwellRecord]:
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
-    records = []
-    for f in freqs:
-        hold = max(1.0, 2.2 / f + 0.2)
-        rec = plant.simulate(SineDwell(float(f), amplitude, hold, taper_in_s=TAPER_S, taper_out_s=TAPER_S))
-        channels = {c: rec[c] for c in WHEEL_CHANNELS}
-        records.append(DwellRecord(float(f), amplitude, FS, channels, hold_s=(TAPER_S, TAPER_S + hold)))
-    return records
+from bench.models.setup import BenchSetup
+from bench.simulated_campaign import simulate_paper_campaign
 
 
 def simulate_campaign():
-    grids = {
-        p: [
-            r
-            for i, a in enumerate(AMPLITUDES_M)
-            for r in _dwells(BenchSetup.paper_shaker(p), SHAKER_HZ, a, seed=3 * j + i)
-        ]
-        for j, p in enumerate(PRESSURES_BAR)
-    }
-    free = _dwells(BenchSetup.paper_free_run(), FREE_HZ, 2e-3, seed=99)
-    qc = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)  # the shaker campaign's tyre
-    post_free = _dwells(BenchSetup(BenchKind.FREE_RUN, rig=qc.rig), FREE_HZ, 2e-3, seed=98)
-    sweep = Sweep(0.1, 30.0, 60.0, 2e-3)
-    rec = PlantSimulator(qc, realism=SensorRealism(seed=7)).simulate(sweep)
-    sweep_record = SweepRecord(
-        sweep.start_hz, sweep.end_hz, sweep.amplitude, FS, {c: rec[c] for c in WHEEL_CHANNELS}
-    )
-    hammer_setup = BenchSetup.paper_hammer()
-    hammer = PlantSimulator(hammer_setup, output_rate_hz=10 * FS).simulate(
-        HalfSinePulse(amplitude=3000.0, width_s=1.5e-4, delay_s=0.02, record_s=0.3)
-    )
-    hammer_record = HammerRecord(10 * FS, {c: hammer[c] for c in ("fz_wfs_n", "f_hammer_n")})
-    return grids, free, (post_free, sweep_record), hammer_record
+    c = simulate_paper_campaign(seed=1)
+    return c.shaker, c.shaker_free_run, (c.post_free_run, c.four_post), c.hammer
 
 
 def analyse_campaign(grids, free, four_post, hammer):

@@ -2,11 +2,10 @@
 
 from dataclasses import dataclass, replace
 
-import numpy as np
 import pytest
 
 from bench.analysis.dwell import DwellFit
-from bench.analysis.records import DwellRecord, SweepRecord, fit_dwell_record
+from bench.analysis.records import WHEEL_CHANNELS, DwellRecord, SweepRecord, fit_dwell_record
 from bench.analysis.runs import (
     FourPostResult,
     ShakerCampaignResult,
@@ -16,12 +15,15 @@ from bench.analysis.runs import (
 from bench.models.benches import TyreModel
 from bench.models.parameters import Suspension, Tyre
 from bench.models.setup import BenchKind, BenchSetup
-from simulators.plant import PlantSimulator, SensorRealism, SineDwell, Sweep
+from bench.simulated_campaign import (
+    FREE_RUN_GRID_HZ,
+    PAPER_SWEEP,
+    SHAKER_GRID_HZ,
+    simulate_dwells,
+    simulate_sweep,
+)
+from simulators.plant import PlantSimulator
 
-FS = 1000.0
-#: A dwell grid like the paper's, 0.5-70 Hz, denser around the tread resonance of any plausible tyre.
-SHAKER_GRID_HZ = np.r_[0.5, 1, 2, 4, 7, 10, 14, 18, 22, 25, 28, 31, 34, 37, 40, 43, 46, 50, 55, 60, 65, 70]
-FREE_RUN_GRID_HZ = np.r_[1, 2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100]
 #: A tyre that is not the paper's: softer, heavier tread, more damping, lighter wheel.
 OTHER_TYRE = Tyre(stiffness_n_per_m=290e3, damping_ns_per_m=125.0, wheel_mass_kg=26.0, tread_mass_kg=4.6)
 
@@ -37,23 +39,10 @@ class DwellRun:
 
 
 def run_dwells(setup, freqs, amplitude_m, seed) -> DwellRun:
-    """A dwell per frequency: 0.3 s tapers, a hold of at least 1 s and 2 cycles; the analysis leaves
-    the first 0.2 s of the hold for settling (the records' default)."""
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
-    records = []
-    for f in freqs:
-        hold = max(1.0, 2.2 / f + 0.2)
-        dwell = SineDwell(
-            freq_hz=float(f), amplitude=amplitude_m, hold_s=hold, taper_in_s=0.3, taper_out_s=0.3
-        )
-        rec = plant.simulate(dwell)
-        records.append(DwellRecord(float(f), amplitude_m, FS, rec, hold_s=(0.3, 0.3 + hold)))
-    channels = tuple(c for c in records[0].channels if c not in ("t_s", "f_contact_n"))
-    return DwellRun(plant, amplitude_m, records, [fit_dwell_record(r, channels) for r in records])
-
-
-def sweep_record(rec: dict[str, np.ndarray], sweep: Sweep) -> SweepRecord:
-    return SweepRecord(sweep.start_hz, sweep.end_hz, sweep.amplitude, FS, rec)
+    """A simulated dwell grid with the true contact force kept for comparison, and its fits."""
+    records = simulate_dwells(setup, freqs, amplitude_m, seed=seed, include_truth=True)
+    fits = [fit_dwell_record(r, WHEEL_CHANNELS) for r in records]
+    return DwellRun(PlantSimulator(setup), amplitude_m, records, fits)
 
 
 @pytest.fixture(scope="session")
@@ -85,9 +74,7 @@ def four_post(request) -> tuple[BenchSetup, SweepRecord]:
     """One corner of the paper's vehicle (non-linear tyre, Model 2 or 3 as the truth) on a linear
     sine sweep 0.1-30 Hz over 60 s at 2 mm."""
     setup = BenchSetup.paper_quarter_car(2.5, model=request.param)
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=30 + int(request.param)))
-    sweep = Sweep(0.1, 30.0, 60.0, 2e-3)
-    return setup, sweep_record(plant.simulate(sweep), sweep)
+    return setup, simulate_sweep(setup, PAPER_SWEEP, seed=30 + int(request.param), include_truth=True)
 
 
 @pytest.fixture(scope="session")
@@ -116,9 +103,7 @@ def four_post_other_car() -> tuple[BenchSetup, SweepRecord]:
     """OTHER_TYRE (non-linear, Model 2) under OTHER_SUSPENSION on the same post as the paper's car."""
     paper = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
     setup = replace(paper, tyre=OTHER_TYRE, suspension=OTHER_SUSPENSION)
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=40))
-    sweep = Sweep(0.1, 30.0, 60.0, 2e-3)
-    return setup, sweep_record(plant.simulate(sweep), sweep)
+    return setup, simulate_sweep(setup, PAPER_SWEEP, seed=40, include_truth=True)
 
 
 @pytest.fixture(scope="session")
