@@ -56,6 +56,29 @@ class RubberTerms:
 LINEAR = RubberTerms()
 
 
+def _dynamic_terms(
+    tyre: Tyre, sensor: WfsSensor, freq_hz: np.ndarray, rubber: RubberTerms
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Circular frequency, sensor dynamic stiffness, tyre (air) stiffness and tyre loss term."""
+    f = np.asarray(freq_hz, dtype=float)
+    w = 2 * np.pi * f
+    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
+    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
+    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    return w, ks, k, loss
+
+
+def _sidewall_system(tyre: Tyre, w: np.ndarray, ks: np.ndarray, k: np.ndarray, loss: np.ndarray):
+    """Model 3's sidewall/rim equations: lower and upper sidewall stiffness, the 2x2 dynamic
+    stiffness ``[[a11, -upper], [-upper, a22]]`` of (sidewall, rim) and its determinant."""
+    m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
+    lower = tyre.sidewall_lower_stiffness_n_per_m
+    upper = tyre.sidewall_upper_stiffness_n_per_m + loss
+    a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
+    a22 = -m_r * w**2 + k + upper + ks
+    return lower, upper, a11, a22, a11 * a22 - upper**2
+
+
 def shaker_response(
     model: TyreModel,
     tyre: Tyre,
@@ -64,19 +87,10 @@ def shaker_response(
     rubber: RubberTerms = LINEAR,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(F_wfs / Z, F_contact / Z)`` of the shaker bench, complex, N/m (see the module docstring)."""
-    f = np.asarray(freq_hz, dtype=float)
-    w = 2 * np.pi * f
-    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
-    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
-    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    w, ks, k, loss = _dynamic_terms(tyre, sensor, freq_hz, rubber)
     model = TyreModel(model)
     if model is TyreModel.WHEEL_TREAD_SIDEWALL:
-        m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
-        lower = tyre.sidewall_lower_stiffness_n_per_m
-        upper = tyre.sidewall_upper_stiffness_n_per_m + loss
-        a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
-        a22 = -m_r * w**2 + k + upper + ks
-        det = a11 * a22 - upper**2
+        lower, upper, a11, a22, det = _sidewall_system(tyre, w, ks, k, loss)
         z_sw = (lower * a22 + upper * k) / det
         z_r = (a11 * k + upper * lower) / det
         contact = -tyre.tread_mass_kg * w**2 + k * (1 - z_r) + lower * (1 - z_sw)
@@ -104,19 +118,10 @@ def hub_driven_response(
     Model 3: the sidewall equations with ``Z = 0`` and ``K_s z_hub`` driving the rim;
     ``F_contact = -A z_r - L z_sw``.
     """
-    f = np.asarray(freq_hz, dtype=float)
-    w = 2 * np.pi * f
-    ks = sensor.stiffness_n_per_m + 1j * w * sensor.damping_ns_per_m
-    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
-    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    w, ks, k, loss = _dynamic_terms(tyre, sensor, freq_hz, rubber)
     model = TyreModel(model)
     if model is TyreModel.WHEEL_TREAD_SIDEWALL:
-        m_r = tyre.wheel_mass_kg - tyre.tread_mass_kg - tyre.sidewall_mass_kg
-        lower = tyre.sidewall_lower_stiffness_n_per_m
-        upper = tyre.sidewall_upper_stiffness_n_per_m + loss
-        a11 = -tyre.sidewall_mass_kg * w**2 + lower + upper
-        a22 = -m_r * w**2 + k + upper + ks
-        det = a11 * a22 - upper**2
+        lower, upper, a11, _, det = _sidewall_system(tyre, w, ks, k, loss)
         z_r, z_sw = a11 * ks / det, upper * ks / det
         return ks * (z_r - 1), -k * z_r - lower * z_sw
     m_t = tyre.tread_mass_kg if model is TyreModel.WHEEL_TREAD else 0.0
