@@ -24,7 +24,9 @@ def thread_cpu_s(native_id: int) -> float:
 
 
 def measure(reader: WfsReader, seconds: float) -> tuple[float, int]:
-    tid = reader._thread.native_id
+    tid = reader.thread_id
+    if tid is None:
+        raise RuntimeError("the reader thread is not running")
     cpu0, t0, frames = thread_cpu_s(tid), time.monotonic(), 0
     while time.monotonic() - t0 < seconds:
         block = reader.get_block(timeout_s=0.5)

@@ -107,6 +107,11 @@ class WfsReader:
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
+    @property
+    def thread_id(self) -> int | None:
+        """The reader thread's operating-system id while it runs (for CPU accounting), else None."""
+        return self._thread.native_id if self.running else None
+
     def wait_connected(self, timeout_s: float) -> bool:
         return self._connected.wait(timeout_s)
 

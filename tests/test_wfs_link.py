@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 import serial
@@ -190,3 +192,13 @@ def test_stream_over_a_real_pseudo_terminal_with_rotation():
     fz = wheel[:, 2]
     assert np.abs(frames["fx"]).max() > 0.5 * np.abs(fz).max()
     assert np.abs(wheel[:, 0]).max() < 0.01 * np.abs(fz).max() + 10
+
+
+def test_reader_exposes_its_thread_id_only_while_running():
+    """CPU accounting (benchmarks) goes through a public id, never the private thread."""
+    reader = WfsReader(MemoryLink().open_host)
+    assert reader.thread_id is None
+    with reader:
+        wait_until(lambda: reader.thread_id is not None, 2.0, "reader thread start")
+        assert reader.thread_id != threading.get_native_id()  # not the caller's thread
+    assert reader.thread_id is None
