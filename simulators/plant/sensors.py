@@ -93,6 +93,7 @@ class Decimator:
             self.taps = firwin(n_taps, 0.8 / factor, window=("kaiser", 7.0))
         else:
             self.taps = np.ones(1)
+        self._reversed_taps = np.ascontiguousarray(self.taps[::-1])
         self._history = np.zeros((n_channels, n_taps - 1))
 
     def with_factor(self, factor: int) -> Decimator:
@@ -123,6 +124,13 @@ class Decimator:
             return block[:, :: self.factor].copy()
         data = np.concatenate([self._history, block], axis=1)
         self._history = data[:, n:]
-        windows = np.lib.stride_tricks.sliding_window_view(data, self.taps.size, axis=1)
-        # output k is the window ending at block sample k * factor
-        return windows[:, :: self.factor, :] @ self.taps[::-1]
+        # Output k is the window of len(taps) samples starting at data[factor * k] (ending at block
+        # sample factor * k), dotted with the reversed taps: a strided view BLAS reads in place.
+        n_out, step = n // self.factor, data.strides[1]
+        out = np.empty((data.shape[0], n_out))
+        for channel, row in enumerate(data):
+            windows = np.lib.stride_tricks.as_strided(
+                row, shape=(n_out, self.taps.size), strides=(self.factor * step, step), writeable=False
+            )
+            np.dot(windows, self._reversed_taps, out=out[channel])
+        return out

@@ -2,7 +2,7 @@
 
 The linear part is exact: the continuous state space (servo actuator -> mechanical network ->
 hub accelerometer) is discretised for inputs that are linear between samples and stepped in modal
-coordinates with one first-order recursion per mode (``scipy.signal.sosfilt``), never a Python loop
+coordinates with one all-pole recursion per mode (``scipy.signal.lfilter``), never a Python loop
 over samples. A non-linear tyre is handled as an equivalent linear system per operating point
 (see :class:`bench.models.parameters.TyreNonlinearity`): the physical state carries over when the
 operating point changes.
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import matrix_balance
-from scipy.signal import sosfilt
+from scipy.signal import lfilter
 
 from bench.models.linear_system import DiscreteSystem, LinearSystem
 from bench.models.setup import BenchKind, BenchSetup
@@ -36,6 +36,7 @@ _MEASURED = {
 _HAMMER_CHANNELS = ("fz_wfs_n", "f_hammer_n")
 #: A non-linear tyre is re-linearised when the excitation frequency has moved by this fraction.
 _RESCHEDULE_FRACTION = 0.02
+_ONE = np.ones(1)
 #: ``simulate`` reports a waveform's operating point at this interval.
 _RESCHEDULE_CHECK_S = 0.05
 
@@ -79,7 +80,7 @@ class _ModalStepper:
     is the real all-pole biquad ``w = u / ((1 - lam z^-1)(1 - conj(lam) z^-1))`` with the three-tap
     numerator ``xi = n0 w[k] + n1 w[k-1] + n2 w[k-2]``; a real mode uses a first-order section.
     The free decays ``Re(lam^k)``, ``Im(lam^k)`` depend only on the block length and are cached.
-    So the per-sample work is one real ``sosfilt`` section per mode and two matrix products, and
+    So the per-sample work is one real all-pole ``lfilter`` section per mode and two matrix products, and
     only the physical state is kept between blocks: the system may change between any two blocks.
     """
 
@@ -104,7 +105,7 @@ class _ModalStepper:
         conj = np.conj(self.lam)
         a1 = np.where(paired, -2 * self.lam.real, -self.lam.real)
         a2 = np.where(paired, np.abs(self.lam) ** 2, 0.0)
-        self.sections = [np.array([[1.0, 0.0, 0.0, 1.0, a1[i], a2[i]]]) for i in range(self.lam.size)]
+        self.denominators = [np.array([1.0, a1[i], a2[i]]) for i in range(self.lam.size)]
         num = np.stack(
             [b1, np.where(paired, self.b0 - b1 * conj, self.b0), np.where(paired, -self.b0 * conj, 0)]
         )
@@ -134,8 +135,8 @@ class _ModalStepper:
         Returns the outputs (outputs x samples) and the state at the last sample.
         """
         taps = np.zeros((3 * self.lam.size, u.size))
-        for i, section in enumerate(self.sections):
-            w = sosfilt(section, u)
+        for i, denominator in enumerate(self.denominators):
+            w = lfilter(_ONE, denominator, u)  # all-pole section from rest
             taps[3 * i] = w
             taps[3 * i + 1, 1:] = w[:-1]
             taps[3 * i + 2, 2:] = w[:-2]
