@@ -184,7 +184,12 @@ async def test_write_timeout_is_not_resent(client, controller):
     before = controller.writes_received
     with pytest.raises(CommandOutcomeUnknownError):
         await client.hydraulics_low()
-    await asyncio.sleep(0.4)  # let the late reply of the delayed write arrive and be discarded
+    # The delayed write lands once; a re-sent copy would queue behind it on the same connection, so
+    # after the write has landed, one more round trip proves nothing else was sent.
+    await async_wait_until(
+        lambda: _true_after(controller.writes_received >= before + 1), 2.0, "the delayed write to land"
+    )
+    await client.read_status()
     assert controller.writes_received == before + 1
 
 
@@ -248,3 +253,8 @@ async def _run(*cmd: str) -> str:
     out, _ = await asyncio.wait_for(proc.communicate(), 10)
     assert proc.returncode == 0, out.decode()
     return out.decode()
+
+
+async def _true_after(value: bool) -> bool:
+    """An awaitable view of a plain condition, for ``async_wait_until``."""
+    return value
