@@ -115,11 +115,15 @@ def test_paper_shaker_peak_rises_with_pressure_and_model1_has_none():
 
 
 def test_model3_follows_model2_on_the_shaker_up_to_the_peak():
-    """The paper: Models 2 and 3 both simulate the shaker test; the sidewall has low sensitivity."""
+    """The paper: Models 2 and 3 both simulate the shaker test; the sidewall has low sensitivity.
+
+    Model 3's 1 kg sidewall, nearly rigid to the tread, adds to the moving tread mass and lowers
+    the resonance by about 4 %, which moves the ratio by up to 11 % on the way to it at 30 Hz;
+    15 % bounds that and still fails a model whose sidewall path carried real weight."""
     f = np.linspace(0.5, 30.0, 200)
     h2 = ratio(shaker_bench(TyreModel.WHEEL_TREAD, paper_tyre(2.5)), f)
     h3 = ratio(shaker_bench(TyreModel.WHEEL_TREAD_SIDEWALL, paper_tyre(2.5)), f)
-    np.testing.assert_allclose(np.abs(h3), np.abs(h2), rtol=0.25)
+    np.testing.assert_allclose(np.abs(h3), np.abs(h2), rtol=0.15)
 
 
 def test_quarter_car_eigenfrequencies_where_the_parameters_put_them():

@@ -177,13 +177,7 @@ class PlantSimulator:
         self.internal_rate_hz = self.output_rate_hz * self.oversampling
         self._hammer = setup.kind is BenchKind.HAMMER
         self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
-        self._rng = np.random.default_rng(self.realism.seed)
-        self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
-        self.latency_samples = self._decimator.latency_samples
-        self._operating_point: tuple[float, float] | None = None
-        self._stepper = self._build_stepper(setup.network())
-        self._x = np.zeros(len(self._system.states))
-        self._u_prev = 0.0
+        self.reset()
 
     # ------------------------------------------------------------------ system assembly
     def _build_stepper(self, network) -> _ModalStepper:
@@ -305,8 +299,14 @@ class PlantSimulator:
             out[self.channels.index(channel)] += rms * self._rng.standard_normal(out.shape[1])
 
     def reset(self) -> None:
-        """Back to rest: zero state, fresh filters and the seed's first noise sample."""
-        self.__init__(self.setup, self.realism, self.actuator, self.output_rate_hz, self.oversampling)
+        """Back to rest: zero state, the nominal tyre, fresh filters and the seed's first noise sample."""
+        self._rng = np.random.default_rng(self.realism.seed)
+        self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
+        self.latency_samples = self._decimator.latency_samples
+        self._operating_point: tuple[float, float] | None = None
+        self._stepper = self._build_stepper(self.setup.network())
+        self._x = np.zeros(len(self._system.states))
+        self._u_prev = 0.0
 
     # ------------------------------------------------------------------ offline runs
     def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:
