@@ -85,7 +85,13 @@ def estimate_wheel_mass(
     chans = {"f_contact": f_contact, "f_wfs": f_wfs, "a_hub": a_hub}
     if a_contact is not None:
         chans["a_contact"] = a_contact
-    sig = as_signals(chans, min_samples=int(4 * fs / band_hz[0]))
+    sig = as_signals(chans)
+    n_min = int(4 * fs / band_hz[0])
+    if sig["a_hub"].size < n_min:
+        raise AnalysisInputError(
+            f"{sig['a_hub'].size / fs:.4g} s of data are too short for the wheel mass band from"
+            f" {band_hz[0]:g} Hz (at least {n_min / fs:.4g} s)"
+        )
     sos = butter(4, band_hz, btype="bandpass", fs=fs, output="sos")
     edge = int(2 * fs / band_hz[0])
     filt = {k: sosfiltfilt(sos, v)[edge:-edge] for k, v in sig.items()}

@@ -517,6 +517,13 @@ def analyse_four_post(
         if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
             raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
         _positive("amplitude", sweep.amplitude_m)
+        _positive("sweep duration", sweep.sweep_s)
+        if sweep.duration_s < sweep.sweep_s - 1 / fs:
+            raise AnalysisInputError(
+                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
+                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
+                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
+            )
     post = analyse_free_run(free_run, settle_s=settle_s)
     with _named(label):
         if shaker_comp is not None and shaker_comp.fs_hz == fs:

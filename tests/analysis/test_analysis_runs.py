@@ -216,8 +216,19 @@ def test_garbage_sweep_names_the_record(four_post, four_post_free_run, shaker_no
         analyse_four_post(
             replace(sweep, channels={**sweep.channels, "f_plate_n": nan}), four_post_free_run.records, **kw
         )
-    short = replace(sweep, channels={k: v[:2000] for k, v in sweep.channels.items()})
-    with pytest.raises(AnalysisInputError, match=r"sweep 0\.1-30 Hz at 2 mm: "):
+    # a truncated record (20 s of the 60 s sweep reach only ~10 Hz; 2 s barely start it) is refused
+    for seconds in (20, 2):
+        short = replace(sweep, channels={k: v[: seconds * 1000] for k, v in sweep.channels.items()})
+        with pytest.raises(
+            AnalysisInputError,
+            match=rf"sweep 0\.1-30 Hz at 2 mm: the record is {seconds} s long but the sweep takes 60 s",
+        ):
+            analyse_four_post(short, four_post_free_run.records, **kw)
+    # a whole sweep too short for the wheel mass band: the error names the record, no internal channel
+    short = replace(sweep, sweep_s=2.0, channels={k: v[:2000] for k, v in sweep.channels.items()})
+    with pytest.raises(AnalysisInputError, match=r"sweep 0\.1-30 Hz at 2 mm: ") as err:
         analyse_four_post(short, four_post_free_run.records, **kw)
+    assert "too short for the wheel mass band from 1 Hz" in str(err.value)
+    assert "f_contact" not in str(err.value)
     with pytest.raises(AnalysisInputError, match="sweep band must satisfy"):
         analyse_four_post(replace(sweep, end_hz=600.0), four_post_free_run.records, **kw)
