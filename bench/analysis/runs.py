@@ -118,8 +118,10 @@ def _fit_grid(
 
 
 def _band_text(band: ValidBand) -> str:
-    if band.upper_hz == 0.0:
+    if band.n_points == 0:
         return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
+    if not band.determined:
+        return f"not determined (only {band.lowest_hz:.4g} Hz passes, then {band.limited_by})"
     return f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (ends: {band.limited_by})"
 
 

@@ -14,6 +14,7 @@ from bench.analysis import (
     analyse_hammer,
     analyse_shaker_campaign,
 )
+from bench.analysis.frf import valid_band
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
@@ -232,3 +233,19 @@ def test_garbage_sweep_names_the_record(four_post, four_post_free_run, shaker_no
     assert "f_contact" not in str(err.value)
     with pytest.raises(AnalysisInputError, match="sweep band must satisfy"):
         analyse_four_post(replace(sweep, end_hz=600.0), four_post_free_run.records, **kw)
+
+
+def test_one_point_band_is_reported_not_determined(shaker_other_tyre, free_run):
+    """A band in which a single point passes (here the lowest dwell, the next one unreliable) has no
+    width: the summary must not print it as a band 'f-f Hz'."""
+    setup = shaker_other_tyre.plant.setup
+    amp = _campaign(shaker_other_tyre.records, free_run, setup).nearest(2e-3)
+    raw = amp.frfs.wfs_per_contact
+    reliable = raw.reliable.copy()
+    reliable[1] = False
+    band = valid_band(raw.freq_hz, raw.value, reliable, sigma=raw.sigma)
+    assert band.n_points == 1 and not band.determined and band.upper_hz == 0.0
+    text = "\n".join(replace(amp, valid_band_raw=band).summary_lines())
+    f0 = f"{raw.freq_hz[0]:.4g}"
+    assert f"raw not determined (only {f0} Hz passes, then unreliable point)" in text
+    assert f"raw {f0}-{f0} Hz" not in text
