@@ -190,8 +190,9 @@ class ModelCompensator:
         ) * shift
 
     def apply(self, f_wfs: np.ndarray, a_hub: np.ndarray) -> np.ndarray:
-        """Compensated force of a whole record, aligned with the inputs; the last
-        ``latency_samples`` samples are NaN (they would need future input)."""
+        """Compensated force of a whole record, aligned with the inputs; NaN where the filters'
+        window leaves the record: the first ``n_taps - 1 - latency_samples`` samples (no history)
+        and the last ``latency_samples`` (they would need future input)."""
         sig = as_signals({"f_wfs": f_wfs, "a_hub": a_hub})
         return apply_aligned(self.taps_wfs, sig["f_wfs"], self.latency_samples) + apply_aligned(
             self.taps_accel, sig["a_hub"], self.latency_samples

@@ -62,11 +62,15 @@ def design_fir(
 def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.ndarray:
     """Filter a whole record and undo the latency: ``y[n]`` describes instant ``n``.
 
-    The last ``latency_samples`` outputs would need future input: they are NaN, never a guess.
+    Only outputs whose whole input window lies inside the record are finite: the first
+    ``n_taps - 1 - latency_samples`` would need input before the record (a filter started from zero
+    history is finite but wrong there), the last ``latency_samples`` input after it. Both are NaN,
+    never a guess.
     """
     y = lfilter(taps, [1.0], np.asarray(x, dtype=float))
     out = np.full(y.size, np.nan)
     out[: y.size - latency_samples] = y[latency_samples:]
+    out[: min(np.asarray(taps).size - 1 - latency_samples, y.size)] = np.nan
     return out
 
 
@@ -74,7 +78,8 @@ def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.n
 class StreamingFir:
     """A multi-input FIR, ``y = sum_i h_i * x_i``, fed block by block (state kept between blocks).
 
-    Output sample ``n`` of the stream describes the input instant ``n - latency_samples``.
+    Output sample ``n`` of the stream describes the input instant ``n - latency_samples``; the first
+    ``n_taps - 1`` outputs start from zero history (the filter's start-up transient).
     """
 
     taps: Sequence[np.ndarray]

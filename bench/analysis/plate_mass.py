@@ -113,9 +113,7 @@ def base_acceleration_signal(
     fs = as_sample_rate(fs_hz)
     z = as_signals({"displacement": displacement_m}, min_samples=61)["displacement"]
     taps, latency = double_differentiator(fs, band_hz=band_hz)
-    accel = apply_aligned(taps, z, latency)
-    accel[:latency] = np.nan
-    return accel
+    return apply_aligned(taps, z, latency)
 
 
 def contact_force_signal(

@@ -553,7 +553,7 @@ def analyse_four_post(
             "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
             "model_compensated": comp.apply(rec[WFS_FORCE], accel),
         }
-        # the differentiator's edges and the compensator's latency leave NaN at the ends: cut them
+        # the differentiator and the compensator leave NaN where their windows leave the record: cut
         idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
         keep = slice(int(idx[0]), int(idx[-1]) + 1)
         frfs = four_post_frfs(
