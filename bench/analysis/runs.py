@@ -36,13 +36,14 @@ from bench.analysis.compensation import (
     estimate_wheel_mass,
     hub_acceleration_compensation,
 )
-from bench.analysis.dwell import DwellFit, dwell_frf
+from bench.analysis.dwell import DwellFit, dwell_frf, dwell_phasors
 from bench.analysis.frf import Frf, ValidBand, phasor_ratio, valid_band
 from bench.analysis.hammer import HammerResult, analyse_hammer_decay
 from bench.analysis.plate_mass import (
     PlateMass,
     ShakerFrfs,
     base_acceleration_signal,
+    contact_force_phasors,
     identify_plate_mass,
     shaker_frfs,
 )
@@ -280,16 +281,18 @@ def _design_band(highest_hz: float, given_hz: float | None) -> float:
     return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
 
 
-def _compensated_ratio(fits: Sequence[DwellFit], frfs: ShakerFrfs, comp: ModelCompensator) -> Frf:
-    """(G_F F_wfs + G_A a_hub) / F_contact per dwell, all over Z, with propagated uncertainty."""
-    accel = dwell_frf(fits, HUB_ACCELERATION, DISPLACEMENT)
-    g_f, g_a = comp.response(accel.freq_hz)
-    num = g_f * frfs.wfs_per_z.value + g_a * accel.value
-    num_sigma = np.hypot(np.abs(g_f) * frfs.wfs_per_z.sigma, np.abs(g_a) * accel.sigma)
-    contact = frfs.contact_per_z
-    ratio, sigma = phasor_ratio(num, num_sigma, contact.value, contact.sigma)
-    reliable = frfs.wfs_per_z.reliable & accel.reliable & contact.reliable
-    return Frf(accel.freq_hz, ratio, sigma, reliable, "f_compensated", "f_contact")
+def _compensated_ratio(fits: Sequence[DwellFit], plate: PlateMass, comp: ModelCompensator) -> Frf:
+    """(G_F F_wfs + G_A a_hub) / F_contact per dwell from the phasors themselves (as the raw ratio
+    of :func:`shaker_frfs`: no division by the displacement, whose error would enter numerator and
+    denominator alike), with propagated uncertainty."""
+    f = np.sort([d.freq_hz for d in fits])
+    g_f, g_a = comp.response(f)
+    (wfs, s_w), (acc, s_a) = dwell_phasors(fits, WFS_FORCE), dwell_phasors(fits, HUB_ACCELERATION)
+    contact, s_c = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    num_sigma = np.hypot(np.abs(g_f) * s_w, np.abs(g_a) * s_a)
+    ratio, sigma = phasor_ratio(g_f * wfs + g_a * acc, num_sigma, contact, s_c)
+    reliable = np.array([d.settled for d in sorted(fits, key=lambda d: d.freq_hz)])
+    return Frf(f, ratio, sigma, reliable, "f_compensated", "f_contact")
 
 
 def _analyse_amplitude(
@@ -321,7 +324,7 @@ def _analyse_amplitude(
             fs_hz=rates.pop(),
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
-        compensated = _compensated_ratio(fits, frfs, comp)
+        compensated = _compensated_ratio(fits, plate, comp)
         raw = frfs.wfs_per_contact
         band_raw = valid_band(raw.freq_hz, raw.value, raw.reliable, sigma=raw.sigma)
         band_comp = valid_band(

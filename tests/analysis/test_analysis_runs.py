@@ -1,6 +1,7 @@
 """The top-level API on whole simulated runs: results against the simulator's truth, what the summaries
 state, and garbage records named in clear errors or flagged."""
 
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -18,6 +19,7 @@ from bench.analysis.frf import valid_band
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
+from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from tests.analysis.conftest import same_tyre_campaign
 
@@ -249,3 +251,31 @@ def test_one_point_band_is_reported_not_determined(shaker_other_tyre, free_run):
     f0 = f"{raw.freq_hz[0]:.4g}"
     assert f"raw not determined (only {f0} Hz passes, then unreliable point)" in text
     assert f"raw {f0}-{f0} Hz" not in text
+
+
+def test_compensated_ratio_sigma_matches_scatter_between_runs(free_run):
+    """The compensated / contact ratio of four runs (different noise seeds; 1 mm rms noise added on
+    the displacement so that its error matters): the differences between runs over their combined
+    sigma must have an rms of 1 within -15 / +20 % (66 independent complex points: the rms scatters
+    by about 6 %). Dividing both forces by the noisy displacement and propagating the two ratios as
+    independent gave 0.77 here: Z's error, common to both, was counted twice."""
+    setup = BenchSetup.paper_shaker(2.5, nonlinear=False)
+    ratios = []
+    for seed in (12, 50, 51, 52):
+        rng = np.random.default_rng(seed)
+        records = [
+            replace(
+                r,
+                channels={
+                    **r.channels,
+                    "z_base_m": r.channels["z_base_m"]
+                    + 1e-3 * rng.standard_normal(r.channels["z_base_m"].size),
+                },
+            )
+            for r in simulate_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=seed)
+        ]
+        ratios.append(_campaign(records, free_run, setup).nearest(2e-3).compensated_per_contact)
+    z = np.concatenate(
+        [np.abs(a.value - b.value) / np.hypot(a.sigma, b.sigma) for a, b in itertools.combinations(ratios, 2)]
+    )
+    assert 0.85 < np.sqrt(np.mean(z**2)) < 1.2
