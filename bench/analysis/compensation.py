@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfiltfilt, welch
 
-from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response
+from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response, half_cosine_rolloff
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 from bench.models.benches import TyreModel
@@ -227,11 +227,7 @@ def design_model_compensator(
     f[0] = min(0.01, band_hz / 100)  # the inverse is evaluated just above DC
     g_f, g_a = inverse_response(model, tyre, sensor, f, rubber)
     stop = 1.5 * band_hz
-    roll = np.where(
-        f <= band_hz,
-        1.0,
-        np.where(f >= stop, 0.0, 0.5 + 0.5 * np.cos(np.pi * (f - band_hz) / (stop - band_hz))),
-    )
+    roll = half_cosine_rolloff(f, band_hz, stop)
     outside = np.where(f <= band_hz, 1.0, 1e-3)
     w_f = outside / np.maximum(np.abs(g_f), 0.05) ** 2
     w_a = outside / tyre.wheel_mass_kg**2

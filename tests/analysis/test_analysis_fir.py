@@ -4,7 +4,7 @@ inside the record."""
 import numpy as np
 import pytest
 
-from bench.analysis.fir import apply_aligned
+from bench.analysis.fir import apply_aligned, half_cosine_rolloff
 
 
 @pytest.mark.parametrize(("n_taps", "latency"), [(9, 4), (9, 0), (9, 8), (160, 40)])
@@ -22,3 +22,8 @@ def test_apply_aligned_marks_edges_without_full_window(n_taps, latency):
 
 def test_apply_aligned_record_shorter_than_filter_is_all_nan():
     assert np.all(np.isnan(apply_aligned(np.ones(50), np.ones(20), 10)))
+
+
+def test_half_cosine_rolloff():
+    f = np.array([0.0, 10.0, 12.5, 15.0, 20.0])
+    np.testing.assert_allclose(half_cosine_rolloff(f, 10.0, 15.0), [1.0, 1.0, 0.5, 0.0, 0.0], atol=1e-15)
