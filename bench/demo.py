@@ -26,7 +26,7 @@ WHEEL_MASS_KG = 29.0
 
 
 def _band(band) -> str:
-    return f"{band.upper_hz:5.1f} Hz"
+    return f"{band.upper_hz:5.1f} Hz" if band.determined else "not determined"
 
 
 def run_demo(seed: int = 1) -> list[str]:

@@ -57,7 +57,12 @@ def simulate_sweep(setup: BenchSetup, sweep: Sweep, *, seed: int, include_truth:
     rec = plant.simulate(sweep)
     keep = (*WHEEL_CHANNELS, TRUTH_CHANNEL) if include_truth else WHEEL_CHANNELS
     return SweepRecord(
-        sweep.start_hz, sweep.end_hz, sweep.amplitude, plant.output_rate_hz, {c: rec[c] for c in keep}
+        sweep.start_hz,
+        sweep.end_hz,
+        sweep.sweep_s,
+        sweep.amplitude,
+        plant.output_rate_hz,
+        {c: rec[c] for c in keep},
     )
 
 

@@ -33,9 +33,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfiltfilt, welch
 
-from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response
+from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response, half_cosine_rolloff
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 from bench.models.benches import TyreModel
@@ -77,13 +77,21 @@ def estimate_wheel_mass(
     """Least squares of ``F_contact - F_wfs`` on ``a_hub`` (and ``a_contact``), all band-passed
     with the same zero-phase filter (offsets and out-of-band noise removed).
 
-    The uncertainty counts the residual as band-limited noise: ``N * 2 B / fs`` independent samples.
+    The uncertainty is :func:`_coloured_noise_covariance`: the band-passed residual is strongly
+    correlated from sample to sample, so the white-noise ``s^2 (X'X)^-1`` would be far too small,
+    and a flat in-band density is not exact either (the filter's skirts, coloured sensor noise).
     """
     fs = as_sample_rate(fs_hz)
     chans = {"f_contact": f_contact, "f_wfs": f_wfs, "a_hub": a_hub}
     if a_contact is not None:
         chans["a_contact"] = a_contact
-    sig = as_signals(chans, min_samples=int(4 * fs / band_hz[0]))
+    sig = as_signals(chans)
+    n_min = int(4 * fs / band_hz[0])
+    if sig["a_hub"].size < n_min:
+        raise AnalysisInputError(
+            f"{sig['a_hub'].size / fs:.4g} s of data are too short for the wheel mass band from"
+            f" {band_hz[0]:g} Hz (at least {n_min / fs:.4g} s)"
+        )
     sos = butter(4, band_hz, btype="bandpass", fs=fs, output="sos")
     edge = int(2 * fs / band_hz[0])
     filt = {k: sosfiltfilt(sos, v)[edge:-edge] for k, v in sig.items()}
@@ -98,8 +106,7 @@ def estimate_wheel_mass(
         raise AnalysisInputError("no acceleration in the band: the wheel mass cannot be estimated")
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     res = y - X @ coef
-    n_eff = max(y.size * 2 * (band_hz[1] - band_hz[0]) / fs - len(coef), 1.0)
-    cov = np.linalg.inv(X.T @ X) * np.sum(res**2) / n_eff * (y.size / n_eff)
+    cov = _coloured_noise_covariance(X, res, fs)
     n_mass = 2 if a_contact is not None else 1
     total_var = float(np.sum(cov[:n_mass, :n_mass]))
     return WheelMass(
@@ -111,6 +118,26 @@ def estimate_wheel_mass(
         accelerometer_delay_s=float(coef[-1] / coef[0]) if fit_delay else 0.0,
         band_hz=band_hz,
     )
+
+
+def _coloured_noise_covariance(X: np.ndarray, res: np.ndarray, fs: float) -> np.ndarray:
+    """Covariance of least-squares coefficients when the error is stationary coloured noise.
+
+    ``cov = (X'X)^-1 X' R X (X'X)^-1`` with ``R`` the error's autocovariance. For stationary noise
+    ``X' R X = (1/N) sum_k conj(X_k) X_k^T S_k`` over the DFT bins of the regressors, ``S_k`` the
+    noise's two-sided density per sample (``fs/2`` times the one-sided PSD ``G``; white noise of
+    variance ``s^2`` gives ``S = s^2`` and the usual ``s^2 (X'X)^-1``). ``G`` is the Welch PSD of the
+    residual. For noise flat over a band ``B`` this reduces to ``(X'X)^-1 RSS / (2 B N / fs)``: one
+    correction for the band-limiting, not two.
+    """
+    n = X.shape[0]
+    f_psd, psd = welch(res, fs=fs, nperseg=min(n, 4096))
+    spec = np.fft.rfft(X, axis=0)
+    density = np.interp(np.fft.rfftfreq(n, 1 / fs), f_psd, psd) * fs / 2
+    density[1 : (n + 1) // 2] *= 2  # bins standing for their negative-frequency twins
+    meat = (spec.conj().T * density) @ spec
+    bread = np.linalg.inv(X.T @ X)
+    return bread @ (meat.real / n) @ bread
 
 
 def advance_acceleration(a_hub: np.ndarray, fs_hz: float, delay_s: float) -> np.ndarray:
@@ -163,8 +190,9 @@ class ModelCompensator:
         ) * shift
 
     def apply(self, f_wfs: np.ndarray, a_hub: np.ndarray) -> np.ndarray:
-        """Compensated force of a whole record, aligned with the inputs; the last
-        ``latency_samples`` samples are NaN (they would need future input)."""
+        """Compensated force of a whole record, aligned with the inputs; NaN where the filters'
+        window leaves the record: the first ``n_taps - 1 - latency_samples`` samples (no history)
+        and the last ``latency_samples`` (they would need future input)."""
         sig = as_signals({"f_wfs": f_wfs, "a_hub": a_hub})
         return apply_aligned(self.taps_wfs, sig["f_wfs"], self.latency_samples) + apply_aligned(
             self.taps_accel, sig["a_hub"], self.latency_samples
@@ -199,11 +227,7 @@ def design_model_compensator(
     f[0] = min(0.01, band_hz / 100)  # the inverse is evaluated just above DC
     g_f, g_a = inverse_response(model, tyre, sensor, f, rubber)
     stop = 1.5 * band_hz
-    roll = np.where(
-        f <= band_hz,
-        1.0,
-        np.where(f >= stop, 0.0, 0.5 + 0.5 * np.cos(np.pi * (f - band_hz) / (stop - band_hz))),
-    )
+    roll = half_cosine_rolloff(f, band_hz, stop)
     outside = np.where(f <= band_hz, 1.0, 1e-3)
     w_f = outside / np.maximum(np.abs(g_f), 0.05) ** 2
     w_a = outside / tyre.wheel_mass_kg**2

@@ -211,6 +211,15 @@ def fit_dwell(
     )
 
 
+def dwell_phasors(fits: Sequence[DwellFit], channel: str) -> tuple[np.ndarray, np.ndarray]:
+    """One channel's phasors over a grid of dwells (sorted by frequency) and their standard
+    uncertainties."""
+    if not fits:
+        raise AnalysisInputError("no dwells given")
+    ch = [d.channels[channel] for d in sorted(fits, key=lambda d: d.freq_hz)]
+    return np.array([c.amplitude for c in ch]), np.array([c.amplitude_sigma for c in ch])
+
+
 def dwell_frf(fits: Sequence[DwellFit], output: str, input: str) -> Frf:
     """The FRF ``output / input`` over a grid of dwells (sorted by frequency); a dwell that did not
     settle gives an unreliable point."""

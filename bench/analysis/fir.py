@@ -59,14 +59,27 @@ def design_fir(
     return taps
 
 
+def half_cosine_rolloff(freq_hz: np.ndarray, pass_hz: float, stop_hz: float) -> np.ndarray:
+    """1 up to ``pass_hz``, 0 from ``stop_hz`` on, a half cosine in between (a design target's taper)."""
+    f = np.asarray(freq_hz, dtype=float)
+    if not 0 < pass_hz < stop_hz:
+        raise AnalysisInputError(f"roll-off needs 0 < pass {pass_hz} Hz < stop {stop_hz} Hz")
+    x = np.clip((f - pass_hz) / (stop_hz - pass_hz), 0.0, 1.0)
+    return 0.5 + 0.5 * np.cos(np.pi * x)
+
+
 def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.ndarray:
     """Filter a whole record and undo the latency: ``y[n]`` describes instant ``n``.
 
-    The last ``latency_samples`` outputs would need future input: they are NaN, never a guess.
+    Only outputs whose whole input window lies inside the record are finite: the first
+    ``n_taps - 1 - latency_samples`` would need input before the record (a filter started from zero
+    history is finite but wrong there), the last ``latency_samples`` input after it. Both are NaN,
+    never a guess.
     """
     y = lfilter(taps, [1.0], np.asarray(x, dtype=float))
     out = np.full(y.size, np.nan)
     out[: y.size - latency_samples] = y[latency_samples:]
+    out[: min(np.asarray(taps).size - 1 - latency_samples, y.size)] = np.nan
     return out
 
 
@@ -74,7 +87,8 @@ def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.n
 class StreamingFir:
     """A multi-input FIR, ``y = sum_i h_i * x_i``, fed block by block (state kept between blocks).
 
-    Output sample ``n`` of the stream describes the input instant ``n - latency_samples``.
+    Output sample ``n`` of the stream describes the input instant ``n - latency_samples``; the first
+    ``n_taps - 1`` outputs start from zero history (the filter's start-up transient).
     """
 
     taps: Sequence[np.ndarray]
@@ -110,12 +124,7 @@ def double_differentiator(fs_hz: float, *, band_hz: float, n_taps: int = 61) -> 
     latency = (n_taps - 1) // 2
     f = np.linspace(0, fs_hz / 2, 8 * n_taps)
     stop = min(1.4 * band_hz, fs_hz / 2)
-    roll = np.where(
-        f <= band_hz,
-        1.0,
-        np.where(f >= stop, 0.0, 0.5 + 0.5 * np.cos(np.pi * (f - band_hz) / (stop - band_hz))),
-    )
-    target = -((2 * np.pi * f) ** 2) * roll
+    target = -((2 * np.pi * f) ** 2) * half_cosine_rolloff(f, band_hz, stop)
     # relative accuracy in the band: |error|^2 weighted by 1 / |target|^2 (floored below 0.5 Hz)
     w_floor = 2 * np.pi * np.maximum(f, 0.5)
     weight = np.where(f <= band_hz, 1.0, 1e-3) * (2 * np.pi * band_hz / w_floor) ** 4

@@ -74,9 +74,10 @@ class ValidBand:
     so that noise alone can neither pass nor fail it);
     ``upper_hz`` is the highest frequency up to which every point from ``lowest_hz`` on keeps
     ``| |H| - 1 | <= amplitude_tolerance`` and ``|phase H| <= phase_tolerance_deg``; it is the last
-    point that passes (no interpolation: conservative), 0.0 when the first point already fails.
-    ``limited_by`` says what ended the band: ``"amplitude"``, ``"phase"``, ``"unreliable point"`` or
-    ``"end of data"`` (the band may extend beyond the data).
+    point that passes (no interpolation: conservative). ``n_points``: how many points pass from
+    ``lowest_hz`` on. One point is no band: with fewer than two the band is not ``determined`` and
+    ``upper_hz`` is 0.0. ``limited_by`` says what ended the band: ``"amplitude"``, ``"phase"``,
+    ``"unreliable point"`` or ``"end of data"`` (the band may extend beyond the data).
     """
 
     upper_hz: float
@@ -84,6 +85,12 @@ class ValidBand:
     limited_by: str
     amplitude_tolerance: float
     phase_tolerance_deg: float
+    n_points: int
+
+    @property
+    def determined(self) -> bool:
+        """At least two points pass: the band has a width."""
+        return self.n_points >= 2
 
 
 def valid_band(
@@ -122,5 +129,5 @@ def valid_band(
         idx = np.flatnonzero(bad)
         if idx.size and idx[0] < first_bad:
             first_bad, limited_by = int(idx[0]), cause
-    upper = float(f[first_bad - 1]) if first_bad > 0 else 0.0
-    return ValidBand(upper, float(f[0]), limited_by, amplitude_tolerance, phase_tolerance_deg)
+    upper = float(f[first_bad - 1]) if first_bad >= 2 else 0.0
+    return ValidBand(upper, float(f[0]), limited_by, amplitude_tolerance, phase_tolerance_deg, first_bad)

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.analysis.dwell import DwellFit
+from bench.analysis.dwell import DwellFit, dwell_phasors
 from bench.analysis.fir import apply_aligned, double_differentiator
-from bench.analysis.frf import Frf
+from bench.analysis.frf import Frf, phasor_ratio
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 
 
@@ -61,6 +61,22 @@ class ShakerFrfs:
     wfs_per_contact: Frf
 
 
+def contact_force_phasors(
+    fits: Sequence[DwellFit],
+    plate: PlateMass,
+    *,
+    shaker_force: str = "f_plate_n",
+    displacement: str = "z_base_m",
+) -> tuple[np.ndarray, np.ndarray]:
+    """``F_contact = F_shaker + m_comp w^2 Z`` of each dwell (ascending frequency) and its standard
+    uncertainty from the phasor noise of both channels and ``sigma_kg``."""
+    f = np.sort([d.freq_hz for d in fits])
+    m, w2 = plate.mass_kg, (2 * np.pi * f) ** 2
+    (a_p, s_p), (a_z, s_z) = dwell_phasors(fits, shaker_force), dwell_phasors(fits, displacement)
+    sigma = np.sqrt(s_p**2 + (m * w2 * s_z) ** 2 + (w2 * np.abs(a_z) * plate.sigma_kg) ** 2)
+    return a_p + m * w2 * a_z, sigma
+
+
 def shaker_frfs(
     fits: Sequence[DwellFit],
     plate: PlateMass,
@@ -76,26 +92,19 @@ def shaker_frfs(
     ordered = sorted(fits, key=lambda d: d.freq_hz)
     f = np.array([d.freq_hz for d in ordered])
     m, w2 = plate.mass_kg, (2 * np.pi * f) ** 2
-
-    def phasor(name: str) -> tuple[np.ndarray, np.ndarray]:
-        ch = [d.channels[name] for d in ordered]
-        return np.array([c.amplitude for c in ch]), np.array([c.amplitude_sigma for c in ch])
-
-    (a_w, s_w), (a_p, s_p), (a_z, s_z) = phasor(wfs), phasor(shaker_force), phasor(displacement)
+    (a_w, s_w), (a_p, s_p), (a_z, s_z) = (
+        dwell_phasors(ordered, c) for c in (wfs, shaker_force, displacement)
+    )
     if np.any(a_z == 0):
         raise AnalysisInputError("a dwell has no displacement at its frequency")
-    a_c = a_p + m * w2 * a_z
-    s_mass = w2 * np.abs(a_z) * plate.sigma_kg
+    a_c, s_c = contact_force_phasors(ordered, plate, shaker_force=shaker_force, displacement=displacement)
     reliable = np.array([d.settled for d in ordered])
     h_w, h_p = a_w / a_z, a_p / a_z
     sig_hw = np.sqrt(s_w**2 + np.abs(h_w) ** 2 * s_z**2) / np.abs(a_z)
     sig_hp = np.sqrt(s_p**2 + np.abs(h_p) ** 2 * s_z**2) / np.abs(a_z)
     h_c = h_p + m * w2
     sig_hc = np.hypot(sig_hp, w2 * plate.sigma_kg)
-    ratio = a_w / a_c
-    sig_ratio = np.sqrt(s_w**2 + np.abs(ratio) ** 2 * (s_p**2 + (m * w2 * s_z) ** 2 + s_mass**2)) / np.abs(
-        a_c
-    )
+    ratio, sig_ratio = phasor_ratio(a_w, s_w, a_c, s_c)
     return ShakerFrfs(
         Frf(f, h_w, sig_hw, reliable, wfs, displacement),
         Frf(f, h_c, sig_hc, reliable, "f_contact", displacement),
@@ -113,9 +122,7 @@ def base_acceleration_signal(
     fs = as_sample_rate(fs_hz)
     z = as_signals({"displacement": displacement_m}, min_samples=61)["displacement"]
     taps, latency = double_differentiator(fs, band_hz=band_hz)
-    accel = apply_aligned(taps, z, latency)
-    accel[:latency] = np.nan
-    return accel
+    return apply_aligned(taps, z, latency)
 
 
 def contact_force_signal(

@@ -57,11 +57,14 @@ class DwellRecord:
 
 @dataclass(frozen=True)
 class SweepRecord:
-    """One sine sweep of the base from ``start_hz`` to ``end_hz`` at amplitude ``amplitude_m``;
-    ``channels`` by name at ``sample_rate_hz``, all of one length."""
+    """One sine sweep of the base from ``start_hz`` to ``end_hz`` over ``sweep_s`` seconds (as
+    commanded, tapers inside) at amplitude ``amplitude_m``; ``channels`` by name at
+    ``sample_rate_hz``, all of one length, time zero at the sweep's start. A record shorter than
+    ``sweep_s`` did not see the band it claims and is refused by the analysis."""
 
     start_hz: float
     end_hz: float
+    sweep_s: float
     amplitude_m: float
     sample_rate_hz: float
     channels: Mapping[str, np.ndarray]

@@ -36,13 +36,14 @@ from bench.analysis.compensation import (
     estimate_wheel_mass,
     hub_acceleration_compensation,
 )
-from bench.analysis.dwell import DwellFit, dwell_frf
+from bench.analysis.dwell import DwellFit, dwell_frf, dwell_phasors
 from bench.analysis.frf import Frf, ValidBand, phasor_ratio, valid_band
 from bench.analysis.hammer import HammerResult, analyse_hammer_decay
 from bench.analysis.plate_mass import (
     PlateMass,
     ShakerFrfs,
     base_acceleration_signal,
+    contact_force_phasors,
     identify_plate_mass,
     shaker_frfs,
 )
@@ -118,8 +119,10 @@ def _fit_grid(
 
 
 def _band_text(band: ValidBand) -> str:
-    if band.upper_hz == 0.0:
+    if band.n_points == 0:
         return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
+    if not band.determined:
+        return f"not determined (only {band.lowest_hz:.4g} Hz passes, then {band.limited_by})"
     return f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (ends: {band.limited_by})"
 
 
@@ -278,16 +281,18 @@ def _design_band(highest_hz: float, given_hz: float | None) -> float:
     return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
 
 
-def _compensated_ratio(fits: Sequence[DwellFit], frfs: ShakerFrfs, comp: ModelCompensator) -> Frf:
-    """(G_F F_wfs + G_A a_hub) / F_contact per dwell, all over Z, with propagated uncertainty."""
-    accel = dwell_frf(fits, HUB_ACCELERATION, DISPLACEMENT)
-    g_f, g_a = comp.response(accel.freq_hz)
-    num = g_f * frfs.wfs_per_z.value + g_a * accel.value
-    num_sigma = np.hypot(np.abs(g_f) * frfs.wfs_per_z.sigma, np.abs(g_a) * accel.sigma)
-    contact = frfs.contact_per_z
-    ratio, sigma = phasor_ratio(num, num_sigma, contact.value, contact.sigma)
-    reliable = frfs.wfs_per_z.reliable & accel.reliable & contact.reliable
-    return Frf(accel.freq_hz, ratio, sigma, reliable, "f_compensated", "f_contact")
+def _compensated_ratio(fits: Sequence[DwellFit], plate: PlateMass, comp: ModelCompensator) -> Frf:
+    """(G_F F_wfs + G_A a_hub) / F_contact per dwell from the phasors themselves (as the raw ratio
+    of :func:`shaker_frfs`: no division by the displacement, whose error would enter numerator and
+    denominator alike), with propagated uncertainty."""
+    f = np.sort([d.freq_hz for d in fits])
+    g_f, g_a = comp.response(f)
+    (wfs, s_w), (acc, s_a) = dwell_phasors(fits, WFS_FORCE), dwell_phasors(fits, HUB_ACCELERATION)
+    contact, s_c = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    num_sigma = np.hypot(np.abs(g_f) * s_w, np.abs(g_a) * s_a)
+    ratio, sigma = phasor_ratio(g_f * wfs + g_a * acc, num_sigma, contact, s_c)
+    reliable = np.array([d.settled for d in sorted(fits, key=lambda d: d.freq_hz)])
+    return Frf(f, ratio, sigma, reliable, "f_compensated", "f_contact")
 
 
 def _analyse_amplitude(
@@ -319,7 +324,7 @@ def _analyse_amplitude(
             fs_hz=rates.pop(),
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
-        compensated = _compensated_ratio(fits, frfs, comp)
+        compensated = _compensated_ratio(fits, plate, comp)
         raw = frfs.wfs_per_contact
         band_raw = valid_band(raw.freq_hz, raw.value, raw.reliable, sigma=raw.sigma)
         band_comp = valid_band(
@@ -517,6 +522,13 @@ def analyse_four_post(
         if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
             raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
         _positive("amplitude", sweep.amplitude_m)
+        _positive("sweep duration", sweep.sweep_s)
+        if sweep.duration_s < sweep.sweep_s - 1 / fs:
+            raise AnalysisInputError(
+                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
+                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
+                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
+            )
     post = analyse_free_run(free_run, settle_s=settle_s)
     with _named(label):
         if shaker_comp is not None and shaker_comp.fs_hz == fs:
@@ -544,7 +556,7 @@ def analyse_four_post(
             "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
             "model_compensated": comp.apply(rec[WFS_FORCE], accel),
         }
-        # the differentiator's edges and the compensator's latency leave NaN at the ends: cut them
+        # the differentiator and the compensator leave NaN where their windows leave the record: cut
         idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
         keep = slice(int(idx[0]), int(idx[-1]) + 1)
         frfs = four_post_frfs(

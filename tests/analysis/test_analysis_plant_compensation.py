@@ -61,11 +61,19 @@ def test_streaming_equals_offline_and_matches_dwell():
     streamed = np.concatenate(
         [stream.process(rec["fz_wfs_n"][a:b], rec["a_hub_m_s2"][a:b]) for a, b in itertools.pairwise(cuts)]
     )
-    lat = comp.latency_samples
-    np.testing.assert_allclose(streamed[lat:], offline[:-lat], rtol=1e-10, atol=1e-9)
-    assert np.all(np.isnan(offline[-lat:]))
+    lat, n_taps = comp.latency_samples, comp.taps_wfs.size
+    head = n_taps - 1 - lat  # offline outputs without a full input history are NaN
+    assert np.all(np.isnan(offline[:head])) and np.all(np.isnan(offline[-lat:]))
+    assert np.all(np.isfinite(offline[head:-lat]))
+    # past the stream's start-up transient (its first n_taps - 1 outputs) both agree
+    np.testing.assert_allclose(streamed[n_taps - 1 :], offline[head:-lat], rtol=1e-10, atol=1e-9)
+    inner = slice(head, -lat)  # the same 0.5-1.3 s window of the record, in the finite part
     fit = fit_dwell(
-        {"comp": offline[:-lat], "true": rec["f_contact_n"][:-lat]}, FS, 30.0, start_s=0.5, stop_s=1.3
+        {"comp": offline[inner], "true": rec["f_contact_n"][inner]},
+        FS,
+        30.0,
+        start_s=0.5 - head / FS,
+        stop_s=1.3 - head / FS,
     )
     h, _ = fit.ratio("comp", "true")
     assert abs(h - 1) < 0.01

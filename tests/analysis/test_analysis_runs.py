@@ -1,6 +1,7 @@
 """The top-level API on whole simulated runs: results against the simulator's truth, what the summaries
 state, and garbage records named in clear errors or flagged."""
 
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -14,9 +15,11 @@ from bench.analysis import (
     analyse_hammer,
     analyse_shaker_campaign,
 )
+from bench.analysis.frf import valid_band
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
+from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from tests.analysis.conftest import same_tyre_campaign
 
@@ -216,8 +219,63 @@ def test_garbage_sweep_names_the_record(four_post, four_post_free_run, shaker_no
         analyse_four_post(
             replace(sweep, channels={**sweep.channels, "f_plate_n": nan}), four_post_free_run.records, **kw
         )
-    short = replace(sweep, channels={k: v[:2000] for k, v in sweep.channels.items()})
-    with pytest.raises(AnalysisInputError, match=r"sweep 0\.1-30 Hz at 2 mm: "):
+    # a truncated record (20 s of the 60 s sweep reach only ~10 Hz; 2 s barely start it) is refused
+    for seconds in (20, 2):
+        short = replace(sweep, channels={k: v[: seconds * 1000] for k, v in sweep.channels.items()})
+        with pytest.raises(
+            AnalysisInputError,
+            match=rf"sweep 0\.1-30 Hz at 2 mm: the record is {seconds} s long but the sweep takes 60 s",
+        ):
+            analyse_four_post(short, four_post_free_run.records, **kw)
+    # a whole sweep too short for the wheel mass band: the error names the record, no internal channel
+    short = replace(sweep, sweep_s=2.0, channels={k: v[:2000] for k, v in sweep.channels.items()})
+    with pytest.raises(AnalysisInputError, match=r"sweep 0\.1-30 Hz at 2 mm: ") as err:
         analyse_four_post(short, four_post_free_run.records, **kw)
+    assert "too short for the wheel mass band from 1 Hz" in str(err.value)
+    assert "f_contact" not in str(err.value)
     with pytest.raises(AnalysisInputError, match="sweep band must satisfy"):
         analyse_four_post(replace(sweep, end_hz=600.0), four_post_free_run.records, **kw)
+
+
+def test_one_point_band_is_reported_not_determined(shaker_other_tyre, free_run):
+    """A band in which a single point passes (here the lowest dwell, the next one unreliable) has no
+    width: the summary must not print it as a band 'f-f Hz'."""
+    setup = shaker_other_tyre.plant.setup
+    amp = _campaign(shaker_other_tyre.records, free_run, setup).nearest(2e-3)
+    raw = amp.frfs.wfs_per_contact
+    reliable = raw.reliable.copy()
+    reliable[1] = False
+    band = valid_band(raw.freq_hz, raw.value, reliable, sigma=raw.sigma)
+    assert band.n_points == 1 and not band.determined and band.upper_hz == 0.0
+    text = "\n".join(replace(amp, valid_band_raw=band).summary_lines())
+    f0 = f"{raw.freq_hz[0]:.4g}"
+    assert f"raw not determined (only {f0} Hz passes, then unreliable point)" in text
+    assert f"raw {f0}-{f0} Hz" not in text
+
+
+def test_compensated_ratio_sigma_matches_scatter_between_runs(free_run):
+    """The compensated / contact ratio of four runs (different noise seeds; 1 mm rms noise added on
+    the displacement so that its error matters): the differences between runs over their combined
+    sigma must have an rms of 1 within -15 / +20 % (66 independent complex points: the rms scatters
+    by about 6 %). Dividing both forces by the noisy displacement and propagating the two ratios as
+    independent gave 0.77 here: Z's error, common to both, was counted twice."""
+    setup = BenchSetup.paper_shaker(2.5, nonlinear=False)
+    ratios = []
+    for seed in (12, 50, 51, 52):
+        rng = np.random.default_rng(seed)
+        records = [
+            replace(
+                r,
+                channels={
+                    **r.channels,
+                    "z_base_m": r.channels["z_base_m"]
+                    + 1e-3 * rng.standard_normal(r.channels["z_base_m"].size),
+                },
+            )
+            for r in simulate_dwells(setup, SHAKER_GRID_HZ, 2e-3, seed=seed)
+        ]
+        ratios.append(_campaign(records, free_run, setup).nearest(2e-3).compensated_per_contact)
+    z = np.concatenate(
+        [np.abs(a.value - b.value) / np.hypot(a.sigma, b.sigma) for a, b in itertools.combinations(ratios, 2)]
+    )
+    assert 0.85 < np.sqrt(np.mean(z**2)) < 1.2

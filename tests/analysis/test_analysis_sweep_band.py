@@ -64,8 +64,12 @@ def test_valid_band_limits():
     reliable = np.ones(10, bool)
     reliable[:2] = False
     reliable[3] = False
+    band = valid_band(f, h, reliable)  # one point passes before the next unreliable one: no band
+    assert band.lowest_hz == 3.0 and band.limited_by == "unreliable point"
+    assert band.n_points == 1 and not band.determined and band.upper_hz == 0.0
+    reliable[3] = True
     band = valid_band(f, h, reliable)
-    assert band.lowest_hz == 3.0 and band.upper_hz == 3.0 and band.limited_by == "unreliable point"
+    assert band.upper_hz == 4.0 and band.n_points == 2 and band.determined
     assert valid_band(f, h, phase_tolerance_deg=11.0, amplitude_tolerance=0.2).upper_hz == 10.0
 
 
