@@ -6,7 +6,8 @@ so a device that is paced by its consumer slows down instead of losing data; a d
 not paced overflows its own buffers and the sequence counter reports the loss). Replies to text
 commands are routed to :meth:`WfsReader.command`. A port error closes the port and the thread
 reopens it until stopped: a disconnect and reconnect resume the stream, the frames lost in between
-show up as a gap.
+show up as a gap; a device that restarted meanwhile (its sequence counter went back) shows up as a
+:class:`~drivers.wfs_stream.Resync`.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import serial
 
 from drivers.errors import CommandRejectedError, ConnectionLostError, LinkTimeoutError
 from drivers.wfs_commands import Reply, format_command
-from drivers.wfs_stream import Gap, LinkCounters, StreamParser
+from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
 
@@ -42,10 +43,12 @@ class SerialLike(Protocol):
 
 @dataclass(frozen=True)
 class SampleBlock:
-    """Consecutive frames as delivered (FRAME_DTYPE array) and the gaps before some of them."""
+    """Consecutive frames as delivered (FRAME_DTYPE array), the gaps and the resynchronisations
+    (device restarts: the sample clock starts over) before some of them."""
 
     frames: np.ndarray
     gaps: tuple[Gap, ...] = ()
+    resyncs: tuple[Resync, ...] = ()
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -131,19 +134,21 @@ class WfsReader:
             return None
 
     def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
-        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps re-indexed."""
+        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed."""
         deadline = time.monotonic() + timeout_s
         parts: list[np.ndarray] = []
         gaps: list[Gap] = []
+        resyncs: list[Resync] = []
         have = 0
         while have < n:
             block = self.get_block(max(deadline - time.monotonic(), 0.0))
             if block is None:
                 raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
             gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
+            resyncs.extend(replace(r, index=r.index + have) for r in block.resyncs)
             parts.append(block.frames)
             have += len(block)
-        return SampleBlock(np.concatenate(parts), tuple(gaps))
+        return SampleBlock(np.concatenate(parts), tuple(gaps), tuple(resyncs))
 
     # -- commands -----------------------------------------------------------------------------
 
@@ -236,6 +241,7 @@ class WfsReader:
         if reopening:
             with self._lock:
                 self._parser.counters.reconnects += 1
+                self._parser.reopened()
         self._connected.set()
         return True
 
@@ -251,9 +257,9 @@ class WfsReader:
             result = self._parser.feed(data)
         for reply in result.replies:
             self._replies.put(reply)
-        if len(result.frames) == 0 and not result.gaps:
+        if len(result.frames) == 0 and not result.gaps and not result.resyncs:
             return
-        block = SampleBlock(result.frames, tuple(result.gaps))
+        block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
         while not self._stop.is_set():
             try:
                 self._blocks.put(block, timeout=0.1)
