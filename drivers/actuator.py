@@ -40,6 +40,14 @@ from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
 log = logging.getLogger(__name__)
 
 ALL_POSTS = 0x000F
+#: reply timeout of one request (s): a 30-register reply takes a few ms even on RTU at 115200 baud
+DEFAULT_TIMEOUT_S = 0.3
+#: read attempts before a read timeout is raised
+DEFAULT_READ_ATTEMPTS = 3
+#: heartbeat write period (s) and controller watchdog (ms); the watchdog exceeds the longest a
+#: request can hold the link (timeout x attempts) plus the period: 0.3 x 3 + 0.1 = 1.0 s < 1.5 s
+DEFAULT_HEARTBEAT_PERIOD_S = 0.1
+DEFAULT_WATCHDOG_MS = 1500
 
 
 @dataclass(frozen=True)
@@ -74,12 +82,15 @@ class ActuatorClient:
         modbus: ModbusBaseClient,
         register_map: RegisterMap,
         limits: SoftLimits,
-        read_attempts: int = 3,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
     ) -> None:
+        """``timeout_s`` is the reply timeout ``modbus`` was created with (s): the heartbeat needs it."""
         self._modbus = modbus
         self.map = register_map
         self.limits = limits
         self.read_attempts = read_attempts
+        self.timeout_s = timeout_s
         self._heartbeat_task: asyncio.Task | None = None
         self.heartbeat_failures = 0
 
@@ -91,11 +102,13 @@ class ActuatorClient:
         *,
         register_map: RegisterMap | None = None,
         limits: SoftLimits | None = None,
-        timeout_s: float = 1.0,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
     ) -> ActuatorClient:
         """A client over Modbus TCP (pymodbus' own retries are off: this class decides)."""
         modbus = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1)
-        return cls(modbus, register_map or load_register_map(), limits or SoftLimits())
+        limits = limits or SoftLimits()
+        return cls(modbus, register_map or load_register_map(), limits, read_attempts, timeout_s)
 
     @classmethod
     def rtu(
@@ -105,13 +118,15 @@ class ActuatorClient:
         baudrate: int = 115200,
         register_map: RegisterMap | None = None,
         limits: SoftLimits | None = None,
-        timeout_s: float = 1.0,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
     ) -> ActuatorClient:
         """A client over Modbus RTU on a serial port (8N1)."""
         modbus = AsyncModbusSerialClient(
             port, baudrate=baudrate, timeout=timeout_s, retries=0, reconnect_delay=0.1
         )
-        return cls(modbus, register_map or load_register_map(), limits or SoftLimits())
+        limits = limits or SoftLimits()
+        return cls(modbus, register_map or load_register_map(), limits, read_attempts, timeout_s)
 
     # -- connection ---------------------------------------------------------------------------
 
@@ -248,10 +263,26 @@ class ActuatorClient:
 
     # -- heartbeat ----------------------------------------------------------------------------
 
-    async def start_heartbeat(self, period_s: float = 0.1, watchdog_ms: int = 500) -> None:
-        """Arm the controller's watchdog and keep writing a changing heartbeat every ``period_s``."""
-        if period_s * 1000 >= watchdog_ms:
-            raise ValueError(f"heartbeat period {period_s} s not below the {watchdog_ms} ms watchdog")
+    def longest_block_s(self, period_s: float) -> float:
+        """The longest a heartbeat can be held back (s): requests are serialised on the link, so a
+        heartbeat may wait for a read that times out on every attempt, plus one heartbeat period."""
+        return self.timeout_s * self.read_attempts + period_s
+
+    async def start_heartbeat(
+        self, period_s: float = DEFAULT_HEARTBEAT_PERIOD_S, watchdog_ms: int = DEFAULT_WATCHDOG_MS
+    ) -> None:
+        """Arm the controller's watchdog and keep writing a changing heartbeat every ``period_s``.
+
+        Raises ValueError (nothing written) when ``watchdog_ms`` is not longer than
+        :meth:`longest_block_s`: one slow reply would then starve the heartbeat and trip the bench.
+        """
+        longest_ms = self.longest_block_s(period_s) * 1000
+        if watchdog_ms <= longest_ms:
+            raise ValueError(
+                f"a {watchdog_ms} ms watchdog would trip on one slow reply: a request can hold the link "
+                f"for {self.timeout_s} s x {self.read_attempts} attempts + the {period_s} s heartbeat "
+                f"period = {longest_ms:.0f} ms; lengthen the watchdog or shorten the timeout/attempts"
+            )
         await self.write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
         await self.stop_heartbeat()
         self._heartbeat_task = asyncio.create_task(self._beat(period_s), name="actuator-heartbeat")
