@@ -106,7 +106,10 @@ class ControllerModel:
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
             if name == "waveform" and value not in tuple(WaveformCode):
                 return self._refuse(ErrorCode.INVALID_SETPOINT)
-        if "heartbeat" in values or "watchdog_ms" in values:
+        # only a changed heartbeat proves the host alive (a frozen counter does not); arming the
+        # watchdog starts its time afresh
+        beat = "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]
+        if beat or "watchdog_ms" in values:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
         return None
@@ -197,7 +200,8 @@ class ControllerModel:
     # -- bench side -----------------------------------------------------------------------------
 
     def check_watchdog(self) -> None:
-        """Taper to a stop when the host's heartbeat has not changed within the watchdog time.
+        """Taper to a stop when the host's heartbeat value has not changed within the watchdog time
+        (writing the same value again does not count).
 
         Watched while RUNNING only: a taper under way reaches rest by itself whatever the host does.
         """

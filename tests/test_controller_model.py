@@ -250,6 +250,18 @@ def test_watchdog_tapers_to_rest_within_watchdog_plus_taper_time():
     assert model.generator.last_m == 0.0
 
 
+def test_a_frozen_heartbeat_counter_does_not_hold_off_the_watchdog():
+    watchdog_s = 0.1
+    model = armed({**DWELL, "watchdog_ms": watchdog_s * 1000, "heartbeat": 7})
+    act(model, C.START)
+    started_at = model.generator.n
+    while model.state == S.RUNNING and model.generator.n - started_at < RATE:
+        run(model, 0.02)
+        assert model.write_setpoints({"heartbeat": 7}) is None  # written, but never changing
+    assert model.flags == InterlockFlag.WATCHDOG
+    assert (model.generator.n - started_at) / RATE <= watchdog_s + 2 * BLOCK / RATE
+
+
 def test_watchdog_disabled_by_zero_and_idle_when_not_running():
     model = armed({**DWELL, "watchdog_ms": 0})
     act(model, C.START)
