@@ -3,6 +3,9 @@
 Typed operations on top of the register map. Safety rules kept here:
 
 - every setpoint is checked against the bench's soft limits before anything is written;
+- START is sent only after a configure that completed (a failed configure may leave the controller
+  with a half-written setpoint);
+- raw register writes are private: every setpoint goes through the checked operations;
 - reads are retried on timeout; writes are never re-sent (a write that timed out raises
   :class:`CommandOutcomeUnknownError`: read the status to learn what happened);
 - timeouts, exception replies and lost connections become the typed errors of ``drivers.errors``.
@@ -25,6 +28,7 @@ from drivers.errors import (
     ConnectionLostError,
     DeviceExceptionError,
     LinkTimeoutError,
+    NotConfiguredError,
     ProtocolMismatchError,
 )
 from drivers.register_map import (
@@ -93,6 +97,7 @@ class ActuatorClient:
         self.timeout_s = timeout_s
         self._heartbeat_task: asyncio.Task | None = None
         self.heartbeat_failures = 0
+        self._configured = False  # the last configure wrote every register of its setpoint
 
     @classmethod
     def tcp(
@@ -189,8 +194,8 @@ class ActuatorClient:
             raise DeviceExceptionError(f"read {table} registers: got {len(response.registers)} of {count}", 0)
         return self.map.decode_span(table, first, list(response.registers))
 
-    async def write(self, values: dict[str, float]) -> None:
-        """Write named holding registers, never re-sending on timeout."""
+    async def _write(self, values: dict[str, float]) -> None:
+        """Write named holding registers, never re-sending on timeout (unchecked: callers check)."""
         for address, words in self.map.encode_many("holding", values):
             operation = f"write registers {address}..{address + len(words) - 1}"
             try:
@@ -202,9 +207,14 @@ class ActuatorClient:
                 raise CommandOutcomeUnknownError(f"{operation}: {exc}; not re-sent, read the status") from exc
 
     async def command(self, command: Command) -> None:
-        """Write a command code; a refusal raises :class:`CommandRejectedError` naming the reason."""
+        """Write a command code; a refusal raises :class:`CommandRejectedError` naming the reason.
+
+        ``Command.START`` goes through :meth:`start`, which checks the last configure completed.
+        """
+        if command is Command.START and not self._configured:
+            raise NotConfiguredError("START not sent: no setpoint was configured completely; configure again")
         try:
-            await self.write({"command": int(command)})
+            await self._write({"command": int(command)})
         except DeviceExceptionError as exc:
             reason = ErrorCode((await self.read_table("input"))["error_code"])
             raise CommandRejectedError(f"controller refused {command.name}: {reason.name}") from exc
@@ -242,13 +252,22 @@ class ActuatorClient:
         values["channel_mask"] = channel_mask
         values["displacement_limit_mm"] = self.limits.displacement_limit_mm
         values["force_limit_n"] = self.limits.force_limit_n
+        self._configured = False
         try:
-            await self.write(values)
+            await self._write(values)
         except DeviceExceptionError as exc:
             reason = ErrorCode((await self.read_table("input"))["error_code"])
             raise CommandRejectedError(f"controller refused the setpoint: {reason.name}") from exc
+        self._configured = True
+
+    @property
+    def configured(self) -> bool:
+        """Whether the last :meth:`configure` completed (START is refused otherwise)."""
+        return self._configured
 
     async def start(self) -> None:
+        """Start the configured excitation; NotConfiguredError (nothing sent) unless the last
+        :meth:`configure` completed."""
         await self.command(Command.START)
 
     async def stop(self) -> None:
@@ -283,7 +302,7 @@ class ActuatorClient:
                 f"for {self.timeout_s} s x {self.read_attempts} attempts + the {period_s} s heartbeat "
                 f"period = {longest_ms:.0f} ms; lengthen the watchdog or shorten the timeout/attempts"
             )
-        await self.write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
+        await self._write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
         await self.stop_heartbeat()
         self._heartbeat_task = asyncio.create_task(self._beat(period_s), name="actuator-heartbeat")
 
@@ -301,7 +320,7 @@ class ActuatorClient:
             await asyncio.sleep(period_s)
             counter = counter % 0xFFFF + 1
             try:
-                await self.write({"heartbeat": counter})
+                await self._write({"heartbeat": counter})
             except (LinkTimeoutError, ConnectionLostError, DeviceExceptionError) as exc:
                 self.heartbeat_failures += 1
                 log.warning("heartbeat write failed (%d so far): %s", self.heartbeat_failures, exc)

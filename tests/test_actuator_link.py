@@ -21,6 +21,7 @@ from drivers.errors import (
     DeviceExceptionError,
     LimitError,
     LinkTimeoutError,
+    NotConfiguredError,
     ProtocolMismatchError,
 )
 from drivers.register_map import (
@@ -99,25 +100,64 @@ async def test_out_of_limit_setpoints_refused_before_anything_is_written(client,
 
 
 async def test_command_not_allowed_in_state_is_a_typed_refusal(client):
+    await client.configure(DWELL)
     with pytest.raises(CommandRejectedError, match="NOT_ALLOWED_IN_STATE"):
         await client.start()  # hydraulics are off
     assert (await client.read_status()).error == ErrorCode.NOT_ALLOWED_IN_STATE
 
 
-async def test_garbage_writes_are_refused_by_the_controller(client, controller):
-    with pytest.raises(DeviceExceptionError):
-        await client.write({"command": 999})
-    with pytest.raises(DeviceExceptionError):
-        await client.write({"taper_out_s": float("nan")})
-    before = await client.read_table("holding")
-    # half of a float32, from an independent raw Modbus client: refused, nothing applied
+async def _raw_write(controller, address: int, words: list[int]):
+    """One write request from an independent raw Modbus client (no soft limits, no client logic)."""
     host, port = controller.address
     raw = AsyncModbusTcpClient(host, port=port, timeout=1, retries=0)
     assert await raw.connect()
     try:
-        response = await raw.write_register(11, 0x4000, device_id=1)
+        return await raw.write_registers(address, words, device_id=1)
     finally:
         raw.close()
+
+
+async def _raw_write_named(controller, values: dict[str, float]) -> None:
+    """Write named holding registers raw; fail the test on a refusal."""
+    for address, words in controller.map.encode_many("holding", values):
+        response = await _raw_write(controller, address, words)
+        assert not response.isError(), response
+
+
+async def test_start_is_refused_unless_the_last_configure_completed(client, controller):
+    await _arm(client)
+    before = controller.writes_received
+    with pytest.raises(NotConfiguredError):
+        await client.start()  # nothing configured yet
+    await client.configure(DWELL)
+    # a second configure fails on the controller's side: it may hold a half-written setpoint
+    controller.faults.exception_next = 1
+    with pytest.raises(CommandRejectedError):
+        await client.configure(DwellSetpoint(freq_hz=5.0, amplitude_mm=1.0))
+    sent = controller.writes_received
+    with pytest.raises(NotConfiguredError):
+        await client.start()
+    assert controller.writes_received == sent > before  # START never went out
+    assert (await client.read_status()).state == ControllerState.HYDRAULICS_HIGH
+    await client.configure(DWELL)
+    await client.start()
+    assert (await client.read_status()).state == ControllerState.RUNNING
+    await client.stop()
+
+
+def test_raw_register_writes_are_not_public():
+    """Every setpoint goes through the checked operations; a raw write would bypass the soft limits."""
+    assert not hasattr(ActuatorClient, "write")
+
+
+async def test_garbage_writes_are_refused_by_the_controller(client, controller):
+    [(address, words)] = controller.map.encode_many("holding", {"command": 999})
+    assert (await _raw_write(controller, address, words)).exception_code == ExcCodes.ILLEGAL_VALUE
+    [(address, words)] = controller.map.encode_many("holding", {"taper_out_s": float("nan")})
+    assert (await _raw_write(controller, address, words)).exception_code == ExcCodes.ILLEGAL_VALUE
+    before = await client.read_table("holding")
+    # half of a float32: refused, nothing applied
+    response = await _raw_write(controller, 11, [0x4000])
     assert response.isError()
     assert response.exception_code == ExcCodes.ILLEGAL_ADDRESS
     after = await client.read_table("holding")
@@ -206,12 +246,12 @@ async def test_estop_freezes_and_needs_a_reset(client):
     assert abs(status.displacement_mm) < 0.05
 
 
-async def test_displacement_limit_trips_the_interlock(client):
+async def test_displacement_limit_trips_the_interlock(client, controller):
     client.limits = SoftLimits(displacement_limit_mm=15.0)
     await _arm(client)
     await client.configure(DWELL)
     # a lab limit set directly on the controller, below the running amplitude
-    await client.write({"displacement_limit_mm": 1.0})
+    await _raw_write_named(controller, {"displacement_limit_mm": 1.0})
     await client.start()
     status = await async_wait_until(lambda: _state_is(client, ControllerState.INTERLOCK), 3.0, "interlock")
     assert InterlockFlag.DISPLACEMENT in status.interlock
