@@ -2,8 +2,8 @@
 
 The thread reads whatever the port delivers, feeds the stream parser, and hands out
 :class:`SampleBlock` s through a bounded queue (when the consumer falls behind the reader waits,
-so a device that is paced by its consumer slows down instead of losing data; a device that is
-not paced overflows its own buffers and the sequence counter reports the loss). Replies to text
+so a device that is paced by its consumer slows down; a device whose buffers overflow meanwhile
+drops frames and the sequence counter reports the loss). Replies to text
 commands are routed to :meth:`WfsReader.command`. A port error closes the port and the thread
 reopens it until stopped: a disconnect and reconnect resume the stream, the frames lost in between
 show up as a gap; a device that restarted meanwhile (its sequence counter went back) shows up as a

@@ -9,14 +9,21 @@ import pytest
 import serial
 
 from drivers.errors import CommandRejectedError, LinkTimeoutError
+from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
 from drivers.wfs_commands import Reply, parse_reply
 from drivers.wfs_reader import WfsReader
+from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.faults import ByteFaults
 from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
 from tests.waiting import wait_until
+
+_DWELL_REGISTERS = {
+    "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 1.0, "frequency_hz": 10.0,
+    "taper_in_s": 0.2, "taper_out_s": 0.2,
+}  # fmt: skip
 
 
 def _rig(link, *, faults=None, speed_rad_s=0.0):
@@ -163,6 +170,40 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     assert counters.crc_rejects > 0
     assert counters.reconnects == 1
     assert device.frames_unsent > 0  # the stall and the disconnect really lost frames
+
+
+def test_a_host_that_stops_reading_never_freezes_the_bench_and_the_watchdog_stops_it():
+    link = MemoryLink()
+    bench, device, runner = _rig(link)
+    host = link.open_host()
+    ctrl = bench.controller
+    parser = StreamParser()
+    try:
+        with bench.lock:
+            assert ctrl.write_setpoints({**_DWELL_REGISTERS, "watchdog_ms": 300, "heartbeat": 1}) is None
+            for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
+                assert ctrl.command(command) is None
+        device.execute("START", [])
+        # the host reads and beats until it has seen 2000 frames, then dies: no reads, no beats
+        beat = 1
+        while parser.counters.frames_ok < 2000:
+            parser.feed(host.read(4096))
+            beat += 1
+            with bench.lock:
+                ctrl.write_setpoints({"heartbeat": beat})
+        assert ctrl.state == ControllerState.RUNNING
+        # the device cannot write: it drops frames instead of blocking the bench, which keeps
+        # advancing in real time, so the watchdog fires and the taper completes
+        wait_until(lambda: ctrl.state == ControllerState.INTERLOCK, 5.0, "the watchdog stop")
+        assert ctrl.flags == InterlockFlag.WATCHDOG
+        assert device.frames_dropped > 0
+        # the host comes back: the stream resumes and the sequence counter shows the loss
+        wait_until(lambda: parser.feed(host.read(4096)).gaps or parser.counters.gaps, 5.0, "a gap")
+        assert parser.counters.frames_missing > 0
+    finally:
+        runner.stop()
+        device.stop()
+    assert runner.error is None
 
 
 def test_stream_over_a_real_pseudo_terminal_with_rotation():
