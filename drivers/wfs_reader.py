@@ -24,11 +24,19 @@ from typing import Protocol
 import numpy as np
 import serial
 
-from drivers.errors import CommandRejectedError, ConnectionLostError, LinkTimeoutError
+from drivers.errors import (
+    CommandOutcomeUnknownError,
+    CommandRejectedError,
+    ConnectionLostError,
+    LinkTimeoutError,
+)
 from drivers.wfs_commands import Reply, format_command
 from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
+
+#: commands never re-sent on timeout: START restarts the sample clock, TARE re-zeroes the loads
+NOT_RESENT = frozenset({"START", "TARE"})
 
 
 class SerialLike(Protocol):
@@ -155,13 +163,17 @@ class WfsReader:
     def command(
         self, name: str, argument: str | float | None = None, *, timeout_s: float = 1.0, attempts: int = 3
     ) -> Reply:
-        """Send a text command and wait for its reply; re-sent on timeout (WFS commands move nothing).
+        """Send a text command and wait up to ``timeout_s`` (s) for its reply, sending it up to
+        ``attempts`` times; a command of :data:`NOT_RESENT` is sent once.
 
-        Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives.
+        Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives,
+        CommandOutcomeUnknownError when a command of :data:`NOT_RESENT` got no reply (it may have
+        been carried out: check the frames' ``sample`` clock or status bits).
         """
         line = format_command(name, argument)
         answered = name.rstrip("?").upper()
-        for _ in range(attempts):
+        once = answered in NOT_RESENT
+        for _ in range(1 if once else attempts):
             self._drain_replies()
             self._write(line, timeout_s)
             deadline = time.monotonic() + timeout_s
@@ -177,6 +189,10 @@ class WfsReader:
                     raise CommandRejectedError(f"WFS refused {line.decode().strip()}: {reason}")
                 return reply
             log.warning("no reply to %r within %s s", line, timeout_s)
+        if once:
+            raise CommandOutcomeUnknownError(
+                f"no reply to {line.decode().strip()!r} within {timeout_s} s; not re-sent, it may have run"
+            )
         raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
 
     def identify(self) -> tuple[str, ...]:

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import serial
 
-from drivers.errors import CommandRejectedError, LinkTimeoutError
+from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LinkTimeoutError
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
-from drivers.wfs_commands import Reply, parse_reply
+from drivers.wfs_commands import Reply, format_command, parse_reply
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
@@ -132,6 +132,25 @@ def test_no_reply_is_a_timeout(memory_rig):
     device.stop()  # the command thread no longer answers
     with pytest.raises(LinkTimeoutError):
         reader.command("IDENT", timeout_s=0.1, attempts=2)
+
+
+@pytest.mark.parametrize("name", ["START", "TARE"])
+def test_start_and_tare_are_never_resent(memory_rig, name):
+    link, device, reader = memory_rig
+    device.stop()  # the command thread no longer answers; what the host sends stays on the link
+    with pytest.raises(CommandOutcomeUnknownError):
+        reader.command(name, timeout_s=0.1, attempts=3)
+    sent = link.device_read(4096, 0.5)
+    assert sent == format_command(name)
+
+
+def test_idempotent_commands_are_resent_on_timeout(memory_rig):
+    link, device, reader = memory_rig
+    device.stop()
+    with pytest.raises(LinkTimeoutError) as err:
+        reader.command("IDENT", timeout_s=0.1, attempts=2)
+    assert not isinstance(err.value, CommandOutcomeUnknownError)
+    assert link.device_read(4096, 0.5) == 2 * format_command("IDENT")
 
 
 def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
