@@ -2,23 +2,29 @@
 
 from __future__ import annotations
 
+import asyncio
 import threading
 
 import numpy as np
 import pytest
 import serial
 
+from bench.models.setup import BenchSetup
+from drivers.actuator import ActuatorClient
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LinkTimeoutError
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
+from drivers.setpoints import DwellSetpoint, SoftLimits
 from drivers.wfs_commands import Reply, format_command, parse_reply
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
 from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
+from simulators.plant import PlantSimulator, SensorRealism
 from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
-from tests.waiting import wait_until
+from tests.waiting import async_wait_until, wait_until
 
 _DWELL_REGISTERS = {
     "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 1.0, "frequency_hz": 10.0,
@@ -117,14 +123,89 @@ def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
     assert np.all(np.diff(frames["sample"].astype(np.int64)) == 1)
 
 
-def test_frames_carry_the_bench_channels(memory_rig):
-    _, _, reader = memory_rig
-    reader.start_stream()
-    frames = reader.read_frames(2000, timeout_s=10).frames
-    # at rest the WFS reads the static wheel load on the tyre contact: tens of newtons of noise at most
-    assert np.all(np.isfinite(frames["fz"]))
-    assert np.abs(frames["fx"]).max() < 0.005 * np.abs(frames["fz"]).max() + 10
-    assert np.all(frames["angle_rad"] == 0)
+def _fundamental(signal: np.ndarray, freq_hz: float, rate_hz: float) -> complex:
+    """Complex amplitude at ``freq_hz`` of a record of whole cycles (exact for a sine)."""
+    t = np.arange(signal.size) / rate_hz
+    return 2 * np.mean(signal * np.exp(-2j * np.pi * freq_hz * t))
+
+
+@pytest.mark.parametrize(
+    ("setup", "settle_s"),
+    [(BenchSetup.paper_shaker, 3.0), (BenchSetup.paper_quarter_car, 12.0)],
+    ids=["shaker", "quarter_car"],
+)
+async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setup, settle_s):
+    """A 10 Hz dwell run through the Modbus controller: the WFS frames carry Fz and the bench's
+    displacement, plate force and hub acceleration with the plant's exact amplitudes and phases.
+
+    The bench runs as fast as the reader drains the WFS link, so the specimen's transient (decayed
+    within ``settle_s`` of bench time) costs little wall time; the last 20 cycles are analysed.
+    """
+    freq_hz, amplitude_mm, cycles = 10.0, 2.0, 20
+    bench = SimulatedBench(PlantSimulator(setup(), SensorRealism(seed=2)))
+    link = MemoryLink()
+    device = WfsDevice(link, bench, seed=3)
+    device.start()
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    runner.start()
+    server = ControllerServer(bench)
+    host, port = await server.serve_tcp("127.0.0.1", 0)
+    client = ActuatorClient.tcp(host, port, limits=SoftLimits())
+    reader = WfsReader(link.open_host)
+    reader.start()
+    rate_hz = bench.output_rate_hz
+    try:
+        await client.connect()
+        await client.hydraulics_low()
+        await client.hydraulics_high()
+        await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))
+        await client.start()
+        await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), 2.0, "the dwell")
+        await asyncio.to_thread(reader.start_stream)
+        n = round((settle_s + cycles / freq_hz) * rate_hz)
+        block = await asyncio.to_thread(reader.read_frames, n, 30.0)
+        await asyncio.to_thread(reader.stop_stream)
+        assert (await client.read_status()).state == ControllerState.RUNNING
+        await client.stop()
+    finally:
+        reader.close()
+        await client.close()
+        await server.close()
+        runner.stop()
+        device.stop()
+    assert runner.error is None
+    frames = block.frames[-round(cycles * rate_hz / freq_hz) :]  # whole cycles, consecutive
+    assert not block.gaps and not block.resyncs
+    assert np.all(np.diff(frames["seq"].astype(np.int64)) == 1)
+    measured = {
+        ch: _fundamental(frames[ch].astype(float), freq_hz, rate_hz) for ch in ("aux0", "aux1", "aux2", "fz")
+    }
+    plant = bench.plant
+    exact = plant.exact_response(freq_hz, amplitude_mm / 1000)
+    # the base moves as the servo actuator follows the commanded amplitude
+    assert abs(measured["aux0"]) == pytest.approx(
+        abs(plant.actuator.gain(freq_hz)) * amplitude_mm / 1000, rel=0.01
+    )
+    # the hub accelerometer is a 2nd-order Butterworth low-pass at its bandwidth
+    r = freq_hz / plant.realism.accelerometer_bandwidth_hz
+    accelerometer = 1 / complex(1 - r**2, np.sqrt(2) * r)
+    for channel, output, sensor in (
+        ("aux1", "f_plate", 1),
+        ("aux2", "a_hub", accelerometer),
+        ("fz", "f_wfs", 1),
+    ):
+        expected = exact[output] / exact["z_base"] * sensor * measured["aux0"]
+        if expected == 0:  # the shaker holds the hub: its accelerometer reads noise only
+            assert abs(measured[channel]) < 0.01, channel
+            continue
+        ratio = measured[channel] / expected
+        assert abs(ratio) == pytest.approx(1, abs=0.01), channel
+        assert np.degrees(np.angle(ratio)) == pytest.approx(0, abs=0.5), channel
+
+
+async def _state_is(client: ActuatorClient, state: ControllerState) -> bool:
+    return (await client.read_status()).state == state
 
 
 def test_no_reply_is_a_timeout(memory_rig):
