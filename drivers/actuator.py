@@ -44,6 +44,8 @@ from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
 log = logging.getLogger(__name__)
 
 ALL_POSTS = 0x000F
+#: Modbus exception codes by which the controller refuses a write: ILLEGAL_VALUE, DEVICE_BUSY
+_REFUSAL_CODES = (3, 6)
 #: reply timeout of one request (s): a 30-register reply takes a few ms even on RTU at 115200 baud
 DEFAULT_TIMEOUT_S = 0.3
 #: read attempts before a read timeout is raised
@@ -206,8 +208,17 @@ class ActuatorClient:
             except LinkTimeoutError as exc:
                 raise CommandOutcomeUnknownError(f"{operation}: {exc}; not re-sent, read the status") from exc
 
+    async def _refusal(self, exc: DeviceExceptionError, what: str) -> CommandRejectedError:
+        """The typed refusal for an ILLEGAL_VALUE or DEVICE_BUSY reply, naming the controller's
+        reason; any other exception reply (a device failure, ...) is re-raised as it is."""
+        if exc.exception_code not in _REFUSAL_CODES:
+            raise exc
+        reason = ErrorCode((await self.read_table("input"))["error_code"])
+        return CommandRejectedError(f"controller refused {what}: {reason.name}")
+
     async def command(self, command: Command) -> None:
-        """Write a command code; a refusal raises :class:`CommandRejectedError` naming the reason.
+        """Write a command code; a refusal (ILLEGAL_VALUE, DEVICE_BUSY) raises
+        :class:`CommandRejectedError` naming the reason, other exception replies DeviceExceptionError.
 
         ``Command.START`` goes through :meth:`start`, which checks the last configure completed.
         """
@@ -216,8 +227,7 @@ class ActuatorClient:
         try:
             await self._write({"command": int(command)})
         except DeviceExceptionError as exc:
-            reason = ErrorCode((await self.read_table("input"))["error_code"])
-            raise CommandRejectedError(f"controller refused {command.name}: {reason.name}") from exc
+            raise await self._refusal(exc, command.name) from exc
 
     # -- typed operations ---------------------------------------------------------------------
 
@@ -256,8 +266,7 @@ class ActuatorClient:
         try:
             await self._write(values)
         except DeviceExceptionError as exc:
-            reason = ErrorCode((await self.read_table("input"))["error_code"])
-            raise CommandRejectedError(f"controller refused the setpoint: {reason.name}") from exc
+            raise await self._refusal(exc, "the setpoint") from exc
         self._configured = True
 
     @property

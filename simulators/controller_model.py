@@ -94,6 +94,7 @@ class ControllerModel:
 
     def write_setpoints(self, values: dict[str, float]) -> ErrorCode | None:
         """Apply written holding registers (other than ``command``); refuse invalid ones, all or none.
+        An accepted write clears ``error``.
 
         Setpoints take effect at the next start; a running excitation keeps its own.
         """
@@ -105,6 +106,7 @@ class ControllerModel:
         if beat or "watchdog_ms" in values:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
+        self.error = ErrorCode.NONE
         return None
 
     def _valid(self, name: str, value: float) -> bool:

@@ -39,7 +39,9 @@ from simulators.faults import ByteFaults
 log = logging.getLogger(__name__)
 
 IDENTITY = ("WFSBENCH", "SIM-WFS6", "0001", "1.0")
-LOAD_RANGE = np.array([24_000.0, 24_000.0, 24_000.0, 4_000.0, 4_000.0, 4_000.0])  # N, N m
+#: measuring range per channel, Fx Fy Fz (N) and Mx My Mz (N m), as the paper's Table 1; beyond it
+#: the channel's overload bit is set
+LOAD_RANGE = np.array([24_000.0, 15_000.0, 24_000.0, 4_500.0, 7_200.0, 4_500.0])
 CROSSTALK_SPEC = 0.005
 LEVER_M = 0.3
 _MAX_LINE = 64

@@ -131,8 +131,8 @@ async def test_start_is_refused_unless_the_last_configure_completed(client, cont
         await client.start()  # nothing configured yet
     await client.configure(DWELL)
     # a second configure fails on the controller's side: it may hold a half-written setpoint
-    controller.faults.exception_next = 1
-    with pytest.raises(CommandRejectedError):
+    controller.faults.exception_next = 1  # DEVICE_FAILURE
+    with pytest.raises(DeviceExceptionError):
         await client.configure(DwellSetpoint(freq_hz=5.0, amplitude_mm=1.0))
     sent = controller.writes_received
     with pytest.raises(NotConfiguredError):
@@ -282,6 +282,19 @@ async def test_exception_reply_is_typed(client, controller):
     with pytest.raises(DeviceExceptionError) as err:
         await client.read_status()
     assert err.value.exception_code == 4
+
+
+async def test_only_illegal_value_and_device_busy_are_refusals(client, controller):
+    controller.faults.exception_next = 1  # DEVICE_FAILURE: the controller failed, it did not refuse
+    with pytest.raises(DeviceExceptionError) as err:
+        await client.hydraulics_low()
+    assert not isinstance(err.value, CommandRejectedError)
+    assert err.value.exception_code == ExcCodes.DEVICE_FAILURE
+    with pytest.raises(CommandRejectedError, match="NOT_ALLOWED_IN_STATE"):  # DEVICE_BUSY
+        await client.hydraulics_high()
+    # an accepted write clears the reason of the last refusal
+    await client.configure(DWELL)
+    assert (await client.read_status()).error == ErrorCode.NONE
 
 
 async def test_dropped_connection_is_typed(client, controller):

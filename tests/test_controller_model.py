@@ -333,6 +333,13 @@ def test_invalid_setpoints_are_refused_and_nothing_is_applied(values):
     assert model.setpoints == before
 
 
+def test_an_accepted_write_clears_the_last_refusal():
+    model = armed()
+    assert model.write_setpoints({"frequency_hz": 0.0}) == ErrorCode.INVALID_SETPOINT
+    assert model.write_setpoints({"frequency_hz": 5.0}) is None
+    assert model.error == ErrorCode.NONE
+
+
 def test_start_refused_when_mean_plus_amplitude_leaves_the_stroke():
     model = armed({**DWELL, "mean_mm": 45.0, "amplitude_mm": 30.0})
     assert model.command(C.START) == ErrorCode.INVALID_SETPOINT

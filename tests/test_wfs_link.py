@@ -15,10 +15,11 @@ from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, Lin
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
 from drivers.setpoints import DwellSetpoint, SoftLimits
 from drivers.wfs_commands import Reply, format_command, parse_reply
+from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
-from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.bench_sim import BenchBlock, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
 from simulators.plant import PlantSimulator, SensorRealism
@@ -206,6 +207,24 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
 
 async def _state_is(client: ActuatorClient, state: ControllerState) -> bool:
     return (await client.read_status()).state == state
+
+
+def test_overload_bits_follow_each_channels_range():
+    """Ranges as the paper's Table 1: Fx, Fz 24 kN, Fy 15 kN, Mx, Mz 4.5 kN m, My 7.2 kN m."""
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(MemoryLink(), bench, noise_n=0.0)
+    device.crosstalk = np.array([0.0, 1.0, 0.3, 0.3, 0.0])  # Fy = Fz, Mx = My = 0.3 m x Fz
+    device.execute("START", [])
+    fz = np.array([16_000.0, -16_000.0, 14_000.0])  # Fy beyond 15 kN, then within
+    zeros = np.zeros(len(fz))
+    channels = {"fz_wfs_n": fz, "z_base_m": zeros, "f_plate_n": zeros, "a_hub_m_s2": zeros}
+    status = device._frames(BenchBlock(0.0, 1000.0, channels))["status"]
+    # 16 kN: Fy (15 kN) and Mx (4.8 > 4.5 kN m) overload, Fz (24 kN) and My (7.2 kN m) do not
+    assert [Status(int(s)) for s in status] == [
+        Status.OVERLOAD_FY | Status.OVERLOAD_MX,
+        Status.OVERLOAD_FY | Status.OVERLOAD_MX,
+        Status(0),
+    ]
 
 
 def test_no_reply_is_a_timeout(memory_rig):
