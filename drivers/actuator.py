@@ -3,6 +3,9 @@
 Typed operations on top of the register map. Safety rules kept here:
 
 - every setpoint is checked against the bench's soft limits before anything is written;
+- START is sent only after a configure that completed (a failed configure may leave the controller
+  with a half-written setpoint);
+- raw register writes are private: every setpoint goes through the checked operations;
 - reads are retried on timeout; writes are never re-sent (a write that timed out raises
   :class:`CommandOutcomeUnknownError`: read the status to learn what happened);
 - timeouts, exception replies and lost connections become the typed errors of ``drivers.errors``.
@@ -25,6 +28,7 @@ from drivers.errors import (
     ConnectionLostError,
     DeviceExceptionError,
     LinkTimeoutError,
+    NotConfiguredError,
     ProtocolMismatchError,
 )
 from drivers.register_map import (
@@ -40,6 +44,16 @@ from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
 log = logging.getLogger(__name__)
 
 ALL_POSTS = 0x000F
+#: Modbus exception codes by which the controller refuses a write: ILLEGAL_VALUE, DEVICE_BUSY
+_REFUSAL_CODES = (3, 6)
+#: reply timeout of one request (s): a 30-register reply takes a few ms even on RTU at 115200 baud
+DEFAULT_TIMEOUT_S = 0.3
+#: read attempts before a read timeout is raised
+DEFAULT_READ_ATTEMPTS = 3
+#: heartbeat write period (s) and controller watchdog (ms); the watchdog exceeds the longest a
+#: request can hold the link (timeout x attempts) plus the period: 0.3 x 3 + 0.1 = 1.0 s < 1.5 s
+DEFAULT_HEARTBEAT_PERIOD_S = 0.1
+DEFAULT_WATCHDOG_MS = 1500
 
 
 @dataclass(frozen=True)
@@ -74,14 +88,18 @@ class ActuatorClient:
         modbus: ModbusBaseClient,
         register_map: RegisterMap,
         limits: SoftLimits,
-        read_attempts: int = 3,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
     ) -> None:
+        """``timeout_s`` is the reply timeout ``modbus`` was created with (s): the heartbeat needs it."""
         self._modbus = modbus
         self.map = register_map
         self.limits = limits
         self.read_attempts = read_attempts
+        self.timeout_s = timeout_s
         self._heartbeat_task: asyncio.Task | None = None
         self.heartbeat_failures = 0
+        self._configured = False  # the last configure wrote every register of its setpoint
 
     @classmethod
     def tcp(
@@ -91,11 +109,13 @@ class ActuatorClient:
         *,
         register_map: RegisterMap | None = None,
         limits: SoftLimits | None = None,
-        timeout_s: float = 1.0,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
     ) -> ActuatorClient:
         """A client over Modbus TCP (pymodbus' own retries are off: this class decides)."""
         modbus = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1)
-        return cls(modbus, register_map or load_register_map(), limits or SoftLimits())
+        limits = limits or SoftLimits()
+        return cls(modbus, register_map or load_register_map(), limits, read_attempts, timeout_s)
 
     @classmethod
     def rtu(
@@ -105,13 +125,15 @@ class ActuatorClient:
         baudrate: int = 115200,
         register_map: RegisterMap | None = None,
         limits: SoftLimits | None = None,
-        timeout_s: float = 1.0,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        read_attempts: int = DEFAULT_READ_ATTEMPTS,
     ) -> ActuatorClient:
         """A client over Modbus RTU on a serial port (8N1)."""
         modbus = AsyncModbusSerialClient(
             port, baudrate=baudrate, timeout=timeout_s, retries=0, reconnect_delay=0.1
         )
-        return cls(modbus, register_map or load_register_map(), limits or SoftLimits())
+        limits = limits or SoftLimits()
+        return cls(modbus, register_map or load_register_map(), limits, read_attempts, timeout_s)
 
     # -- connection ---------------------------------------------------------------------------
 
@@ -174,8 +196,8 @@ class ActuatorClient:
             raise DeviceExceptionError(f"read {table} registers: got {len(response.registers)} of {count}", 0)
         return self.map.decode_span(table, first, list(response.registers))
 
-    async def write(self, values: dict[str, float]) -> None:
-        """Write named holding registers, never re-sending on timeout."""
+    async def _write(self, values: dict[str, float]) -> None:
+        """Write named holding registers, never re-sending on timeout (unchecked: callers check)."""
         for address, words in self.map.encode_many("holding", values):
             operation = f"write registers {address}..{address + len(words) - 1}"
             try:
@@ -186,13 +208,26 @@ class ActuatorClient:
             except LinkTimeoutError as exc:
                 raise CommandOutcomeUnknownError(f"{operation}: {exc}; not re-sent, read the status") from exc
 
+    async def _refusal(self, exc: DeviceExceptionError, what: str) -> CommandRejectedError:
+        """The typed refusal for an ILLEGAL_VALUE or DEVICE_BUSY reply, naming the controller's
+        reason; any other exception reply (a device failure, ...) is re-raised as it is."""
+        if exc.exception_code not in _REFUSAL_CODES:
+            raise exc
+        reason = ErrorCode((await self.read_table("input"))["error_code"])
+        return CommandRejectedError(f"controller refused {what}: {reason.name}")
+
     async def command(self, command: Command) -> None:
-        """Write a command code; a refusal raises :class:`CommandRejectedError` naming the reason."""
+        """Write a command code; a refusal (ILLEGAL_VALUE, DEVICE_BUSY) raises
+        :class:`CommandRejectedError` naming the reason, other exception replies DeviceExceptionError.
+
+        ``Command.START`` goes through :meth:`start`, which checks the last configure completed.
+        """
+        if command is Command.START and not self._configured:
+            raise NotConfiguredError("START not sent: no setpoint was configured completely; configure again")
         try:
-            await self.write({"command": int(command)})
+            await self._write({"command": int(command)})
         except DeviceExceptionError as exc:
-            reason = ErrorCode((await self.read_table("input"))["error_code"])
-            raise CommandRejectedError(f"controller refused {command.name}: {reason.name}") from exc
+            raise await self._refusal(exc, command.name) from exc
 
     # -- typed operations ---------------------------------------------------------------------
 
@@ -227,13 +262,21 @@ class ActuatorClient:
         values["channel_mask"] = channel_mask
         values["displacement_limit_mm"] = self.limits.displacement_limit_mm
         values["force_limit_n"] = self.limits.force_limit_n
+        self._configured = False
         try:
-            await self.write(values)
+            await self._write(values)
         except DeviceExceptionError as exc:
-            reason = ErrorCode((await self.read_table("input"))["error_code"])
-            raise CommandRejectedError(f"controller refused the setpoint: {reason.name}") from exc
+            raise await self._refusal(exc, "the setpoint") from exc
+        self._configured = True
+
+    @property
+    def configured(self) -> bool:
+        """Whether the last :meth:`configure` completed (START is refused otherwise)."""
+        return self._configured
 
     async def start(self) -> None:
+        """Start the configured excitation; NotConfiguredError (nothing sent) unless the last
+        :meth:`configure` completed."""
         await self.command(Command.START)
 
     async def stop(self) -> None:
@@ -248,11 +291,27 @@ class ActuatorClient:
 
     # -- heartbeat ----------------------------------------------------------------------------
 
-    async def start_heartbeat(self, period_s: float = 0.1, watchdog_ms: int = 500) -> None:
-        """Arm the controller's watchdog and keep writing a changing heartbeat every ``period_s``."""
-        if period_s * 1000 >= watchdog_ms:
-            raise ValueError(f"heartbeat period {period_s} s not below the {watchdog_ms} ms watchdog")
-        await self.write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
+    def longest_block_s(self, period_s: float) -> float:
+        """The longest a heartbeat can be held back (s): requests are serialised on the link, so a
+        heartbeat may wait for a read that times out on every attempt, plus one heartbeat period."""
+        return self.timeout_s * self.read_attempts + period_s
+
+    async def start_heartbeat(
+        self, period_s: float = DEFAULT_HEARTBEAT_PERIOD_S, watchdog_ms: int = DEFAULT_WATCHDOG_MS
+    ) -> None:
+        """Arm the controller's watchdog and keep writing a changing heartbeat every ``period_s``.
+
+        Raises ValueError (nothing written) when ``watchdog_ms`` is not longer than
+        :meth:`longest_block_s`: one slow reply would then starve the heartbeat and trip the bench.
+        """
+        longest_ms = self.longest_block_s(period_s) * 1000
+        if watchdog_ms <= longest_ms:
+            raise ValueError(
+                f"a {watchdog_ms} ms watchdog would trip on one slow reply: a request can hold the link "
+                f"for {self.timeout_s} s x {self.read_attempts} attempts + the {period_s} s heartbeat "
+                f"period = {longest_ms:.0f} ms; lengthen the watchdog or shorten the timeout/attempts"
+            )
+        await self._write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
         await self.stop_heartbeat()
         self._heartbeat_task = asyncio.create_task(self._beat(period_s), name="actuator-heartbeat")
 
@@ -270,7 +329,7 @@ class ActuatorClient:
             await asyncio.sleep(period_s)
             counter = counter % 0xFFFF + 1
             try:
-                await self.write({"heartbeat": counter})
+                await self._write({"heartbeat": counter})
             except (LinkTimeoutError, ConnectionLostError, DeviceExceptionError) as exc:
                 self.heartbeat_failures += 1
                 log.warning("heartbeat write failed (%d so far): %s", self.heartbeat_failures, exc)

@@ -52,5 +52,10 @@ class CommandRejectedError(LinkError):
     """The device refused a command (an ``ERR`` reply, or a state that does not allow it)."""
 
 
+class NotConfiguredError(CommandRejectedError):
+    """START refused by the client: the last configure did not complete, so the controller may hold
+    a half-written setpoint; nothing was sent. Configure again."""
+
+
 class MalformedReplyError(LinkError):
     """A reply could not be parsed."""

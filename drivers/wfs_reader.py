@@ -2,11 +2,12 @@
 
 The thread reads whatever the port delivers, feeds the stream parser, and hands out
 :class:`SampleBlock` s through a bounded queue (when the consumer falls behind the reader waits,
-so a device that is paced by its consumer slows down instead of losing data; a device that is
-not paced overflows its own buffers and the sequence counter reports the loss). Replies to text
+so a device that is paced by its consumer slows down; a device whose buffers overflow meanwhile
+drops frames and the sequence counter reports the loss). Replies to text
 commands are routed to :meth:`WfsReader.command`. A port error closes the port and the thread
 reopens it until stopped: a disconnect and reconnect resume the stream, the frames lost in between
-show up as a gap.
+show up as a gap; a device that restarted meanwhile (its sequence counter went back) shows up as a
+:class:`~drivers.wfs_stream.Resync`.
 """
 
 from __future__ import annotations
@@ -23,11 +24,19 @@ from typing import Protocol
 import numpy as np
 import serial
 
-from drivers.errors import CommandRejectedError, ConnectionLostError, LinkTimeoutError
+from drivers.errors import (
+    CommandOutcomeUnknownError,
+    CommandRejectedError,
+    ConnectionLostError,
+    LinkTimeoutError,
+)
 from drivers.wfs_commands import Reply, format_command
-from drivers.wfs_stream import Gap, LinkCounters, StreamParser
+from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
+
+#: commands never re-sent on timeout: START restarts the sample clock, TARE re-zeroes the loads
+NOT_RESENT = frozenset({"START", "TARE"})
 
 
 class SerialLike(Protocol):
@@ -42,10 +51,12 @@ class SerialLike(Protocol):
 
 @dataclass(frozen=True)
 class SampleBlock:
-    """Consecutive frames as delivered (FRAME_DTYPE array) and the gaps before some of them."""
+    """Consecutive frames as delivered (FRAME_DTYPE array), the gaps and the resynchronisations
+    (device restarts: the sample clock starts over) before some of them."""
 
     frames: np.ndarray
     gaps: tuple[Gap, ...] = ()
+    resyncs: tuple[Resync, ...] = ()
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -131,32 +142,38 @@ class WfsReader:
             return None
 
     def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
-        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps re-indexed."""
+        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed."""
         deadline = time.monotonic() + timeout_s
         parts: list[np.ndarray] = []
         gaps: list[Gap] = []
+        resyncs: list[Resync] = []
         have = 0
         while have < n:
             block = self.get_block(max(deadline - time.monotonic(), 0.0))
             if block is None:
                 raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
             gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
+            resyncs.extend(replace(r, index=r.index + have) for r in block.resyncs)
             parts.append(block.frames)
             have += len(block)
-        return SampleBlock(np.concatenate(parts), tuple(gaps))
+        return SampleBlock(np.concatenate(parts), tuple(gaps), tuple(resyncs))
 
     # -- commands -----------------------------------------------------------------------------
 
     def command(
         self, name: str, argument: str | float | None = None, *, timeout_s: float = 1.0, attempts: int = 3
     ) -> Reply:
-        """Send a text command and wait for its reply; re-sent on timeout (WFS commands move nothing).
+        """Send a text command and wait up to ``timeout_s`` (s) for its reply, sending it up to
+        ``attempts`` times; a command of :data:`NOT_RESENT` is sent once.
 
-        Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives.
+        Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives,
+        CommandOutcomeUnknownError when a command of :data:`NOT_RESENT` got no reply (it may have
+        been carried out: check the frames' ``sample`` clock or status bits).
         """
         line = format_command(name, argument)
         answered = name.rstrip("?").upper()
-        for _ in range(attempts):
+        once = answered in NOT_RESENT
+        for _ in range(1 if once else attempts):
             self._drain_replies()
             self._write(line, timeout_s)
             deadline = time.monotonic() + timeout_s
@@ -172,6 +189,10 @@ class WfsReader:
                     raise CommandRejectedError(f"WFS refused {line.decode().strip()}: {reason}")
                 return reply
             log.warning("no reply to %r within %s s", line, timeout_s)
+        if once:
+            raise CommandOutcomeUnknownError(
+                f"no reply to {line.decode().strip()!r} within {timeout_s} s; not re-sent, it may have run"
+            )
         raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
 
     def identify(self) -> tuple[str, ...]:
@@ -236,6 +257,7 @@ class WfsReader:
         if reopening:
             with self._lock:
                 self._parser.counters.reconnects += 1
+                self._parser.reopened()
         self._connected.set()
         return True
 
@@ -251,9 +273,9 @@ class WfsReader:
             result = self._parser.feed(data)
         for reply in result.replies:
             self._replies.put(reply)
-        if len(result.frames) == 0 and not result.gaps:
+        if len(result.frames) == 0 and not result.gaps and not result.resyncs:
             return
-        block = SampleBlock(result.frames, tuple(result.gaps))
+        block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
         while not self._stop.is_set():
             try:
                 self._blocks.put(block, timeout=0.1)

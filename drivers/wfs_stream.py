@@ -4,8 +4,12 @@ The parser accepts bytes in chunks of any size (split anywhere), checks sync wor
 candidate frames a block at a time, resynchronises byte by byte after a bad candidate, and keeps
 the text replies that are interleaved with the frames. Every frame that does not arrive intact is
 counted through the sequence counter: a jump in ``seq`` is a gap, reported with its position;
-samples are never interpolated. A frame whose ``seq`` is not newer than the last one delivered is a
-duplicate and is dropped (and counted).
+samples are never interpolated. A frame whose ``seq`` lies at most :data:`DUPLICATE_WINDOW` frames
+behind the newest one delivered is a duplicate and is dropped (and counted). A frame further behind
+(the device restarted and counts from 0 again, or the counter jumped by half its range) is a
+resynchronisation: reported as a :class:`Resync` with its position, counted, and the stream goes on
+from that frame. The first frame after :meth:`StreamParser.reopened` that is not newer than the last
+one delivered is a resynchronisation too, however small the step back.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ from drivers.wfs_commands import MAX_REPLY_LEN, REPLY_END, REPLY_START, Reply, p
 from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, valid
 
 _SEQ_MOD = 1 << 32
+_SEQ_HALF = _SEQ_MOD // 2
+#: how far (frames) behind the newest delivered ``seq`` a frame is still a duplicate, not a restart
+DUPLICATE_WINDOW = 256
 _WINDOW_FRAMES = 1024  # frames checked per vectorised step
 
 
@@ -31,6 +38,19 @@ class Gap:
     missing: int
 
 
+@dataclass(frozen=True)
+class Resync:
+    """The sequence counter went back from ``last_seq`` to ``seq`` before position ``index`` of a block.
+
+    The device restarted (or the counter is corrupt): nothing can be said about the frames lost in
+    between, so none are counted as missing; the sample clock of the frames from ``index`` on is new.
+    """
+
+    index: int
+    last_seq: int
+    seq: int
+
+
 @dataclass
 class LinkCounters:
     """Cumulative link statistics."""
@@ -40,6 +60,7 @@ class LinkCounters:
     gaps: int = 0
     crc_rejects: int = 0  # candidates with a sync word whose CRC failed
     duplicates: int = 0
+    resyncs: int = 0  # the sequence counter went back: device restart (see :class:`Resync`)
     bytes_discarded: int = 0  # bytes that belonged to no intact frame or reply
     replies: int = 0
     reconnects: int = 0
@@ -52,6 +73,7 @@ class ParseResult:
     frames: np.ndarray
     gaps: list[Gap] = field(default_factory=list)
     replies: list[Reply] = field(default_factory=list)
+    resyncs: list[Resync] = field(default_factory=list)
 
 
 class StreamParser:
@@ -61,6 +83,16 @@ class StreamParser:
         self._buf = bytearray()
         self.counters = LinkCounters()
         self.last_seq: int | None = None
+        self._after_reopen = False
+
+    def reopened(self) -> None:
+        """The link was closed and opened again: drop the bytes of the old connection, and take the
+        first frame that is not newer than the last one delivered as a device restart (a resync).
+
+        ``last_seq`` is kept, so that frames lost while the link was down still show up as a gap.
+        """
+        self._buf.clear()
+        self._after_reopen = True
 
     def feed(self, data: bytes) -> ParseResult:
         """Add ``data`` to the stream; return the frames, gaps and replies completed by it."""
@@ -107,8 +139,8 @@ class StreamParser:
                 pos += 1
         del self._buf[:pos]
         good = np.concatenate(chunks) if chunks else np.zeros(0, FRAME_DTYPE)
-        frames, gaps = self._account(good)
-        return ParseResult(frames, gaps, replies)
+        frames, gaps, resyncs = self._account(good)
+        return ParseResult(frames, gaps, replies, resyncs)
 
     @staticmethod
     def _next_candidate(buf: bytes, pos: int) -> int:
@@ -128,35 +160,48 @@ class StreamParser:
         except MalformedReplyError:
             return 1, None
 
-    def _account(self, frames: np.ndarray) -> tuple[np.ndarray, list[Gap]]:
-        """Drop duplicates and report gaps in ``seq`` against the last frame delivered."""
-        if len(frames) == 0:
-            return frames, []
+    def _account(self, frames: np.ndarray) -> tuple[np.ndarray, list[Gap], list[Resync]]:
+        """Drop duplicates, report gaps and resynchronisations against the last frame delivered.
+
+        Vectorised between resynchronisations (one numpy pass per segment, no per-frame loop).
+        """
         seq = frames["seq"].astype(np.int64)
-        prev = np.empty_like(seq)
-        prev[0] = seq[0] - 1 if self.last_seq is None else self.last_seq
-        prev[1:] = seq[:-1]
-        step = (seq - prev) % _SEQ_MOD
-        fresh = (step > 0) & (step < _SEQ_MOD // 2)
-        if not fresh.all():
-            # a duplicate: recompute the steps against the last fresh frame only
-            keep, last = [], prev[0]
-            for i, s in enumerate(seq):
-                d = (s - last) % _SEQ_MOD
-                if 0 < d < _SEQ_MOD // 2:
-                    keep.append(i)
-                    last = s
-            self.counters.duplicates += len(seq) - len(keep)
-            frames, seq = frames[keep], seq[keep]
-            if len(frames) == 0:
-                return frames, []
-            prev = np.concatenate(([prev[0]], seq[:-1]))
-            step = (seq - prev) % _SEQ_MOD
-        gaps = [
-            Gap(int(i), int((prev[i] + 1) % _SEQ_MOD), int(step[i] - 1)) for i in np.flatnonzero(step > 1)
-        ]
-        self.counters.frames_ok += len(frames)
+        kept: list[np.ndarray] = []
+        gaps: list[Gap] = []
+        resyncs: list[Resync] = []
+        delivered = 0
+        start = 0
+        while start < len(seq):
+            ref = seq[start] - 1 if self.last_seq is None else self.last_seq
+            # position relative to the last delivered frame, unwrapped to (-2^31, 2^31]
+            rel = (seq[start:] - ref + _SEQ_HALF - 1) % _SEQ_MOD - _SEQ_HALF + 1
+            newest = np.maximum.accumulate(np.concatenate(([0], rel)))[:-1]
+            back = rel < newest - DUPLICATE_WINDOW
+            if self._after_reopen and rel[0] <= 0:
+                back[0] = True
+            self._after_reopen = False
+            end = int(np.argmax(back)) if back.any() else len(rel)
+            if end == 0:
+                # the counter went back: start over from this frame
+                resyncs.append(Resync(delivered, int(ref % _SEQ_MOD), int(seq[start])))
+                self.counters.resyncs += 1
+                self.last_seq = None
+                continue
+            fresh = rel[:end] > newest[:end]
+            self.counters.duplicates += int(end - np.count_nonzero(fresh))
+            idx = np.flatnonzero(fresh) + start
+            step = np.diff(np.concatenate(([0], rel[idx - start])))
+            for i in np.flatnonzero(step > 1):
+                gaps.append(
+                    Gap(delivered + int(i), int((seq[idx[i]] - step[i] + 1) % _SEQ_MOD), int(step[i] - 1))
+                )
+            if len(idx):
+                kept.append(idx)
+                delivered += len(idx)
+                self.last_seq = int(seq[idx[-1]])
+            start += end
+        out = frames[np.concatenate(kept)] if kept else frames[:0].copy()
+        self.counters.frames_ok += len(out)
         self.counters.gaps += len(gaps)
         self.counters.frames_missing += sum(g.missing for g in gaps)
-        self.last_seq = int(seq[-1])
-        return frames.copy(), gaps
+        return out, gaps, resyncs

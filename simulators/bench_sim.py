@@ -2,10 +2,11 @@
 
 The bench is advanced by the samples it produces: :class:`BenchRunner` advances it block by block,
 either paced to real time or as fast as the streaming WFS device's port drains (backpressure from a
-blocking write). Each block goes from the controller's function generator (the displacement
-command) through the plant (servo actuator, specimen, sensors) to the controller's readbacks and to
-every sink (the WFS device). A lock keeps the controller consistent between the runner thread and
-the Modbus server's event loop.
+blocking write; a host that stops draining makes the device drop frames and the bench falls back
+to real time, so the controller's watchdog and tapers keep running). Each block goes from the
+controller's function generator (the displacement command) through the plant (servo actuator,
+specimen, sensors) to the controller's readbacks and to every sink (the WFS device). A lock keeps
+the controller consistent between the runner thread and the Modbus server's event loop.
 """
 
 from __future__ import annotations
@@ -42,7 +43,9 @@ class BenchSink(Protocol):
     """A device fed by the bench (the WFS device)."""
 
     @property
-    def streaming(self) -> bool: ...
+    def paces_bench(self) -> bool:
+        """True while the sink streams and its host drains: the unpaced runner then runs at its pace."""
+        ...
 
     def deliver(self, block: BenchBlock) -> None: ...
 
@@ -89,9 +92,9 @@ class BenchRunner:
 
     Blocks last about ``block_s`` (a whole number of output samples, at least one, at the output
     rate of the moment). Paced: one block per its duration of wall-clock time (deadline based, no
-    drift). Unpaced: as fast as the streaming sinks accept the blocks; while no sink streams, the
-    bench still runs in real time so that the controller's tapers and watchdog behave as on a real
-    bench.
+    drift). Unpaced: as fast as the streaming sinks accept the blocks; while no sink paces the bench
+    (none streams, or their hosts stopped draining), the bench still runs in real time so that the
+    controller's tapers and watchdog behave as on a real bench.
     """
 
     def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_s: float = 0.01) -> None:
@@ -120,7 +123,7 @@ class BenchRunner:
                 rate_hz = self.bench.output_rate_hz
                 n_samples = max(1, round(self.block_s * rate_hz))
                 period_s = n_samples / rate_hz
-                if self.paced or not any(s.streaming for s in self.sinks):
+                if self.paced or not any(s.paces_bench for s in self.sinks):
                     next_due = max(next_due + period_s, time.monotonic() - 0.5)
                     delay = next_due - time.monotonic()
                     if delay > 0 and self._stop.wait(delay):

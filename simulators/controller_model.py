@@ -34,6 +34,7 @@ MOVING = (ControllerState.RUNNING, ControllerState.TAPERING)
 _NON_NEGATIVE = ("dwell_s", "sweep_duration_s", "amplitude_mm", "watchdog_ms")
 _POSITIVE = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")
 _TAPERS = ("taper_in_s", "taper_out_s")
+_STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm")  # within the hardware stroke (mm)
 _IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
 #: the states each command is accepted in (a command in another state is refused)
 ALLOWED: dict[Command, tuple[ControllerState, ...]] = {
@@ -66,7 +67,8 @@ class ControllerModel:
     ``clock`` returns seconds for the heartbeat watchdog (None: the controller's sample clock).
     """
 
-    #: hardware limits that apply when the host has not set its own (mm, N)
+    #: hardware limits (mm from the centre of the stroke, N): always enforced; the interlock limits
+    #: the host sets may be tighter, never wider
     HARDWARE_STROKE_MM = 50.0
     HARDWARE_FORCE_N = 50_000.0
 
@@ -92,24 +94,34 @@ class ControllerModel:
 
     def write_setpoints(self, values: dict[str, float]) -> ErrorCode | None:
         """Apply written holding registers (other than ``command``); refuse invalid ones, all or none.
+        An accepted write clears ``error``.
 
         Setpoints take effect at the next start; a running excitation keeps its own.
         """
-        for name, value in values.items():
-            if not math.isfinite(value):
-                return self._refuse(ErrorCode.INVALID_SETPOINT)
-            if name in _NON_NEGATIVE and value < 0:
-                return self._refuse(ErrorCode.INVALID_SETPOINT)
-            if name in _POSITIVE and value <= 0:
-                return self._refuse(ErrorCode.INVALID_SETPOINT)
-            if name in _TAPERS and value < MIN_TAPER_S:
-                return self._refuse(ErrorCode.INVALID_SETPOINT)
-            if name == "waveform" and value not in tuple(WaveformCode):
-                return self._refuse(ErrorCode.INVALID_SETPOINT)
-        if "heartbeat" in values or "watchdog_ms" in values:
+        if not all(self._valid(name, value) for name, value in values.items()):
+            return self._refuse(ErrorCode.INVALID_SETPOINT)
+        # only a changed heartbeat proves the host alive (a frozen counter does not); arming the
+        # watchdog starts its time afresh
+        beat = "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]
+        if beat or "watchdog_ms" in values:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
+        self.error = ErrorCode.NONE
         return None
+
+    def _valid(self, name: str, value: float) -> bool:
+        """Whether one setpoint value is acceptable on its own (finite, in range, within the hardware)."""
+        if not math.isfinite(value):
+            return False
+        violated = (
+            (name in _NON_NEGATIVE and value < 0)
+            or (name in _POSITIVE and value <= 0)
+            or (name in _TAPERS and value < MIN_TAPER_S)
+            or (name == "waveform" and value not in tuple(WaveformCode))
+            or (name in _STROKE and abs(value) > self.HARDWARE_STROKE_MM)
+            or (name == "force_limit_n" and abs(value) > self.HARDWARE_FORCE_N)
+        )
+        return not violated
 
     def command(self, code: int) -> ErrorCode | None:
         """Execute a command code; return the reason when it is refused."""
@@ -144,6 +156,9 @@ class ControllerModel:
         return reason
 
     def _start(self) -> ErrorCode | None:
+        """Start the configured excitation; refused when mean + amplitude would leave the stroke."""
+        if abs(self.setpoints["mean_mm"]) + self.setpoints["amplitude_mm"] > self.HARDWARE_STROKE_MM:
+            return self._refuse(ErrorCode.INVALID_SETPOINT)
         try:
             waveform = self._waveform()
         except ValueError:
@@ -197,7 +212,8 @@ class ControllerModel:
     # -- bench side -----------------------------------------------------------------------------
 
     def check_watchdog(self) -> None:
-        """Taper to a stop when the host's heartbeat has not changed within the watchdog time.
+        """Taper to a stop when the host's heartbeat value has not changed within the watchdog time
+        (writing the same value again does not count).
 
         Watched while RUNNING only: a taper under way reaches rest by itself whatever the host does.
         """
@@ -250,10 +266,14 @@ class ControllerModel:
         self._check_limits(z_base_m, f_plate_n)
 
     def _check_limits(self, z_base_m: np.ndarray, f_plate_n: np.ndarray) -> None:
+        """Trip on |z - present mean| beyond the interlock limit, on |z| beyond the hardware stroke
+        whatever the mean, and on |force| beyond the interlock (at most the hardware) force."""
         disp_limit_m = (self.setpoints["displacement_limit_mm"] or self.HARDWARE_STROKE_MM) / 1000
         force_limit = self.setpoints["force_limit_n"] or self.HARDWARE_FORCE_N
         tripped = InterlockFlag(0)
         if np.max(np.abs(z_base_m - self.generator.mean_m())) > disp_limit_m:
+            tripped |= InterlockFlag.DISPLACEMENT
+        if np.max(np.abs(z_base_m)) > self.HARDWARE_STROKE_MM / 1000:
             tripped |= InterlockFlag.DISPLACEMENT
         if np.max(np.abs(f_plate_n)) > force_limit:
             tripped |= InterlockFlag.FORCE

@@ -9,6 +9,12 @@ that applies the rotating-to-non-rotating transformation recovers the wheel-fram
 The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
 
+Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link; what
+is not sent by then is dropped (``frames_dropped``; the sequence counter shows the gap to the host)
+and, until the host drains again, later blocks are only offered briefly, so a host that stops
+reading never freezes the bench (the bench then runs in real time and the controller's watchdog
+fires).
+
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (frames produced
 meanwhile are lost, the sequence counter runs on), a disconnect and reconnect of the link.
 """
@@ -33,13 +39,20 @@ from simulators.faults import ByteFaults
 log = logging.getLogger(__name__)
 
 IDENTITY = ("WFSBENCH", "SIM-WFS6", "0001", "1.0")
-LOAD_RANGE = np.array([24_000.0, 24_000.0, 24_000.0, 4_000.0, 4_000.0, 4_000.0])  # N, N m
+#: measuring range per channel, Fx Fy Fz (N) and Mx My Mz (N m), as the paper's Table 1; beyond it
+#: the channel's overload bit is set
+LOAD_RANGE = np.array([24_000.0, 15_000.0, 24_000.0, 4_500.0, 7_200.0, 4_500.0])
 CROSSTALK_SPEC = 0.005
 LEVER_M = 0.3
 _MAX_LINE = 64
 #: the lowest output rate RATE accepts (Hz)
 MIN_RATE_HZ = 100
-_WRITE_TIMEOUT_S = 0.2
+#: the longest a block of frames waits for the host to drain the link before it is dropped (s)
+BACKPRESSURE_S = 0.1
+#: how long a block is offered while the host is not draining (s)
+_OVERFLOW_PROBE_S = 0.005
+#: the longest a command reply waits for the host to drain the link (s)
+_REPLY_TIMEOUT_S = 1.0
 
 
 class DeviceLink(Protocol):
@@ -92,6 +105,8 @@ class WfsDevice:
         self._thread: threading.Thread | None = None
         self.frames_sent = 0
         self.frames_unsent = 0  # produced while stalled or disconnected (the host sees a gap)
+        self.frames_dropped = 0  # not sent because the host did not drain the link (a gap too)
+        self._overflowing = False  # the last block did not fit: the host is not draining
 
     @property
     def rate_hz(self) -> int:
@@ -111,6 +126,11 @@ class WfsDevice:
     @property
     def streaming(self) -> bool:
         return self._streaming
+
+    @property
+    def paces_bench(self) -> bool:
+        """Streaming to a host that drains the link (an unpaced bench runs as fast as it reads)."""
+        return self._streaming and self._link_up and not self._overflowing
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._serve_commands, name="wfs-device", daemon=True)
@@ -154,17 +174,27 @@ class WfsDevice:
                 self.frames_unsent += len(frames)
                 return
             try:
-                self._write_all(data)
-                self.frames_sent += len(frames)
+                sent = self._write_all(data, _OVERFLOW_PROBE_S if self._overflowing else BACKPRESSURE_S)
             except (serial.SerialException, OSError) as exc:
                 log.debug("WFS device write failed: %s", exc)
                 self.frames_unsent += len(frames)
+                return
+        self._overflowing = sent < len(data)
+        whole = len(frames) if not self._overflowing else min(sent // FRAME_SIZE, len(frames))
+        self.frames_sent += whole
+        self.frames_dropped += len(frames) - whole
 
-    def _write_all(self, data: bytes) -> None:
-        """Write everything, waiting for the host to drain (a paced device would overflow instead)."""
+    def _write_all(self, data: bytes, timeout_s: float) -> int:
+        """Write as much of ``data`` as the host drains within ``timeout_s``; return the bytes sent
+        (a frame cut short is rejected by the host's CRC check)."""
+        deadline = time.monotonic() + timeout_s
         sent = 0
         while sent < len(data) and self._link_up and not self._stop.is_set():
-            sent += self.link.device_write(data[sent:], _WRITE_TIMEOUT_S)
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            sent += self.link.device_write(data[sent:], left)
+        return sent
 
     def _frames(self, block: BenchBlock) -> np.ndarray:
         """Frames for the samples of ``block`` (the bench's output is the acquisition's, filtered)."""
@@ -282,4 +312,4 @@ class WfsDevice:
     def _reply(self, reply: Reply) -> None:
         with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
             if self._link_up:
-                self._write_all(reply.encode())
+                self._write_all(reply.encode(), _REPLY_TIMEOUT_S)

@@ -250,6 +250,18 @@ def test_watchdog_tapers_to_rest_within_watchdog_plus_taper_time():
     assert model.generator.last_m == 0.0
 
 
+def test_a_frozen_heartbeat_counter_does_not_hold_off_the_watchdog():
+    watchdog_s = 0.1
+    model = armed({**DWELL, "watchdog_ms": watchdog_s * 1000, "heartbeat": 7})
+    act(model, C.START)
+    started_at = model.generator.n
+    while model.state == S.RUNNING and model.generator.n - started_at < RATE:
+        run(model, 0.02)
+        assert model.write_setpoints({"heartbeat": 7}) is None  # written, but never changing
+    assert model.flags == InterlockFlag.WATCHDOG
+    assert (model.generator.n - started_at) / RATE <= watchdog_s + 2 * BLOCK / RATE
+
+
 def test_watchdog_disabled_by_zero_and_idle_when_not_running():
     model = armed({**DWELL, "watchdog_ms": 0})
     act(model, C.START)
@@ -305,6 +317,12 @@ def test_estop_during_the_release_freezes_again():
         {"taper_in_s": MIN_TAPER_S / 2},
         {"waveform": 7},
         {"mean_mm": 2.0, "dwell_s": -1.0},  # one bad value: nothing of the write is applied
+        # beyond the hardware: 50 mm stroke, 50 kN
+        {"mean_mm": 50.5},
+        {"mean_mm": -51.0},
+        {"amplitude_mm": 50.5},
+        {"displacement_limit_mm": 60.0},
+        {"force_limit_n": 60_000.0},
     ],
 )
 def test_invalid_setpoints_are_refused_and_nothing_is_applied(values):
@@ -313,6 +331,34 @@ def test_invalid_setpoints_are_refused_and_nothing_is_applied(values):
     assert model.write_setpoints(values) == ErrorCode.INVALID_SETPOINT
     assert model.error == ErrorCode.INVALID_SETPOINT
     assert model.setpoints == before
+
+
+def test_an_accepted_write_clears_the_last_refusal():
+    model = armed()
+    assert model.write_setpoints({"frequency_hz": 0.0}) == ErrorCode.INVALID_SETPOINT
+    assert model.write_setpoints({"frequency_hz": 5.0}) is None
+    assert model.error == ErrorCode.NONE
+
+
+def test_start_refused_when_mean_plus_amplitude_leaves_the_stroke():
+    model = armed({**DWELL, "mean_mm": 45.0, "amplitude_mm": 30.0})
+    assert model.command(C.START) == ErrorCode.INVALID_SETPOINT
+    assert model.state == S.HYDRAULICS_HIGH and model.generator.at_rest
+    assert model.write_setpoints({"mean_mm": -20.0}) is None  # |-20| + 30 = 50 mm: the whole stroke
+    act(model, C.START)
+    assert model.state == S.RUNNING
+
+
+def test_displacement_beyond_the_stroke_trips_whatever_the_mean_and_the_interlock_limit():
+    # 45 mm mean and 4 mm amplitude fit; no host limit set (0: the stroke, measured from the mean)
+    model = armed({**DWELL, "mean_mm": 45.0, "amplitude_mm": 4.0, "displacement_limit_mm": 0.0})
+    act(model, C.START)
+    run(model, 45.0 / MEAN_RATE_MM_S + DWELL["taper_in_s"] + 0.2)
+    assert model.state == S.RUNNING and model.flags == InterlockFlag(0)
+    # 2 mm beyond the command: 6 mm from the mean, but 51 mm from the centre of the stroke
+    run(model, 0.1, z_extra_m=0.002)
+    assert model.flags == InterlockFlag.DISPLACEMENT
+    assert model.state == S.TAPERING
 
 
 def test_setpoints_written_while_running_wait_for_the_next_start():

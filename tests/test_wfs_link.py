@@ -2,21 +2,35 @@
 
 from __future__ import annotations
 
+import asyncio
 import threading
 
 import numpy as np
 import pytest
 import serial
 
-from drivers.errors import CommandRejectedError, LinkTimeoutError
-from drivers.wfs_commands import Reply, parse_reply
+from bench.models.setup import BenchSetup
+from drivers.actuator import ActuatorClient
+from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LinkTimeoutError
+from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
+from drivers.setpoints import DwellSetpoint, SoftLimits
+from drivers.wfs_commands import Reply, format_command, parse_reply
+from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
+from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
-from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.bench_sim import BenchBlock, BenchRunner, SimulatedBench
+from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
+from simulators.plant import PlantSimulator, SensorRealism
 from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
-from tests.waiting import wait_until
+from tests.waiting import async_wait_until, wait_until
+
+_DWELL_REGISTERS = {
+    "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 1.0, "frequency_hz": 10.0,
+    "taper_in_s": 0.2, "taper_out_s": 0.2,
+}  # fmt: skip
 
 
 def _rig(link, *, faults=None, speed_rad_s=0.0):
@@ -110,14 +124,107 @@ def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
     assert np.all(np.diff(frames["sample"].astype(np.int64)) == 1)
 
 
-def test_frames_carry_the_bench_channels(memory_rig):
-    _, _, reader = memory_rig
-    reader.start_stream()
-    frames = reader.read_frames(2000, timeout_s=10).frames
-    # at rest the WFS reads the static wheel load on the tyre contact: tens of newtons of noise at most
-    assert np.all(np.isfinite(frames["fz"]))
-    assert np.abs(frames["fx"]).max() < 0.005 * np.abs(frames["fz"]).max() + 10
-    assert np.all(frames["angle_rad"] == 0)
+def _fundamental(signal: np.ndarray, freq_hz: float, rate_hz: float) -> complex:
+    """Complex amplitude at ``freq_hz`` of a record of whole cycles (exact for a sine)."""
+    t = np.arange(signal.size) / rate_hz
+    return 2 * np.mean(signal * np.exp(-2j * np.pi * freq_hz * t))
+
+
+@pytest.mark.parametrize(
+    ("setup", "settle_s"),
+    [(BenchSetup.paper_shaker, 3.0), (BenchSetup.paper_quarter_car, 12.0)],
+    ids=["shaker", "quarter_car"],
+)
+async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setup, settle_s):
+    """A 10 Hz dwell run through the Modbus controller: the WFS frames carry Fz and the bench's
+    displacement, plate force and hub acceleration with the plant's exact amplitudes and phases.
+
+    The bench runs as fast as the reader drains the WFS link, so the specimen's transient (decayed
+    within ``settle_s`` of bench time) costs little wall time; the last 20 cycles are analysed.
+    """
+    freq_hz, amplitude_mm, cycles = 10.0, 2.0, 20
+    bench = SimulatedBench(PlantSimulator(setup(), SensorRealism(seed=2)))
+    link = MemoryLink()
+    device = WfsDevice(link, bench, seed=3)
+    device.start()
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    runner.start()
+    server = ControllerServer(bench)
+    host, port = await server.serve_tcp("127.0.0.1", 0)
+    client = ActuatorClient.tcp(host, port, limits=SoftLimits())
+    reader = WfsReader(link.open_host)
+    reader.start()
+    rate_hz = bench.output_rate_hz
+    try:
+        await client.connect()
+        await client.hydraulics_low()
+        await client.hydraulics_high()
+        await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))
+        await client.start()
+        await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), 2.0, "the dwell")
+        await asyncio.to_thread(reader.start_stream)
+        n = round((settle_s + cycles / freq_hz) * rate_hz)
+        block = await asyncio.to_thread(reader.read_frames, n, 30.0)
+        await asyncio.to_thread(reader.stop_stream)
+        assert (await client.read_status()).state == ControllerState.RUNNING
+        await client.stop()
+    finally:
+        reader.close()
+        await client.close()
+        await server.close()
+        runner.stop()
+        device.stop()
+    assert runner.error is None
+    frames = block.frames[-round(cycles * rate_hz / freq_hz) :]  # whole cycles, consecutive
+    assert not block.gaps and not block.resyncs
+    assert np.all(np.diff(frames["seq"].astype(np.int64)) == 1)
+    measured = {
+        ch: _fundamental(frames[ch].astype(float), freq_hz, rate_hz) for ch in ("aux0", "aux1", "aux2", "fz")
+    }
+    plant = bench.plant
+    exact = plant.exact_response(freq_hz, amplitude_mm / 1000)
+    # the base moves as the servo actuator follows the commanded amplitude
+    assert abs(measured["aux0"]) == pytest.approx(
+        abs(plant.actuator.gain(freq_hz)) * amplitude_mm / 1000, rel=0.01
+    )
+    # the hub accelerometer is a 2nd-order Butterworth low-pass at its bandwidth
+    r = freq_hz / plant.realism.accelerometer_bandwidth_hz
+    accelerometer = 1 / complex(1 - r**2, np.sqrt(2) * r)
+    for channel, output, sensor in (
+        ("aux1", "f_plate", 1),
+        ("aux2", "a_hub", accelerometer),
+        ("fz", "f_wfs", 1),
+    ):
+        expected = exact[output] / exact["z_base"] * sensor * measured["aux0"]
+        if expected == 0:  # the shaker holds the hub: its accelerometer reads noise only
+            assert abs(measured[channel]) < 0.01, channel
+            continue
+        ratio = measured[channel] / expected
+        assert abs(ratio) == pytest.approx(1, abs=0.01), channel
+        assert np.degrees(np.angle(ratio)) == pytest.approx(0, abs=0.5), channel
+
+
+async def _state_is(client: ActuatorClient, state: ControllerState) -> bool:
+    return (await client.read_status()).state == state
+
+
+def test_overload_bits_follow_each_channels_range():
+    """Ranges as the paper's Table 1: Fx, Fz 24 kN, Fy 15 kN, Mx, Mz 4.5 kN m, My 7.2 kN m."""
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(MemoryLink(), bench, noise_n=0.0)
+    device.crosstalk = np.array([0.0, 1.0, 0.3, 0.3, 0.0])  # Fy = Fz, Mx = My = 0.3 m x Fz
+    device.execute("START", [])
+    fz = np.array([16_000.0, -16_000.0, 14_000.0])  # Fy beyond 15 kN, then within
+    zeros = np.zeros(len(fz))
+    channels = {"fz_wfs_n": fz, "z_base_m": zeros, "f_plate_n": zeros, "a_hub_m_s2": zeros}
+    status = device._frames(BenchBlock(0.0, 1000.0, channels))["status"]
+    # 16 kN: Fy (15 kN) and Mx (4.8 > 4.5 kN m) overload, Fz (24 kN) and My (7.2 kN m) do not
+    assert [Status(int(s)) for s in status] == [
+        Status.OVERLOAD_FY | Status.OVERLOAD_MX,
+        Status.OVERLOAD_FY | Status.OVERLOAD_MX,
+        Status(0),
+    ]
 
 
 def test_no_reply_is_a_timeout(memory_rig):
@@ -125,6 +232,25 @@ def test_no_reply_is_a_timeout(memory_rig):
     device.stop()  # the command thread no longer answers
     with pytest.raises(LinkTimeoutError):
         reader.command("IDENT", timeout_s=0.1, attempts=2)
+
+
+@pytest.mark.parametrize("name", ["START", "TARE"])
+def test_start_and_tare_are_never_resent(memory_rig, name):
+    link, device, reader = memory_rig
+    device.stop()  # the command thread no longer answers; what the host sends stays on the link
+    with pytest.raises(CommandOutcomeUnknownError):
+        reader.command(name, timeout_s=0.1, attempts=3)
+    sent = link.device_read(4096, 0.5)
+    assert sent == format_command(name)
+
+
+def test_idempotent_commands_are_resent_on_timeout(memory_rig):
+    link, device, reader = memory_rig
+    device.stop()
+    with pytest.raises(LinkTimeoutError) as err:
+        reader.command("IDENT", timeout_s=0.1, attempts=2)
+    assert not isinstance(err.value, CommandOutcomeUnknownError)
+    assert link.device_read(4096, 0.5) == 2 * format_command("IDENT")
 
 
 def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
@@ -163,6 +289,40 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     assert counters.crc_rejects > 0
     assert counters.reconnects == 1
     assert device.frames_unsent > 0  # the stall and the disconnect really lost frames
+
+
+def test_a_host_that_stops_reading_never_freezes_the_bench_and_the_watchdog_stops_it():
+    link = MemoryLink()
+    bench, device, runner = _rig(link)
+    host = link.open_host()
+    ctrl = bench.controller
+    parser = StreamParser()
+    try:
+        with bench.lock:
+            assert ctrl.write_setpoints({**_DWELL_REGISTERS, "watchdog_ms": 300, "heartbeat": 1}) is None
+            for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
+                assert ctrl.command(command) is None
+        device.execute("START", [])
+        # the host reads and beats until it has seen 2000 frames, then dies: no reads, no beats
+        beat = 1
+        while parser.counters.frames_ok < 2000:
+            parser.feed(host.read(4096))
+            beat += 1
+            with bench.lock:
+                ctrl.write_setpoints({"heartbeat": beat})
+        assert ctrl.state == ControllerState.RUNNING
+        # the device cannot write: it drops frames instead of blocking the bench, which keeps
+        # advancing in real time, so the watchdog fires and the taper completes
+        wait_until(lambda: ctrl.state == ControllerState.INTERLOCK, 5.0, "the watchdog stop")
+        assert ctrl.flags == InterlockFlag.WATCHDOG
+        assert device.frames_dropped > 0
+        # the host comes back: the stream resumes and the sequence counter shows the loss
+        wait_until(lambda: parser.feed(host.read(4096)).gaps or parser.counters.gaps, 5.0, "a gap")
+        assert parser.counters.frames_missing > 0
+    finally:
+        runner.stop()
+        device.stop()
+    assert runner.error is None
 
 
 def test_stream_over_a_real_pseudo_terminal_with_rotation():

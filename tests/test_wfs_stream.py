@@ -5,7 +5,7 @@ import pytest
 
 from drivers.wfs_commands import Reply
 from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, encode, new_frames
-from drivers.wfs_stream import StreamParser
+from drivers.wfs_stream import DUPLICATE_WINDOW, Resync, StreamParser
 from simulators.faults import ByteFaults, FaultLog
 
 
@@ -64,6 +64,46 @@ def test_duplicated_frames_are_dropped_and_counted():
     result = parser.feed(data)
     assert result.frames["seq"].tolist() == list(range(20))
     assert parser.counters.duplicates == 2
+
+
+def test_device_restart_is_a_resync_and_the_new_stream_is_delivered():
+    """After 100 000 frames the device restarts and counts from 0 again: not 50 000 duplicates."""
+    parser = StreamParser()
+    assert len(parser.feed(encode(_frames(100_000))).frames) == 100_000
+    restarted = _frames(50_000)
+    result = parser.feed(encode(restarted[:20_000]) + encode(restarted[20_000:30_000]))
+    assert np.array_equal(result.frames, restarted[:30_000])
+    assert result.resyncs == [Resync(0, 99_999, 0)]
+    assert result.gaps == []
+    assert parser.counters.resyncs == 1 and parser.counters.duplicates == 0
+    # the new stream is then checked for gaps and duplicates as usual
+    result = parser.feed(encode(np.concatenate([restarted[29_990:40_000], restarted[40_005:]])))
+    assert parser.counters.duplicates == 10
+    assert [(g.index, g.first_seq, g.missing) for g in result.gaps] == [(10_000, 40_000, 5)]
+
+
+def test_restart_inside_a_block_is_reported_where_it_happens():
+    parser = StreamParser()
+    result = parser.feed(encode(np.concatenate([_frames(5000), _frames(300)])))
+    assert len(result.frames) == 5300
+    assert result.resyncs == [Resync(5000, 4999, 0)]
+
+
+def test_short_step_back_is_a_duplicate_but_after_a_reopen_a_resync():
+    parser = StreamParser()
+    parser.feed(encode(_frames(DUPLICATE_WINDOW + 100)))
+    assert len(parser.feed(encode(_frames(10, first_seq=100))).frames) == 0
+    assert parser.counters.duplicates == 10 and parser.counters.resyncs == 0
+    parser.feed(encode(_frames(1))[:30])  # half a frame of the old connection
+    parser.reopened()
+    result = parser.feed(encode(_frames(10, first_seq=3)))
+    assert result.frames["seq"].tolist() == list(range(3, 13))
+    assert parser.counters.resyncs == 1
+    # without a restart, the frames lost while the link was down are a gap
+    parser.reopened()
+    result = parser.feed(encode(_frames(5, first_seq=20)))
+    assert [(g.first_seq, g.missing) for g in result.gaps] == [(13, 7)]
+    assert parser.counters.resyncs == 1
 
 
 def test_sequence_counter_wraps_without_a_gap():
