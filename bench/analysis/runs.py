@@ -440,7 +440,7 @@ class FourPostResult:
         lines = [
             f"four-post {self.label}; tyre: Model {int(self.tyre_model)} from {self.tyre_source}",
             *(f"post {line}" for line in self.post_free_run.summary_lines()),
-            f"m_wheel {m.mass_kg:.2f} +/- {m.sigma_kg:.2f} kg from the run"
+            f"m_wheel {m.mass_kg:.3f} +/- {m.sigma_kg:.2g} kg from the run"
             f" ({m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz; weighed {self.wheel_mass_given_kg:g} kg,"
             f" {100 * (m.mass_kg / self.wheel_mass_given_kg - 1):+.1f} %),"
             f" accelerometer lag {1e3 * m.accelerometer_delay_s:.3f} ms",
