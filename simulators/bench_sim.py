@@ -23,6 +23,7 @@ import numpy as np
 from bench.models.setup import BenchSetup
 from simulators.controller_model import ControllerModel
 from simulators.plant import PlantSimulator, SensorRealism
+from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
 
@@ -102,19 +103,15 @@ class BenchRunner:
         self.paced = paced
         self.block_s = block_s
         self.sinks: list[BenchSink] = []
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = Worker(self._run, "bench-runner")
+        self._stop = self._worker.stopping
         self.error: BaseException | None = None
 
     def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="bench-runner", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+        self._worker.stop()
 
     def _run(self) -> None:
         next_due = time.monotonic()

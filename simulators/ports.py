@@ -56,12 +56,7 @@ class _Pipe:
                 if left is not None and left <= 0:
                     break
                 self.cond.wait(left)
-            if self.closed:
-                raise serial.SerialException("link is down")
-            out = bytes(self.buf[:size])
-            del self.buf[:size]
-            self.cond.notify_all()
-            return out
+            return self._take(size)
 
     def read_some(self, size: int, timeout_s: float) -> bytes:
         """Whatever is there (at most ``size``) as soon as anything is, or b"" after ``timeout_s``."""
@@ -69,12 +64,16 @@ class _Pipe:
         with self.cond:
             while not self.buf and not self.closed and (left := deadline - time.monotonic()) > 0:
                 self.cond.wait(left)
-            if self.closed:
-                raise serial.SerialException("link is down")
-            out = bytes(self.buf[:size])
-            del self.buf[:size]
-            self.cond.notify_all()
-            return out
+            return self._take(size)
+
+    def _take(self, size: int) -> bytes:
+        """Up to ``size`` buffered bytes (the caller holds ``cond``); a closed link raises."""
+        if self.closed:
+            raise serial.SerialException("link is down")
+        out = bytes(self.buf[:size])
+        del self.buf[:size]
+        self.cond.notify_all()
+        return out
 
     def close(self) -> None:
         with self.cond:

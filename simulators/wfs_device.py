@@ -35,6 +35,7 @@ from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, Status, enc
 from drivers.wfs_transform import rotate_to_wheel_frame
 from simulators.bench_sim import BenchBlock, SimulatedBench
 from simulators.faults import ByteFaults
+from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
 
@@ -101,8 +102,8 @@ class WfsDevice:
         self._sample = 0
         self._stall_until = 0.0
         self._link_up = True
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = Worker(self._serve_commands, "wfs-device")
+        self._stop = self._worker.stopping
         self.frames_sent = 0
         self.frames_unsent = 0  # produced while stalled or disconnected (the host sees a gap)
         self.frames_dropped = 0  # not sent because the host did not drain the link (a gap too)
@@ -133,14 +134,10 @@ class WfsDevice:
         return self._streaming and self._link_up and not self._overflowing
 
     def start(self) -> None:
-        self._thread = threading.Thread(target=self._serve_commands, name="wfs-device", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+        self._worker.stop()
 
     # -- faults ---------------------------------------------------------------------------------
 
