@@ -1,0 +1,127 @@
+"""The asynchronous Modbus client behind the engine's blocking actuator contract.
+
+:class:`drivers.actuator.ActuatorClient` is asyncio code (pymodbus); the engine is a plain loop on
+its own thread. :class:`ThreadedActuator` owns an event loop on a thread of its own, where the client
+lives with its heartbeat task, and turns each contract call into a coroutine run there. Any thread
+may call it: an e-stop from a front end's thread reaches the controller without waiting for the
+engine's loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from drivers.actuator import ActuatorClient, ActuatorStatus
+from drivers.errors import ConnectionLostError, LinkTimeoutError
+from drivers.register_map import ControllerState, InterlockFlag
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+
+T = TypeVar("T")
+
+#: Longest a single contract call may take (s): a request's attempts with their timeouts and margin.
+CALL_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class ControllerReadback:
+    """The controller's status as the engine's contract states it."""
+
+    status: ActuatorStatus
+
+    @property
+    def moving(self) -> bool:
+        return self.status.moving
+
+    @property
+    def sample_count(self) -> int:
+        return self.status.sample_count
+
+    @property
+    def interlock_reason(self) -> str | None:
+        tripped = self.status.state in (ControllerState.INTERLOCK, ControllerState.ESTOP)
+        if not tripped and not self.status.interlock:
+            return None
+        names = [flag.name.lower() for flag in InterlockFlag if flag in self.status.interlock]
+        return f"controller {self.status.state.name.lower()}: {', '.join(names) or 'no flag'}"
+
+
+class ThreadedActuator:
+    """The engine's :class:`bench.engine.contracts.Actuator` on an :class:`ActuatorClient`."""
+
+    def __init__(self, make_client: Callable[[], ActuatorClient], *, heartbeat: bool = True) -> None:
+        """``make_client()`` builds the client (it must be created inside the loop's thread)."""
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="actuator-link", daemon=True)
+        self._thread.start()
+        self._client: ActuatorClient = self._call(self._create(make_client))
+        self._heartbeat = heartbeat
+
+    async def _create(self, make_client: Callable[[], ActuatorClient]) -> ActuatorClient:
+        return make_client()
+
+    def _call(self, coro: Coroutine[Any, Any, T], timeout_s: float = CALL_TIMEOUT_S) -> T:
+        future = asyncio.run_coroutine_threadsafe(coro, self._loop)
+        try:
+            return future.result(timeout_s)
+        except TimeoutError as exc:
+            future.cancel()
+            raise LinkTimeoutError(f"actuator call took longer than {timeout_s} s") from exc
+
+    # -- life cycle ---------------------------------------------------------------------------
+
+    def connect(self) -> ActuatorStatus:
+        status = self._call(self._client.connect())
+        if self._heartbeat:
+            self._call(self._client.start_heartbeat())
+        return status
+
+    def close(self) -> None:
+        try:
+            self._call(self._client.close())
+        finally:
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(timeout=5)
+            self._loop.close()
+
+    @property
+    def client(self) -> ActuatorClient:
+        return self._client
+
+    # -- the contract -------------------------------------------------------------------------
+
+    def read_status(self) -> ControllerReadback:
+        return ControllerReadback(self._call(self._client.read_status()))
+
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+        self._call(self._client.configure(setpoint))
+
+    def start(self) -> None:
+        self._call(self._client.start())
+
+    def stop(self) -> None:
+        self._call(self._client.stop())
+
+    def estop(self) -> None:
+        self._call(self._client.estop())
+
+    def set_hydraulics(self, level: str) -> None:
+        operation = {
+            "off": self._client.hydraulics_off,
+            "low": self._client.hydraulics_low,
+            "high": self._client.hydraulics_high,
+        }[level]
+        self._call(operation())
+
+    def reset_interlock(self) -> None:
+        self._call(self._client.reset_interlock())
+
+    def link_fault(self) -> str | None:
+        if not self._client.connected:
+            return str(ConnectionLostError("the Modbus connection to the controller is down"))
+        if self._client.heartbeat_failures:
+            return f"{self._client.heartbeat_failures} heartbeat writes failed"
+        return None

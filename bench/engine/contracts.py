@@ -1,0 +1,150 @@
+"""The small contracts through which the engine sees the bench's devices.
+
+One protocol per capability, each method's meaning stated exactly, so that the actuator client over
+Modbus, the WFS reader over a serial line, a simulated bench and a test fake are interchangeable.
+Calls block until the device has answered (or raise a :class:`drivers.errors.LinkError`); none of
+them may take longer than the link's documented timeouts.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from sequences import Prompt
+
+
+class ControllerStatus(Protocol):
+    """What the engine reads back from the actuator controller."""
+
+    @property
+    def moving(self) -> bool:
+        """True while the actuator is running or tapering."""
+        ...
+
+    @property
+    def interlock_reason(self) -> str | None:
+        """Why the controller is in interlock or e-stop (flags by name), None when it is not."""
+        ...
+
+    @property
+    def sample_count(self) -> int:
+        """The controller's own clock, in ticks since power-up."""
+        ...
+
+
+class StatusReadable(Protocol):
+    def read_status(self) -> ControllerStatus:
+        """Read the controller's state now (one request)."""
+        ...
+
+
+class Excitable(Protocol):
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+        """Check ``setpoint`` against the soft limits and write it; nothing moves yet.
+
+        Raises LimitError with nothing written when the setpoint lies outside the limits."""
+        ...
+
+    def start(self) -> None:
+        """Start the last completely configured excitation (refused if the configure failed)."""
+        ...
+
+    def stop(self) -> None:
+        """Take defensive action: taper the excitation out and ramp the mean back to rest.
+
+        Safe to call in any state; returns once the controller accepted the stop (not at rest)."""
+        ...
+
+
+class EmergencyStoppable(Protocol):
+    def estop(self) -> None:
+        """Freeze the actuator at once (no taper). Must work from any thread at any moment."""
+        ...
+
+
+class HydraulicsControl(Protocol):
+    def set_hydraulics(self, level: str) -> None:
+        """Switch the hydraulic supply to ``"off"``, ``"low"`` or ``"high"`` pressure."""
+        ...
+
+    def reset_interlock(self) -> None:
+        """Clear an interlock or a released e-stop; the controller returns to hydraulics low."""
+        ...
+
+
+class LinkSupervised(Protocol):
+    def link_fault(self) -> str | None:
+        """Why the link to the device can no longer be trusted (heartbeat writes failing, the
+        connection dropped), or None while it is healthy. Once set it stays set until reconnected."""
+        ...
+
+
+class Actuator(StatusReadable, Excitable, EmergencyStoppable, HydraulicsControl, LinkSupervised, Protocol):
+    """The actuator controller as the engine drives it."""
+
+
+class SampleBlockLike(Protocol):
+    """Consecutive WFS frames (``drivers.wfs_frame.FRAME_DTYPE``) with the gaps before some of them."""
+
+    frames: np.ndarray
+    gaps: tuple
+    resyncs: tuple
+
+
+class SampleSubscription(Protocol):
+    def get(self, timeout_s: float) -> SampleBlockLike | None:
+        """The next block of frames, or None when none arrived within ``timeout_s`` seconds."""
+        ...
+
+    def close(self) -> None:
+        """Stop receiving; the acquisition forgets this subscriber."""
+        ...
+
+
+class SampleSource(Protocol):
+    def subscribe(self, *, lossless: bool, max_blocks: int) -> SampleSubscription:
+        """A new consumer of the frame stream. A lossless subscriber holds the acquisition back when
+        it falls ``max_blocks`` behind (the engine and the recorder must see every frame); a lossy
+        one loses its oldest blocks instead (a live view) and never slows the others."""
+        ...
+
+
+class StreamControl(Protocol):
+    def start_stream(self) -> None:
+        """Start streaming frames; the frames' ``sample`` clock restarts at 0."""
+        ...
+
+    def stop_stream(self) -> None: ...
+
+    def tare(self) -> None:
+        """Zero the six load channels at the present load (the device's tare)."""
+        ...
+
+
+class LinkCounted(Protocol):
+    def link_counters(self) -> dict[str, int]:
+        """Cumulative link statistics by name (frames ok, missing, CRC rejects, reconnects, ...)."""
+        ...
+
+
+class Acquisition(SampleSource, StreamControl, LinkCounted, Protocol):
+    """The WFS acquisition as the engine drives it."""
+
+
+class Operator(Protocol):
+    def answer(self, prompt: Prompt) -> object:
+        """Ask the person at the bench ``prompt`` and return the answer, already checked with
+        ``prompt.check_answer`` (ask again on a bad answer). May block for as long as the person
+        takes. On the simulated bench the answer is also applied to the simulated world."""
+        ...
+
+
+class ResumePlan(Protocol):
+    """What an interrupted campaign already holds, so that a resumed run skips it."""
+
+    def run_complete(self, run_id: str) -> bool: ...
+
+    def completed_points(self, run_id: str) -> set[int]: ...

@@ -1,0 +1,589 @@
+"""The run engine: executes a sequence's steps on the bench, point by point.
+
+The loop reads top to bottom: a sequence is split into its steps; a measurement step (dwell grid,
+free run, sweep) is one *run*, recorded from the start of its stream to its end; each dwell of a
+grid is one *point*. A point is located in the acquisition's samples by the controller's sync
+outputs (:mod:`bench.engine.points`), so lengths are counted in samples and the wall clock serves
+only timeouts and watchdogs. Between points lies the checkpoint where a pause takes effect.
+
+Requests come from other threads (front ends) and only set flags, except the e-stop, which is sent
+to the controller at once from the requesting thread. Everything the engine does is published as an
+event; storage, analysis and displays are subscribers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.engine import events as ev
+from bench.engine.amplitude import AmplitudeControl, achieved_amplitude_mm
+from bench.engine.channels import FrameChannels
+from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan
+from bench.engine.interlocks import Interlock, Observation, first_trip
+from bench.engine.points import ExcitationSpan, SpanTracker
+from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
+from drivers.errors import LinkError
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from sequences import DwellGrid, FreeRun, Hydraulics, MeanPosition, Prompt, Sequence, SineDwell, Sweep, Tare
+
+log = logging.getLogger(__name__)
+
+DISPLACEMENT = "z_base_m"
+
+
+@dataclass(frozen=True)
+class EngineTiming:
+    """Wall-clock bounds (s): how long to wait for a block of frames, how often to read the
+    controller's status during an excitation, and the margin (s of samples) beyond an excitation's
+    planned duration after which it counts as hung."""
+
+    block_timeout_s: float = 0.05
+    status_period_s: float = 0.2
+    start_margin_s: float = 2.0
+    end_margin_s: float = 5.0
+
+
+@dataclass(frozen=True)
+class SyncBits:
+    """The frame status bits carrying the controller's sync outputs."""
+
+    active: int
+    hold: int
+
+
+class RunStoppedError(Exception):
+    """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
+
+    def __init__(self, state: RunState, reason: str) -> None:
+        super().__init__(reason)
+        self.state = state
+        self.reason = reason
+
+
+class _PointInterruptedError(Exception):
+    """A pause request interrupted the present point: repeat it after the pause."""
+
+
+class Engine:
+    """Runs sequences on one bench. Create it once per bench; :meth:`run` one sequence at a time."""
+
+    def __init__(
+        self,
+        actuator: Actuator,
+        acquisition: Acquisition,
+        operator: Operator,
+        *,
+        channels: FrameChannels,
+        interlocks: tuple[Interlock, ...],
+        sync_bits: SyncBits,
+        sample_rate_hz: float,
+        amplitude_control: AmplitudeControl | None = None,
+        timing: EngineTiming | None = None,
+        bus: ev.EventBus | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.actuator = actuator
+        self.acquisition = acquisition
+        self.operator = operator
+        self.channels = channels
+        self.interlocks = interlocks
+        self.sync_bits = sync_bits
+        self.sample_rate_hz = sample_rate_hz
+        self.amplitude_control = amplitude_control or AmplitudeControl()
+        self.timing = timing or EngineTiming()
+        self.bus = bus or ev.EventBus()
+        self._clock = clock
+        self.machine = StateMachine(on_change=self._state_changed)
+        self._pause = threading.Event()
+        self._resume = threading.Event()
+        self._abort = threading.Event()
+        self._estop = threading.Event()
+        self.conditions: dict[str, Any] = {}
+
+    # -- requests (any thread) ----------------------------------------------------------------
+
+    @property
+    def state(self) -> RunState:
+        return self.machine.state
+
+    def request_pause(self) -> None:
+        """Pause at the next checkpoint; the point under way is stopped (tapered) and repeated."""
+        self._resume.clear()
+        self._pause.set()
+
+    def request_resume(self) -> None:
+        self._pause.clear()
+        self._resume.set()
+
+    def request_abort(self) -> None:
+        """Taper out and end the sequence as aborted; the data recorded so far is kept."""
+        self._abort.set()
+        self._resume.set()
+
+    def request_estop(self) -> None:
+        """E-stop now: the controller is told from this thread, without waiting for the loop."""
+        self._estop.set()
+        self._resume.set()
+        try:
+            self.actuator.estop()
+        finally:
+            if self.machine.allows(Trigger.ESTOP):
+                self.machine.fire(Trigger.ESTOP)
+
+    def set_hydraulics(self, level: str) -> None:
+        """Switch the hydraulics while no sequence runs (refused while one does)."""
+        trigger = {
+            "off": Trigger.HYDRAULICS_OFF,
+            "low": Trigger.HYDRAULICS_LOW,
+            "high": Trigger.HYDRAULICS_HIGH,
+        }[level]
+        if not self.machine.allows(trigger):
+            raise RuntimeError(f"hydraulics {level} is not allowed while {self.state.value}")
+        self.actuator.set_hydraulics(level)
+        self.machine.fire(trigger)
+
+    def reset(self) -> None:
+        """Release an interlock or e-stop once the cause is cleared (the controller goes to low)."""
+        self.actuator.reset_interlock()
+        self.machine.fire(Trigger.RESET)
+        self._estop.clear()
+
+    # -- the sequence -------------------------------------------------------------------------
+
+    def run(
+        self,
+        sequence: Sequence,
+        *,
+        sequence_text: str = "",
+        config_text: str = "",
+        resume: ResumePlan | None = None,
+    ) -> str:
+        """Run ``sequence`` to its end or until stopped; returns the status (complete, aborted,
+        e-stopped, interlocked, failed). Nothing raised by a device escapes: it ends the run."""
+        self._pause.clear()
+        self._abort.clear()
+        self._estop.clear()
+        self.conditions = {}
+        self.machine.fire(Trigger.START)
+        self.bus.publish(
+            ev.SequenceStarted(
+                sequence.name, sequence_text, config_text, sequence.points(), sequence.estimated_duration_s
+            )
+        )
+        status, reason = "complete", ""
+        try:
+            for index in self._steps_to_run(sequence, resume):
+                self._execute(index, sequence.steps[index], resume)
+            self.machine.fire(Trigger.FINISH)
+        except RunStoppedError as stop:
+            status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
+        except LinkError as exc:
+            status, reason = "failed", f"link error: {exc}"
+            self._defensive_stop()
+            self._force_state(Trigger.INTERLOCK)
+        except BaseException as exc:  # a crash (or Ctrl-C) still stops the actuator and marks the end
+            self._defensive_stop()
+            self._force_state(Trigger.INTERLOCK)
+            self.bus.publish(ev.SequenceFinished("failed", f"{type(exc).__name__}: {exc}"))
+            raise
+        self.bus.publish(ev.SequenceFinished(status, reason))
+        return status
+
+    def _steps_to_run(self, sequence: Sequence, resume: ResumePlan | None) -> list[int]:
+        """Step indices to execute. On resume, a prompt and its steps up to the next prompt are
+        skipped when every measurement run among them is complete (the bench is already past them);
+        hydraulics steps always run."""
+        if resume is None:
+            return list(range(len(sequence.steps)))
+        segments: list[list[int]] = [[]]
+        for index, step in enumerate(sequence.steps):
+            if isinstance(step, Prompt) and segments[-1]:
+                segments.append([])
+            segments[-1].append(index)
+        chosen = []
+        for segment in segments:
+            done = all(
+                resume.run_complete(self.run_id(i, sequence.steps[i]))
+                for i in segment
+                if _is_measurement(sequence.steps[i])
+            )
+            chosen += [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
+        return chosen
+
+    @staticmethod
+    def run_id(index: int, step: object) -> str:
+        """The run id of a measurement step: its position and kind (stable across a resume)."""
+        return f"step{index:03d}-{type(step).kind}"
+
+    def _execute(self, index: int, step: object, resume: ResumePlan | None) -> None:
+        self._checkpoint()
+        if isinstance(step, Prompt):
+            self._ask(step)
+        elif isinstance(step, Hydraulics):
+            self.actuator.set_hydraulics(step.level)
+            self.conditions["hydraulics"] = step.level
+        elif isinstance(step, Tare):
+            self.acquisition.tare()
+        elif isinstance(step, MeanPosition):
+            self.conditions["mean_mm"] = step.mean_mm
+        elif isinstance(step, DwellGrid | FreeRun):
+            run_id = self.run_id(index, step)
+            if resume is None or not resume.run_complete(run_id):
+                done = resume.completed_points(run_id) if resume else set()
+                self._dwell_run(run_id, step, done)
+        elif isinstance(step, Sweep):
+            run_id = self.run_id(index, step)
+            if resume is None or not resume.run_complete(run_id):
+                self._sweep_run(run_id, step)
+        else:
+            raise RunStoppedError(
+                RunState.INTERLOCKED, f"step {index}: {type(step).__name__} is not supported"
+            )
+
+    def _ask(self, prompt: Prompt) -> None:
+        self.bus.publish(ev.PromptAsked(prompt.id, prompt.text))
+        answer = self.operator.answer(prompt)
+        self.conditions[prompt.id] = answer
+        self.bus.publish(ev.PromptAnswered(prompt.id, prompt.text, answer, prompt.unit))
+
+    # -- runs ---------------------------------------------------------------------------------
+
+    def _dwell_run(self, run_id: str, step: DwellGrid | FreeRun, done: set[int]) -> None:
+        dwells = step.grid.dwells() if isinstance(step, FreeRun) else step.dwells()
+        with self._recording(run_id, step) as run:
+            for index, dwell in enumerate(dwells):
+                if index not in done:
+                    self._point(run, index, dwell)
+
+    def _sweep_run(self, run_id: str, step: Sweep) -> None:
+        setpoint = SweepSetpoint(
+            step.start_hz,
+            step.end_hz,
+            step.duration_s,
+            step.amplitude_mm,
+            spacing=step.law,
+            taper_in_s=step.taper_in_s,
+            taper_out_s=step.taper_out_s,
+            mean_mm=self._mean(step.mean_mm),
+        )
+        with self._recording(run_id, step) as run:
+            span = run.excite(setpoint, planned_s=step.duration_s)
+            self.bus.publish(
+                ev.PointDone(
+                    run_id,
+                    0,
+                    1,
+                    "done",
+                    step.start_hz,
+                    step.amplitude_mm,
+                    step.amplitude_mm,
+                    float("nan"),
+                    None,
+                    span.start,
+                    span.hold_start,
+                    span.hold_end,
+                    span.end,
+                )
+            )
+
+    def _point(self, run: _RunRecording, index: int, dwell: SineDwell) -> None:
+        """One dwell, repeated with a corrected command while the achieved amplitude is off."""
+        command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
+        requested = dwell.requested_amplitude_mm or dwell.amplitude_mm
+        while True:
+            self._checkpoint()
+            attempt += 1
+            self.bus.publish(
+                ev.PointStarted(run.run_id, index, attempt, dwell.freq_hz, command_mm, dict(self.conditions))
+            )
+            setpoint = DwellSetpoint(
+                dwell.freq_hz,
+                command_mm,
+                dwell_s=dwell.hold_s,
+                taper_in_s=dwell.taper_in_s,
+                taper_out_s=dwell.taper_out_s,
+                mean_mm=self._mean(dwell.mean_mm),
+            )
+            try:
+                span = run.excite(setpoint, planned_s=dwell.duration_s)
+            except _PointInterruptedError:
+                span = run.interrupted_span
+                self._publish_point(
+                    run,
+                    index=index,
+                    attempt=attempt,
+                    status="interrupted",
+                    dwell=dwell,
+                    command_mm=command_mm,
+                    requested_mm=requested,
+                    span=span,
+                )
+                self._wait_paused()
+                continue
+            achieved = run.achieved_amplitude_mm(span, dwell)
+            decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
+            status = "done" if decision.keep else "repeated"
+            self._publish_point(
+                run,
+                index=index,
+                attempt=attempt,
+                status=status,
+                dwell=dwell,
+                command_mm=command_mm,
+                requested_mm=requested,
+                span=span,
+                achieved_mm=achieved,
+                corrected_mm=decision.corrected_mm,
+                note=decision.note,
+            )
+            if decision.keep:
+                return
+            command_mm, corrections = decision.corrected_mm, corrections + 1
+
+    def _publish_point(
+        self,
+        run: _RunRecording,
+        *,
+        index: int,
+        attempt: int,
+        status: str,
+        dwell: SineDwell,
+        command_mm: float,
+        requested_mm: float,
+        span: ExcitationSpan,
+        achieved_mm: float = float("nan"),
+        corrected_mm: float | None = None,
+        note: str = "",
+    ) -> None:
+        self.bus.publish(
+            ev.PointDone(
+                run.run_id,
+                index,
+                attempt,
+                status,
+                dwell.freq_hz,
+                command_mm,
+                requested_mm,
+                achieved_mm,
+                corrected_mm,
+                span.start,
+                span.hold_start,
+                span.hold_end,
+                span.end,
+                note,
+            )
+        )
+
+    def _mean(self, step_mean_mm: float) -> float:
+        return step_mean_mm or float(self.conditions.get("mean_mm", 0.0))
+
+    def _recording(self, run_id: str, step: object) -> _RunRecording:
+        return _RunRecording(self, run_id, step)
+
+    # -- checkpoints, stops -------------------------------------------------------------------
+
+    def _checkpoint(self) -> None:
+        """Between points: honour an e-stop, an abort or a pause request."""
+        if self._estop.is_set():
+            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
+        if self._abort.is_set():
+            self._abort_now()
+        if self._pause.is_set():
+            self._wait_paused()
+
+    def _wait_paused(self) -> None:
+        """At rest between points until resumed (or aborted / e-stopped)."""
+        if not self._pause.is_set():
+            return
+        self.machine.fire(Trigger.PAUSE)
+        self._resume.wait()
+        if self._estop.is_set():
+            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
+        if self._abort.is_set():
+            self._abort_now()
+        self.machine.fire(Trigger.RESUME)
+
+    def _abort_now(self) -> None:
+        self._force_state(Trigger.ABORT)
+        self._defensive_stop()
+        self.machine.fire(Trigger.STOPPED)
+        raise RunStoppedError(RunState.ABORTED, "aborted by the operator")
+
+    def _defensive_stop(self) -> None:
+        """Taper the actuator out; a link error here is logged (the watchdog stops the controller)."""
+        try:
+            self.actuator.stop()
+        except LinkError as exc:
+            log.warning("stop not confirmed (%s); the controller's watchdog tapers it out", exc)
+
+    def _force_state(self, trigger: Trigger) -> None:
+        if self.machine.allows(trigger):
+            self.machine.fire(trigger)
+
+    def _state_changed(self, old: RunState, new: RunState, trigger: Trigger) -> None:
+        self.bus.publish(ev.StateChanged(old, new, trigger))
+
+
+def _is_measurement(step: object) -> bool:
+    return isinstance(step, DwellGrid | FreeRun | Sweep)
+
+
+def step_fields(step: object) -> dict[str, Any]:
+    """A step as plain JSON-able data (its type and fields), for recording beside its samples."""
+    fields = {"type": type(step).kind}
+    for f in dataclasses.fields(step):
+        value = getattr(step, f.name)
+        fields[f.name] = step_fields(value) if dataclasses.is_dataclass(value) else value
+    return fields
+
+
+class _RunRecording:
+    """One run's stream: started on entry, every frame published as samples until the exit."""
+
+    def __init__(self, engine: Engine, run_id: str, step: object) -> None:
+        self.engine = engine
+        self.run_id = run_id
+        self.step = step
+        self.samples = 0  # frames recorded so far in this run
+        self.displacement: list[np.ndarray] = []
+        self.interrupted_span = ExcitationSpan(0, 0, 0, 0)
+        self._subscription = None
+        self._last_status_s = -np.inf
+        self._last_frame_s = 0.0
+
+    def __enter__(self) -> _RunRecording:
+        e = self.engine
+        e.bus.publish(
+            ev.RunStarted(
+                self.run_id,
+                type(self.step).kind,
+                step_fields(self.step),
+                dict(e.conditions),
+                e.channels.specs(),
+                e.sample_rate_hz,
+            )
+        )
+        self._subscription = e.acquisition.subscribe(lossless=True, max_blocks=1024)
+        e.acquisition.start_stream()
+        self._last_frame_s = e._clock()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        e = self.engine
+        status, reason = "complete", ""
+        if isinstance(exc, RunStoppedError):
+            status, reason = RUN_STATUS.get(exc.state, "failed"), exc.reason
+        elif exc is not None:
+            status, reason = "failed", f"{type(exc).__name__}: {exc}"
+        try:
+            e.acquisition.stop_stream()
+            self._drain()
+        except LinkError as stop_error:
+            log.warning("stopping the WFS stream failed: %s", stop_error)
+        finally:
+            self._subscription.close()
+            e.bus.publish(ev.RunFinished(self.run_id, status, reason, e.acquisition.link_counters()))
+
+    def _drain(self) -> None:
+        """Record the frames still in flight after the stream stopped."""
+        while (block := self._subscription.get(self.engine.timing.block_timeout_s)) is not None:
+            self._record(block)
+
+    def _record(self, block) -> Mapping[str, np.ndarray]:
+        columns = self.engine.channels.columns(block.frames)
+        missing = sum(g.missing for g in block.gaps)
+        self.engine.bus.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, missing))
+        self.displacement.append(np.asarray(columns[DISPLACEMENT], dtype=float))
+        self.samples += len(block.frames)
+        return columns
+
+    def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
+        z = np.concatenate(self.displacement) if self.displacement else np.zeros(0)
+        settle = round(dwell.settle_s * self.engine.sample_rate_hz)
+        start = min(span.hold_start + settle, span.hold_end)
+        try:
+            return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz, start, span.hold_end)
+        except ValueError as exc:  # a window shorter than one cycle (a hold cut short)
+            log.warning("%s: achieved amplitude not measured: %s", self.run_id, exc)
+            return float("nan")
+
+    def excite(self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float) -> ExcitationSpan:
+        """Configure, start and record one excitation until the controller's active output falls.
+
+        A pause request stops it with a taper and raises :class:`_PointInterruptedError` once it is at rest;
+        an abort tapers it out and ends the run; an e-stop or a tripped interlock ends the run."""
+        e = self.engine
+        e.actuator.configure(setpoint)
+        e.actuator.start()
+        tracker = SpanTracker(e.sync_bits.active, e.sync_bits.hold)
+        first = self.samples
+        start_limit = first + round(e.timing.start_margin_s * e.sample_rate_hz)
+        end_limit = first + round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
+        stopping: str | None = None
+        while not tracker.ended:
+            columns = self._next_columns()
+            tracker.feed(
+                self.samples - len(columns.get("status", ())), columns.get("status", np.zeros(0, int))
+            )
+            self._guard(columns)
+            if e._estop.is_set():
+                raise RunStoppedError(RunState.ESTOPPED, "e-stop")
+            if stopping is None and (e._abort.is_set() or e._pause.is_set()):
+                stopping = "abort" if e._abort.is_set() else "pause"
+                e._defensive_stop()
+            if not tracker.started and self.samples > start_limit:
+                self._trip("excitation watchdog", "the controller did not start the excitation")
+            if self.samples > end_limit:
+                self._trip("excitation watchdog", "the excitation did not end when planned")
+        if stopping == "abort":
+            e._abort_now()
+        if stopping == "pause":
+            self.interrupted_span = tracker.span
+            raise _PointInterruptedError
+        return tracker.span
+
+    def _next_columns(self) -> Mapping[str, np.ndarray]:
+        """The next block's columns, recorded; empty columns when none came in time."""
+        e = self.engine
+        block = self._subscription.get(e.timing.block_timeout_s)
+        if block is None:
+            return {}
+        self._last_frame_s = e._clock()
+        return self._record(block)
+
+    def _guard(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Check every interlock; the first that trips stops the actuator and ends the run."""
+        e = self.engine
+        now = e._clock()
+        controller = None
+        if now - self._last_status_s >= e.timing.status_period_s:
+            self._last_status_s = now
+            try:
+                controller = e.actuator.read_status()
+            except LinkError as exc:
+                log.warning("status read failed: %s", exc)
+        seen = Observation(
+            columns,
+            controller,
+            e.actuator.link_fault(),
+            0.0 if columns else now - self._last_frame_s,
+        )
+        tripped = first_trip(e.interlocks, seen)
+        if tripped is not None:
+            self._trip(*tripped)
+
+    def _trip(self, name: str, reason: str) -> None:
+        """Stop the actuator with a taper, publish the interlock and end the run."""
+        e = self.engine
+        e._defensive_stop()
+        e.bus.publish(ev.InterlockTripped(name, reason, self.run_id))
+        e._force_state(Trigger.INTERLOCK)
+        raise RunStoppedError(RunState.INTERLOCKED, f"{name}: {reason}")

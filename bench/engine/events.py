@@ -1,0 +1,191 @@
+"""The engine's typed events and the bus that hands them to subscribers.
+
+Writer, front ends and post-run analysis subscribe; none of them drives the engine. Subscribers are
+called on the engine's thread in subscription order and must return quickly: a front end that
+draws hands the event over to its own thread. A subscriber that raises is reported once and removed
+(a broken display must not stop a run; the recorder is subscribed with ``critical=True``, so its
+failure stops the run instead).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.engine.states import RunState, Trigger
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SequenceStarted:
+    """A sequence begins: the whole configuration and sequence as text, and the plan of runs."""
+
+    sequence_name: str
+    sequence_text: str
+    config_text: str
+    total_points: int
+    estimated_duration_s: float
+
+
+@dataclass(frozen=True)
+class StateChanged:
+    old: RunState
+    new: RunState
+    trigger: Trigger
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One recorded channel: its name (unit in the name), unit and what it is."""
+
+    name: str
+    unit: str
+    description: str
+    dtype: str = "f4"
+
+
+@dataclass(frozen=True)
+class RunStarted:
+    """A measurement step (dwell grid, free run, sweep, hammer test) begins recording as ``run_id``."""
+
+    run_id: str
+    kind: str
+    step: Mapping[str, Any]
+    conditions: Mapping[str, Any]
+    channels: tuple[ChannelSpec, ...]
+    sample_rate_hz: float
+
+
+@dataclass(frozen=True)
+class SamplesRecorded:
+    """Consecutive samples of the present run, by channel name, from run sample ``first_sample`` on."""
+
+    run_id: str
+    first_sample: int
+    columns: Mapping[str, np.ndarray]
+    gaps: int = 0  # frames lost on the link just before or inside this block
+
+    def __len__(self) -> int:
+        return len(next(iter(self.columns.values())))
+
+
+@dataclass(frozen=True)
+class PointStarted:
+    run_id: str
+    index: int
+    attempt: int
+    freq_hz: float
+    amplitude_mm: float
+    conditions: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class PointDone:
+    """One attempt at a point ended. ``status``: "done" (kept), "repeated" (amplitude off, corrected
+    and tried again), "interrupted" (pause or stop: repeated on resume) or "failed"."""
+
+    run_id: str
+    index: int
+    attempt: int
+    status: str
+    freq_hz: float
+    commanded_amplitude_mm: float
+    requested_amplitude_mm: float
+    achieved_amplitude_mm: float
+    corrected_amplitude_mm: float | None
+    start_sample: int
+    hold_start_sample: int
+    hold_end_sample: int
+    end_sample: int
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class PromptAsked:
+    prompt_id: str
+    text: str
+
+
+@dataclass(frozen=True)
+class PromptAnswered:
+    prompt_id: str
+    text: str
+    answer: Any
+    unit: str | None
+
+
+@dataclass(frozen=True)
+class InterlockTripped:
+    name: str
+    reason: str
+    run_id: str | None
+
+
+@dataclass(frozen=True)
+class RunFinished:
+    run_id: str
+    status: str  # complete, aborted, e-stopped, interlocked, failed
+    reason: str
+    link_counters: Mapping[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class AnalysisDone:
+    """Results of the analysis after a run: ``summary`` lines for people, ``results`` for storage."""
+
+    run_id: str
+    name: str
+    summary: tuple[str, ...]
+    results: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class SequenceFinished:
+    status: str
+    reason: str
+
+
+Event = (
+    SequenceStarted
+    | StateChanged
+    | RunStarted
+    | SamplesRecorded
+    | PointStarted
+    | PointDone
+    | PromptAsked
+    | PromptAnswered
+    | InterlockTripped
+    | RunFinished
+    | AnalysisDone
+    | SequenceFinished
+)
+Subscriber = Callable[[Event], None]
+
+
+class EventBus:
+    """Hands each event to every subscriber in order."""
+
+    def __init__(self) -> None:
+        self._subscribers: list[tuple[Subscriber, bool]] = []
+
+    def subscribe(self, subscriber: Subscriber, *, critical: bool = False) -> None:
+        """Add ``subscriber``; a critical subscriber's exception propagates to the publisher."""
+        self._subscribers.append((subscriber, critical))
+
+    def unsubscribe(self, subscriber: Subscriber) -> None:
+        self._subscribers = [(s, c) for s, c in self._subscribers if s is not subscriber]
+
+    def publish(self, event: Event) -> None:
+        for subscriber, critical in list(self._subscribers):
+            try:
+                subscriber(event)
+            except Exception:
+                if critical:
+                    raise
+                log.exception("subscriber %r failed on %s; removed", subscriber, type(event).__name__)
+                self.unsubscribe(subscriber)

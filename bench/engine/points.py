@@ -1,0 +1,81 @@
+"""Locating an excitation in the acquisition's samples.
+
+The actuator controller drives two digital sync outputs that the WFS acquisition samples with every
+frame (status bits): *active* while the generator runs (tapers included) and *hold* during the
+constant-amplitude part of a dwell (a sweep between its tapers). An excitation's start, hold and end
+are therefore known to the sample, in the same clock as the loads, whatever the link delays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ExcitationSpan:
+    """Run-sample indices: ``start`` first active sample, ``hold_start`` first hold sample,
+    ``hold_end`` one past the last hold sample, ``end`` one past the last active sample."""
+
+    start: int
+    hold_start: int
+    hold_end: int
+    end: int
+
+    @property
+    def hold_samples(self) -> int:
+        return self.hold_end - self.hold_start
+
+
+class SpanTracker:
+    """Follows the sync bits block by block until one excitation has started and ended.
+
+    ``feed(first_sample, status)`` with the run-sample index of the block's first sample; ``span``
+    is set once the active bit has fallen after rising. A hold that never came (an excitation stopped
+    during its taper-in) leaves ``hold_start == hold_end == end``.
+    """
+
+    def __init__(self, active_bit: int, hold_bit: int) -> None:
+        self.active_bit = active_bit
+        self.hold_bit = hold_bit
+        self.start: int | None = None
+        self.hold_start: int | None = None
+        self.hold_end: int | None = None
+        self.span: ExcitationSpan | None = None
+
+    @property
+    def started(self) -> bool:
+        return self.start is not None
+
+    @property
+    def ended(self) -> bool:
+        return self.span is not None
+
+    def feed(self, first_sample: int, status: np.ndarray) -> None:
+        if self.span is not None or len(status) == 0:
+            return
+        active = (status & self.active_bit) != 0
+        hold = (status & self.hold_bit) != 0
+        offset = 0
+        if self.start is None:
+            rising = np.flatnonzero(active)
+            if rising.size == 0:
+                return
+            offset = int(rising[0])
+            self.start = first_sample + offset
+        if self.hold_start is None:
+            found = np.flatnonzero(hold[offset:])
+            if found.size:
+                self.hold_start = first_sample + offset + int(found[0])
+        if self.hold_start is not None and self.hold_end is None:
+            local = max(self.hold_start - first_sample, offset)
+            dropped = np.flatnonzero(~hold[local:])
+            if dropped.size:
+                self.hold_end = first_sample + local + int(dropped[0])
+        falling = np.flatnonzero(~active[offset:])
+        if falling.size:
+            end = first_sample + offset + int(falling[0])
+            hold_start = self.hold_start if self.hold_start is not None else end
+            hold_end = self.hold_end if self.hold_end is not None else end
+            self.span = ExcitationSpan(self.start, hold_start, hold_end, end)
