@@ -38,6 +38,17 @@ log = logging.getLogger(__name__)
 
 DISPLACEMENT = "z_base_m"
 
+#: The bench condition a prompt's answer establishes, by the prompt's action: (name, value), where a
+#: value of None stands for the answer itself.
+CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
+    "set_tyre_pressure": ("tyre_pressure_bar", None),
+    "remove_wheel": ("wheel_fitted", False),
+    "fit_wheel": ("wheel_fitted", True),
+    "car_on_posts": ("car_on_posts", True),
+    "car_off_posts": ("car_on_posts", False),
+    "set_damper": ("damper", None),
+}
+
 
 @dataclass(frozen=True)
 class EngineTiming:
@@ -252,6 +263,9 @@ class Engine:
         self.bus.publish(ev.PromptAsked(prompt.id, prompt.text))
         answer = self.operator.answer(prompt)
         self.conditions[prompt.id] = answer
+        if prompt.action in CONDITION_OF_ACTION:
+            name, value = CONDITION_OF_ACTION[prompt.action]
+            self.conditions[name] = answer if value is None else value
         self.bus.publish(ev.PromptAnswered(prompt.id, prompt.text, answer, prompt.unit))
 
     # -- runs ---------------------------------------------------------------------------------
@@ -285,8 +299,8 @@ class Engine:
                     step.start_hz,
                     step.amplitude_mm,
                     step.amplitude_mm,
+                    step.amplitude_mm,
                     float("nan"),
-                    None,
                     span.start,
                     span.hold_start,
                     span.hold_end,
@@ -341,7 +355,6 @@ class Engine:
                 requested_mm=requested,
                 span=span,
                 achieved_mm=achieved,
-                corrected_mm=decision.corrected_mm,
                 note=decision.note,
             )
             if decision.keep:
@@ -360,7 +373,6 @@ class Engine:
         requested_mm: float,
         span: ExcitationSpan,
         achieved_mm: float = float("nan"),
-        corrected_mm: float | None = None,
         note: str = "",
     ) -> None:
         self.bus.publish(
@@ -370,10 +382,10 @@ class Engine:
                 attempt,
                 status,
                 dwell.freq_hz,
-                command_mm,
+                dwell.amplitude_mm,
                 requested_mm,
+                command_mm,
                 achieved_mm,
-                corrected_mm,
                 span.start,
                 span.hold_start,
                 span.hold_end,
@@ -533,9 +545,9 @@ class _RunRecording:
             tracker.feed(
                 self.samples - len(columns.get("status", ())), columns.get("status", np.zeros(0, int))
             )
-            self._guard(columns)
             if e._estop.is_set():
                 raise RunStoppedError(RunState.ESTOPPED, "e-stop")
+            self._guard(columns)
             if stopping is None and (e._abort.is_set() or e._pause.is_set()):
                 stopping = "abort" if e._abort.is_set() else "pause"
                 e._defensive_stop()

@@ -86,18 +86,19 @@ class PointStarted:
 
 @dataclass(frozen=True)
 class PointDone:
-    """One attempt at a point ended. ``status``: "done" (kept), "repeated" (amplitude off, corrected
-    and tried again), "interrupted" (pause or stop: repeated on resume) or "failed"."""
+    """One attempt at a point ended. ``status``: "done" (kept), "repeated" (amplitude off: tried
+    again with a corrected command) or "interrupted" (a pause stopped it: repeated on resume).
+    Sample indices count this run's recorded frames (see :class:`bench.engine.points.ExcitationSpan`)."""
 
     run_id: str
     index: int
     attempt: int
     status: str
     freq_hz: float
-    commanded_amplitude_mm: float
-    requested_amplitude_mm: float
-    achieved_amplitude_mm: float
-    corrected_amplitude_mm: float | None
+    target_amplitude_mm: float  # the step's amplitude (after any bench-limit crossover)
+    requested_amplitude_mm: float  # the grid's nominal amplitude
+    commanded_amplitude_mm: float  # sent in this attempt (differs from the target once corrected)
+    achieved_amplitude_mm: float  # on the displacement channel over the hold (NaN: not measured)
     start_sample: int
     hold_start_sample: int
     hold_end_sample: int

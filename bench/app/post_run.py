@@ -1,0 +1,166 @@
+"""The analysis after each run, as a subscriber: results stored beside the run and published.
+
+What is analysed after which run (the paper's procedure):
+
+- hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on);
+- free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow);
+- dwell grid with the wheel: the tyre identification and the compensation, over every complete grid
+  of the campaign at the same tyre pressure (so the result grows as the amplitudes come in);
+- four-post sweep: m_wheel, the quarter car and the valid bands, with the post's own free run and the
+  tyre identified on the shaker at the nearest pressure (or the configured tyre).
+
+The records are read back from the campaign file with the store's reader, exactly as any other file
+that follows the schema would be analysed. An analysis that fails is reported as a flagged result;
+it never stops the campaign.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.analysis.records import DwellRecord
+from bench.analysis.runs import (
+    ShakerCampaignResult,
+    analyse_four_post,
+    analyse_free_run,
+    analyse_hammer,
+    analyse_shaker_campaign,
+)
+from bench.analysis.validation import AnalysisInputError
+from bench.engine import events as ev
+from bench.models.parameters import Tyre, WfsSensor
+from bench.store import open_campaign
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class CampaignKnowledge:
+    """What the campaign has established so far, for the analyses that follow."""
+
+    sensor: WfsSensor
+    wheel_mass_kg: float
+    configured_tyre: Tyre | None = None
+    shaker_free_run: list[DwellRecord] = field(default_factory=list)
+    post_free_run: list[DwellRecord] = field(default_factory=list)
+    shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
+
+
+class PostRunAnalysis:
+    """Subscriber: analyses each complete run of ``campaign_path`` and publishes the result."""
+
+    def __init__(
+        self,
+        campaign_path: Path,
+        publish: Callable[[ev.Event], None],
+        knowledge: CampaignKnowledge,
+        *,
+        four_post: bool = False,
+    ) -> None:
+        self.campaign_path = campaign_path
+        self.publish = publish
+        self.knowledge = knowledge
+        self.four_post = four_post
+
+    def __call__(self, event: ev.Event) -> None:
+        if not isinstance(event, ev.RunFinished) or event.status != "complete":
+            return
+        with open_campaign(self.campaign_path) as campaign:
+            run = campaign.run(event.run_id)
+            try:
+                name, lines, results = self._analyse(run)
+            except (AnalysisInputError, ValueError) as exc:
+                log.warning("analysis of %s failed: %s", event.run_id, exc)
+                name, lines, results = "analysis", (f"FLAG analysis failed: {exc}",), {"error": str(exc)}
+        self.publish(
+            ev.AnalysisDone(event.run_id, name, tuple(lines), {"summary": "\n".join(lines), **results})
+        )
+
+    def _analyse(self, run) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if run.kind == "hammer":
+            result = analyse_hammer(run.hammer_record(), sensor_mass_kg=k.sensor.mass_kg)
+            k.sensor = WfsSensor(
+                mass_kg=k.sensor.mass_kg,
+                eigenfrequency_hz=result.eigenfrequency_hz,
+                damping_ratio=result.damping_ratio_log_decrement,
+            )
+            return (
+                "hammer",
+                result.summary_lines(),
+                {
+                    "eigenfrequency_hz": result.eigenfrequency_hz,
+                    "damping_ratio": result.damping_ratio_log_decrement,
+                },
+            )
+        if run.kind == "free_run":
+            records = run.dwell_records()
+            result = analyse_free_run(records)
+            if self.four_post:
+                k.post_free_run = records
+            else:
+                k.shaker_free_run = records
+            return (
+                "plate_mass",
+                result.summary_lines(),
+                {
+                    "m_comp_kg": result.plate.mass_kg,
+                    "m_comp_sigma_kg": result.plate.sigma_kg,
+                },
+            )
+        if run.kind == "dwell_grid":
+            return self._shaker(run)
+        if run.kind == "sweep":
+            return self._four_post(run)
+        raise ValueError(f"no analysis for a {run.kind} run")
+
+    def _shaker(self, run) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if not k.shaker_free_run:
+            raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
+        pressure = run.conditions.get("tyre_pressure_bar")
+        if pressure is None:
+            raise ValueError("no tyre pressure was answered before this grid")
+        records = self._complete_dwells_at(pressure)
+        result = analyse_shaker_campaign(
+            records, k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+        )
+        k.shaker[float(pressure)] = result
+        return "shaker", result.summary_lines(), {"tyre_pressure_bar": float(pressure)}
+
+    def _complete_dwells_at(self, pressure: float) -> list[DwellRecord]:
+        with open_campaign(self.campaign_path) as campaign:
+            return [
+                record
+                for other in campaign.runs
+                if other.kind == "dwell_grid"
+                and other.status == "complete"
+                and other.conditions.get("tyre_pressure_bar") == pressure
+                for record in other.dwell_records()
+            ]
+
+    def _four_post(self, run) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if not k.post_free_run:
+            raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
+        pressure = run.conditions.get("tyre_pressure_bar")
+        tyre: ShakerCampaignResult | Tyre | None = k.configured_tyre
+        if k.shaker:
+            nearest = min(k.shaker, key=lambda p: abs(p - (pressure if pressure is not None else p)))
+            tyre = k.shaker[nearest]
+        if tyre is None:
+            raise ValueError("no tyre identified on the shaker and none configured")
+        result = analyse_four_post(
+            run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+        )
+        return (
+            "four_post",
+            result.summary_lines(),
+            {
+                "m_wheel_kg": result.wheel_mass.mass_kg,
+            },
+        )

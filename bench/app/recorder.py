@@ -1,0 +1,110 @@
+"""The recorder: a subscriber that writes the engine's events into the campaign file.
+
+Every block of samples is appended as it arrives (the store makes it durable at least every
+second), every point attempt becomes a row of the run's points table, prompts and answers, state
+changes and interlocks become events, and each run ends with its status and link counters. The
+recorder is subscribed as critical: if the file cannot be written the run stops rather than go on
+unrecorded.
+"""
+
+from __future__ import annotations
+
+import math
+
+from bench.engine import events as ev
+from bench.store import CampaignWriter, ChannelSpec, PointRow, RunWriter
+
+
+class Recorder:
+    """Writes one engine's events to ``campaign``; a run id present and incomplete is continued."""
+
+    def __init__(self, campaign: CampaignWriter) -> None:
+        self.campaign = campaign
+        self._run: RunWriter | None = None
+        self._finished: dict[str, RunWriter] = {}
+
+    def __call__(self, event: ev.Event) -> None:
+        match event:
+            case ev.RunStarted():
+                self._begin(event)
+            case ev.SamplesRecorded():
+                self._samples(event)
+            case ev.PointDone():
+                self._point(event)
+            case ev.PromptAnswered():
+                self._event(
+                    "prompt", event.text, prompt_id=event.prompt_id, answer=event.answer, unit=event.unit
+                )
+            case ev.StateChanged():
+                self._event("state", f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value)
+            case ev.InterlockTripped():
+                self._event("interlock", f"{event.name}: {event.reason}", name=event.name)
+            case ev.RunFinished():
+                self._finish(event)
+            case ev.AnalysisDone():
+                self._finished[event.run_id].write_results(event.name, event.results)
+            case ev.SequenceFinished():
+                self.campaign.add_event(
+                    "sequence finished", event.reason or event.status, status=event.status
+                )
+                self.campaign.flush()
+
+    def _begin(self, event: ev.RunStarted) -> None:
+        if event.run_id in self.campaign.run_ids:
+            self._run = self.campaign.continue_run(event.run_id)
+            return
+        self._run = self.campaign.begin_run(
+            event.run_id,
+            kind=event.kind,
+            step=event.step,
+            conditions=event.conditions,
+            channels=[ChannelSpec(c.name, c.unit, c.dtype, c.description) for c in event.channels],
+            sample_rate_hz=event.sample_rate_hz,
+        )
+
+    def _samples(self, event: ev.SamplesRecorded) -> None:
+        run = self._open_run(event.run_id)
+        if event.gaps:
+            run.add_event("gap", f"{event.gaps} frames lost on the WFS link", missing=event.gaps)
+        run.append(event.columns)
+
+    def _point(self, event: ev.PointDone) -> None:
+        commanded = event.commanded_amplitude_mm
+        self._open_run(event.run_id).add_point(
+            PointRow(
+                index=event.index,
+                freq_hz=event.freq_hz,
+                amplitude_mm=event.target_amplitude_mm,
+                start_sample=event.start_sample,
+                hold_start_sample=event.hold_start_sample,
+                hold_end_sample=event.hold_end_sample,
+                end_sample=event.end_sample,
+                status=event.status,
+                attempt=event.attempt,
+                requested_amplitude_mm=event.requested_amplitude_mm,
+                corrected_amplitude_mm=commanded if commanded != event.target_amplitude_mm else math.nan,
+                achieved_amplitude_mm=event.achieved_amplitude_mm,
+                note=event.note,
+            )
+        )
+
+    def _event(self, kind: str, text: str, **fields: object) -> None:
+        """An event of the run being recorded, or of the campaign between runs."""
+        if self._run is not None and self._run.is_open:
+            self._run.add_event(kind, text, **fields)
+        else:
+            self.campaign.add_event(kind, text, **fields)
+
+    def _finish(self, event: ev.RunFinished) -> None:
+        run = self._open_run(event.run_id)
+        run.set_link_counters(dict(event.link_counters))
+        run.finish(event.status, event.reason)
+        self._finished[event.run_id] = run
+        self._run = None
+
+    def _open_run(self, run_id: str) -> RunWriter:
+        if self._run is None or self._run.run_id != run_id:
+            raise RuntimeError(
+                f"event for run {run_id!r} while {self._run and self._run.run_id!r} is recorded"
+            )
+        return self._run

@@ -1,0 +1,96 @@
+"""The simulated bench in this process, behind the same transports as real hardware.
+
+The controller model is served by a real Modbus TCP server on 127.0.0.1 (on an event loop of its
+own thread) and the WFS device streams over a pseudo-terminal, so the engine talks to them through
+the real clients exactly as it would to a lab's devices. The simulated world (what is mounted, the
+tyre pressure, the car on the posts, a hammer blow) is changed only by the simulated operator when a
+prompt is answered; the engine never sees it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from dataclasses import dataclass
+
+from simulators.world import SimulatedOperator, SimulatedWorld
+
+from sequences import Prompt
+from simulators.bench_sim import BenchRunner
+from simulators.controller_server import ControllerServer
+from simulators.ports import PtyLink
+from simulators.wfs_device import WfsDevice
+
+
+@dataclass(frozen=True)
+class SimulatedLabSettings:
+    """``kind``: "shaker" or "four_post"; ``paced``: real time (a dry run one can watch) or as fast
+    as the engine drains the WFS; ``seed``: sensor noise; ``tyre_pressure_bar``: the tyre fitted at
+    power-up; ``wheel_speed_rad_s``: the wheel's rotation (0: standing)."""
+
+    kind: str = "shaker"
+    paced: bool = False
+    seed: int = 1
+    tyre_pressure_bar: float = 2.5
+    wheel_speed_rad_s: float = 0.0
+
+
+class SimulatedLab:
+    """Controller on Modbus TCP (``address``), WFS on a pty (``wfs_port``), the world and its operator.
+
+    Use as a context manager; everything runs on background threads until the exit."""
+
+    def __init__(self, settings: SimulatedLabSettings | None = None) -> None:
+        self.settings = settings or SimulatedLabSettings()
+        s = self.settings
+        self.world = SimulatedWorld.create(kind=s.kind, tyre_pressure_bar=s.tyre_pressure_bar, seed=s.seed)
+        self.bench = self.world.bench
+        self.operator = SimulatedOperator(self.world)
+        self.link = PtyLink()
+        self.device = WfsDevice(self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s)
+        self.runner = BenchRunner(self.bench, paced=s.paced)
+        self.runner.sinks.append(self.device)
+        self.server = ControllerServer(self.bench)
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="sim-controller", daemon=True)
+        self.address: tuple[str, int] = ("", 0)
+
+    @property
+    def wfs_port(self) -> str:
+        return self.link.path
+
+    def __enter__(self) -> SimulatedLab:
+        self._thread.start()
+        self.device.start()
+        self.runner.start()
+        future = asyncio.run_coroutine_threadsafe(self.server.serve_tcp("127.0.0.1", 0), self._loop)
+        self.address = future.result(10)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        asyncio.run_coroutine_threadsafe(self.server.close(), self._loop).result(10)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=5)
+        self.runner.stop()
+        self.device.stop()
+        self.link.close()
+        if self.runner.error is not None:
+            raise RuntimeError(f"the simulated bench failed: {self.runner.error}") from self.runner.error
+
+    def drop_controller_link(self) -> None:
+        """Pull the Modbus cable: every client connection is closed by the controller's side."""
+        self._loop.call_soon_threadsafe(self.server.drop_connections)
+
+
+class TargetAnswers:
+    """The simulated technician: answers each prompt with the value it asks for (confirms the
+    others) and applies the answer to the simulated world."""
+
+    def __init__(self, operator: SimulatedOperator) -> None:
+        self.operator = operator
+
+    def answer(self, prompt: Prompt) -> object:
+        value = prompt.check_answer(prompt.target if prompt.target is not None else True)
+        if prompt.action is not None:
+            self.operator.apply(prompt.action, value)
+        return value

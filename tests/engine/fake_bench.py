@@ -1,0 +1,168 @@
+"""An in-memory bench for the engine's unit tests: actuator and acquisition in one deterministic fake.
+
+It implements the engine's contracts and nothing else. Frames are produced only when the engine
+asks for the next block, so a test runs at the engine's speed with no thread and no clock. An
+excitation follows its setpoint in samples: taper in, hold, taper out, with the sync bits set as
+the controller's outputs would be; the displacement reaches ``gain(freq_hz)`` times the command,
+so the amplitude control has an error to correct.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.errors import ConnectionLostError
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.wfs_frame import FRAME_DTYPE
+
+ACTIVE_BIT = 1 << 9
+HOLD_BIT = 1 << 10
+
+
+@dataclass
+class FakeStatus:
+    moving: bool
+    interlock_reason: str | None
+    sample_count: int
+
+
+@dataclass
+class FakeBlock:
+    frames: np.ndarray
+    gaps: tuple = ()
+    resyncs: tuple = ()
+
+
+@dataclass
+class FakeBench:
+    """``gain(freq_hz)``: achieved over commanded amplitude; ``block`` frames per block."""
+
+    rate_hz: float = 1000.0
+    block: int = 100
+    gain: Callable[[float], float] = lambda f: 1.0
+    force_per_m: float = 0.0  # plate force per metre of displacement (for the force interlock)
+    log: list[str] = field(default_factory=list)
+    setpoint: DwellSetpoint | SweepSetpoint | None = None
+    streaming: bool = False
+    hydraulics: str = "off"
+    estopped: bool = False
+    link_down: bool = False
+    silent: bool = False  # the WFS stops sending (a pulled serial cable)
+    on_block: Callable[[FakeBench], None] | None = None  # a test's hook, called before each block
+    _wave: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    _seq: int = 0
+    _sample: int = 0
+
+    # -- actuator -----------------------------------------------------------------------------
+
+    def read_status(self) -> FakeStatus:
+        self._check_link()
+        reason = "controller e-stop: estop" if self.estopped else None
+        return FakeStatus(len(self._wave) > 0, reason, self._sample)
+
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+        self._check_link()
+        self.log.append(f"configure {setpoint}")
+        self.setpoint = setpoint
+
+    def start(self) -> None:
+        self._check_link()
+        self.log.append("start")
+        self._wave = self._excitation(self.setpoint)
+
+    def stop(self) -> None:
+        self._check_link()
+        self.log.append("stop")
+        if len(self._wave):  # taper out from here within 0.1 s
+            n = min(len(self._wave), round(0.1 * self.rate_hz))
+            taper = np.linspace(1, 0, n)
+            self._wave = np.column_stack([self._wave[:n, 0] * taper, np.zeros(n)])
+
+    def estop(self) -> None:
+        self.log.append("estop")
+        self.estopped = True
+        self._wave = np.zeros((0, 2))
+
+    def set_hydraulics(self, level: str) -> None:
+        self.log.append(f"hydraulics {level}")
+        self.hydraulics = level
+
+    def reset_interlock(self) -> None:
+        self.log.append("reset")
+        self.estopped = False
+
+    def link_fault(self) -> str | None:
+        return "connection dropped" if self.link_down else None
+
+    def _check_link(self) -> None:
+        if self.link_down:
+            raise ConnectionLostError("fake link down")
+
+    def _excitation(self, sp: DwellSetpoint | SweepSetpoint) -> np.ndarray:
+        """(displacement m, hold flag) per sample of the whole excitation."""
+        fs = self.rate_hz
+        if isinstance(sp, DwellSetpoint):
+            n_in, n_hold, n_out = (round(x * fs) for x in (sp.taper_in_s, sp.dwell_s, sp.taper_out_s))
+            freq = np.full(n_in + n_hold + n_out, sp.freq_hz)
+        else:
+            n_in, n_out = round(sp.taper_in_s * fs), round(sp.taper_out_s * fs)
+            n_hold = round(sp.duration_s * fs) - n_in - n_out
+            freq = np.linspace(sp.start_hz, sp.end_hz, n_in + n_hold + n_out)
+        n = n_in + n_hold + n_out
+        envelope = np.ones(n)
+        envelope[:n_in] = 0.5 - 0.5 * np.cos(np.pi * np.arange(n_in) / n_in)
+        envelope[n - n_out :] = 0.5 + 0.5 * np.cos(np.pi * np.arange(n_out) / n_out)
+        phase = 2 * np.pi * np.cumsum(freq) / fs
+        amplitude_m = sp.amplitude_mm / 1e3 * np.array([self.gain(f) for f in freq])
+        hold = np.zeros(n)
+        hold[n_in : n_in + n_hold] = 1
+        return np.column_stack([envelope * amplitude_m * np.sin(phase), hold])
+
+    # -- acquisition --------------------------------------------------------------------------
+
+    def subscribe(self, *, lossless: bool, max_blocks: int) -> FakeBench:
+        return self
+
+    def close(self) -> None:
+        pass
+
+    def start_stream(self) -> None:
+        self.log.append("stream start")
+        self.streaming = True
+        self._sample = 0
+
+    def stop_stream(self) -> None:
+        self.log.append("stream stop")
+        self.streaming = False
+
+    def tare(self) -> None:
+        self.log.append("tare")
+
+    def link_counters(self) -> dict[str, int]:
+        return {"frames_ok": self._seq}
+
+    def get(self, timeout_s: float) -> FakeBlock | None:
+        if self.on_block is not None:
+            self.on_block(self)
+        if not self.streaming or self.silent:
+            return None
+        frames = np.zeros(self.block, dtype=FRAME_DTYPE)
+        take = self._wave[: self.block]
+        self._wave = self._wave[self.block :]
+        z = np.zeros(self.block)
+        z[: len(take)] = take[:, 0]
+        status = np.zeros(self.block, dtype=np.uint16)
+        status[: len(take)] |= ACTIVE_BIT
+        status[: len(take)][take[:, 1] > 0] |= HOLD_BIT
+        frames["seq"] = np.arange(self._seq, self._seq + self.block)
+        frames["sample"] = np.arange(self._sample, self._sample + self.block)
+        frames["aux0"] = z
+        frames["aux1"] = self.force_per_m * z
+        frames["fz"] = 0.5 * self.force_per_m * z
+        frames["status"] = status
+        self._seq += self.block
+        self._sample += self.block
+        return FakeBlock(frames)

@@ -1,0 +1,227 @@
+"""The engine's loop on the in-memory fake bench: points, amplitude control, pause, abort, e-stop,
+interlocks and resume, each checked on the events the engine publishes."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from bench.engine import events as ev
+from bench.engine.amplitude import AmplitudeControl
+from bench.engine.channels import FrameChannels
+from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.interlocks import standard_interlocks
+from bench.engine.states import RunState
+from sequences import DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
+from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench
+
+RATE_HZ = 1000.0
+
+
+class Answers:
+    """Answers every prompt with its target, and remembers what was asked."""
+
+    def __init__(self) -> None:
+        self.asked: list[str] = []
+
+    def answer(self, prompt: Prompt) -> object:
+        self.asked.append(prompt.id)
+        return prompt.check_answer(prompt.target if prompt.target is not None else True)
+
+
+def make_engine(bench: FakeBench, *, clock=None, force_limit_n: float = 20_000.0) -> tuple[Engine, list]:
+    seen: list = []
+    engine = Engine(
+        bench,
+        bench,
+        Answers(),
+        channels=FrameChannels(),
+        interlocks=standard_interlocks(displacement_limit_mm=15.0, force_limit_n=force_limit_n),
+        sync_bits=SyncBits(ACTIVE_BIT, HOLD_BIT),
+        sample_rate_hz=RATE_HZ,
+        amplitude_control=AmplitudeControl(tolerance=0.02, max_corrections=3),
+        timing=EngineTiming(status_period_s=0.0),
+        clock=clock or itertools.count(0.0, 0.001).__next__,
+    )
+    engine.bus.subscribe(seen.append)
+    return engine, seen
+
+
+def grid(freqs_hz=(5.0, 10.0), amplitude_mm=2.0) -> DwellGrid:
+    return DwellGrid(
+        freqs_hz=tuple(freqs_hz),
+        amplitudes_mm=(amplitude_mm,),
+        settle_cycles=2,
+        settle_min_s=0.1,
+        measure_cycles=4,
+        measure_min_s=0.3,
+        taper_in_s=0.1,
+        taper_out_s=0.1,
+    )
+
+
+def sequence(*steps) -> Sequence:
+    return Sequence(name="test", description="", steps=tuple(steps), source="<test>")
+
+
+def of(seen: list, kind: type) -> list:
+    return [e for e in seen if isinstance(e, kind)]
+
+
+def test_a_grid_records_every_point_with_its_hold_located_to_the_sample():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    step = grid()
+    assert engine.run(sequence(Hydraulics("high"), step)) == "complete"
+    assert engine.state is RunState.FINISHED
+    points = of(seen, ev.PointDone)
+    assert [(p.index, p.status) for p in points] == [(0, "done"), (1, "done")]
+    for point, dwell in zip(points, step.dwells(), strict=True):
+        assert point.hold_end_sample - point.hold_start_sample == round(dwell.hold_s * RATE_HZ)
+        assert point.hold_start_sample - point.start_sample == round(dwell.taper_in_s * RATE_HZ)
+        assert point.achieved_amplitude_mm == pytest.approx(2.0, rel=1e-3)
+    blocks = of(seen, ev.SamplesRecorded)
+    assert [b.first_sample for b in blocks] == list(np.cumsum([0] + [len(b) for b in blocks[:-1]]))
+    started, finished = of(seen, ev.RunStarted), of(seen, ev.RunFinished)
+    assert [r.run_id for r in started] == [r.run_id for r in finished] == ["step001-dwell_grid"]
+    assert finished[0].status == "complete"
+    assert bench.log[0] == "hydraulics high"
+
+
+def test_amplitude_control_corrects_a_servo_that_falls_short_and_records_every_attempt():
+    bench = FakeBench(gain=lambda f: 0.9 if f > 8 else 1.0)  # 10 % short at 10 Hz
+    engine, seen = make_engine(bench)
+    engine.run(sequence(grid()))
+    at_10 = [p for p in of(seen, ev.PointDone) if p.freq_hz == 10.0]
+    assert [p.status for p in at_10] == ["repeated", "done"]
+    assert at_10[0].achieved_amplitude_mm == pytest.approx(1.8, rel=1e-3)
+    assert at_10[1].commanded_amplitude_mm == pytest.approx(2.0 / 0.9, rel=1e-3)
+    assert at_10[1].achieved_amplitude_mm == pytest.approx(2.0, rel=0.02)
+    assert all(p.target_amplitude_mm == 2.0 for p in at_10)
+
+
+def test_a_pause_interrupts_the_point_which_is_repeated_on_resume():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+
+    paused = []
+
+    def pause_mid_second_point(b: FakeBench) -> None:
+        if len(of(seen, ev.PointStarted)) == 2 and len(b._wave) > 500 and not paused:
+            paused.append(True)
+            engine.request_pause()
+
+    def resume_when_paused(event) -> None:
+        if isinstance(event, ev.StateChanged) and event.new is RunState.PAUSED:
+            engine.request_resume()
+
+    bench.on_block = pause_mid_second_point
+    engine.bus.subscribe(resume_when_paused)
+    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))) == "complete"
+    points = of(seen, ev.PointDone)
+    assert [(p.index, p.status) for p in points] == [
+        (0, "done"),
+        (1, "interrupted"),
+        (1, "done"),
+        (2, "done"),
+    ]
+    states = [e.new for e in of(seen, ev.StateChanged)]
+    assert states == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING, RunState.FINISHED]
+    assert bench.log.count("stop") == 1
+
+
+def test_abort_tapers_out_and_keeps_the_data():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = lambda b: engine.request_abort() if len(of(seen, ev.SamplesRecorded)) == 20 else None
+    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))) == "aborted"
+    assert engine.state is RunState.ABORTED
+    assert "stop" in bench.log and "estop" not in bench.log
+    finished = of(seen, ev.RunFinished)[0]
+    assert (finished.status, finished.reason) == ("aborted", "aborted by the operator")
+    assert of(seen, ev.SequenceFinished)[0].status == "aborted"
+
+
+def test_estop_reaches_the_controller_at_once_and_ends_the_run():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = lambda b: engine.request_estop() if len(of(seen, ev.SamplesRecorded)) == 12 else None
+    assert engine.run(sequence(grid())) == "e-stopped"
+    assert engine.state is RunState.ESTOPPED
+    assert bench.log[-1] != "start" and "estop" in bench.log
+    assert of(seen, ev.RunFinished)[0].status == "e-stopped"
+    engine.reset()
+    assert engine.state is RunState.HYDRAULICS_LOW
+
+
+@pytest.mark.parametrize(
+    ("setup", "name"),
+    [
+        (lambda b: setattr(b, "force_per_m", 2e7), "force limit"),  # 2 mm -> 40 kN > 20 kN
+        (lambda b: setattr(b, "link_down", True), "actuator link lost"),
+        (lambda b: setattr(b, "silent", True), "WFS link lost"),
+        (lambda b: setattr(b, "estopped", True), "controller interlock"),
+    ],
+)
+def test_an_interlock_mid_point_stops_the_actuator_and_marks_the_run(setup, name):
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+
+    def trip(b: FakeBench) -> None:
+        if len(of(seen, ev.SamplesRecorded)) == 10:
+            setup(b)
+
+    bench.on_block = trip
+    assert engine.run(sequence(grid())) == "interlocked"
+    assert engine.state is RunState.INTERLOCKED
+    trips = of(seen, ev.InterlockTripped)
+    assert trips and trips[0].name == name
+    finished = of(seen, ev.RunFinished)[0]
+    assert finished.status == "interlocked" and name in finished.reason
+    assert len(of(seen, ev.SamplesRecorded)) >= 10  # the data so far was handed to the recorder
+
+
+class Done:
+    """A resume plan: run ``step001-dwell_grid`` has point 0 done."""
+
+    def run_complete(self, run_id: str) -> bool:
+        return run_id == "step001-free_run"
+
+    def completed_points(self, run_id: str) -> set[int]:
+        return {0} if run_id == "step003-dwell_grid" else set()
+
+
+def test_resume_skips_complete_runs_their_prompts_and_done_points():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    pressure = Prompt(
+        "p25",
+        "Set 2.5 bar",
+        answer="number",
+        unit="bar",
+        minimum=1,
+        maximum=4,
+        target=2.5,
+        action="set_tyre_pressure",
+    )
+    wheel = Prompt("wheel", "Remove the wheel", action="remove_wheel")
+    steps = (wheel, FreeRun(grid()), pressure, grid(freqs_hz=(5.0, 10.0, 20.0)))
+    assert engine.run(sequence(*steps), resume=Done()) == "complete"
+    assert engine.operator.asked == ["p25"]
+    assert [(p.run_id, p.index) for p in of(seen, ev.PointDone)] == [
+        ("step003-dwell_grid", 1),
+        ("step003-dwell_grid", 2),
+    ]
+    assert of(seen, ev.RunStarted)[0].conditions["tyre_pressure_bar"] == 2.5
+
+
+def test_a_sweep_is_one_point_spanning_its_tapers():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    step = Sweep(start_hz=1.0, end_hz=10.0, duration_s=3.0, amplitude_mm=2.0, taper_in_s=0.5, taper_out_s=0.5)
+    assert engine.run(sequence(step)) == "complete"
+    (point,) = of(seen, ev.PointDone)
+    assert point.end_sample - point.start_sample == 3000
+    assert point.hold_end_sample - point.hold_start_sample == 2000
