@@ -13,8 +13,8 @@ event; storage, analysis and displays are subscribers.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
+import re
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -32,7 +32,18 @@ from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
 from drivers.errors import LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
-from sequences import DwellGrid, FreeRun, Hydraulics, MeanPosition, Prompt, Sequence, SineDwell, Sweep, Tare
+from sequences import (
+    DwellGrid,
+    FreeRun,
+    Hydraulics,
+    MeanPosition,
+    Prompt,
+    Sequence,
+    SineDwell,
+    Sweep,
+    Tare,
+    step_fields,
+)
 
 log = logging.getLogger(__name__)
 
@@ -192,7 +203,7 @@ class Engine:
         status, reason = "complete", ""
         try:
             for index in self._steps_to_run(sequence, resume):
-                self._execute(index, sequence.steps[index], resume)
+                self._execute(sequence, index, resume)
             self.machine.fire(Trigger.FINISH)
         except RunStoppedError as stop:
             status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
@@ -222,7 +233,7 @@ class Engine:
         chosen = []
         for segment in segments:
             done = all(
-                resume.run_complete(self.run_id(i, sequence.steps[i]))
+                resume.run_complete(self.run_id(sequence, i))
                 for i in segment
                 if _is_measurement(sequence.steps[i])
             )
@@ -230,11 +241,14 @@ class Engine:
         return chosen
 
     @staticmethod
-    def run_id(index: int, step: object) -> str:
-        """The run id of a measurement step: its position and kind (stable across a resume)."""
-        return f"step{index:03d}-{type(step).kind}"
+    def run_id(sequence: Sequence, index: int) -> str:
+        """The run id of a measurement step: the sequence's name, the step's position and kind, so
+        that runs of several sequences share a campaign file and a resume finds its runs again."""
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", sequence.name) or "sequence"
+        return f"{name}-s{index:03d}-{sequence.steps[index].kind}"
 
-    def _execute(self, index: int, step: object, resume: ResumePlan | None) -> None:
+    def _execute(self, sequence: Sequence, index: int, resume: ResumePlan | None) -> None:
+        step = sequence.steps[index]
         self._checkpoint()
         if isinstance(step, Prompt):
             self._ask(step)
@@ -245,13 +259,13 @@ class Engine:
             self.acquisition.tare()
         elif isinstance(step, MeanPosition):
             self.conditions["mean_mm"] = step.mean_mm
-        elif isinstance(step, DwellGrid | FreeRun):
-            run_id = self.run_id(index, step)
+        elif isinstance(step, SineDwell | DwellGrid | FreeRun):
+            run_id = self.run_id(sequence, index)
             if resume is None or not resume.run_complete(run_id):
                 done = resume.completed_points(run_id) if resume else set()
                 self._dwell_run(run_id, step, done)
         elif isinstance(step, Sweep):
-            run_id = self.run_id(index, step)
+            run_id = self.run_id(sequence, index)
             if resume is None or not resume.run_complete(run_id):
                 self._sweep_run(run_id, step)
         else:
@@ -270,8 +284,8 @@ class Engine:
 
     # -- runs ---------------------------------------------------------------------------------
 
-    def _dwell_run(self, run_id: str, step: DwellGrid | FreeRun, done: set[int]) -> None:
-        dwells = step.grid.dwells() if isinstance(step, FreeRun) else step.dwells()
+    def _dwell_run(self, run_id: str, step: SineDwell | DwellGrid | FreeRun, done: set[int]) -> None:
+        dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
         with self._recording(run_id, step) as run:
             for index, dwell in enumerate(dwells):
                 if index not in done:
@@ -445,16 +459,7 @@ class Engine:
 
 
 def _is_measurement(step: object) -> bool:
-    return isinstance(step, DwellGrid | FreeRun | Sweep)
-
-
-def step_fields(step: object) -> dict[str, Any]:
-    """A step as plain JSON-able data (its type and fields), for recording beside its samples."""
-    fields = {"type": type(step).kind}
-    for f in dataclasses.fields(step):
-        value = getattr(step, f.name)
-        fields[f.name] = step_fields(value) if dataclasses.is_dataclass(value) else value
-    return fields
+    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep)
 
 
 class _RunRecording:

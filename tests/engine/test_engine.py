@@ -85,7 +85,7 @@ def test_a_grid_records_every_point_with_its_hold_located_to_the_sample():
     blocks = of(seen, ev.SamplesRecorded)
     assert [b.first_sample for b in blocks] == list(np.cumsum([0] + [len(b) for b in blocks[:-1]]))
     started, finished = of(seen, ev.RunStarted), of(seen, ev.RunFinished)
-    assert [r.run_id for r in started] == [r.run_id for r in finished] == ["step001-dwell_grid"]
+    assert [r.run_id for r in started] == [r.run_id for r in finished] == ["test-s001-dwell_grid"]
     assert finished[0].status == "complete"
     assert bench.log[0] == "hydraulics high"
 
@@ -184,13 +184,13 @@ def test_an_interlock_mid_point_stops_the_actuator_and_marks_the_run(setup, name
 
 
 class Done:
-    """A resume plan: run ``step001-dwell_grid`` has point 0 done."""
+    """A resume plan: the free run is complete, the grid has point 0 done."""
 
     def run_complete(self, run_id: str) -> bool:
-        return run_id == "step001-free_run"
+        return run_id == "test-s001-free_run"
 
     def completed_points(self, run_id: str) -> set[int]:
-        return {0} if run_id == "step003-dwell_grid" else set()
+        return {0} if run_id == "test-s003-dwell_grid" else set()
 
 
 def test_resume_skips_complete_runs_their_prompts_and_done_points():
@@ -211,8 +211,8 @@ def test_resume_skips_complete_runs_their_prompts_and_done_points():
     assert engine.run(sequence(*steps), resume=Done()) == "complete"
     assert engine.operator.asked == ["p25"]
     assert [(p.run_id, p.index) for p in of(seen, ev.PointDone)] == [
-        ("step003-dwell_grid", 1),
-        ("step003-dwell_grid", 2),
+        ("test-s003-dwell_grid", 1),
+        ("test-s003-dwell_grid", 2),
     ]
     assert of(seen, ev.RunStarted)[0].conditions["tyre_pressure_bar"] == 2.5
 
