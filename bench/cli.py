@@ -6,11 +6,43 @@ import argparse
 import asyncio
 import sys
 import time
+from pathlib import Path
 
 from drivers.actuator import ActuatorClient
 from drivers.errors import LinkError
 from drivers.wfs_reader import WfsReader
 from simulators.serve import serve  # the CLI is a composition root: it may know the simulators
+
+#: exit codes of ``wfsbench run`` (docs/cli.md)
+EXIT_COMPLETE = 0
+EXIT_STOPPED = 1  # aborted, e-stopped, interlocked or failed: the file holds the data, marked
+EXIT_LINK = 2  # a device could not be reached
+EXIT_INVALID = 3  # the sequence or the configuration is invalid: nothing was opened or moved
+EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
+
+
+def _run(args: argparse.Namespace) -> int:
+    from bench.app.campaign import PlanRefusedError, plan_campaign, run_campaign
+    from bench.app.run_log import RunLog
+    from bench.config import ConfigError
+    from sequences import SequenceError
+
+    try:
+        plan = plan_campaign(Path(args.sequence), Path(args.bench) if args.bench else None)
+    except (SequenceError, ConfigError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except PlanRefusedError as exc:
+        print(f"refused by the dry run:\n{exc}", file=sys.stderr)
+        return EXIT_REFUSED
+    try:
+        outcome = run_campaign(plan, Path(args.out), resume=args.resume, subscribers=(RunLog(print),))
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    why = f": {outcome.reason}" if outcome.reason else ""
+    print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
+    return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -78,6 +110,12 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run the paper's shaker campaign on the simulated bench")
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
     demo.set_defaults(run=_demo)
+    run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
+    run.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
+    run.add_argument("--out", required=True, help="campaign file (HDF5, docs/hdf5.md)")
+    run.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted campaign file")
+    run.set_defaults(run=_run)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
     serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")

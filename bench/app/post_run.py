@@ -58,13 +58,20 @@ class PostRunAnalysis:
         campaign_path: Path,
         publish: Callable[[ev.Event], None],
         knowledge: CampaignKnowledge,
-        *,
-        four_post: bool = False,
     ) -> None:
+        """``knowledge`` starts from the configuration's masses and sensor; the runs the campaign
+        file holds already (an earlier sequence, or before a resume) are analysed again at once,
+        without publishing, so that what they established holds for the runs to come."""
         self.campaign_path = campaign_path
         self.publish = publish
         self.knowledge = knowledge
-        self.four_post = four_post
+        with open_campaign(campaign_path) as campaign:
+            for run in campaign.runs:
+                if run.status == "complete":
+                    try:
+                        self._analyse(run)
+                    except (AnalysisInputError, ValueError) as exc:
+                        log.warning("earlier run %s not analysed: %s", run.run_id, exc)
 
     def __call__(self, event: ev.Event) -> None:
         if not isinstance(event, ev.RunFinished) or event.status != "complete":
@@ -100,7 +107,7 @@ class PostRunAnalysis:
         if run.kind == "free_run":
             records = run.dwell_records()
             result = analyse_free_run(records)
-            if self.four_post:
+            if run.conditions.get("bench") == "four_post":
                 k.post_free_run = records
             else:
                 k.shaker_free_run = records

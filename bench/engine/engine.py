@@ -81,6 +81,14 @@ class SyncBits:
     hold: int
 
 
+@dataclass(frozen=True)
+class RunOutcome:
+    """How a sequence ended: ``status`` complete, aborted, e-stopped, interlocked or failed, and why."""
+
+    status: str
+    reason: str = ""
+
+
 class RunStoppedError(Exception):
     """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
 
@@ -110,8 +118,13 @@ class Engine:
         amplitude_control: AmplitudeControl | None = None,
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
+        tare: str = "never",
+        bench_kind: str = "shaker",
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        """``tare``: "before_each_run" (the WFS is tared, at rest, before each run's stream starts),
+        "once" (at the start of each sequence) or "never"; ``bench_kind``: "shaker" or
+        "four_post", recorded with every run's conditions."""
         self.actuator = actuator
         self.acquisition = acquisition
         self.operator = operator
@@ -122,6 +135,10 @@ class Engine:
         self.amplitude_control = amplitude_control or AmplitudeControl()
         self.timing = timing or EngineTiming()
         self.bus = bus or ev.EventBus()
+        if tare not in ("before_each_run", "once", "never"):
+            raise ValueError(f"tare policy {tare!r} is not before_each_run, once or never")
+        self.tare = tare
+        self.bench_kind = bench_kind
         self._clock = clock
         self.machine = StateMachine(on_change=self._state_changed)
         self._pause = threading.Event()
@@ -187,13 +204,13 @@ class Engine:
         sequence_text: str = "",
         config_text: str = "",
         resume: ResumePlan | None = None,
-    ) -> str:
-        """Run ``sequence`` to its end or until stopped; returns the status (complete, aborted,
-        e-stopped, interlocked, failed). Nothing raised by a device escapes: it ends the run."""
+    ) -> RunOutcome:
+        """Run ``sequence`` to its end or until stopped. Nothing a device raises escapes: it ends the
+        run, and the outcome says how and why."""
         self._pause.clear()
         self._abort.clear()
         self._estop.clear()
-        self.conditions = {}
+        self.conditions = {"bench": self.bench_kind}
         self.machine.fire(Trigger.START)
         self.bus.publish(
             ev.SequenceStarted(
@@ -202,6 +219,8 @@ class Engine:
         )
         status, reason = "complete", ""
         try:
+            if self.tare == "once":
+                self.acquisition.tare()
             for index in self._steps_to_run(sequence, resume):
                 self._execute(sequence, index, resume)
             self.machine.fire(Trigger.FINISH)
@@ -217,7 +236,7 @@ class Engine:
             self.bus.publish(ev.SequenceFinished("failed", f"{type(exc).__name__}: {exc}"))
             raise
         self.bus.publish(ev.SequenceFinished(status, reason))
-        return status
+        return RunOutcome(status, reason)
 
     def _steps_to_run(self, sequence: Sequence, resume: ResumePlan | None) -> list[int]:
         """Step indices to execute. On resume, a prompt and its steps up to the next prompt are
@@ -488,6 +507,8 @@ class _RunRecording:
                 e.sample_rate_hz,
             )
         )
+        if e.tare == "before_each_run":
+            e.acquisition.tare()
         self._subscription = e.acquisition.subscribe(lossless=True, max_blocks=1024)
         e.acquisition.start_stream()
         self._last_frame_s = e._clock()

@@ -74,7 +74,7 @@ def test_a_grid_records_every_point_with_its_hold_located_to_the_sample():
     bench = FakeBench()
     engine, seen = make_engine(bench)
     step = grid()
-    assert engine.run(sequence(Hydraulics("high"), step)) == "complete"
+    assert engine.run(sequence(Hydraulics("high"), step)).status == "complete"
     assert engine.state is RunState.FINISHED
     points = of(seen, ev.PointDone)
     assert [(p.index, p.status) for p in points] == [(0, "done"), (1, "done")]
@@ -119,7 +119,7 @@ def test_a_pause_interrupts_the_point_which_is_repeated_on_resume():
 
     bench.on_block = pause_mid_second_point
     engine.bus.subscribe(resume_when_paused)
-    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))) == "complete"
+    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))).status == "complete"
     points = of(seen, ev.PointDone)
     assert [(p.index, p.status) for p in points] == [
         (0, "done"),
@@ -136,7 +136,7 @@ def test_abort_tapers_out_and_keeps_the_data():
     bench = FakeBench()
     engine, seen = make_engine(bench)
     bench.on_block = lambda b: engine.request_abort() if len(of(seen, ev.SamplesRecorded)) == 20 else None
-    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))) == "aborted"
+    assert engine.run(sequence(grid(freqs_hz=(5.0, 10.0, 20.0)))).status == "aborted"
     assert engine.state is RunState.ABORTED
     assert "stop" in bench.log and "estop" not in bench.log
     finished = of(seen, ev.RunFinished)[0]
@@ -148,7 +148,7 @@ def test_estop_reaches_the_controller_at_once_and_ends_the_run():
     bench = FakeBench()
     engine, seen = make_engine(bench)
     bench.on_block = lambda b: engine.request_estop() if len(of(seen, ev.SamplesRecorded)) == 12 else None
-    assert engine.run(sequence(grid())) == "e-stopped"
+    assert engine.run(sequence(grid())).status == "e-stopped"
     assert engine.state is RunState.ESTOPPED
     assert bench.log[-1] != "start" and "estop" in bench.log
     assert of(seen, ev.RunFinished)[0].status == "e-stopped"
@@ -174,7 +174,7 @@ def test_an_interlock_mid_point_stops_the_actuator_and_marks_the_run(setup, name
             setup(b)
 
     bench.on_block = trip
-    assert engine.run(sequence(grid())) == "interlocked"
+    assert engine.run(sequence(grid())).status == "interlocked"
     assert engine.state is RunState.INTERLOCKED
     trips = of(seen, ev.InterlockTripped)
     assert trips and trips[0].name == name
@@ -208,7 +208,7 @@ def test_resume_skips_complete_runs_their_prompts_and_done_points():
     )
     wheel = Prompt("wheel", "Remove the wheel", action="remove_wheel")
     steps = (wheel, FreeRun(grid()), pressure, grid(freqs_hz=(5.0, 10.0, 20.0)))
-    assert engine.run(sequence(*steps), resume=Done()) == "complete"
+    assert engine.run(sequence(*steps), resume=Done()).status == "complete"
     assert engine.operator.asked == ["p25"]
     assert [(p.run_id, p.index) for p in of(seen, ev.PointDone)] == [
         ("test-s003-dwell_grid", 1),
@@ -221,7 +221,7 @@ def test_a_sweep_is_one_point_spanning_its_tapers():
     bench = FakeBench()
     engine, seen = make_engine(bench)
     step = Sweep(start_hz=1.0, end_hz=10.0, duration_s=3.0, amplitude_mm=2.0, taper_in_s=0.5, taper_out_s=0.5)
-    assert engine.run(sequence(step)) == "complete"
+    assert engine.run(sequence(step)).status == "complete"
     (point,) = of(seen, ev.PointDone)
     assert point.end_sample - point.start_sample == 3000
     assert point.hold_end_sample - point.hold_start_sample == 2000

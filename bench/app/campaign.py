@@ -1,0 +1,258 @@
+"""Running a sequence on a bench into a campaign file: the composition of everything.
+
+:func:`plan_campaign` loads the bench configuration and the sequence, validates the sequence against
+the bench's limits and dry-runs it on the bench model; nothing is opened before the plan stands.
+:func:`run_campaign` then opens the devices (real ones, or the simulated lab when the configuration
+names none), builds the engine, subscribes the recorder and the post-run analysis, and runs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+from bench.app.actuator_thread import ThreadedActuator
+from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
+from bench.app.recorder import Recorder
+from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
+from bench.config import BenchConfig, load_bench_config
+from bench.dry_run import dry_run
+from bench.engine import events as ev
+from bench.engine.amplitude import AmplitudeControl
+from bench.engine.channels import AuxInput, FrameChannels
+from bench.engine.contracts import Operator
+from bench.engine.engine import Engine, SyncBits
+from bench.engine.interlocks import standard_interlocks
+from bench.models.parameters import WfsSensor
+from bench.store import RUN_KINDS, CampaignWriter, open_campaign
+from drivers.actuator import ActuatorClient
+from drivers.wfs_frame import Status
+from drivers.wfs_reader import WfsReader
+from drivers.wfs_transform import LoadProcessor
+from sequences import Sequence, load_sequence
+
+#: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
+#: sensor rings at about 2.2 kHz).
+DEFAULT_SENSOR_EIGENFREQUENCY_HZ = 2200.0
+
+
+class PlanRefusedError(ValueError):
+    """The dry run refused the sequence on this bench; nothing was opened or moved."""
+
+
+def software_version() -> str:
+    try:
+        return version("wfs-bench")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """A validated sequence on a configured bench, with the texts that produced them."""
+
+    config: BenchConfig
+    config_text: str
+    sequence: Sequence
+    sequence_text: str
+
+
+def plan_campaign(sequence_path: Path, config_path: Path | None = None) -> CampaignPlan:
+    """Load and check everything before anything is opened: SequenceError / ConfigError name the
+    file and the key; PlanRefusedError lists every point the dry run refuses."""
+    config = load_bench_config(config_path)
+    sequence = load_sequence(sequence_path, config.limits)
+    refusals = dry_run(sequence, config).refusals
+    if refusals:
+        raise PlanRefusedError("\n".join(str(r) for r in refusals))
+    config_text = Path(config_path).read_text() if config_path else config.to_toml()
+    return CampaignPlan(config, config_text, sequence, Path(sequence_path).read_text())
+
+
+@dataclass
+class BenchDevices:
+    """The opened devices: the actuator, the acquisition, the person (or simulated operator)."""
+
+    actuator: ThreadedActuator
+    acquisition: WfsReader
+    operator: Operator
+    lab: SimulatedLab | None = None
+
+
+@contextlib.contextmanager
+def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterator[BenchDevices]:
+    """Open the configured devices, or the simulated lab when the configuration names none.
+
+    ``operator``: who answers prompts (default: the simulated operator on the simulated bench, a
+    terminal prompt on real hardware -- the front ends pass their own)."""
+    transports = {config.actuator.transport, config.wfs.transport}
+    if "simulated" in transports and transports != {"simulated"}:
+        raise ValueError(f"{config.source}: a simulated device cannot be mixed with real ones")
+    with contextlib.ExitStack() as stack:
+        lab = None
+        if config.simulated:
+            lab = stack.enter_context(
+                SimulatedLab(
+                    SimulatedLabSettings(
+                        kind=config.kind,
+                        paced=config.simulation.paced,
+                        seed=config.simulation.seed,
+                        tyre_pressure_bar=config.specimen.tyre_pressure_bar,
+                    )
+                )
+            )
+            host, port = lab.address
+            wfs_url = lab.wfs_port
+            operator = operator or TargetAnswers(lab.operator)
+        else:
+            host, port, wfs_url = config.actuator.host, config.actuator.port, config.wfs.device
+        if operator is None:
+            raise ValueError("real hardware needs an operator who answers the prompts")
+        actuator = ThreadedActuator(lambda: _client(config, host, port))
+        stack.callback(actuator.close)
+        actuator.connect()
+        reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
+        stack.enter_context(reader)
+        if not reader.wait_connected(5.0):
+            raise ConnectionError(f"cannot open the WFS port {wfs_url}: {reader.last_error}")
+        reader.set_rate(config.wfs.rate_hz)
+        yield BenchDevices(actuator, reader, operator, lab)
+
+
+def _client(config: BenchConfig, host: str, port: int) -> ActuatorClient:
+    a = config.actuator
+    common = {
+        "register_map": a.load_register_map(),
+        "limits": config.soft_limits,
+        "timeout_s": a.timeout_s,
+        "read_attempts": a.read_attempts,
+    }
+    if a.transport == "rtu":
+        return ActuatorClient.rtu(a.device, baudrate=a.baudrate, **common)
+    return ActuatorClient.tcp(host, port, **common)
+
+
+def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
+    """The engine on ``devices`` with the configured channels, interlocks and tare policy."""
+    channels = FrameChannels(
+        aux=[AuxInput(a.name, a.unit, a.scale) for a in config.aux],
+        loads=LoadProcessor(matrix=config.calibration.matrix_array()),
+    )
+    return Engine(
+        devices.actuator,
+        devices.acquisition,
+        devices.operator,
+        channels=channels,
+        interlocks=standard_interlocks(
+            displacement_limit_mm=config.limits.stroke_mm, force_limit_n=config.limits.force_n
+        ),
+        sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
+        sample_rate_hz=float(config.wfs.rate_hz),
+        amplitude_control=AmplitudeControl(max_command_mm=config.soft_limits.max_amplitude_mm),
+        tare=config.calibration.tare,
+        bench_kind=config.kind,
+    )
+
+
+@dataclass(frozen=True)
+class CampaignOutcome:
+    """How the sequence ended, and what the analysis said after each run."""
+
+    status: str
+    reason: str
+    analyses: list[ev.AnalysisDone]
+
+
+class _ResumeFromFile:
+    """The engine's resume plan, read from the campaign file being resumed."""
+
+    def __init__(self, path: Path) -> None:
+        with open_campaign(path) as campaign:
+            self._runs = {run.run_id: (run.status, run.completed_point_indices()) for run in campaign.runs}
+
+    def run_complete(self, run_id: str) -> bool:
+        return self._runs.get(run_id, ("", set()))[0] == "complete"
+
+    def completed_points(self, run_id: str) -> set[int]:
+        return set(self._runs.get(run_id, ("", set()))[1])
+
+
+def run_campaign(
+    plan: CampaignPlan,
+    out_path: Path,
+    *,
+    resume: bool = False,
+    operator: Operator | None = None,
+    subscribers: tuple[Callable[[ev.Event], None], ...] = (),
+    on_engine: Callable[[Engine], None] | None = None,
+) -> CampaignOutcome:
+    """Run ``plan`` into the campaign file ``out_path``.
+
+    A new file is created; an existing campaign file takes the sequence's runs beside its own (the
+    four-post sequence after the shaker's), unless it holds runs of this very sequence: then only
+    ``resume`` continues it, skipping its complete runs and points. ``on_engine`` receives the
+    engine before it runs (a front end keeps it to request pause, abort and e-stop)."""
+    out_path = Path(out_path)
+    existing = _run_ids(out_path)
+    if existing is None and resume:
+        raise ValueError(f"{out_path}: no campaign file to resume")
+    planned = {
+        Engine.run_id(plan.sequence, i)
+        for i, step in enumerate(plan.sequence.steps)
+        if step.kind in RUN_KINDS
+    }
+    if existing and not resume and existing & planned:
+        raise ValueError(
+            f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
+            " or write to another file"
+        )
+    resume_plan = _ResumeFromFile(out_path) if resume else None
+    config = plan.config
+    analyses: list[ev.AnalysisDone] = []
+    with (
+        open_bench(config, operator) as devices,
+        _campaign_writer(plan, out_path, existing is not None) as campaign,
+    ):
+        engine = build_engine(config, devices)
+        knowledge = CampaignKnowledge(
+            sensor=WfsSensor(
+                mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ
+            ),
+            wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+        )
+        engine.bus.subscribe(Recorder(campaign), critical=True)
+        engine.bus.subscribe(PostRunAnalysis(out_path, engine.bus.publish, knowledge))
+        engine.bus.subscribe(lambda e: analyses.append(e) if isinstance(e, ev.AnalysisDone) else None)
+        for subscriber in subscribers:
+            engine.bus.subscribe(subscriber)
+        if on_engine is not None:
+            on_engine(engine)
+        outcome = engine.run(
+            plan.sequence, sequence_text=plan.sequence_text, config_text=plan.config_text, resume=resume_plan
+        )
+    return CampaignOutcome(outcome.status, outcome.reason, analyses)
+
+
+def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:
+    if exists:
+        return CampaignWriter.open_append(out_path)
+    return CampaignWriter.create(
+        out_path,
+        software_version=software_version(),
+        config_toml=plan.config_text,
+        sequence_toml=plan.sequence_text,
+        sequence_name=plan.sequence.name,
+        config_name=plan.config.source,
+    )
+
+
+def _run_ids(path: Path) -> set[str] | None:
+    """The run ids of the campaign file at ``path``, None when there is no file (StoreError when
+    the file is no campaign file)."""
+    if not path.exists():
+        return None
+    with open_campaign(path) as campaign:
+        return {run.run_id for run in campaign.runs}

@@ -1,0 +1,54 @@
+"""A plain-text log of a run's events, one line each: for the command line and for log files."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from bench.engine import events as ev
+
+
+class RunLog:
+    """Subscriber: writes one line per meaningful event to ``write``."""
+
+    def __init__(self, write: Callable[[str], None]) -> None:
+        self.write = write
+
+    def __call__(self, event: ev.Event) -> None:
+        line = self.line(event)
+        if line is not None:
+            self.write(line)
+
+    @staticmethod
+    def line(event: ev.Event) -> str | None:  # noqa: PLR0911 - one line per event type
+        match event:
+            case ev.SequenceStarted():
+                return (
+                    f"sequence {event.sequence_name}: {event.total_points} points,"
+                    f" about {event.estimated_duration_s / 60:.1f} min of excitation"
+                )
+            case ev.RunStarted():
+                return f"run {event.run_id} ({event.kind})"
+            case ev.PointDone():
+                achieved = (
+                    f", achieved {event.achieved_amplitude_mm:.3f} mm"
+                    if math.isfinite(event.achieved_amplitude_mm)
+                    else ""
+                )
+                note = f" ({event.note})" if event.note else ""
+                return (
+                    f"  point {event.index} at {event.freq_hz:g} Hz: {event.status},"
+                    f" commanded {event.commanded_amplitude_mm:.3f} mm{achieved}{note}"
+                )
+            case ev.PromptAnswered():
+                unit = f" {event.unit}" if event.unit else ""
+                return f"prompt {event.prompt_id}: {event.text} -> {event.answer}{unit}"
+            case ev.InterlockTripped():
+                return f"INTERLOCK {event.name}: {event.reason}"
+            case ev.RunFinished():
+                return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"
+            case ev.AnalysisDone():
+                return "\n".join(f"  {line}" for line in event.summary)
+            case ev.SequenceFinished():
+                return f"sequence {event.status}{': ' + event.reason if event.reason else ''}"
+        return None
