@@ -48,7 +48,7 @@ def _run(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from bench.demo import run_demo
 
-    for line in run_demo(seed=args.seed):
+    for line in run_demo(Path(args.out), seed=args.seed):
         print(line)
     return 0
 
@@ -109,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="group", required=True)
     demo = sub.add_parser("demo", help="run the paper's shaker campaign on the simulated bench")
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
+    demo.add_argument("--out", default="wfsbench-demo", help="directory for campaign.h5 (default: %(default)s)")
     demo.set_defaults(run=_demo)
     run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
     run.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")

@@ -1,74 +1,101 @@
-"""``wfsbench demo``: the paper's whole campaign on the simulated bench, analysed as a lab would.
+"""``wfsbench demo``: the paper's whole campaign run through the engine on the simulated bench.
+
+The same path a lab's campaign takes: the shipped sequence files, validated and dry-run against the
+simulated benches' configurations; the controller over Modbus TCP on 127.0.0.1 and the WFS over a
+pseudo-terminal; every frame recorded to ``DIR/campaign.h5``; the prompts (remove the wheel, set
+the pressure, put the car on the posts, strike the hammer) answered by the simulated operator, who
+applies each answer to the simulated world; the analysis after each run.
 
 1. Hammer test of the bare sensor: its eigenfrequency and damping give the sensor model.
-2. Free run without a wheel: the shaker plate's mass m_comp.
-3. Shaker dwells at 1.5 / 2.5 / 3.5 bar and 1 / 2 / 5 mm: Models 1-3 identified per amplitude,
-   the model-based compensator, and the valid band of the raw and the compensated WFS force.
-4. Four-post sweep of one corner at 2.5 bar, with the post's own free run: m_wheel, the quarter car,
+2. Shaker: the free run without a wheel (m_comp), then dwell grids at 1 / 2 / 5 mm for each of
+   1.5 / 2.5 / 3.5 bar: Models 1-3 identified per amplitude, the model-based compensator, and the
+   valid band of the raw and the compensated WFS force.
+3. Four-post sweep of one corner at 2.5 bar, with the post's own free run: m_wheel, the quarter car,
    and the valid band raw / hub-acceleration compensated / model compensated.
 
-The simulated plant has sensor noise, quantisation and the non-linear tyre on; the analysis sees
-only what a real bench records.
+The simulated plant has sensor noise, quantisation, a servo-hydraulic actuator and the non-linear
+tyre; the analysis sees only what the bench recorded.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from pathlib import Path
 
-from bench.analysis.runs import analyse_four_post, analyse_hammer, analyse_shaker_campaign
+import h5py
+
+from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, plan_sequence, run_campaign
+from bench.app.post_run import CampaignKnowledge
+from bench.config import default_bench_config
 from bench.models.benches import TyreModel
-from bench.models.parameters import Tyre, WfsSensor
-from bench.simulated_campaign import simulate_paper_campaign
+from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre, WfsSensor
+from sequences import load_sequence, shipped_file
 
-#: Weighed on the scales, as in the paper: sensor 3.82 kg, wheel with adaption and sensor 29 kg.
-SENSOR_MASS_KG = 3.82
-WHEEL_MASS_KG = 29.0
+#: The demo's sequences, in the paper's order, each with the kind of bench it runs on.
+DEMO_SEQUENCES = (
+    ("hammer.toml", "shaker"),
+    ("paper_shaker.toml", "shaker"),
+    ("paper_four_post.toml", "four_post"),
+)
 
 
 def _band(band) -> str:
     return f"{band.upper_hz:5.1f} Hz" if band.determined else "not determined"
 
 
-def run_demo(seed: int = 1) -> list[str]:
-    """Simulate and analyse the campaign; return the report's lines."""
+def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
+    """Run the campaign into ``out_dir/campaign.h5`` (a previous demo file there is replaced);
+    return the report's lines."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = out_dir / "campaign.h5"
+    out.unlink(missing_ok=True)
+    knowledge: CampaignKnowledge | None = None
     start = time.perf_counter()
-    campaign = simulate_paper_campaign(seed)
-    simulated_s = time.perf_counter() - start
+    for name, kind in DEMO_SEQUENCES:
+        config = default_bench_config(kind)
+        config = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, seed=seed))
+        path = shipped_file(name)
+        plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text(), config.to_toml())
+        if knowledge is None:
+            knowledge = CampaignKnowledge(
+                sensor=WfsSensor(
+                    mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ
+                ),
+                wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+            )
+        outcome = run_campaign(plan, out, knowledge=knowledge)
+        if outcome.status != "complete":
+            raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")
+    wall_s = time.perf_counter() - start
+    return _report(knowledge, out, wall_s)
 
-    start = time.perf_counter()
-    hammer = analyse_hammer(campaign.hammer, sensor_mass_kg=SENSOR_MASS_KG)
-    sensor = WfsSensor(
-        mass_kg=SENSOR_MASS_KG,
-        eigenfrequency_hz=hammer.eigenfrequency_hz,
-        damping_ratio=hammer.damping_ratio_log_decrement,
-    )
-    shaker = {
-        pressure: analyse_shaker_campaign(
-            records, campaign.shaker_free_run, wheel_mass_kg=WHEEL_MASS_KG, sensor=sensor
+
+def _recorded_s(path: Path) -> float:
+    """Sample time recorded in the campaign file (s)."""
+    with h5py.File(path, "r") as f:
+        return sum(
+            run["channels/sample"].shape[0] / run.attrs["sample_rate_hz"] for run in f["runs"].values()
         )
-        for pressure, records in campaign.shaker.items()
-    }
-    car = analyse_four_post(
-        campaign.four_post,
-        campaign.post_free_run,
-        tyre=shaker[2.5],
-        wheel_mass_kg=WHEEL_MASS_KG,
-        sensor=sensor,
-    )
-    analysed_s = time.perf_counter() - start
 
-    truth = campaign.quarter_car.tyre
+
+def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:
+    recorded_s = _recorded_s(out)
     lines = [
-        "wfs-bench demo: the paper's campaign on the simulated bench (noise, quantisation, non-linear tyre)",
-        f"simulated in {simulated_s:.1f} s, analysed in {analysed_s:.1f} s",
+        "wfs-bench demo: the paper's campaign through the engine on the simulated bench"
+        " (Modbus TCP, WFS on a pty; noise, quantisation, servo-hydraulic actuator, non-linear tyre)",
+        f"recorded {recorded_s:.0f} s of samples in {wall_s:.1f} s ({recorded_s / wall_s:.0f}x real time)"
+        f" to {out}",
         "",
-        *hammer.summary_lines(),
-        "",
+    ]
+    if k.hammer is not None:
+        lines += [*k.hammer.summary_lines(), ""]
+    lines += [
         "shaker bench, Model 2 per amplitude (k at its reference frequency, 10 Hz; max over the dwells):",
         f"{'pressure':>8} {'amplitude':>9} {'k kN/m':>8} {'m_T kg':>7} {'d Ns/m':>7}"
         f" {'max |F_WFS/F_c|':>16} {'raw band':>9} {'compensated':>12}",
     ]
-    for pressure, result in shaker.items():
+    for pressure, result in sorted(k.shaker.items()):
         for amplitude_m, r in result.amplitudes.items():
             tyre: Tyre = r.identification.fits[TyreModel.WHEEL_TREAD].tyre
             lines.append(
@@ -77,13 +104,12 @@ def run_demo(seed: int = 1) -> list[str]:
                 f" {max(abs(r.frfs.wfs_per_contact.value)):>16.1f} {_band(r.valid_band_raw):>9}"
                 f" {_band(r.valid_band_compensated):>12}"
             )
-    lines += [
-        f"(simulator's nominal tyre at 2.5 bar: k {truth.stiffness_n_per_m / 1e3:.0f} kN/m,"
-        f" m_T {truth.tread_mass_kg:g} kg, viscous d {truth.damping_ns_per_m:g} Ns/m plus rubber friction)",
-        "",
-        "2.5 bar in full:",
-        *shaker[2.5].summary_lines(),
-        "",
-        *car.summary_lines(),
-    ]
+    truth = ", ".join(
+        f"{p:g} bar {k_n / 1e3:.0f} kN/m" for p, k_n in sorted(PAPER_TYRE_STIFFNESS_N_PER_M.items())
+    )
+    lines.append(f"(simulator's nominal tyres: {truth}; m_T 6 kg; viscous d 80 Ns/m plus rubber friction)")
+    if 2.5 in k.shaker:
+        lines += ["", "2.5 bar in full:", *k.shaker[2.5].summary_lines()]
+    if k.four_post is not None:
+        lines += ["", *k.four_post.summary_lines()]
     return lines

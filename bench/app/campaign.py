@@ -32,7 +32,7 @@ from drivers.actuator import ActuatorClient
 from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_transform import LoadProcessor
-from sequences import Sequence, load_sequence
+from sequences import Sequence, dump_sequence, load_sequence, validate
 
 #: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
 #: sensor rings at about 2.2 kHz).
@@ -65,11 +65,26 @@ def plan_campaign(sequence_path: Path, config_path: Path | None = None) -> Campa
     file and the key; PlanRefusedError lists every point the dry run refuses."""
     config = load_bench_config(config_path)
     sequence = load_sequence(sequence_path, config.limits)
+    config_text = Path(config_path).read_text() if config_path else config.to_toml()
+    return plan_sequence(sequence, config, Path(sequence_path).read_text(), config_text)
+
+
+def plan_sequence(
+    sequence: Sequence, config: BenchConfig, sequence_text: str | None = None, config_text: str | None = None
+) -> CampaignPlan:
+    """Check a sequence built in Python (or loaded) against ``config``: the same validation as a
+    sequence file gets, then the dry run. The texts recorded with the campaign default to the
+    sequence and configuration written out as TOML."""
+    validate(sequence, config.limits)
     refusals = dry_run(sequence, config).refusals
     if refusals:
         raise PlanRefusedError("\n".join(str(r) for r in refusals))
-    config_text = Path(config_path).read_text() if config_path else config.to_toml()
-    return CampaignPlan(config, config_text, sequence, Path(sequence_path).read_text())
+    return CampaignPlan(
+        config,
+        config_text if config_text is not None else config.to_toml(),
+        sequence,
+        sequence_text if sequence_text is not None else dump_sequence(sequence),
+    )
 
 
 @dataclass
@@ -188,13 +203,16 @@ def run_campaign(
     operator: Operator | None = None,
     subscribers: tuple[Callable[[ev.Event], None], ...] = (),
     on_engine: Callable[[Engine], None] | None = None,
+    knowledge: CampaignKnowledge | None = None,
 ) -> CampaignOutcome:
     """Run ``plan`` into the campaign file ``out_path``.
 
     A new file is created; an existing campaign file takes the sequence's runs beside its own (the
     four-post sequence after the shaker's), unless it holds runs of this very sequence: then only
     ``resume`` continues it, skipping its complete runs and points. ``on_engine`` receives the
-    engine before it runs (a front end keeps it to request pause, abort and e-stop)."""
+    engine before it runs (a front end keeps it to request pause, abort and e-stop). ``knowledge``:
+    what the campaign established so far (sensor, plate masses, tyres), carried from one sequence to
+    the next; by default it starts from the configuration and the runs already in the file."""
     out_path = Path(out_path)
     existing = _run_ids(out_path)
     if existing is None and resume:
@@ -217,7 +235,7 @@ def run_campaign(
         _campaign_writer(plan, out_path, existing is not None) as campaign,
     ):
         engine = build_engine(config, devices)
-        knowledge = CampaignKnowledge(
+        knowledge = knowledge or CampaignKnowledge(
             sensor=WfsSensor(
                 mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ
             ),

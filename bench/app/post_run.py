@@ -24,6 +24,8 @@ from typing import Any
 
 from bench.analysis.records import DwellRecord
 from bench.analysis.runs import (
+    FourPostResult,
+    HammerResult,
     ShakerCampaignResult,
     analyse_four_post,
     analyse_free_run,
@@ -48,6 +50,8 @@ class CampaignKnowledge:
     shaker_free_run: list[DwellRecord] = field(default_factory=list)
     post_free_run: list[DwellRecord] = field(default_factory=list)
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
+    hammer: HammerResult | None = None
+    four_post: FourPostResult | None = None
 
 
 class PostRunAnalysis:
@@ -91,6 +95,7 @@ class PostRunAnalysis:
         k = self.knowledge
         if run.kind == "hammer":
             result = analyse_hammer(run.hammer_record(), sensor_mass_kg=k.sensor.mass_kg)
+            k.hammer = result
             k.sensor = WfsSensor(
                 mass_kg=k.sensor.mass_kg,
                 eigenfrequency_hz=result.eigenfrequency_hz,
@@ -164,6 +169,7 @@ class PostRunAnalysis:
         result = analyse_four_post(
             run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
+        k.four_post = result
         return (
             "four_post",
             result.summary_lines(),
