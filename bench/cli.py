@@ -107,9 +107,11 @@ async def _actuator_status(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wfsbench", description=__doc__)
     sub = parser.add_subparsers(dest="group", required=True)
-    demo = sub.add_parser("demo", help="run the paper's shaker campaign on the simulated bench")
+    demo = sub.add_parser("demo", help="run the paper's whole campaign through the engine, simulated")
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
-    demo.add_argument("--out", default="wfsbench-demo", help="directory for campaign.h5 (default: %(default)s)")
+    demo.add_argument(
+        "--out", default="wfsbench-demo", help="directory for campaign.h5 (default: %(default)s)"
+    )
     demo.set_defaults(run=_demo)
     run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
     run.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
