@@ -55,7 +55,7 @@ def scripted_sequence(pressures_bar: tuple[float, ...] = (1.5, 2.5)) -> Sequence
             ),
         ]
     steps.append(Hydraulics("off"))
-    return Sequence(name="scripted", description="free run and two pressures, from Python", steps=tuple(steps))
+    return Sequence(name="scripted", description="free run and two pressures", steps=tuple(steps))
 
 
 def main(out: Path) -> int:
