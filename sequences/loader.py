@@ -10,7 +10,6 @@ still names the line and, where it can be told, the key.
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 import tomllib
 from pathlib import Path
@@ -18,6 +17,7 @@ from pathlib import Path
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
 from sequences.steps import STEP_TYPES, DwellGrid, FreeRun, Sequence, Step, step_fields
+from sequences.toml_text import toml_table
 from sequences.validation import check_sequence_header, check_steps
 
 _TOP_KEYS = ("sequence", "steps")
@@ -161,30 +161,8 @@ def dump_sequence(sequence: Sequence) -> str:
     """The sequence as a sequence file that :func:`parse_sequence` reads back to an equal sequence
     (for recording a scripted sequence with its run). A dwell's ``requested_amplitude_mm`` and
     ``amplitude_limited_by`` belong to the grid that expanded it and are not written."""
-    lines = [
-        "[sequence]",
-        f"name = {_toml_value(sequence.name)}",
-        f"description = {_toml_value(sequence.description)}",
-    ]
+    lines = toml_table("[sequence]", {"name": sequence.name, "description": sequence.description})
     for step in sequence.steps:
-        lines += ["", "[[steps]]"]
-        lines += [
-            f"{name} = {_toml_value(value)}"
-            for name, value in step_fields(step).items()
-            if name not in _DERIVED_KEYS
-        ]
+        values = {k: v for k, v in step_fields(step).items() if k not in _DERIVED_KEYS}
+        lines += ["", *toml_table("[[steps]]", values)]
     return "\n".join(lines) + "\n"
-
-
-def _toml_value(value: object) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return repr(value)  # Python writes floats, nan and inf as TOML does
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} to a sequence file")

@@ -303,9 +303,14 @@ class _Checker:
         self.one_of("law", step.law, SWEEP_LAWS)
         taper_in, taper_out = self.tapers(step.taper_in_s, step.taper_out_s)
         duration = self.number(
-            "duration_s", step.duration_s, 0.0, self.limits.max_step_s, lo_open=True, unit="s",
+            "duration_s",
+            step.duration_s,
+            0.0,
+            self.limits.max_step_s,
+            lo_open=True,
+            unit="s",
             why="the controller's longest setpoint",
-        )  # fmt: skip
+        )
         if None not in (duration, taper_in, taper_out) and taper_in + taper_out >= duration:
             self.add(
                 "duration_s",
@@ -319,10 +324,24 @@ class _Checker:
 
     def hammer(self, step: HammerTest) -> None:
         lim = self.limits
-        self.number("trigger_level_n", step.trigger_level_n, 0.0, lim.wfs_force_n, lo_open=True, unit="N",
-                    why="the WFS range")  # fmt: skip
-        capture = self.number("capture_s", step.capture_s, 0.0, lim.max_capture_s, lo_open=True, unit="s",
-                              why="the acquisition's capture buffer")  # fmt: skip
+        self.number(
+            "trigger_level_n",
+            step.trigger_level_n,
+            0.0,
+            lim.wfs_force_n,
+            lo_open=True,
+            unit="N",
+            why="the WFS range",
+        )
+        capture = self.number(
+            "capture_s",
+            step.capture_s,
+            0.0,
+            lim.max_capture_s,
+            lo_open=True,
+            unit="s",
+            why="the acquisition's capture buffer",
+        )
         pre = self.number("pre_trigger_s", step.pre_trigger_s, 0.0, unit="s")
         if capture is not None and pre is not None and pre >= capture:
             self.add(
@@ -367,9 +386,12 @@ class _Checker:
             return
         if step.answer == "number":
             self.number(
-                "target", step.target,
-                -math.inf if lo is None else lo, math.inf if hi is None else hi, unit=step.unit or "",
-            )  # fmt: skip
+                "target",
+                step.target,
+                -math.inf if lo is None else lo,
+                math.inf if hi is None else hi,
+                unit=step.unit or "",
+            )
         elif step.answer == "choice":
             self.one_of("target", step.target, step.choices if choices_ok else ())
         else:
