@@ -32,12 +32,21 @@ from sequences.steps import (
     Step,
     Sweep,
     Tare,
+    crossover_amplitude_mm,
 )
 
 #: Relative slack on the kinematic limits: a crossover amplitude computed from a limit must pass
 #: the same limit despite the last bit of floating-point rounding.
 _RELATIVE_SLACK = 1e-9
 _LIMITED_BY = (None, "velocity", "acceleration", "force")
+_DWELL_TIMING = (
+    "settle_cycles",
+    "settle_min_s",
+    "measure_cycles",
+    "measure_min_s",
+    "taper_in_s",
+    "taper_out_s",
+)
 
 
 def validate(sequence: Sequence, limits: BenchLimits) -> None:
@@ -270,19 +279,36 @@ class _Checker:
         )
         timing_ok = self.dwell_timing(grid)
         self.text("label", grid.label, required=False)
-        if not self.problems and freqs and amplitudes:
-            self._grid_points(grid, v_max is None, a_max is None, timing_ok)
+        maxima_ok = (v_max is not None or grid.max_velocity_mm_s is None) and (
+            a_max is not None or grid.max_acceleration_m_s2 is None
+        )
+        if freqs and amplitudes and maxima_ok:
+            self._grid_points(grid, freqs, amplitudes, (v_max, a_max), timing_ok)
 
-    def _grid_points(self, grid: DwellGrid, no_v_max: bool, no_a_max: bool, timing_ok: bool) -> None:
+    def _grid_points(
+        self,
+        grid: DwellGrid,
+        freqs: list[float | None],
+        amplitudes: list[float | None],
+        maxima: tuple[float | None, float | None],
+        timing_ok: bool,
+    ) -> None:
+        """Each valid (frequency, amplitude) point at the amplitude the crossover gives it."""
+        v_max, a_max = maxima
         remedy = "; or lower the grid's max_velocity_mm_s / max_acceleration_m_s2"
-        if no_v_max and no_a_max:
+        if v_max is None and a_max is None:
             remedy = "; or set the grid's max_velocity_mm_s / max_acceleration_m_s2"
-        amplitude_index = {a: j for j, a in reversed(list(enumerate(grid.amplitudes_mm)))}
-        for dwell in grid.dwells():
-            j = amplitude_index[dwell.requested_amplitude_mm or dwell.amplitude_mm]
-            self.kinematics(f"amplitudes_mm[{j}]", dwell.freq_hz, dwell.amplitude_mm, remedy)
-            if timing_ok:
-                self.dwell_length(f"freqs_hz[{grid.freqs_hz.index(dwell.freq_hz)}]", dwell)
+        valid_freqs = [(k, f) for k, f in enumerate(freqs) if f is not None]
+        for j, nominal_mm in enumerate(amplitudes):
+            if nominal_mm is None:
+                continue
+            for _, f in valid_freqs:
+                used_mm, _ = crossover_amplitude_mm(f, nominal_mm, v_max, a_max)
+                self.kinematics(f"amplitudes_mm[{j}]", f, used_mm, remedy)
+        if timing_ok and valid_freqs:
+            k, lowest = min(valid_freqs, key=lambda kf: kf[1])
+            timing = {name: getattr(grid, name) for name in _DWELL_TIMING}
+            self.dwell_length(f"freqs_hz[{k}]", SineDwell(lowest, 1.0, **timing))
 
     def _list(self, key: str, values: object, check) -> list[float | None] | None:
         if not isinstance(values, tuple | list):
