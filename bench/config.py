@@ -352,11 +352,12 @@ class _Reader:
                 self.add(name, f"unknown key; allowed: {', '.join(top)}")
         kind = self.text(data, "", "kind", "shaker", BENCH_KINDS)
         base = default_bench_config(kind)
+        actuator, wfs = self.actuator(data), self.wfs(data)
         limits, interlocks = self.limits(data, base)
         config = BenchConfig(
             kind=kind,
-            actuator=self.actuator(data),
-            wfs=self.wfs(data),
+            actuator=actuator,
+            wfs=wfs,
             limits=limits,
             interlocks=interlocks,
             calibration=self.calibration(data),
