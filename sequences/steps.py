@@ -26,9 +26,9 @@ TARE_S = 2.0
 MEAN_POSITION_S = 2.0
 #: Allowance for an operator's answer to one prompt (fitting a wheel, setting a pressure, a blow).
 PROMPT_ALLOWANCE_S = 60.0
-#: The crossover amplitude is rounded down to this (mm): 0.1 um, far below any servo's resolution,
-#: so a limited amplitude reads cleanly and never exceeds the maximum it was derived from.
-AMPLITUDE_RESOLUTION_MM = 1e-4
+#: The crossover amplitude is rounded down to 0.1 um (this many decimals of a mm), far below any
+#: servo's resolution, so a limited amplitude reads cleanly and never exceeds its maximum.
+AMPLITUDE_DECIMALS = 4
 
 GRID_ORDERS = ("amplitude-major", "frequency-major")
 SWEEP_LAWS = ("linear", "log")
@@ -117,7 +117,8 @@ def crossover_amplitude_mm(
         used, limited_by = max_acceleration_m_s2 * 1e3 / w**2, "acceleration"
     if limited_by is None:
         return amplitude_mm, None
-    return math.floor(used / AMPLITUDE_RESOLUTION_MM) * AMPLITUDE_RESOLUTION_MM, limited_by
+    scale = 10**AMPLITUDE_DECIMALS
+    return math.floor(used * scale) / scale, limited_by
 
 
 @dataclass(frozen=True, slots=True)

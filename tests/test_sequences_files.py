@@ -2,6 +2,8 @@
 paper's campaign implies (counted here from the campaign's description, not from the library)."""
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,7 +11,18 @@ import pytest
 from bench.config import default_bench_config
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
-from sequences import BenchLimits, DwellGrid, FreeRun, HammerTest, Prompt, Sweep, load_sequence, shipped_file
+from sequences import (
+    BenchLimits,
+    DwellGrid,
+    FreeRun,
+    HammerTest,
+    Prompt,
+    Sweep,
+    load_sequence,
+    parse_sequence,
+    shipped_file,
+)
+from sequences.steps import STEP_TYPES
 
 LIMITS = BenchLimits()
 SETTLE_CYCLES, SETTLE_MIN_S, MEASURE_CYCLES, MEASURE_MIN_S, TAPER_S = 2, 0.2, 2, 1.0, 0.3
@@ -131,3 +144,14 @@ def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
             DwellSetpoint(
                 d.freq_hz, d.amplitude_mm, d.hold_s, d.taper_in_s, d.taper_out_s, d.mean_mm
             ).registers(config.soft_limits)
+
+
+def test_every_example_in_the_format_document_is_a_valid_sequence():
+    """docs/sequences.md shows a complete example of every step type; each one loads."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "sequences.md").read_text(encoding="utf-8")
+    kinds = set()
+    for block in re.findall(r"```toml\n(.*?)```", text, re.S):
+        header = "" if "[sequence]" in block else '[sequence]\nname = "example"\n'
+        sequence = parse_sequence(header + block, "docs/sequences.md", LIMITS)
+        kinds |= {step.kind for step in sequence.steps}
+    assert kinds == set(STEP_TYPES)
