@@ -198,6 +198,7 @@ def test_sequence_counts_points_and_durations():
         (Prompt("p", "Pick", answer="choice", choices=("a",)), "steps[0].choices", "at least two"),
         (Prompt("p", "", answer="confirm"), "steps[0].text", "non-empty string"),
         (Prompt("p", "Go", action="fly"), "steps[0].action", "'fly' is not one of"),
+        ("hydraulics high", "steps[0]", "is not a step"),
     ],
 )
 def test_validate_names_the_key_and_the_range(step, key, text):
