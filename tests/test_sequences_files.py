@@ -155,3 +155,5 @@ def test_every_example_in_the_format_document_is_a_valid_sequence():
         sequence = parse_sequence(header + block, "docs/sequences.md", LIMITS)
         kinds |= {step.kind for step in sequence.steps}
     assert kinds == set(STEP_TYPES)
+    (example,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    exec(compile(example, "docs/sequences.md", "exec"), {})  # the Python API example runs
