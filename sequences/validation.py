@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Iterable
 
 from sequences.errors import Problem, SequenceError
@@ -149,7 +150,7 @@ class _Checker:
             right = "" if hi is None else f" <= {_fmt(hi)}"
             where = f" {why}" if why else ""
             side = "beyond" if above else "below"
-            name = key.rsplit(".", maxsplit=1)[-1]
+            name = re.sub(r"\[\d+\]$", "", key.rsplit(".", maxsplit=1)[-1])
             self.add(key, f"{_fmt(number)}{u} is {side}{where} (allowed {left}{name}{right}{u})")
             return None
         return number
