@@ -1,1 +1,61 @@
-"""Test sequences: the step vocabulary, the sequence-file loader and validator, standard files."""
+"""Test sequences: the step vocabulary, the sequence-file loader and validator, standard files.
+
+Build a sequence in Python from the steps and check it with :func:`validate`, or load a file with
+:func:`load_sequence`; both report problems the same way (:class:`SequenceError`).
+"""
+
+from importlib import resources
+from pathlib import Path
+
+from sequences.errors import AnswerError, Problem, SequenceError
+from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.loader import dump_sequence, load_sequence, parse_sequence
+from sequences.steps import (
+    DwellGrid,
+    FreeRun,
+    HammerTest,
+    Hydraulics,
+    MeanPosition,
+    Prompt,
+    Sequence,
+    SineDwell,
+    Step,
+    Sweep,
+    Tare,
+    crossover_amplitude_mm,
+    step_fields,
+)
+from sequences.validation import validate
+
+
+def shipped_file(name: str) -> Path:
+    """A sequence file shipped with the package, e.g. ``shipped_file("smoke.toml")``."""
+    return Path(str(resources.files("sequences") / "files" / name))
+
+
+__all__ = [
+    "AnswerError",
+    "BenchLimits",
+    "DwellGrid",
+    "FreeRun",
+    "HammerTest",
+    "Hydraulics",
+    "MeanPosition",
+    "Problem",
+    "Prompt",
+    "Sequence",
+    "SequenceError",
+    "SineDwell",
+    "Step",
+    "Sweep",
+    "Tare",
+    "crossover_amplitude_mm",
+    "dump_sequence",
+    "load_sequence",
+    "parse_sequence",
+    "peak_acceleration_m_s2",
+    "peak_velocity_mm_s",
+    "shipped_file",
+    "step_fields",
+    "validate",
+]

@@ -1,0 +1,526 @@
+"""The bench configuration: devices, limits, calibration, masses and aux channels, from TOML.
+
+One file describes one bench (format in ``docs/configuration.md``). Nothing configured means the
+simulated shaker bench: ``load_bench_config(None)``. Every key is checked when the file is read,
+and every problem found is reported together in one :class:`ConfigError` naming the file and the
+key, so a bad configuration never reaches a device. The configuration gives the sequences their
+:class:`~sequences.limits.BenchLimits` and the actuator client its
+:class:`~drivers.setpoints.SoftLimits`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import re
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from drivers.errors import RegisterMapError
+from drivers.register_map import RegisterMap, load_register_map
+from drivers.setpoints import SoftLimits
+from drivers.wfs_frame import FRAME_SIZE
+from sequences.limits import BenchLimits
+from sequences.toml_text import toml_table, toml_value
+
+BENCH_KINDS = ("shaker", "four_post")
+ACTUATOR_TRANSPORTS = ("simulated", "tcp", "rtu")
+WFS_TRANSPORTS = ("simulated", "serial")
+TARE_POLICIES = ("before_each_run", "once", "never")
+TYRE_MODELS = (1, 2, 3)
+#: Bits on the serial line per byte (8N1: start, 8 data, stop): a frame rate must fit the baud rate.
+_BITS_PER_BYTE = 10
+_AT_LINE = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
+
+
+class ConfigError(ValueError):
+    """A bench configuration is refused; ``problems`` lists every ``file: key: reason`` found."""
+
+    def __init__(self, problems: list[str]) -> None:
+        self.problems = tuple(problems)
+        lines = list(problems)
+        if len(lines) > 1:
+            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
+        super().__init__("\n".join(lines))
+
+
+@dataclass(frozen=True)
+class ActuatorConfig:
+    """How to reach the actuator controller: ``transport`` "simulated" (in-process, TCP on
+    127.0.0.1), "tcp" (``host``:``port``) or "rtu" (``device`` at ``baudrate``, 8N1)."""
+
+    transport: str = "simulated"
+    host: str = "127.0.0.1"
+    port: int = 502
+    device: str = ""
+    baudrate: int = 115200
+    unit_id: int = 1
+    register_map: Path | None = None  # None: the map shipped with the drivers
+    timeout_s: float = 0.3
+    read_attempts: int = 3
+    heartbeat_period_s: float = 0.1
+    watchdog_ms: int = 1500
+
+    def load_register_map(self) -> RegisterMap:
+        return load_register_map(self.register_map)
+
+
+@dataclass(frozen=True)
+class WfsConfig:
+    """How to reach the WFS acquisition: "simulated" (a pseudo-terminal) or "serial" ``device``."""
+
+    transport: str = "simulated"
+    device: str = ""
+    baudrate: int = 921600
+    rate_hz: int = 1000
+
+
+@dataclass(frozen=True)
+class Interlocks:
+    """Thresholds written to the controller, which trips on them (above the sequences' limits)."""
+
+    displacement_mm: float = 30.0
+    force_n: float = 20_000.0
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The 6x6 calibration/crosstalk matrix of the raw channels and when to tare."""
+
+    matrix: tuple[tuple[float, ...], ...] = tuple(
+        tuple(1.0 if i == j else 0.0 for j in range(6)) for i in range(6)
+    )
+    tare: str = "before_each_run"
+
+    def matrix_array(self) -> np.ndarray:
+        return np.array(self.matrix, dtype=float)
+
+
+@dataclass(frozen=True)
+class Masses:
+    """Weighed masses: the wheel below the sensing element and the sensor; the bench plate's
+    nominal mass above its load cell (the free run identifies the real one)."""
+
+    wheel_below_sensor_kg: float = 29.0
+    sensor_kg: float = 3.82
+    plate_kg: float = 12.0
+
+
+@dataclass(frozen=True)
+class AuxChannel:
+    """What an auxiliary analog input carries: its recorded name, unit and scale (unit per raw unit)."""
+
+    name: str
+    unit: str
+    scale: float = 1.0
+
+
+DEFAULT_AUX = (
+    AuxChannel("z_base_m", "m"),
+    AuxChannel("f_plate_n", "N"),
+    AuxChannel("a_hub_m_s2", "m/s^2"),
+    AuxChannel("aux3", "V"),
+)
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """What stands on the bench, for the dry run's model and the simulated world: the tyre model
+    (the paper's 1, 2 or 3), whether the tyre is non-linear, the state before the first prompt
+    (pressure, wheel fitted) and the static load the WFS carries at rest on the shaker (the tyre
+    preload, N; on the four-post bench the model's weight above the sensor)."""
+
+    tyre_model: int = 2
+    nonlinear: bool = True
+    tyre_pressure_bar: float = 2.5
+    wheel_fitted: bool = True
+    preload_n: float = 0.0
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """The simulated devices: noise seed, and whether they run paced in real time."""
+
+    seed: int = 1
+    paced: bool = False
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """A whole bench configuration; ``source`` is its file (or ``<default>``)."""
+
+    kind: str = "shaker"
+    actuator: ActuatorConfig = field(default_factory=ActuatorConfig)
+    wfs: WfsConfig = field(default_factory=WfsConfig)
+    limits: BenchLimits = field(default_factory=BenchLimits)
+    interlocks: Interlocks = field(default_factory=Interlocks)
+    calibration: Calibration = field(default_factory=Calibration)
+    masses: Masses = field(default_factory=Masses)
+    aux: tuple[AuxChannel, ...] = DEFAULT_AUX
+    specimen: Specimen = field(default_factory=Specimen)
+    simulation: Simulation = field(default_factory=Simulation)
+    source: str = "<default>"
+
+    @property
+    def soft_limits(self) -> SoftLimits:
+        """The actuator client's envelope: the sequences' limits and the controller's interlocks."""
+        lim = self.limits
+        return SoftLimits(
+            max_amplitude_mm=lim.stroke_mm,
+            min_frequency_hz=lim.min_freq_hz,
+            max_frequency_hz=lim.max_freq_hz,
+            max_mean_mm=lim.stroke_mm,
+            displacement_limit_mm=self.interlocks.displacement_mm,
+            force_limit_n=self.interlocks.force_n,
+            min_taper_s=lim.min_taper_s,
+            max_duration_s=lim.max_step_s,
+        )
+
+    @property
+    def simulated(self) -> bool:
+        """True when any device is simulated (the simulated world is then needed)."""
+        return "simulated" in (self.actuator.transport, self.wfs.transport)
+
+    def to_toml(self) -> str:
+        """The configuration as a file :func:`parse_bench_config` reads back to an equal one (for the
+        record of a run)."""
+        actuator = {f.name: getattr(self.actuator, f.name) for f in fields(ActuatorConfig)}
+        actuator["register_map"] = str(actuator["register_map"]) if self.actuator.register_map else None
+        limits = {name: getattr(self.limits, name) for name in BenchLimits.__slots__}
+        limits["displacement_interlock_mm"] = self.interlocks.displacement_mm
+        limits["force_interlock_n"] = self.interlocks.force_n
+        tables = [
+            [f"kind = {toml_value(self.kind)}"],
+            toml_table("[actuator]", actuator),
+            toml_table("[wfs]", _as_dict(self.wfs)),
+            toml_table("[limits]", limits),
+            toml_table("[calibration]", _as_dict(self.calibration)),
+            toml_table("[masses]", _as_dict(self.masses)),
+            toml_table("[aux]", {f"aux{i}": _as_dict(ch) for i, ch in enumerate(self.aux)}),
+            toml_table("[specimen]", _as_dict(self.specimen)),
+            toml_table("[simulation]", _as_dict(self.simulation)),
+        ]
+        return "\n\n".join("\n".join(t) for t in tables) + "\n"
+
+
+def _as_dict(value: object) -> dict[str, object]:
+    return {f.name: getattr(value, f.name) for f in fields(value)}
+
+
+#: Per kind, the limits of the simulated benches where they differ from BenchLimits' defaults.
+KIND_DEFAULTS: dict[str, dict[str, object]] = {
+    "shaker": {},
+    "four_post": {
+        "limits": BenchLimits(
+            stroke_mm=50.0, velocity_mm_s=1000.0, acceleration_m_s2=300.0, force_n=20_000.0, max_freq_hz=50.0
+        ),
+        "interlocks": Interlocks(displacement_mm=60.0, force_n=25_000.0),
+        "masses": Masses(plate_kg=15.0),
+    },
+}
+
+
+def default_bench_config(kind: str = "shaker") -> BenchConfig:
+    """The simulated bench of ``kind`` with every default."""
+    return BenchConfig(kind=kind, **KIND_DEFAULTS[kind])
+
+
+def load_bench_config(path: str | Path | None) -> BenchConfig:
+    """The configuration in ``path``, or the simulated shaker bench when ``path`` is None."""
+    if path is None:
+        return default_bench_config()
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError([f"{path}: cannot read the bench configuration: {exc.strerror or exc}"]) from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError([f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}"]) from exc
+    return parse_bench_config(text, str(path), base_dir=path.parent)
+
+
+def parse_bench_config(text: str, source: str, base_dir: Path | None = None) -> BenchConfig:
+    """Check and build a configuration from TOML ``text``; relative paths are taken from ``base_dir``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        at = _AT_LINE.search(str(exc))
+        reason = _AT_LINE.sub("", str(exc))
+        if reason.startswith(("Cannot overwrite", "Cannot declare", "Duplicate")):
+            reason = f"duplicate key: it is already defined above in the same table ({reason})"
+        where = f"line {at[1]}: " if at else ""
+        raise ConfigError([f"{source}: {where}{reason}"]) from None
+    if not data:
+        raise ConfigError([f"{source}: empty file: a bench configuration needs at least kind"])
+    return _Reader(source, base_dir or Path.cwd()).config(data)
+
+
+class _Reader:
+    """Reads the tables of a configuration, collecting ``file: key: reason`` problems."""
+
+    def __init__(self, source: str, base_dir: Path) -> None:
+        self.source, self.base_dir = source, base_dir
+        self.problems: list[str] = []
+
+    def add(self, key: str, message: str) -> None:
+        self.problems.append(f"{self.source}: {key}: {message}")
+
+    # ------------------------------------------------------------------ values
+    def table(self, data: dict, key: str, allowed: tuple[str, ...]) -> dict:
+        table = data.get(key, {})
+        if not isinstance(table, dict):
+            self.add(key, f"must be a table, got {table!r}")
+            return {}
+        for name in table:
+            if name not in allowed:
+                self.add(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
+        return table
+
+    def number(
+        self,
+        table: dict,
+        key: str,
+        name: str,
+        default: float,
+        *,
+        lo: float | None = None,
+        hi: float | None = None,
+        lo_open: bool = False,
+        integer: bool = False,
+    ) -> float:
+        full = f"{key}.{name}" if key else name
+        return self.check(
+            full, table.get(name, default), default, lo=lo, hi=hi, lo_open=lo_open, integer=integer
+        )
+
+    def check(
+        self,
+        full: str,
+        value: object,
+        default: float,
+        *,
+        lo: float | None = None,
+        hi: float | None = None,
+        lo_open: bool = False,
+        integer: bool = False,
+    ) -> float:
+        """``value`` if it is a finite number in range, else ``default`` with the problem added."""
+        name = full.rsplit(".", maxsplit=1)[-1]
+        kind = "an integer" if integer else "a number"
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, numbers.Real)
+            or (integer and not isinstance(value, numbers.Integral))
+        ):
+            self.add(full, f"expected {kind}, got {value!r} ({type(value).__name__})")
+            return default
+        if not math.isfinite(value):
+            self.add(full, f"{value!r} is not a finite number")
+            return default
+        if (lo is not None and (value <= lo if lo_open else value < lo)) or (hi is not None and value > hi):
+            left = "" if lo is None else f"{lo:g} {'<' if lo_open else '<='} "
+            right = "" if hi is None else f" <= {hi:g}"
+            self.add(full, f"{value!r} is out of range (allowed {left}{name}{right})")
+            return default
+        return int(value) if integer else float(value)
+
+    def text(self, table: dict, key: str, name: str, default: str, choices: tuple = ()) -> str:
+        value = table.get(name, default)
+        if not isinstance(value, str):
+            self.add(f"{key}.{name}" if key else name, f"expected a string, got {value!r}")
+            return default
+        if choices and value not in choices:
+            self.add(f"{key}.{name}" if key else name, f"{value!r} is not one of {list(choices)}")
+            return default
+        return value
+
+    def boolean(self, table: dict, key: str, name: str, default: bool) -> bool:
+        value = table.get(name, default)
+        if not isinstance(value, bool):
+            self.add(f"{key}.{name}", f"expected true or false, got {value!r}")
+            return default
+        return value
+
+    # ------------------------------------------------------------------ tables
+    def config(self, data: dict) -> BenchConfig:
+        top = ("kind", "actuator", "wfs", "limits", "calibration", "masses", "aux", "specimen", "simulation")
+        for name in data:
+            if name not in top:
+                self.add(name, f"unknown key; allowed: {', '.join(top)}")
+        kind = self.text(data, "", "kind", "shaker", BENCH_KINDS)
+        base = default_bench_config(kind)
+        actuator, wfs = self.actuator(data), self.wfs(data)
+        limits, interlocks = self.limits(data, base)
+        config = BenchConfig(
+            kind=kind,
+            actuator=actuator,
+            wfs=wfs,
+            limits=limits,
+            interlocks=interlocks,
+            calibration=self.calibration(data),
+            masses=self.masses(data, base.masses),
+            aux=self.aux(data),
+            specimen=self.specimen(data),
+            simulation=self.simulation(data),
+            source=self.source,
+        )
+        if self.problems:
+            raise ConfigError(self.problems)
+        return config
+
+    def actuator(self, data: dict) -> ActuatorConfig:
+        d = ActuatorConfig()
+        t = self.table(data, "actuator", tuple(f.name for f in fields(ActuatorConfig)))
+        transport = self.text(t, "actuator", "transport", d.transport, ACTUATOR_TRANSPORTS)
+        device = self.text(t, "actuator", "device", d.device)
+        if transport == "rtu" and not device:
+            self.add("actuator.device", "transport 'rtu' needs the serial device, e.g. /dev/ttyUSB0")
+        register_map = None
+        if "register_map" in t:
+            path = Path(self.text(t, "actuator", "register_map", ""))
+            register_map = path if path.is_absolute() else self.base_dir / path
+            try:
+                load_register_map(register_map)
+            except RegisterMapError as exc:
+                self.add("actuator.register_map", str(exc))
+        config = ActuatorConfig(
+            transport=transport,
+            host=self.text(t, "actuator", "host", d.host),
+            port=self.number(t, "actuator", "port", d.port, lo=1, hi=65535, integer=True),
+            device=device,
+            baudrate=self.number(t, "actuator", "baudrate", d.baudrate, lo=0, lo_open=True, integer=True),
+            unit_id=self.number(t, "actuator", "unit_id", d.unit_id, lo=1, hi=247, integer=True),
+            register_map=register_map,
+            timeout_s=self.number(t, "actuator", "timeout_s", d.timeout_s, lo=0, lo_open=True),
+            read_attempts=self.number(
+                t, "actuator", "read_attempts", d.read_attempts, lo=1, hi=10, integer=True
+            ),
+            heartbeat_period_s=self.number(
+                t, "actuator", "heartbeat_period_s", d.heartbeat_period_s, lo=0, lo_open=True
+            ),
+            watchdog_ms=self.number(
+                t, "actuator", "watchdog_ms", d.watchdog_ms, lo=1, hi=65535, integer=True
+            ),
+        )
+        longest_ms = 1000 * (config.timeout_s * config.read_attempts + config.heartbeat_period_s)
+        if config.watchdog_ms <= longest_ms:
+            self.add(
+                "actuator.watchdog_ms",
+                f"{config.watchdog_ms} ms would trip on one slow reply: a request can hold the link for "
+                f"timeout_s x read_attempts + heartbeat_period_s = {longest_ms:.0f} ms "
+                f"(allowed > {longest_ms:.0f})",
+            )
+        return config
+
+    def wfs(self, data: dict) -> WfsConfig:
+        d = WfsConfig()
+        t = self.table(data, "wfs", tuple(f.name for f in fields(WfsConfig)))
+        transport = self.text(t, "wfs", "transport", d.transport, WFS_TRANSPORTS)
+        device = self.text(t, "wfs", "device", d.device)
+        if transport == "serial" and not device:
+            self.add("wfs.device", "transport 'serial' needs the serial device, e.g. /dev/ttyUSB1")
+        baudrate = self.number(t, "wfs", "baudrate", d.baudrate, lo=0, lo_open=True, integer=True)
+        line_max_hz = baudrate // (FRAME_SIZE * _BITS_PER_BYTE)
+        rate_hz = self.number(t, "wfs", "rate_hz", d.rate_hz, lo=100, hi=max(100, line_max_hz), integer=True)
+        return WfsConfig(transport, device, baudrate, rate_hz)
+
+    def limits(self, data: dict, base: BenchConfig) -> tuple[BenchLimits, Interlocks]:
+        names = (*BenchLimits.__slots__, "displacement_interlock_mm", "force_interlock_n")
+        t = self.table(data, "limits", names)
+        values = {
+            name: self.number(t, "limits", name, getattr(base.limits, name), lo=0, lo_open=True)
+            for name in BenchLimits.__slots__
+        }
+        if values["min_freq_hz"] >= values["max_freq_hz"]:
+            self.add("limits.max_freq_hz", f"{values['max_freq_hz']:g} Hz is not above min_freq_hz")
+            values["max_freq_hz"] = values["min_freq_hz"] * 2
+        interlocks = Interlocks(
+            self.number(
+                t,
+                "limits",
+                "displacement_interlock_mm",
+                base.interlocks.displacement_mm,
+                lo=values["stroke_mm"],
+                lo_open=True,
+            ),
+            self.number(
+                t, "limits", "force_interlock_n", base.interlocks.force_n, lo=values["force_n"], lo_open=True
+            ),
+        )
+        return BenchLimits(**values), interlocks
+
+    def calibration(self, data: dict) -> Calibration:
+        d = Calibration()
+        t = self.table(data, "calibration", ("matrix", "tare"))
+        tare = self.text(t, "calibration", "tare", d.tare, TARE_POLICIES)
+        raw = t.get("matrix", d.matrix)
+        if not isinstance(raw, list | tuple) or len(raw) != 6:
+            rows = len(raw) if isinstance(raw, list | tuple) else type(raw).__name__
+            self.add("calibration.matrix", f"must be 6x6 (6 rows of 6 numbers), got {rows} rows")
+            return Calibration(tare=tare)
+        matrix = []
+        for i, row in enumerate(raw):
+            if not isinstance(row, list | tuple) or len(row) != 6:
+                self.add(f"calibration.matrix[{i}]", f"must be a row of 6 numbers, got {row!r}")
+                return Calibration(tare=tare)
+            matrix.append(
+                tuple(self.check(f"calibration.matrix[{i}][{j}]", v, 0.0) for j, v in enumerate(row))
+            )
+        if np.linalg.matrix_rank(np.array(matrix)) < 6:
+            self.add("calibration.matrix", "is singular: the six loads cannot be told apart")
+        return Calibration(tuple(matrix), tare)
+
+    def masses(self, data: dict, base: Masses) -> Masses:
+        t = self.table(data, "masses", tuple(f.name for f in fields(Masses)))
+        return Masses(
+            **{
+                f.name: self.number(t, "masses", f.name, getattr(base, f.name), lo=0, lo_open=True)
+                for f in fields(Masses)
+            }
+        )
+
+    def aux(self, data: dict) -> tuple[AuxChannel, ...]:
+        names = tuple(f"aux{i}" for i in range(len(DEFAULT_AUX)))
+        t = self.table(data, "aux", names)
+        channels = []
+        for name, default in zip(names, DEFAULT_AUX, strict=True):
+            entry = self.table(t, name, ("name", "unit", "scale")) if name in t else {}
+            key = f"aux.{name}"
+            channel = AuxChannel(
+                self.text(entry, key, "name", default.name),
+                self.text(entry, key, "unit", default.unit),
+                self.number(entry, key, "scale", default.scale),
+            )
+            if not re.fullmatch(r"[a-z][a-z0-9_]*", channel.name):
+                self.add(f"{key}.name", f"{channel.name!r} must be lower case letters, digits and _")
+            channels.append(channel)
+        seen = [c.name for c in channels]
+        for i, c in enumerate(seen):
+            if seen.index(c) < i:
+                self.add(f"aux.{names[i]}.name", f"{c!r} is already the name of {names[seen.index(c)]}")
+        return tuple(channels)
+
+    def specimen(self, data: dict) -> Specimen:
+        d = Specimen()
+        t = self.table(data, "specimen", tuple(f.name for f in fields(Specimen)))
+        model = self.number(t, "specimen", "tyre_model", d.tyre_model, lo=1, hi=3, integer=True)
+        return Specimen(
+            tyre_model=model,
+            nonlinear=self.boolean(t, "specimen", "nonlinear", d.nonlinear),
+            tyre_pressure_bar=self.number(
+                t, "specimen", "tyre_pressure_bar", d.tyre_pressure_bar, lo=0.5, hi=5.0
+            ),
+            wheel_fitted=self.boolean(t, "specimen", "wheel_fitted", d.wheel_fitted),
+            preload_n=self.number(t, "specimen", "preload_n", d.preload_n, lo=0),
+        )
+
+    def simulation(self, data: dict) -> Simulation:
+        d = Simulation()
+        t = self.table(data, "simulation", ("seed", "paced"))
+        return Simulation(
+            seed=self.number(t, "simulation", "seed", d.seed, lo=0, hi=2**32 - 1, integer=True),
+            paced=self.boolean(t, "simulation", "paced", d.paced),
+        )

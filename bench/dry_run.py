@@ -1,0 +1,266 @@
+"""The dry run: before anything moves, predict every point of a sequence on the configured bench.
+
+The bench model (:class:`~bench.models.setup.BenchSetup` of the configured kind, with the
+specimen's tyre) gives each point's steady-state response in closed form, from the network's
+frequency response at the point's operating point (harmonic balance for the non-linear tyre), not
+from a time simulation. Predicted per point: peak displacement, velocity and acceleration of the
+plate, the actuator's peak dynamic force (the plate force, plate mass included) and the WFS's
+vertical load (dynamic amplitude plus the static load it carries at rest). A point beyond a limit
+of :class:`~sequences.limits.BenchLimits` is refused, naming the point and the limit.
+
+The dry run follows the sequence as the operator will: a pressure prompt's target sets the tyre
+pressure of the points after it, removing or fitting the wheel (or driving the car off or on the
+posts) changes what stands on the bench, and a free run always runs without the specimen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.config import BenchConfig
+from bench.models.benches import TyreModel
+from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity, WfsSensor
+from bench.models.setup import BenchKind, BenchSetup
+from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.steps import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+
+STANDARD_GRAVITY_M_S2 = 9.80665
+#: Frequencies a sweep is evaluated at (log-spaced over its band, plus the model's resonances in it).
+SWEEP_EVALUATION_POINTS = 120
+
+#: (prediction attribute, BenchLimits attribute, what it is, unit)
+_CHECKS = (
+    ("displacement_mm", "stroke_mm", "peak displacement", "mm"),
+    ("velocity_mm_s", "velocity_mm_s", "peak velocity", "mm/s"),
+    ("acceleration_m_s2", "acceleration_m_s2", "peak acceleration", "m/s^2"),
+    ("actuator_force_n", "force_n", "actuator force", "N"),
+    ("wfs_load_n", "wfs_force_n", "WFS load", "N"),
+)
+
+
+@dataclass(frozen=True)
+class PointPrediction:
+    """The predicted peaks of one point: a dwell, or a sweep (then the largest over its band, each
+    found at ``at_hz[quantity]``). ``setup`` is what stands on the bench ("shaker", "quarter_car",
+    "free_run"); ``wfs_static_n`` is the part of ``wfs_load_n`` present at rest."""
+
+    step_index: int
+    point_index: int
+    kind: str  # "dwell" | "sweep"
+    freq_hz: float  # the dwell's frequency; a sweep's highest
+    amplitude_mm: float
+    setup: str
+    pressure_bar: float | None
+    displacement_mm: float
+    velocity_mm_s: float
+    acceleration_m_s2: float
+    actuator_force_n: float
+    wfs_load_n: float
+    wfs_static_n: float
+    at_hz: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        what = f"{self.freq_hz:g} Hz" if self.kind == "dwell" else f"sweep to {self.freq_hz:g} Hz"
+        return f"steps[{self.step_index}] point {self.point_index} ({what}, {self.amplitude_mm:g} mm)"
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """A point beyond a limit: the point, the limit's name in BenchLimits, predicted and allowed."""
+
+    point: PointPrediction
+    limit: str
+    quantity: str
+    predicted: float
+    allowed: float
+    unit: str
+    freq_hz: float
+
+    def __str__(self) -> str:
+        where = "" if self.point.kind == "dwell" else f" at {self.freq_hz:.4g} Hz"
+        return (
+            f"{self.point.label}: predicted {self.quantity} {self.predicted:.5g} {self.unit}{where} "
+            f"is beyond the limit {self.limit} = {self.allowed:g} {self.unit}"
+        )
+
+
+class DryRunError(ValueError):
+    """The dry run refused points; ``refusals`` lists them all, the first in the str."""
+
+    def __init__(self, source: str, refusals: tuple[Refusal, ...]) -> None:
+        self.refusals = refusals
+        lines = [f"{source}: {refusal}" for refusal in refusals]
+        if len(lines) > 1:
+            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
+        super().__init__("\n".join(lines))
+
+
+@dataclass(frozen=True)
+class DryRun:
+    """Every point's prediction, and the refused ones."""
+
+    source: str
+    points: tuple[PointPrediction, ...]
+    refusals: tuple[Refusal, ...]
+
+    @property
+    def ok(self) -> bool:
+        return not self.refusals
+
+    def check(self) -> None:
+        """Raise :class:`DryRunError` if any point was refused."""
+        if self.refusals:
+            raise DryRunError(self.source, self.refusals)
+
+
+def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
+    """Predict every dwell and sweep of ``sequence`` on the bench of ``config`` and check its limits."""
+    world = _World(config)
+    points: list[PointPrediction] = []
+    for index, step in enumerate(sequence.steps):
+        if isinstance(step, Prompt):
+            world.apply(step)
+        elif isinstance(step, SineDwell | DwellGrid | FreeRun):
+            setup = world.setup(free_run=isinstance(step, FreeRun))
+            dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+            points += [world.predict_dwell(setup, index, j, dwell) for j, dwell in enumerate(dwells)]
+        elif isinstance(step, Sweep):
+            points.append(world.predict_sweep(world.setup(free_run=False), index, step))
+    refusals = tuple(r for point in points for r in _refusals(point, config))
+    return DryRun(sequence.source, tuple(points), refusals)
+
+
+def _refusals(point: PointPrediction, config: BenchConfig) -> list[Refusal]:
+    out = []
+    for attribute, limit, quantity, unit in _CHECKS:
+        predicted, allowed = getattr(point, attribute), getattr(config.limits, limit)
+        if predicted > allowed:
+            out.append(
+                Refusal(
+                    point,
+                    limit,
+                    quantity,
+                    predicted,
+                    allowed,
+                    unit,
+                    point.at_hz.get(attribute, point.freq_hz),
+                )
+            )
+    return out
+
+
+def tyre_at(pressure_bar: float, wheel_mass_kg: float) -> Tyre:
+    """The paper's tyre at ``pressure_bar``: stiffness interpolated linearly between the pressures it
+    reports (1.5 / 2.5 / 3.5 bar), held at the end values outside them."""
+    pressures = sorted(PAPER_TYRE_STIFFNESS_N_PER_M)
+    stiffness = float(
+        np.interp(pressure_bar, pressures, [PAPER_TYRE_STIFFNESS_N_PER_M[p] for p in pressures])
+    )
+    return Tyre(stiffness_n_per_m=stiffness, wheel_mass_kg=wheel_mass_kg)
+
+
+class _World:
+    """What the dry run assumes stands on the bench, as the sequence's prompts change it."""
+
+    def __init__(self, config: BenchConfig) -> None:
+        self.config = config
+        self.pressure_bar = config.specimen.tyre_pressure_bar
+        self.specimen_on = config.specimen.wheel_fitted
+        self._setups: dict[tuple[bool, float], BenchSetup] = {}
+
+    def apply(self, prompt: Prompt) -> None:
+        if prompt.action == "set_tyre_pressure" and isinstance(prompt.target, int | float):
+            self.pressure_bar = float(prompt.target)
+        elif prompt.action in ("remove_wheel", "car_off_posts"):
+            self.specimen_on = False
+        elif prompt.action in ("fit_wheel", "car_on_posts"):
+            self.specimen_on = True
+
+    def setup(self, *, free_run: bool) -> BenchSetup:
+        specimen = self.specimen_on and not free_run
+        key = (specimen, self.pressure_bar if specimen else math.nan)
+        if key not in self._setups:
+            self._setups[key] = self._build(specimen)
+        return self._setups[key]
+
+    def _build(self, specimen: bool) -> BenchSetup:
+        c = self.config
+        rig = Rig(plate_mass_kg=c.masses.plate_kg)
+        if not specimen:
+            return BenchSetup(BenchKind.FREE_RUN, rig=rig)
+        return BenchSetup(
+            BenchKind.SHAKER if c.kind == "shaker" else BenchKind.QUARTER_CAR,
+            TyreModel(c.specimen.tyre_model),
+            tyre_at(self.pressure_bar, c.masses.wheel_below_sensor_kg),
+            sensor=WfsSensor(mass_kg=c.masses.sensor_kg),
+            rig=rig,
+            nonlinearity=TyreNonlinearity() if c.specimen.nonlinear else None,
+        )
+
+    def static_wfs_load_n(self, setup: BenchSetup) -> float:
+        """The load the WFS carries at rest: on the four-post bench the weight above it, on the
+        shaker the configured tyre preload; none without the specimen."""
+        if setup.kind is BenchKind.QUARTER_CAR:
+            above_kg = setup.suspension.unsprung_mass_above_kg + setup.suspension.body_mass_kg
+            return above_kg * STANDARD_GRAVITY_M_S2
+        if setup.kind is BenchKind.SHAKER:
+            return self.config.specimen.preload_n
+        return 0.0
+
+    def _forces(self, setup: BenchSetup, freq_hz: float, amplitude_m: float) -> tuple[float, float]:
+        """Peak plate force and dynamic WFS force (N) of a sine of ``amplitude_m`` at ``freq_hz``."""
+        network = setup.operating_network(freq_hz, amplitude_m)
+        outputs = ("f_plate", "f_wfs") if "f_wfs" in network.output_names else ("f_plate",)
+        response = network.frequency_response(freq_hz, outputs=outputs)
+        wfs = float(abs(response["f_wfs"][0])) * amplitude_m if "f_wfs" in response else 0.0
+        return float(abs(response["f_plate"][0])) * amplitude_m, wfs
+
+    def predict_dwell(self, setup: BenchSetup, index: int, j: int, dwell: SineDwell) -> PointPrediction:
+        plate_n, wfs_n = self._forces(setup, dwell.freq_hz, dwell.amplitude_m)
+        static_n = self.static_wfs_load_n(setup)
+        return PointPrediction(
+            step_index=index,
+            point_index=j,
+            kind="dwell",
+            freq_hz=dwell.freq_hz,
+            amplitude_mm=dwell.amplitude_mm,
+            setup=setup.kind.value,
+            pressure_bar=self.pressure_bar if setup.has_tyre else None,
+            displacement_mm=abs(dwell.mean_mm) + dwell.amplitude_mm,
+            velocity_mm_s=peak_velocity_mm_s(dwell.freq_hz, dwell.amplitude_mm),
+            acceleration_m_s2=peak_acceleration_m_s2(dwell.freq_hz, dwell.amplitude_mm),
+            actuator_force_n=plate_n,
+            wfs_load_n=wfs_n + static_n if setup.has_tyre else 0.0,
+            wfs_static_n=static_n,
+        )
+
+    def predict_sweep(self, setup: BenchSetup, index: int, sweep: Sweep) -> PointPrediction:
+        """The sweep's steady-state peaks over its band: an upper estimate, since a sweep passes a
+        resonance too quickly to build its full steady-state response."""
+        lo, hi = sorted((sweep.start_hz, sweep.end_hz))
+        freqs = np.geomspace(lo, hi, SWEEP_EVALUATION_POINTS)
+        resonances = setup.network().eigenfrequencies_hz()
+        freqs = np.unique(np.r_[freqs, resonances[(resonances > lo) & (resonances < hi)]])
+        forces = np.array([self._forces(setup, f, sweep.amplitude_m) for f in freqs])
+        i_plate, i_wfs = int(np.argmax(forces[:, 0])), int(np.argmax(forces[:, 1]))
+        static_n = self.static_wfs_load_n(setup)
+        return PointPrediction(
+            step_index=index,
+            point_index=0,
+            kind="sweep",
+            freq_hz=hi,
+            amplitude_mm=sweep.amplitude_mm,
+            setup=setup.kind.value,
+            pressure_bar=self.pressure_bar if setup.has_tyre else None,
+            displacement_mm=abs(sweep.mean_mm) + sweep.amplitude_mm,
+            velocity_mm_s=peak_velocity_mm_s(hi, sweep.amplitude_mm),
+            acceleration_m_s2=peak_acceleration_m_s2(hi, sweep.amplitude_mm),
+            actuator_force_n=float(forces[i_plate, 0]),
+            wfs_load_n=float(forces[i_wfs, 1]) + static_n if setup.has_tyre else 0.0,
+            wfs_static_n=static_n,
+            at_hz={"actuator_force_n": float(freqs[i_plate]), "wfs_load_n": float(freqs[i_wfs])},
+        )

@@ -1,0 +1,59 @@
+"""The bench's envelope a sequence is validated against before anything moves.
+
+The bench configuration provides one :class:`BenchLimits`; the defaults are those of the simulated
+shaker bench. Kinematic limits (stroke, velocity, acceleration, frequency range, timing) are checked
+by the sequence validator from the steps alone; the force limits (actuator and WFS) need a model of
+what stands on the bench and are checked by the dry run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class BenchLimits:
+    """Peak values a step may demand of the bench.
+
+    - ``stroke_mm``: the largest peak displacement, ``|mean_mm| + amplitude_mm``.
+    - ``velocity_mm_s``, ``acceleration_m_s2``: peak plate velocity and acceleration of a sine,
+      ``2 pi f A`` and ``(2 pi f)^2 A``; a sweep is checked at its highest frequency.
+    - ``force_n``: the actuator's peak dynamic force (plate force, plate mass included).
+    - ``min_freq_hz``, ``max_freq_hz``: the excitation frequency range.
+    - ``wfs_force_n``: the WFS's vertical load range (dynamic amplitude plus static load).
+    - ``min_taper_s``: the shortest taper the controller accepts; ``max_step_s``: the longest
+      excitation one setpoint may ask for (the controller's dwell/sweep duration registers).
+    - ``max_capture_s``: the longest triggered capture the WFS acquisition can buffer (hammer test).
+    """
+
+    stroke_mm: float = 25.0
+    velocity_mm_s: float = 1600.0
+    acceleration_m_s2: float = 550.0
+    force_n: float = 15_000.0
+    min_freq_hz: float = 0.1
+    max_freq_hz: float = 100.0
+    wfs_force_n: float = 24_000.0
+    min_taper_s: float = 0.1
+    max_step_s: float = 3600.0
+    max_capture_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in self.__slots__:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise ValueError(f"BenchLimits.{name} must be a finite number, got {value!r}")
+            if value <= 0:
+                raise ValueError(f"BenchLimits.{name} must be > 0, got {value}")
+        if self.min_freq_hz >= self.max_freq_hz:
+            raise ValueError(f"BenchLimits: min_freq_hz {self.min_freq_hz} >= max_freq_hz {self.max_freq_hz}")
+
+
+def peak_velocity_mm_s(freq_hz: float, amplitude_mm: float) -> float:
+    """Peak velocity of a sine of ``amplitude_mm`` at ``freq_hz``: 2 pi f A."""
+    return 2 * math.pi * freq_hz * amplitude_mm
+
+
+def peak_acceleration_m_s2(freq_hz: float, amplitude_mm: float) -> float:
+    """Peak acceleration of a sine of ``amplitude_mm`` at ``freq_hz``: (2 pi f)^2 A."""
+    return (2 * math.pi * freq_hz) ** 2 * amplitude_mm * 1e-3

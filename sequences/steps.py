@@ -1,0 +1,412 @@
+"""The step vocabulary of a test sequence, as plain frozen data.
+
+A step says what the bench does, once: the engine derives the driver's setpoint from it, the
+simulated world its waveform and the analysis its record. Lengths are in seconds and cycles,
+amplitudes in mm as an operator states them (``amplitude_m`` for the physics). Every step class has
+``kind``, its ``type`` in a sequence file, and ``estimated_duration_s``, the time the bench spends on
+it (operator prompts count 0 s: see :attr:`Sequence.estimated_duration_with_operator_s`).
+
+The steps hold whatever they are given; :func:`sequences.validation.validate` checks them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+from sequences.errors import AnswerError
+
+#: Stated times of the steps that do not excite: the controller's hydraulic pressure ramp, a tare
+#: (the acquisition averages about a second at rest, plus the command round trips) and a slow move
+#: to a new mean position.
+HYDRAULICS_S = 3.0
+TARE_S = 2.0
+MEAN_POSITION_S = 2.0
+#: Allowance for an operator's answer to one prompt (fitting a wheel, setting a pressure, a blow).
+PROMPT_ALLOWANCE_S = 60.0
+#: The crossover amplitude is rounded down to 0.1 um (this many decimals of a mm), far below any
+#: servo's resolution, so a limited amplitude reads cleanly and never exceeds its maximum.
+AMPLITUDE_DECIMALS = 4
+
+GRID_ORDERS = ("amplitude-major", "frequency-major")
+SWEEP_LAWS = ("linear", "log")
+HYDRAULIC_LEVELS = ("off", "low", "high")
+ANSWER_TYPES = ("number", "confirm", "choice")
+#: What the simulated operator does with a prompt's answer in simulated mode.
+PROMPT_ACTIONS = (
+    "set_tyre_pressure",
+    "remove_wheel",
+    "fit_wheel",
+    "car_on_posts",
+    "car_off_posts",
+    "set_damper",
+    "strike_hammer",
+)
+_YES = ("yes", "y", "ok", "done", "true")
+_NO = ("no", "n", "false")
+
+
+@dataclass(frozen=True, slots=True)
+class SineDwell:
+    """One sine dwell: taper in, settle, measure, taper out, at one frequency and amplitude.
+
+    The settle and measure lengths are cycle counts (not necessarily whole) with a minimum in
+    seconds, so low frequencies get enough cycles and high frequencies enough time. When a grid's
+    velocity or acceleration maximum lowered the amplitude, ``requested_amplitude_mm`` is the grid's
+    nominal amplitude and ``amplitude_limited_by`` names the maximum ("velocity"/"acceleration").
+    """
+
+    kind: ClassVar[str] = "sine_dwell"
+
+    freq_hz: float
+    amplitude_mm: float
+    settle_cycles: float = 2.0
+    settle_min_s: float = 0.2
+    measure_cycles: float = 2.0
+    measure_min_s: float = 1.0
+    taper_in_s: float = 0.3
+    taper_out_s: float = 0.3
+    mean_mm: float = 0.0
+    requested_amplitude_mm: float | None = None
+    amplitude_limited_by: str | None = None
+
+    @property
+    def settle_s(self) -> float:
+        return max(self.settle_cycles / self.freq_hz, self.settle_min_s)
+
+    @property
+    def measure_s(self) -> float:
+        return max(self.measure_cycles / self.freq_hz, self.measure_min_s)
+
+    @property
+    def hold_s(self) -> float:
+        """Full amplitude: the settling, then the measured part."""
+        return self.settle_s + self.measure_s
+
+    @property
+    def duration_s(self) -> float:
+        return self.taper_in_s + self.hold_s + self.taper_out_s
+
+    @property
+    def amplitude_m(self) -> float:
+        return self.amplitude_mm * 1e-3
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return self.duration_s
+
+
+def crossover_amplitude_mm(
+    freq_hz: float,
+    amplitude_mm: float,
+    max_velocity_mm_s: float | None,
+    max_acceleration_m_s2: float | None,
+) -> tuple[float, str | None]:
+    """The amplitude a sine-test profile uses at ``freq_hz``: the nominal one, or less above the
+    constant-velocity / constant-acceleration crossovers, ``min(A, v_max / w, a_max / w^2)``.
+
+    Returns ``(amplitude_mm, limited_by)``, ``limited_by`` None when the nominal amplitude holds.
+    """
+    w = 2 * math.pi * freq_hz
+    used, limited_by = amplitude_mm, None
+    if max_velocity_mm_s is not None and max_velocity_mm_s / w < used:
+        used, limited_by = max_velocity_mm_s / w, "velocity"
+    if max_acceleration_m_s2 is not None and max_acceleration_m_s2 * 1e3 / w**2 < used:
+        used, limited_by = max_acceleration_m_s2 * 1e3 / w**2, "acceleration"
+    if limited_by is None:
+        return amplitude_mm, None
+    scale = 10**AMPLITUDE_DECIMALS
+    return math.floor(used * scale) / scale, limited_by
+
+
+@dataclass(frozen=True, slots=True)
+class DwellGrid:
+    """Sine dwells over frequencies x amplitudes, all with the same timing.
+
+    ``order`` "amplitude-major" runs every frequency at the first amplitude, then the next
+    amplitude; "frequency-major" runs every amplitude at one frequency before the next. With
+    ``max_velocity_mm_s`` / ``max_acceleration_m_s2`` the amplitude of a point is lowered above the
+    crossover frequency (see :func:`crossover_amplitude_mm`) and each dwell records it.
+    """
+
+    kind: ClassVar[str] = "dwell_grid"
+
+    freqs_hz: tuple[float, ...]
+    amplitudes_mm: tuple[float, ...]
+    order: str = "amplitude-major"
+    settle_cycles: float = 2.0
+    settle_min_s: float = 0.2
+    measure_cycles: float = 2.0
+    measure_min_s: float = 1.0
+    taper_in_s: float = 0.3
+    taper_out_s: float = 0.3
+    mean_mm: float = 0.0
+    max_velocity_mm_s: float | None = None
+    max_acceleration_m_s2: float | None = None
+    label: str = ""
+
+    def _pairs(self) -> Iterator[tuple[float, float]]:
+        if self.order == "frequency-major":
+            return ((f, a) for f in self.freqs_hz for a in self.amplitudes_mm)
+        return ((f, a) for a in self.amplitudes_mm for f in self.freqs_hz)
+
+    def dwells(self) -> tuple[SineDwell, ...]:
+        """The grid's dwells in run order, with the amplitude actually used."""
+        out = []
+        for freq_hz, nominal_mm in self._pairs():
+            used_mm, limited_by = crossover_amplitude_mm(
+                freq_hz, nominal_mm, self.max_velocity_mm_s, self.max_acceleration_m_s2
+            )
+            out.append(
+                SineDwell(
+                    freq_hz,
+                    used_mm,
+                    self.settle_cycles,
+                    self.settle_min_s,
+                    self.measure_cycles,
+                    self.measure_min_s,
+                    self.taper_in_s,
+                    self.taper_out_s,
+                    self.mean_mm,
+                    requested_amplitude_mm=nominal_mm if limited_by else None,
+                    amplitude_limited_by=limited_by,
+                )
+            )
+        return tuple(out)
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return sum(d.duration_s for d in self.dwells())
+
+
+@dataclass(frozen=True, slots=True)
+class FreeRun:
+    """The grid's dwells with no wheel on the bench: the load cell sees only the plate (m_comp)."""
+
+    kind: ClassVar[str] = "free_run"
+
+    grid: DwellGrid
+
+    def dwells(self) -> tuple[SineDwell, ...]:
+        return self.grid.dwells()
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return self.grid.estimated_duration_s
+
+
+@dataclass(frozen=True, slots=True)
+class Sweep:
+    """A sine sweep from ``start_hz`` to ``end_hz``; ``duration_s`` includes the tapers, as the
+    controller's ``sweep_duration_s`` register does."""
+
+    kind: ClassVar[str] = "sweep"
+
+    start_hz: float
+    end_hz: float
+    duration_s: float
+    amplitude_mm: float
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+    law: str = "linear"
+    mean_mm: float = 0.0
+    label: str = ""
+
+    @property
+    def amplitude_m(self) -> float:
+        return self.amplitude_mm * 1e-3
+
+    @property
+    def max_freq_hz(self) -> float:
+        return max(self.start_hz, self.end_hz)
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return self.duration_s
+
+
+@dataclass(frozen=True, slots=True)
+class HammerTest:
+    """Hammer blows on the bare sensor, each caught by a triggered capture of the WFS acquisition.
+
+    ``capture_s`` is the whole captured block, ``pre_trigger_s`` of it before the trigger.
+    """
+
+    kind: ClassVar[str] = "hammer"
+
+    trigger_level_n: float
+    pre_trigger_s: float = 0.02
+    capture_s: float = 0.3
+    blows: int = 1
+
+    def strike_prompt(self, blow: int) -> Prompt:
+        """The prompt that asks for blow number ``blow`` (1-based) once the capture is armed."""
+        return Prompt(
+            id=f"strike_{blow}",
+            text=f"Strike the sensor with the hammer (blow {blow} of {self.blows})",
+            answer="confirm",
+            action="strike_hammer",
+        )
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return self.blows * self.capture_s
+
+
+@dataclass(frozen=True, slots=True)
+class Prompt:
+    """A question to the operator, e.g. "set the tyre pressure to 2.5 bar" answered with the
+    pressure read on the gauge.
+
+    ``answer`` is "number" (within ``minimum``..``maximum``, in ``unit``), "confirm" or "choice"
+    (one of ``choices``). ``action`` names what the simulated operator does with the answer in
+    simulated mode (:data:`PROMPT_ACTIONS`); ``target`` is the value asked for (2.5 for "set
+    2.5 bar"), which the dry run assumes.
+    """
+
+    kind: ClassVar[str] = "prompt"
+
+    id: str
+    text: str
+    answer: str = "confirm"
+    unit: str | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+    choices: tuple[str, ...] = ()
+    action: str | None = None
+    target: float | str | None = None
+
+    def check_answer(self, value: object) -> float | str | bool:
+        """The answer as its type (float, str or bool), or :class:`AnswerError` with what is allowed."""
+        if self.answer == "number":
+            number = _as_number(value)
+            lo = -math.inf if self.minimum is None else self.minimum
+            hi = math.inf if self.maximum is None else self.maximum
+            unit = f" {self.unit}" if self.unit else ""
+            if number is None or not lo <= number <= hi:
+                raise AnswerError(f"{self.id}: {value!r} is not a number within {lo:g}..{hi:g}{unit}")
+            return number
+        if self.answer == "choice":
+            if not isinstance(value, str) or value not in self.choices:
+                raise AnswerError(f"{self.id}: {value!r} is not one of {list(self.choices)}")
+            return value
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.strip().lower() in _YES + _NO:
+            return value.strip().lower() in _YES
+        raise AnswerError(f"{self.id}: {value!r} is not a confirmation; answer yes or no")
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return 0.0
+
+
+def _as_number(value: object) -> float | None:
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            return None
+    if not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+@dataclass(frozen=True, slots=True)
+class Hydraulics:
+    """Switch the hydraulic pressure: "off", "low" (positioning) or "high" (testing)."""
+
+    kind: ClassVar[str] = "hydraulics"
+
+    level: str
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return HYDRAULICS_S
+
+
+@dataclass(frozen=True, slots=True)
+class Tare:
+    """Zero the WFS with the bench at rest."""
+
+    kind: ClassVar[str] = "tare"
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return TARE_S
+
+
+@dataclass(frozen=True, slots=True)
+class MeanPosition:
+    """Move the actuator to a new static position (mm), e.g. to preload the tyre."""
+
+    kind: ClassVar[str] = "mean_position"
+
+    mean_mm: float
+
+    @property
+    def estimated_duration_s(self) -> float:
+        return MEAN_POSITION_S
+
+
+Step = SineDwell | DwellGrid | FreeRun | Sweep | HammerTest | Prompt | Hydraulics | Tare | MeanPosition
+STEP_TYPES: dict[str, type] = {
+    cls.kind: cls
+    for cls in (SineDwell, DwellGrid, FreeRun, Sweep, HammerTest, Prompt, Hydraulics, Tare, MeanPosition)
+}
+MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, HammerTest)
+
+
+def step_fields(step: Step) -> dict[str, object]:
+    """The step as flat named values, as in a sequence file (``type`` first; a free run's grid
+    fields inline; unset optional values left out): for a run's record and for writing files."""
+    inner = step.grid if isinstance(step, FreeRun) else step
+    out: dict[str, object] = {"type": step.kind}
+    for f in fields(inner):
+        value = getattr(inner, f.name)
+        if value is not None and value != () and not (f.name == "label" and value == ""):
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class Sequence:
+    """A named list of steps; ``source`` is the file it came from (or ``<script>``)."""
+
+    name: str
+    description: str
+    steps: tuple[Step, ...]
+    source: str = "<script>"
+
+    @property
+    def estimated_duration_s(self) -> float:
+        """The bench's time: every step's estimate, prompts counted 0 s."""
+        return sum(step.estimated_duration_s for step in self.steps)
+
+    @property
+    def estimated_duration_with_operator_s(self) -> float:
+        """The bench's time plus :data:`PROMPT_ALLOWANCE_S` per prompt and per hammer blow."""
+        answers = sum(
+            1 if isinstance(s, Prompt) else s.blows if isinstance(s, HammerTest) else 0 for s in self.steps
+        )
+        return self.estimated_duration_s + answers * PROMPT_ALLOWANCE_S
+
+    def measurement_steps(self) -> tuple[Step, ...]:
+        """The steps that record data (dwells, grids, free runs, sweeps, hammer tests), in order."""
+        return tuple(s for s in self.steps if isinstance(s, MEASUREMENT_TYPES))
+
+    def points(self) -> int:
+        """Measured points: one per dwell, per sweep and per hammer blow."""
+        count = 0
+        for step in self.measurement_steps():
+            if isinstance(step, DwellGrid | FreeRun):
+                count += len(step.dwells())
+            elif isinstance(step, HammerTest):
+                count += step.blows
+            else:
+                count += 1
+        return count

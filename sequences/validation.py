@@ -1,0 +1,425 @@
+"""Validation of a sequence against the bench's limits, before anything moves.
+
+One code path for sequence files and for sequences built in Python: the loader checks the file's
+structure (keys, tables, types of text fields) and hands the steps it could build to
+:func:`check_steps`; :func:`validate` runs the same checks on a :class:`Sequence`. Every problem
+names the key as in a sequence file (``steps[3].amplitude_mm``, ``steps[2].freqs_hz[4]``; steps
+count from 0, in file order) and the allowed range.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import re
+from collections.abc import Iterable
+
+from sequences.errors import Problem, SequenceError
+from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.steps import (
+    ANSWER_TYPES,
+    GRID_ORDERS,
+    HYDRAULIC_LEVELS,
+    PROMPT_ACTIONS,
+    SWEEP_LAWS,
+    DwellGrid,
+    FreeRun,
+    HammerTest,
+    Hydraulics,
+    MeanPosition,
+    Prompt,
+    Sequence,
+    SineDwell,
+    Step,
+    Sweep,
+    Tare,
+    crossover_amplitude_mm,
+)
+
+#: Relative slack on the kinematic limits: a crossover amplitude computed from a limit must pass
+#: the same limit despite the last bit of floating-point rounding.
+_RELATIVE_SLACK = 1e-9
+_LIMITED_BY = (None, "velocity", "acceleration", "force")
+_DWELL_TIMING = (
+    "settle_cycles",
+    "settle_min_s",
+    "measure_cycles",
+    "measure_min_s",
+    "taper_in_s",
+    "taper_out_s",
+)
+
+
+def validate(sequence: Sequence, limits: BenchLimits) -> None:
+    """Raise :class:`SequenceError` with every problem of ``sequence`` under ``limits``."""
+    problems = check_sequence_header(sequence.name, sequence.description, sequence.source)
+    if not isinstance(sequence.steps, tuple | list) or not sequence.steps:
+        problems.append(Problem(sequence.source, "steps", "a sequence needs at least one step"))
+    else:
+        problems += check_steps(enumerate(sequence.steps), limits, sequence.source)
+    if problems:
+        raise SequenceError.of(problems)
+
+
+def check_sequence_header(name: object, description: object, source: str) -> list[Problem]:
+    problems = []
+    if not isinstance(name, str) or not name.strip():
+        problems.append(Problem(source, "sequence.name", f"must be a non-empty string, got {name!r}"))
+    if not isinstance(description, str):
+        problems.append(Problem(source, "sequence.description", f"must be a string, got {description!r}"))
+    return problems
+
+
+def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: str) -> list[Problem]:
+    """The problems of ``(index, step)`` pairs; prompt ids must be unique across them."""
+    problems: list[Problem] = []
+    prompt_ids: dict[str, int] = {}
+    for index, step in steps:
+        check = _Checker(source, f"steps[{index}]", limits)
+        if isinstance(step, SineDwell):
+            check.dwell(step)
+        elif isinstance(step, DwellGrid):
+            check.grid(step)
+        elif isinstance(step, FreeRun):
+            check.grid(step.grid)
+        elif isinstance(step, Sweep):
+            check.sweep(step)
+        elif isinstance(step, HammerTest):
+            check.hammer(step)
+        elif isinstance(step, Prompt):
+            check.prompt(step)
+            if isinstance(step.id, str) and step.id in prompt_ids:
+                check.add("id", f"prompt id {step.id!r} is already used by steps[{prompt_ids[step.id]}]")
+            elif isinstance(step.id, str):
+                prompt_ids[step.id] = index
+        elif isinstance(step, Hydraulics):
+            check.one_of("level", step.level, HYDRAULIC_LEVELS)
+        elif isinstance(step, MeanPosition):
+            check.mean(step.mean_mm)
+        elif not isinstance(step, Tare):
+            check.add("", f"{step!r} is not a step")
+        problems += check.problems
+    return problems
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.6g}"
+
+
+class _Checker:
+    """Collects the problems of one step; keys are relative to the step (``prefix``)."""
+
+    def __init__(self, source: str, prefix: str, limits: BenchLimits) -> None:
+        self.source, self.prefix, self.limits = source, prefix, limits
+        self.problems: list[Problem] = []
+
+    def add(self, key: str, message: str) -> None:
+        full = f"{self.prefix}.{key}" if key else self.prefix
+        self.problems.append(Problem(self.source, full, message))
+
+    # ---------------------------------------------------------------- values
+    def number(
+        self,
+        key: str,
+        value: object,
+        lo: float | None = None,
+        hi: float | None = None,
+        *,
+        lo_open: bool = False,
+        unit: str = "",
+        why: str = "",
+        integer: bool = False,
+    ) -> float | None:
+        """``value`` as a float if it is a finite number within the range, else None (problem added)."""
+        kind = "an integer" if integer else "a number"
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            self.add(key, f"expected {kind}, got {value!r} ({type(value).__name__})")
+            return None
+        if integer and not isinstance(value, numbers.Integral):
+            self.add(key, f"expected {kind}, got {value!r}")
+            return None
+        number = float(value)
+        if not math.isfinite(number):
+            self.add(key, f"{value!r} is not a finite number")
+            return None
+        below = lo is not None and (number <= lo if lo_open else number < lo)
+        above = hi is not None and number > hi
+        if below or above:
+            u = f" {unit}" if unit else ""
+            left = "" if lo is None else f"{_fmt(lo)} {'<' if lo_open else '<='} "
+            right = "" if hi is None else f" <= {_fmt(hi)}"
+            where = f" {why}" if why else ""
+            side = "beyond" if above else "below"
+            name = re.sub(r"\[\d+\]$", "", key.rsplit(".", maxsplit=1)[-1])
+            self.add(key, f"{_fmt(number)}{u} is {side}{where} (allowed {left}{name}{right}{u})")
+            return None
+        return number
+
+    def optional_number(self, key: str, value: object, **kwargs) -> float | None:
+        return None if value is None else self.number(key, value, **kwargs)
+
+    def text(self, key: str, value: object, *, required: bool = True) -> None:
+        if not isinstance(value, str) or (required and not value.strip()):
+            self.add(key, f"expected {'a non-empty' if required else 'a'} string, got {value!r}")
+
+    def one_of(self, key: str, value: object, allowed: Iterable[object]) -> bool:
+        allowed = tuple(allowed)
+        if value not in allowed:
+            self.add(key, f"{value!r} is not one of {list(allowed)}")
+            return False
+        return True
+
+    # ---------------------------------------------------------------- bench quantities
+    def mean(self, mean_mm: object) -> float | None:
+        stroke = self.limits.stroke_mm
+        value = self.number("mean_mm", mean_mm, -stroke, stroke, lo_open=True, unit="mm", why="the stroke")
+        if value is not None and abs(value) >= stroke:
+            self.add("mean_mm", f"{_fmt(value)} mm leaves no stroke (allowed |mean_mm| < {_fmt(stroke)} mm)")
+            return None
+        return value
+
+    def frequency(self, key: str, freq_hz: object) -> float | None:
+        lim = self.limits
+        return self.number(
+            key, freq_hz, lim.min_freq_hz, lim.max_freq_hz, unit="Hz", why="the bench's frequency range"
+        )
+
+    def amplitude(self, key: str, amplitude_mm: object, mean_mm: float | None) -> float | None:
+        room = self.limits.stroke_mm - abs(mean_mm or 0.0)
+        why = f"the {_fmt(self.limits.stroke_mm)} mm stroke"
+        if mean_mm:
+            why += f" less |mean_mm| {_fmt(abs(mean_mm))}"
+        return self.number(key, amplitude_mm, 0.0, room, lo_open=True, unit="mm", why=why)
+
+    def kinematics(self, key: str, freq_hz: float, amplitude_mm: float, remedy: str) -> None:
+        """Peak velocity and acceleration of a sine at the bench's limits."""
+        lim = self.limits
+        velocity = peak_velocity_mm_s(freq_hz, amplitude_mm)
+        if velocity > lim.velocity_mm_s * (1 + _RELATIVE_SLACK):
+            allowed = lim.velocity_mm_s / (2 * math.pi * freq_hz)
+            self.add(
+                key,
+                f"{_fmt(amplitude_mm)} mm at {_fmt(freq_hz)} Hz needs a peak velocity of "
+                f"{velocity:.0f} mm/s, "
+                f"beyond the bench's {_fmt(lim.velocity_mm_s)} mm/s (allowed amplitude <= {allowed:.4g} mm "
+                f"at {_fmt(freq_hz)} Hz{remedy})",
+            )
+        acceleration = peak_acceleration_m_s2(freq_hz, amplitude_mm)
+        if acceleration > lim.acceleration_m_s2 * (1 + _RELATIVE_SLACK):
+            allowed = lim.acceleration_m_s2 * 1e3 / (2 * math.pi * freq_hz) ** 2
+            self.add(
+                key,
+                f"{_fmt(amplitude_mm)} mm at {_fmt(freq_hz)} Hz needs a peak acceleration of "
+                f"{acceleration:.0f} m/s^2, beyond the bench's {_fmt(lim.acceleration_m_s2)} m/s^2 "
+                f"(allowed amplitude <= {allowed:.4g} mm at {_fmt(freq_hz)} Hz{remedy})",
+            )
+
+    def tapers(self, taper_in_s: object, taper_out_s: object) -> tuple[float | None, float | None]:
+        lo = self.limits.min_taper_s
+        why = "the controller's shortest taper"
+        return (
+            self.number("taper_in_s", taper_in_s, lo, unit="s", why=why),
+            self.number("taper_out_s", taper_out_s, lo, unit="s", why=why),
+        )
+
+    def dwell_timing(self, step: SineDwell | DwellGrid) -> bool:
+        ok = [
+            self.number(name, getattr(step, name), 0.0, unit=unit) is not None
+            for name, unit in (
+                ("settle_cycles", ""),
+                ("settle_min_s", "s"),
+                ("measure_cycles", ""),
+                ("measure_min_s", "s"),
+            )
+        ]
+        ok += [t is not None for t in self.tapers(step.taper_in_s, step.taper_out_s)]
+        if all(ok) and step.measure_cycles == 0 and step.measure_min_s == 0:
+            self.add("measure_min_s", "nothing to measure: measure_cycles and measure_min_s are both 0")
+            return False
+        return all(ok)
+
+    def dwell_length(self, key: str, dwell: SineDwell) -> None:
+        if dwell.duration_s > self.limits.max_step_s:
+            self.add(
+                key,
+                f"a dwell of {dwell.duration_s:.6g} s at {_fmt(dwell.freq_hz)} Hz is beyond the controller's "
+                f"longest setpoint (allowed <= {_fmt(self.limits.max_step_s)} s)",
+            )
+
+    # ---------------------------------------------------------------- steps
+    def dwell(self, step: SineDwell) -> None:
+        mean = self.mean(step.mean_mm)
+        freq = self.frequency("freq_hz", step.freq_hz)
+        amplitude = self.amplitude("amplitude_mm", step.amplitude_mm, mean)
+        timing_ok = self.dwell_timing(step)
+        self.optional_number(
+            "requested_amplitude_mm", step.requested_amplitude_mm, lo=0.0, lo_open=True, unit="mm"
+        )
+        self.one_of("amplitude_limited_by", step.amplitude_limited_by, _LIMITED_BY)
+        if freq is not None and amplitude is not None:
+            self.kinematics("amplitude_mm", freq, amplitude, "")
+            if timing_ok:
+                self.dwell_length("freq_hz", step)
+
+    def grid(self, grid: DwellGrid) -> None:
+        mean = self.mean(grid.mean_mm)
+        freqs = self._list("freqs_hz", grid.freqs_hz, self.frequency)
+        amplitudes = self._list(
+            "amplitudes_mm", grid.amplitudes_mm, lambda key, a: self.amplitude(key, a, mean)
+        )
+        for k, f in enumerate(freqs or ()):
+            first = freqs.index(f)
+            if f is not None and first < k:
+                self.add(f"freqs_hz[{k}]", f"{_fmt(f)} Hz is already in the grid at freqs_hz[{first}]")
+        self.one_of("order", grid.order, GRID_ORDERS)
+        v_max = self.optional_number(
+            "max_velocity_mm_s", grid.max_velocity_mm_s, lo=0.0, lo_open=True, unit="mm/s"
+        )
+        a_max = self.optional_number(
+            "max_acceleration_m_s2", grid.max_acceleration_m_s2, lo=0.0, lo_open=True, unit="m/s^2"
+        )
+        timing_ok = self.dwell_timing(grid)
+        self.text("label", grid.label, required=False)
+        maxima_ok = (v_max is not None or grid.max_velocity_mm_s is None) and (
+            a_max is not None or grid.max_acceleration_m_s2 is None
+        )
+        if freqs and amplitudes and maxima_ok:
+            self._grid_points(grid, freqs, amplitudes, (v_max, a_max), timing_ok)
+
+    def _grid_points(
+        self,
+        grid: DwellGrid,
+        freqs: list[float | None],
+        amplitudes: list[float | None],
+        maxima: tuple[float | None, float | None],
+        timing_ok: bool,
+    ) -> None:
+        """Each valid (frequency, amplitude) point at the amplitude the crossover gives it."""
+        v_max, a_max = maxima
+        remedy = "; or lower the grid's max_velocity_mm_s / max_acceleration_m_s2"
+        if v_max is None and a_max is None:
+            remedy = "; or set the grid's max_velocity_mm_s / max_acceleration_m_s2"
+        valid_freqs = [(k, f) for k, f in enumerate(freqs) if f is not None]
+        for j, nominal_mm in enumerate(amplitudes):
+            if nominal_mm is None:
+                continue
+            for _, f in valid_freqs:
+                used_mm, _ = crossover_amplitude_mm(f, nominal_mm, v_max, a_max)
+                self.kinematics(f"amplitudes_mm[{j}]", f, used_mm, remedy)
+        if timing_ok and valid_freqs:
+            k, lowest = min(valid_freqs, key=lambda kf: kf[1])
+            timing = {name: getattr(grid, name) for name in _DWELL_TIMING}
+            self.dwell_length(f"freqs_hz[{k}]", SineDwell(lowest, 1.0, **timing))
+
+    def _list(self, key: str, values: object, check) -> list[float | None] | None:
+        if not isinstance(values, tuple | list):
+            self.add(key, f"expected a list of numbers, got {values!r}")
+            return None
+        if not values:
+            self.add(key, "the grid has no values: give at least one")
+            return None
+        return [check(f"{key}[{k}]", v) for k, v in enumerate(values)]
+
+    def sweep(self, step: Sweep) -> None:
+        mean = self.mean(step.mean_mm)
+        start = self.frequency("start_hz", step.start_hz)
+        end = self.frequency("end_hz", step.end_hz)
+        if start is not None and start == end:
+            self.add("end_hz", f"a sweep needs end_hz != start_hz (both {_fmt(start)} Hz)")
+        amplitude = self.amplitude("amplitude_mm", step.amplitude_mm, mean)
+        self.one_of("law", step.law, SWEEP_LAWS)
+        taper_in, taper_out = self.tapers(step.taper_in_s, step.taper_out_s)
+        duration = self.number(
+            "duration_s",
+            step.duration_s,
+            0.0,
+            self.limits.max_step_s,
+            lo_open=True,
+            unit="s",
+            why="the controller's longest setpoint",
+        )
+        if None not in (duration, taper_in, taper_out) and taper_in + taper_out >= duration:
+            self.add(
+                "duration_s",
+                f"{_fmt(duration)} s leaves no sweep after the tapers "
+                f"(allowed duration_s > taper_in_s + taper_out_s = {_fmt(taper_in + taper_out)} s)",
+            )
+        self.text("label", step.label, required=False)
+        if None not in (start, end, amplitude):
+            remedy = "; a sweep is checked at its highest frequency"
+            self.kinematics("amplitude_mm", max(start, end), amplitude, remedy)
+
+    def hammer(self, step: HammerTest) -> None:
+        lim = self.limits
+        self.number(
+            "trigger_level_n",
+            step.trigger_level_n,
+            0.0,
+            lim.wfs_force_n,
+            lo_open=True,
+            unit="N",
+            why="the WFS range",
+        )
+        capture = self.number(
+            "capture_s",
+            step.capture_s,
+            0.0,
+            lim.max_capture_s,
+            lo_open=True,
+            unit="s",
+            why="the acquisition's capture buffer",
+        )
+        pre = self.number("pre_trigger_s", step.pre_trigger_s, 0.0, unit="s")
+        if capture is not None and pre is not None and pre >= capture:
+            self.add(
+                "pre_trigger_s",
+                f"{_fmt(pre)} s leaves nothing after the trigger (allowed < capture_s = {_fmt(capture)} s)",
+            )
+        self.number("blows", step.blows, 1, 100, unit="", integer=True)
+
+    def prompt(self, step: Prompt) -> None:
+        self.text("id", step.id)
+        self.text("text", step.text)
+        answer_ok = self.one_of("answer", step.answer, ANSWER_TYPES)
+        if step.unit is not None:
+            self.text("unit", step.unit)
+        lo = self.optional_number("minimum", step.minimum)
+        hi = self.optional_number("maximum", step.maximum)
+        if lo is not None and hi is not None and lo >= hi:
+            self.add("maximum", f"{_fmt(hi)} is not above minimum {_fmt(lo)}")
+        choices = step.choices
+        choices_ok = isinstance(choices, tuple | list) and all(isinstance(c, str) and c for c in choices)
+        if not choices_ok:
+            self.add("choices", f"expected a list of non-empty strings, got {choices!r}")
+        if step.action is not None:
+            self.one_of("action", step.action, PROMPT_ACTIONS)
+        if answer_ok:
+            self._prompt_answer(step, lo, hi, choices_ok)
+
+    def _prompt_answer(self, step: Prompt, lo: float | None, hi: float | None, choices_ok: bool) -> None:
+        """The answer type fits the action, the range/choices and the target."""
+        needs = {"set_tyre_pressure": "number", "set_damper": "choice"}.get(step.action or "")
+        if needs and step.answer != needs:
+            self.add("answer", f"action {step.action!r} needs answer = {needs!r}, got {step.answer!r}")
+        if step.answer == "choice" and choices_ok and len(step.choices) < 2:
+            self.add("choices", "a choice needs at least two choices")
+        if step.answer != "choice" and step.choices:
+            self.add("choices", f"only answer = 'choice' takes choices (answer is {step.answer!r})")
+        if step.answer != "number" and (step.minimum is not None or step.maximum is not None):
+            self.add("minimum", f"only answer = 'number' takes minimum/maximum (answer is {step.answer!r})")
+        if step.action == "set_tyre_pressure" and step.target is None:
+            self.add("target", "action 'set_tyre_pressure' needs the pressure asked for as target (bar)")
+        if step.target is None:
+            return
+        if step.answer == "number":
+            self.number(
+                "target",
+                step.target,
+                -math.inf if lo is None else lo,
+                math.inf if hi is None else hi,
+                unit=step.unit or "",
+            )
+        elif step.answer == "choice":
+            self.one_of("target", step.target, step.choices if choices_ok else ())
+        else:
+            self.add("target", f"answer = {step.answer!r} takes no target")
