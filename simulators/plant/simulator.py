@@ -130,6 +130,8 @@ class PlantSimulator:
     decimation on, outputs lag the command by :attr:`latency_samples` output samples (the group
     delay of the anti-alias filter, as in a real acquisition); all channels share that delay.
     ``f_contact_n`` is the true contact force: a reference for tests, not a sensor.
+    :attr:`converter_fz_n` holds the last advance's WFS Fz at the internal (converter) rate, noise
+    and quantisation included, before the anti-alias filter: what a triggered capture buffers.
     """
 
     def __init__(
@@ -146,9 +148,6 @@ class PlantSimulator:
         self.output_rate_hz = float(output_rate_hz)
         self.oversampling = int(oversampling)
         self.internal_rate_hz = self.output_rate_hz * self.oversampling
-        self._hammer = setup.kind is BenchKind.HAMMER
-        self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
-        self._nominal_network = setup.network()
         self.reset()
 
     # ------------------------------------------------------------------ system assembly
@@ -280,6 +279,7 @@ class PlantSimulator:
         if self._hammer:
             internal[1] = u
         self._wfs_converter(internal)
+        self.converter_fz_n = internal[self.channels.index("fz_wfs_n")].copy()
         out = self._decimator(internal)
         self._output_noise(out)
         if not self._hammer and self.realism.accelerometer_dynamics:
@@ -310,12 +310,26 @@ class PlantSimulator:
     def reset(self) -> None:
         """Back to rest: zero state, the nominal tyre, fresh filters and the seed's first noise sample."""
         self._rng = np.random.default_rng(self.realism.seed)
+        self.mount(self.setup)
+
+    def mount(self, setup: BenchSetup) -> None:
+        """Put ``setup`` on the bench, at rest: what a technician changes between runs.
+
+        The mechanical state starts from rest (the specimen was just mounted), the filters start
+        fresh (the channels may change: the hammer setup has its own), the operating point is
+        forgotten. The sensor realism, the actuator, the output rate and the noise stream carry on.
+        """
+        self.setup = setup
+        self._hammer = setup.kind is BenchKind.HAMMER
+        self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
+        self._nominal_network = setup.network()
         self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
         self.latency_samples = self._decimator.latency_samples
         self._operating_point: tuple[float, float] | None = None
         self._stepper = self._build_stepper(self._nominal_network, 1.0)
         self._x = np.zeros(len(self._system.states))
         self._u_prev = 0.0
+        self.converter_fz_n = np.zeros(0)
 
     # ------------------------------------------------------------------ offline runs
     def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:
