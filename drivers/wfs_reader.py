@@ -30,6 +30,7 @@ from drivers.errors import (
     ConnectionLostError,
     LinkTimeoutError,
 )
+from drivers.wfs_capture import Capture
 from drivers.wfs_commands import Reply, format_command
 from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
@@ -78,6 +79,7 @@ class WfsReader:
         self.reconnect_interval_s = reconnect_interval_s
         self._blocks: queue.Queue[SampleBlock] = queue.Queue(maxsize=max_blocks)
         self._replies: queue.Queue[Reply] = queue.Queue()
+        self._captures: queue.Queue[Capture] = queue.Queue()
         self._parser = StreamParser()
         self._lock = threading.Lock()
         self._port: SerialLike | None = None
@@ -210,6 +212,26 @@ class WfsReader:
     def set_rate(self, rate_hz: int) -> int:
         return int(self.command("RATE", int(rate_hz)).fields[0])
 
+    def capture(
+        self, trigger_level_n: float, pre_trigger_s: float, length_s: float, timeout_s: float
+    ) -> Capture:
+        """Arm a triggered capture of Fz at the converter rate and wait for its block.
+
+        Sends ``CAPTURE`` (refused: CommandRejectedError naming the limits), then waits up to
+        ``timeout_s`` for the trigger to fire and the block to arrive (LinkTimeoutError if not; the
+        capture stays armed on the device). A capture that arrived before this call is discarded.
+        """
+        with contextlib.suppress(queue.Empty):
+            while True:
+                self._captures.get_nowait()
+        self.command("CAPTURE", f"{trigger_level_n:g} {pre_trigger_s:g} {length_s:g}")
+        try:
+            return self._captures.get(timeout=timeout_s)
+        except queue.Empty:
+            raise LinkTimeoutError(
+                f"no capture within {timeout_s} s (trigger at {trigger_level_n:g} N never fired?)"
+            ) from None
+
     def _drain_replies(self) -> None:
         with contextlib.suppress(queue.Empty):
             while True:
@@ -273,6 +295,8 @@ class WfsReader:
             result = self._parser.feed(data)
         for reply in result.replies:
             self._replies.put(reply)
+        for capture in result.captures:
+            self._captures.put(capture)
         if len(result.frames) == 0 and not result.gaps and not result.resyncs:
             return
         block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
