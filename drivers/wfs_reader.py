@@ -215,22 +215,31 @@ class WfsReader:
     def capture(
         self, trigger_level_n: float, pre_trigger_s: float, length_s: float, timeout_s: float
     ) -> Capture:
-        """Arm a triggered capture of Fz at the converter rate and wait for its block.
+        """Arm a triggered capture of Fz at the converter rate and wait up to ``timeout_s`` for it
+        (:meth:`arm_capture` then :meth:`wait_capture`)."""
+        self.arm_capture(trigger_level_n, pre_trigger_s, length_s)
+        return self.wait_capture(timeout_s)
 
-        Sends ``CAPTURE`` (refused: CommandRejectedError naming the limits), then waits up to
-        ``timeout_s`` for the trigger to fire and the block to arrive (LinkTimeoutError if not; the
-        capture stays armed on the device). A capture that arrived before this call is discarded.
+    def arm_capture(self, trigger_level_n: float, pre_trigger_s: float, length_s: float) -> tuple[int, int]:
+        """Send ``CAPTURE``; return the block's samples and pre-trigger samples the device confirmed.
+
+        A capture that arrived before is discarded. A refusal raises CommandRejectedError naming
+        the limits. Once this returns the device is armed: a blow from now on fires the trigger.
         """
         with contextlib.suppress(queue.Empty):
             while True:
                 self._captures.get_nowait()
-        self.command("CAPTURE", f"{trigger_level_n:g} {pre_trigger_s:g} {length_s:g}")
+        reply = self.command("CAPTURE", f"{trigger_level_n:g} {pre_trigger_s:g} {length_s:g}")
+        return int(reply.fields[0]), int(reply.fields[1])
+
+    def wait_capture(self, timeout_s: float) -> Capture:
+        """The armed capture's block, once the trigger fired and it arrived (LinkTimeoutError if it
+        did not within ``timeout_s``; the device stays armed)."""
         try:
             return self._captures.get(timeout=timeout_s)
         except queue.Empty:
-            raise LinkTimeoutError(
-                f"no capture within {timeout_s} s (trigger at {trigger_level_n:g} N never fired?)"
-            ) from None
+            message = f"no triggered capture within {timeout_s} s: nothing beyond the level"
+            raise LinkTimeoutError(message) from None
 
     def _drain_replies(self) -> None:
         with contextlib.suppress(queue.Empty):
