@@ -4,6 +4,11 @@ A composition root like the CLI: it joins the simulators to the analysis records
 analysis benchmark and the tests make their simulated runs one way. Records carry the measured
 channels only, as a real bench records them; ``include_truth`` adds the plant's true contact force
 (``f_contact_n``) for tests that compare against it.
+
+The plant is driven by the ideal servo (:class:`simulators.plant.IdealServo`): these records stand
+for a campaign whose every dwell reached its commanded amplitude, as the run engine's amplitude
+control achieves on the servo-hydraulic actuator (and beyond its flow limit, which a campaign's
+grid respects). Runs through the engine use the servo-hydraulic actuator.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from bench.analysis.records import WHEEL_CHANNELS, DwellRecord, HammerRecord, Sw
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
 from bench.models.setup import BenchKind, BenchSetup
-from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism, SineDwell, Sweep
+from simulators.plant import HalfSinePulse, IdealServo, PlantSimulator, SensorRealism, SineDwell, Sweep
 
 #: The shaker dwell grid, 0.5-70 Hz, denser around the tread resonance of any plausible tyre.
 SHAKER_GRID_HZ = np.r_[0.5, 1, 2, 4, 7, 10, 14, 18, 22, 25, 28, 31, 34, 37, 40, 43, 46, 50, 55, 60, 65, 70]
@@ -39,7 +44,7 @@ def simulate_dwells(
 ) -> list[DwellRecord]:
     """One sine dwell per frequency: 0.3 s tapers and a hold of at least 1 s and 2.2 cycles plus
     the analysis's 0.2 s settling allowance."""
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed), actuator=IdealServo())
     keep = (*WHEEL_CHANNELS, TRUTH_CHANNEL) if include_truth else WHEEL_CHANNELS
     records = []
     for f in np.asarray(freqs_hz, dtype=float):
@@ -53,7 +58,7 @@ def simulate_dwells(
 
 
 def simulate_sweep(setup: BenchSetup, sweep: Sweep, *, seed: int, include_truth: bool = False) -> SweepRecord:
-    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed))
+    plant = PlantSimulator(setup, realism=SensorRealism(seed=seed), actuator=IdealServo())
     rec = plant.simulate(sweep)
     keep = (*WHEEL_CHANNELS, TRUTH_CHANNEL) if include_truth else WHEEL_CHANNELS
     return SweepRecord(

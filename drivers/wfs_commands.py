@@ -8,6 +8,10 @@ Host to device, one ASCII line each, terminated by ``\\n``::
     TARE           -> $OK,TARE*HH           zero the six load channels at the present load
     RATE <hz>      -> $OK,RATE,<hz>*HH      set the sample rate (while stopped)
     RATE?          -> $OK,RATE,<hz>*HH
+    CAPTURE <level_n> <pre_trigger_s> <length_s>
+                   -> $OK,CAPTURE,<samples>,<pre-trigger samples>,<rate hz>*HH   arm a triggered
+                      capture of Fz at the converter rate (drivers/wfs_capture.py); the block follows
+                      as a binary message when the trigger has fired
 
 A refused command answers ``$ERR,<COMMAND>,<reason>*HH``; a line that is no command answers
 ``$ERR,?,<reason>*HH``. Replies are framed like NMEA
@@ -23,7 +27,7 @@ from functools import reduce
 
 from drivers.errors import MalformedReplyError
 
-COMMANDS = ("IDENT", "START", "STOP", "TARE", "RATE")
+COMMANDS = ("IDENT", "START", "STOP", "TARE", "RATE", "CAPTURE")
 REPLY_START = b"$"
 REPLY_END = b"\r\n"
 MAX_REPLY_LEN = 160

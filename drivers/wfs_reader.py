@@ -30,6 +30,7 @@ from drivers.errors import (
     ConnectionLostError,
     LinkTimeoutError,
 )
+from drivers.wfs_capture import Capture
 from drivers.wfs_commands import Reply, format_command
 from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
@@ -78,6 +79,7 @@ class WfsReader:
         self.reconnect_interval_s = reconnect_interval_s
         self._blocks: queue.Queue[SampleBlock] = queue.Queue(maxsize=max_blocks)
         self._replies: queue.Queue[Reply] = queue.Queue()
+        self._captures: queue.Queue[Capture] = queue.Queue()
         self._parser = StreamParser()
         self._lock = threading.Lock()
         self._port: SerialLike | None = None
@@ -210,6 +212,35 @@ class WfsReader:
     def set_rate(self, rate_hz: int) -> int:
         return int(self.command("RATE", int(rate_hz)).fields[0])
 
+    def capture(
+        self, trigger_level_n: float, pre_trigger_s: float, length_s: float, timeout_s: float
+    ) -> Capture:
+        """Arm a triggered capture of Fz at the converter rate and wait up to ``timeout_s`` for it
+        (:meth:`arm_capture` then :meth:`wait_capture`)."""
+        self.arm_capture(trigger_level_n, pre_trigger_s, length_s)
+        return self.wait_capture(timeout_s)
+
+    def arm_capture(self, trigger_level_n: float, pre_trigger_s: float, length_s: float) -> tuple[int, int]:
+        """Send ``CAPTURE``; return the block's samples and pre-trigger samples the device confirmed.
+
+        A capture that arrived before is discarded. A refusal raises CommandRejectedError naming
+        the limits. Once this returns the device is armed: a blow from now on fires the trigger.
+        """
+        with contextlib.suppress(queue.Empty):
+            while True:
+                self._captures.get_nowait()
+        reply = self.command("CAPTURE", f"{trigger_level_n:g} {pre_trigger_s:g} {length_s:g}")
+        return int(reply.fields[0]), int(reply.fields[1])
+
+    def wait_capture(self, timeout_s: float) -> Capture:
+        """The armed capture's block, once the trigger fired and it arrived (LinkTimeoutError if it
+        did not within ``timeout_s``; the device stays armed)."""
+        try:
+            return self._captures.get(timeout=timeout_s)
+        except queue.Empty:
+            message = f"no triggered capture within {timeout_s} s: nothing beyond the level"
+            raise LinkTimeoutError(message) from None
+
     def _drain_replies(self) -> None:
         with contextlib.suppress(queue.Empty):
             while True:
@@ -273,6 +304,8 @@ class WfsReader:
             result = self._parser.feed(data)
         for reply in result.replies:
             self._replies.put(reply)
+        for capture in result.captures:
+            self._captures.put(capture)
         if len(result.frames) == 0 and not result.gaps and not result.resyncs:
             return
         block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))

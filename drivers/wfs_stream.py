@@ -1,15 +1,16 @@
-"""Find WFS frames and replies in an arbitrary byte stream, and account for every lost frame.
+"""Find WFS frames, replies and captures in an arbitrary byte stream, and account for every lost frame.
 
 The parser accepts bytes in chunks of any size (split anywhere), checks sync word and CRC of
-candidate frames a block at a time, resynchronises byte by byte after a bad candidate, and keeps
-the text replies that are interleaved with the frames. Every frame that does not arrive intact is
-counted through the sequence counter: a jump in ``seq`` is a gap, reported with its position;
-samples are never interpolated. A frame whose ``seq`` lies at most :data:`DUPLICATE_WINDOW` frames
-behind the newest one delivered is a duplicate and is dropped (and counted). A frame further behind
-(the device restarted and counts from 0 again, or the counter jumped by half its range) is a
-resynchronisation: reported as a :class:`Resync` with its position, counted, and the stream goes on
-from that frame. The first frame after :meth:`StreamParser.reopened` that is not newer than the last
-one delivered is a resynchronisation too, however small the step back.
+candidate frames a block at a time, resynchronises byte by byte after a bad candidate, and keeps the
+text replies and triggered captures (``drivers/wfs_capture.py``) interleaved with the frames. Every
+frame that does not arrive intact is counted through the sequence counter: a jump in ``seq`` is a
+gap, reported with its position; samples are never interpolated. A frame whose ``seq`` lies at most
+:data:`DUPLICATE_WINDOW` frames behind the newest one delivered is a duplicate and is dropped (and
+counted). A frame further behind (the device restarted and counts from 0 again, or the counter
+jumped by half its range) is a resynchronisation: reported as a :class:`Resync` with its position,
+counted, and the stream goes on from that frame. The first frame after :meth:`StreamParser.reopened`
+that is not newer than the last one delivered is a resynchronisation too, however small the step
+back.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.errors import MalformedReplyError
+from drivers.wfs_capture import CAPTURE_SYNC_BYTES, Capture, decode_capture
 from drivers.wfs_commands import MAX_REPLY_LEN, REPLY_END, REPLY_START, Reply, parse_reply
 from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, valid
 
@@ -64,6 +66,7 @@ class LinkCounters:
     bytes_discarded: int = 0  # bytes that belonged to no intact frame or reply
     replies: int = 0
     reconnects: int = 0
+    captures: int = 0  # triggered-capture messages received intact
 
 
 @dataclass
@@ -74,6 +77,7 @@ class ParseResult:
     gaps: list[Gap] = field(default_factory=list)
     replies: list[Reply] = field(default_factory=list)
     resyncs: list[Resync] = field(default_factory=list)
+    captures: list[Capture] = field(default_factory=list)
 
 
 class StreamParser:
@@ -100,28 +104,23 @@ class StreamParser:
         buf = bytes(self._buf)
         chunks: list[np.ndarray] = []
         replies: list[Reply] = []
+        captures: list[Capture] = []
         pos = 0
         while True:
             start = self._next_candidate(buf, pos)
             if start < 0:
                 # keep a trailing byte that may begin a sync word or a reply
-                keep = 1 if buf[-1:] in (SYNC_BYTES[:1], REPLY_START) else 0
+                keep = 1 if buf[-1:] in (SYNC_BYTES[:1], REPLY_START, CAPTURE_SYNC_BYTES[:1]) else 0
                 self.counters.bytes_discarded += len(buf) - pos - keep
                 pos = len(buf) - keep
                 break
             self.counters.bytes_discarded += start - pos
             pos = start
-            if buf.startswith(REPLY_START, pos):
-                consumed, reply = self._try_reply(buf, pos)
+            if buf.startswith(REPLY_START, pos) or buf.startswith(CAPTURE_SYNC_BYTES, pos):
+                consumed = self._take_message(buf, pos, replies, captures)
                 if consumed == 0:
-                    break  # incomplete reply: wait for more bytes
-                if reply is None:
-                    self.counters.bytes_discarded += 1
-                    pos += 1
-                else:
-                    replies.append(reply)
-                    self.counters.replies += 1
-                    pos += consumed
+                    break  # incomplete reply or capture: wait for more bytes
+                pos += consumed
                 continue
             n = min((len(buf) - pos) // FRAME_SIZE, _WINDOW_FRAMES)
             if n == 0:
@@ -140,13 +139,36 @@ class StreamParser:
         del self._buf[:pos]
         good = np.concatenate(chunks) if chunks else np.zeros(0, FRAME_DTYPE)
         frames, gaps, resyncs = self._account(good)
-        return ParseResult(frames, gaps, replies, resyncs)
+        return ParseResult(frames, gaps, replies, resyncs, captures)
 
     @staticmethod
     def _next_candidate(buf: bytes, pos: int) -> int:
+        """Position of the next frame sync word, reply or capture (-1: none)."""
         sync = buf.find(SYNC_BYTES, pos)
-        reply = buf.find(REPLY_START, pos, sync if sync >= 0 else len(buf))
-        return reply if reply >= 0 else sync
+        limit = sync if sync >= 0 else len(buf)
+        messages = (buf.find(REPLY_START, pos, limit), buf.find(CAPTURE_SYNC_BYTES, pos, limit))
+        found = [i for i in messages if i >= 0]
+        return min(found) if found else sync
+
+    def _take_message(self, buf: bytes, pos: int, replies: list[Reply], captures: list[Capture]) -> int:
+        """Take the reply or capture starting at ``pos``; return the bytes consumed (0: incomplete).
+
+        Bytes that only looked like the start of one are discarded one at a time (resynchronisation).
+        """
+        if buf.startswith(REPLY_START, pos):
+            consumed, reply = self._try_reply(buf, pos)
+            if reply is not None:
+                replies.append(reply)
+                self.counters.replies += 1
+                return consumed
+        else:
+            consumed, capture = decode_capture(buf, pos)
+            if capture is not None:
+                captures.append(capture)
+                self.counters.captures += 1
+                return consumed
+        self.counters.bytes_discarded += consumed
+        return consumed
 
     @staticmethod
     def _try_reply(buf: bytes, pos: int) -> tuple[int, Reply | None]:

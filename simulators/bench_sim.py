@@ -15,14 +15,14 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-from bench.models.setup import BenchSetup
-from simulators.controller_model import ControllerModel
-from simulators.plant import PlantSimulator, SensorRealism
+from bench.models.setup import BenchKind, BenchSetup
+from simulators.controller_model import MOVING, ControllerModel
+from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
@@ -30,11 +30,17 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BenchBlock:
-    """One block of the bench's output: ``channels`` sampled at ``rate_hz`` from ``start_s`` on."""
+    """One block of the bench's output: ``channels`` sampled at ``rate_hz`` from ``start_s`` on.
+
+    ``fast`` holds what the acquisition converts at ``fast_rate_hz`` (its 10 kHz converter) over
+    the same time span, before the anti-alias filter: ``fz_wfs_n``, for a triggered capture.
+    """
 
     start_s: float
     rate_hz: float
     channels: dict[str, np.ndarray]
+    fast: dict[str, np.ndarray] = field(default_factory=dict)
+    fast_rate_hz: float = 0.0
 
     def __len__(self) -> int:
         return len(next(iter(self.channels.values())))
@@ -52,13 +58,22 @@ class BenchSink(Protocol):
 
 
 class SimulatedBench:
-    """Plant plus controller model, advanced in whole output samples."""
+    """Plant plus controller model, advanced in whole output samples.
+
+    On the hammer setup (the bare sensor on its foundation) the plant's input is the hammer's force
+    (:meth:`strike`), not the actuator; the bench's displacement, plate-force and hub-acceleration
+    transducers then read zero, and the controller's generator runs on unused.
+    """
+
+    #: channels the bench's transducers always deliver (the WFS device wires them to aux inputs)
+    BENCH_CHANNELS = ("z_base_m", "f_plate_n", "a_hub_m_s2")
 
     def __init__(self, plant: PlantSimulator, clock: Callable[[], float] = time.monotonic) -> None:
         self.plant = plant
         self.lock = threading.RLock()
         self.controller = ControllerModel(plant.internal_rate_hz, clock)
         self._internal_samples = 0
+        self._blows: list[tuple[int, HalfSinePulse]] = []  # (first internal sample, pulse)
 
     @classmethod
     def paper_shaker(cls, pressure_bar: float = 2.5, seed: int = 1) -> SimulatedBench:
@@ -74,6 +89,49 @@ class SimulatedBench:
         with self.lock:
             self.plant.set_output_rate(rate_hz)
 
+    @property
+    def moving(self) -> bool:
+        """The actuator runs, tapers, or its command is not yet back at rest (mean position zero)."""
+        with self.lock:
+            ctrl = self.controller
+            return ctrl.state in MOVING or not ctrl.generator.at_rest
+
+    def mount(self, setup: BenchSetup) -> None:
+        """Put another specimen on the bench (see :meth:`PlantSimulator.mount`); only at rest.
+
+        Raises RuntimeError while the actuator moves: nobody changes a wheel on a running shaker.
+        """
+        with self.lock:
+            if self.moving:
+                raise RuntimeError(
+                    f"cannot change the bench to {setup.kind.value} while the actuator is moving "
+                    f"(controller {self.controller.state.name}): stop it first"
+                )
+            self._blows.clear()
+            self.plant.mount(setup)
+
+    def strike(self, pulse: HalfSinePulse) -> None:
+        """A hammer blow on the bare sensor, ``pulse.delay_s`` after the next sample.
+
+        Raises RuntimeError unless the hammer setup is mounted.
+        """
+        with self.lock:
+            if self.plant.setup.kind is not BenchKind.HAMMER:
+                mounted = self.plant.setup.kind.value
+                raise RuntimeError(f"a hammer blow needs the bare sensor on the bench; mounted: {mounted}")
+            self._blows.append((self._internal_samples, pulse))
+
+    def _hammer_force_n(self, n_internal: int) -> np.ndarray:
+        """The hammer's force over the next ``n_internal`` samples (finished blows are forgotten)."""
+        rate_hz = self.plant.internal_rate_hz
+        n = self._internal_samples + np.arange(n_internal)
+        force = np.zeros(n_internal)
+        for first, pulse in self._blows:
+            force += pulse.value((n - first) / rate_hz)
+        end = self._internal_samples + n_internal
+        self._blows = [(f, p) for f, p in self._blows if (end - f) / rate_hz <= p.duration_s]
+        return force
+
     def advance(self, n_samples: int) -> BenchBlock:
         """Advance ``n_samples`` output samples: command -> plant -> controller readbacks."""
         with self.lock:
@@ -81,11 +139,17 @@ class SimulatedBench:
             start_s = self._internal_samples / plant.internal_rate_hz
             n_internal = n_samples * plant.oversampling
             command = ctrl.command_block(n_internal)
-            plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
-            channels = plant.advance(command)
+            if plant.setup.kind is BenchKind.HAMMER:
+                channels = plant.advance(self._hammer_force_n(n_internal))
+                for name in self.BENCH_CHANNELS:
+                    channels[name] = np.zeros(n_samples)
+            else:
+                plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
+                channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
             self._internal_samples += n_internal
-            return BenchBlock(start_s, plant.output_rate_hz, channels)
+            fast = {"fz_wfs_n": plant.converter_fz_n}
+            return BenchBlock(start_s, plant.output_rate_hz, channels, fast, plant.internal_rate_hz)
 
 
 class BenchRunner:

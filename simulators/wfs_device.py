@@ -30,10 +30,12 @@ from typing import Protocol
 import numpy as np
 import serial
 
+from drivers.wfs_capture import MAX_CAPTURE_SAMPLES, encode_capture
 from drivers.wfs_commands import UNKNOWN, Reply, parse_command
 from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, Status, encode
 from drivers.wfs_transform import rotate_to_wheel_frame
 from simulators.bench_sim import BenchBlock, SimulatedBench
+from simulators.capture_trigger import BASELINE_SAMPLES, HISTORY_SAMPLES, CaptureTrigger
 from simulators.faults import ByteFaults
 from simulators.worker import Worker
 
@@ -108,6 +110,9 @@ class WfsDevice:
         self.frames_unsent = 0  # produced while stalled or disconnected (the host sees a gap)
         self.frames_dropped = 0  # not sent because the host did not drain the link (a gap too)
         self._overflowing = False  # the last block did not fit: the host is not draining
+        self._capture_lock = threading.Lock()
+        self._fast_history = np.zeros(0)  # the latest converter samples of Fz (tare applied)
+        self._trigger: CaptureTrigger | None = None
 
     @property
     def rate_hz(self) -> int:
@@ -159,6 +164,7 @@ class WfsDevice:
 
     def deliver(self, block: BenchBlock) -> None:
         """Turn a bench block into frames and send them (called by the bench runner)."""
+        self._feed_capture(block)
         frames = self._frames(block)
         if not self._streaming or len(frames) == 0:
             return
@@ -225,6 +231,51 @@ class WfsDevice:
         frames["status"] = overload.sum(axis=1) | (Status.TARED if self.tare_offset.any() else 0)
         return frames
 
+    # -- triggered capture ----------------------------------------------------------------------
+
+    def _feed_capture(self, block: BenchBlock) -> None:
+        """Keep the converter's Fz and feed an armed capture; send the capture when it is complete."""
+        fast = block.fast.get("fz_wfs_n")
+        if fast is None:
+            return
+        fz = fast - self.tare_offset[2]
+        with self._capture_lock:
+            self._fast_history = np.concatenate([self._fast_history, fz])[-HISTORY_SAMPLES:]
+            capture = self._trigger.feed(fz) if self._trigger is not None else None
+            if capture is not None:
+                self._trigger = None
+        if capture is not None:
+            with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
+                if self._link_up:
+                    self._write_all(encode_capture(capture), _REPLY_TIMEOUT_S)
+
+    def _arm_capture(self, args: list[str]) -> Reply:
+        """``CAPTURE <trigger_level_n> <pre_trigger_s> <length_s>``: arm (replacing an armed capture)."""
+        rate_hz = self.bench.plant.internal_rate_hz
+        try:
+            level_n, pre_s, length_s = (float(a) for a in args)
+        except ValueError:
+            return Reply(False, "CAPTURE", ("level pre length must be numbers",))
+        longest_pre_s = (HISTORY_SAMPLES - BASELINE_SAMPLES) / rate_hz
+        if not (0 < level_n < np.inf and 0 <= pre_s <= longest_pre_s and pre_s < length_s):
+            limits = f"level > 0 N; 0 <= pre < length; pre <= {longest_pre_s:g} s"
+            return Reply(False, "CAPTURE", (f"{level_n:g} N {pre_s:g} s {length_s:g} s not possible", limits))
+        if not length_s * rate_hz <= MAX_CAPTURE_SAMPLES:
+            longest_s = MAX_CAPTURE_SAMPLES / rate_hz
+            return Reply(False, "CAPTURE", (f"length {length_s:g} s beyond {longest_s:g} s",))
+        length, pre = round(length_s * rate_hz), round(pre_s * rate_hz)
+        if pre >= length:
+            return Reply(False, "CAPTURE", (f"pre-trigger {pre_s:g} s leaves no sample after the trigger",))
+        with self._capture_lock:
+            self._trigger = CaptureTrigger(
+                self._fast_history,
+                rate_hz=rate_hz,
+                trigger_level_n=level_n,
+                pre_trigger_samples=pre,
+                length_samples=length,
+            )
+        return Reply(True, "CAPTURE", (str(length), str(pre), f"{rate_hz:g}"))
+
     # -- commands -------------------------------------------------------------------------------
 
     def _serve_commands(self) -> None:
@@ -264,6 +315,8 @@ class WfsDevice:
         """Carry out one command and return the reply."""
         if name == "RATE" and len(args) == 1:
             return self._set_rate(args[0])
+        if name == "CAPTURE" and len(args) == 3:
+            return self._arm_capture(args)
         handler = (
             {
                 "IDENT": lambda: Reply(True, "IDENT", IDENTITY),

@@ -86,6 +86,30 @@ def paper_tyre(pressure_bar: float) -> Tyre:
         raise ValueError(f"no paper tyre at {pressure_bar} bar; known pressures: {known}") from None
 
 
+#: Tyre pressures (bar) a simulated tyre may be inflated to: the paper's range with half a bar each side.
+TYRE_PRESSURE_RANGE_BAR = (1.0, 4.0)
+
+
+def tyre_at_pressure(pressure_bar: float) -> Tyre:
+    """The paper's tyre inflated to any pressure in :data:`TYRE_PRESSURE_RANGE_BAR`.
+
+    The stiffness is interpolated piecewise linearly between the paper's three points (250 / 390 /
+    420 kN/m at 1.5 / 2.5 / 3.5 bar) and extended beyond them along the end segments (180 kN/m at
+    1 bar, 435 kN/m at 4 bar): the measured relation is all there is, and its flattening above
+    2.5 bar is kept. At the paper's pressures it is exactly :func:`paper_tyre`. ValueError outside
+    the range.
+    """
+    low, high = TYRE_PRESSURE_RANGE_BAR
+    if not low <= pressure_bar <= high:
+        raise ValueError(f"tyre pressure {pressure_bar} bar is outside {low}-{high} bar")
+    points = sorted(PAPER_TYRE_STIFFNESS_N_PER_M.items())
+    segment = 0
+    while segment < len(points) - 2 and pressure_bar > points[segment + 1][0]:
+        segment += 1
+    (p0, k0), (p1, k1) = points[segment], points[segment + 1]
+    return Tyre(stiffness_n_per_m=k0 + (k1 - k0) * (pressure_bar - p0) / (p1 - p0))
+
+
 @dataclass(frozen=True)
 class TyreNonlinearity:
     """Rubber behaviour as an equivalent linearisation (describing function) per operating point.

@@ -1,11 +1,12 @@
 """Time-domain simulation of a bench: actuator, specimen network and sensors, block by block.
 
-The linear part is exact: the continuous state space (servo actuator -> mechanical network ->
-hub accelerometer) is discretised for inputs that are linear between samples and stepped in modal
-coordinates with one all-pole recursion per mode (``scipy.signal.lfilter``), never a Python loop
-over samples. A non-linear tyre is handled as an equivalent linear system per operating point
-(see :class:`bench.models.parameters.TyreNonlinearity`): the physical state carries over when the
-operating point changes.
+The linear part is exact: the continuous state space (servo actuator coupled to the mechanical
+network it drives -> hub accelerometer) is discretised for inputs that are linear between samples
+and stepped in modal coordinates with one all-pole recursion per mode (``scipy.signal.lfilter``),
+never a Python loop over samples. A non-linear tyre is handled as an equivalent linear system per
+operating point (see :class:`bench.models.parameters.TyreNonlinearity`), and so is the servo
+valve's flow limit (see :class:`simulators.plant.actuator.ServoActuator`): the physical state
+carries over when the operating point changes.
 
 The plant runs at ``oversampling`` times the output rate (10 kHz for a 1 kHz WFS stream), where
 noise and quantisation act like the WFS's own converters, then decimates.
@@ -13,15 +14,14 @@ noise and quantisation act like the WFS's own converters, then decimates.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.linalg import matrix_balance
 from scipy.signal import lfilter
 
 from bench.models.linear_system import DiscreteSystem, LinearSystem
+from bench.models.network import MechanicalNetwork
 from bench.models.setup import BenchKind, BenchSetup
+from simulators.plant.actuator import LOAD_OUTPUT, Actuator, ServoActuator
 from simulators.plant.excitation import Waveform
 from simulators.plant.sensors import Decimator, SensorRealism, accelerometer_system
 
@@ -39,35 +39,6 @@ _RESCHEDULE_FRACTION = 0.02
 _ONE = np.ones(1)
 #: ``simulate`` reports a waveform's operating point at this interval.
 _RESCHEDULE_CHECK_S = 0.05
-
-
-@dataclass(frozen=True)
-class ServoActuator:
-    """Position-controlled hydraulic actuator: third-order Butterworth low-pass from command to motion.
-
-    Third order because the servo valve's flow lags its current: acceleration follows the command
-    only through the dynamics, with no direct feedthrough, as in a real servo-hydraulic axis.
-    """
-
-    bandwidth_hz: float = 200.0
-
-    def system(self) -> LinearSystem:
-        w = 2 * math.pi * self.bandwidth_hz
-        jerk_row = np.array([[-(w**3), -2 * w**2, -2 * w]])
-        return LinearSystem(
-            A=np.vstack([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], jerk_row]),
-            B=np.array([[0.0], [0.0], [w**3]]),
-            C=np.eye(3),
-            D=np.zeros((3, 1)),
-            inputs=("z_command",),
-            outputs=("z_base", "v_base", "a_base"),
-            states=("actuator_z", "actuator_v", "actuator_a"),
-        )
-
-    def gain(self, freq_hz: float) -> complex:
-        """Actual base displacement per unit command at ``freq_hz``."""
-        s = 1j * freq_hz / self.bandwidth_hz
-        return 1.0 / (s**3 + 2 * s**2 + 2 * s + 1)
 
 
 class _ModalStepper:
@@ -159,37 +130,38 @@ class PlantSimulator:
     decimation on, outputs lag the command by :attr:`latency_samples` output samples (the group
     delay of the anti-alias filter, as in a real acquisition); all channels share that delay.
     ``f_contact_n`` is the true contact force: a reference for tests, not a sensor.
+    :attr:`converter_fz_n` holds the last advance's WFS Fz at the internal (converter) rate, noise
+    and quantisation included, before the anti-alias filter: what a triggered capture buffers.
     """
 
     def __init__(
         self,
         setup: BenchSetup,
         realism: SensorRealism | None = None,
-        actuator: ServoActuator | None = None,
+        actuator: Actuator | None = None,
         output_rate_hz: float = 1000.0,
         oversampling: int = 10,
     ):
         self.setup = setup
         self.realism = realism or SensorRealism()
-        self.actuator = actuator or ServoActuator()
+        self.actuator: Actuator = actuator or ServoActuator()
         self.output_rate_hz = float(output_rate_hz)
         self.oversampling = int(oversampling)
         self.internal_rate_hz = self.output_rate_hz * self.oversampling
-        self._hammer = setup.kind is BenchKind.HAMMER
-        self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
         self.reset()
 
     # ------------------------------------------------------------------ system assembly
-    def _build_stepper(self, network) -> _ModalStepper:
+    def _build_stepper(self, network: MechanicalNetwork, flow_factor: float) -> _ModalStepper:
         if self._hammer:
             system = network.state_space(outputs=("f_wfs",))
         else:
             wanted = [o for o in _MEASURED.values() if o in network.output_names]
-            system = self.actuator.system().then(network.state_space(outputs=wanted))
+            system = self.actuator.drive(network.state_space(outputs=wanted), flow_factor)
             if self.realism.accelerometer_dynamics and "a_hub" in wanted:
                 system = system.then(accelerometer_system(self.realism.accelerometer_bandwidth_hz))
                 wanted[wanted.index("a_hub")] = "a_hub_sensor"
             system = system.select(wanted)
+        self._network, self._flow_factor = network, flow_factor
         self._system = system
         self._rows = self._channel_rows(system)
         return _ModalStepper(system.discretize_foh(1.0 / self.internal_rate_hz))
@@ -206,15 +178,44 @@ class PlantSimulator:
             rows.append(system.outputs.index(output) if output in system.outputs else None)
         return rows
 
-    def set_operating_point(self, freq_hz: float, amplitude_m: float) -> None:
-        """Tell a non-linear tyre the excitation's frequency and commanded amplitude.
+    @staticmethod
+    def _load_n_per_m(network: MechanicalNetwork, freq_hz: float) -> complex:
+        """The actuator's load: plate force per metre of base displacement at ``freq_hz``."""
+        return complex(network.frequency_response(freq_hz, outputs=(LOAD_OUTPUT,))[LOAD_OUTPUT][0])
 
-        The tyre is linearised for the base amplitude the actuator achieves at that frequency. A
-        point within 2 % in frequency of the current one at the same amplitude keeps the current
-        linearisation, so callers may report the operating point as often as they like (every block
-        of a sweep). Has no effect on linear setups or without excitation.
+    def _operating_solution(
+        self, freq_hz: float, amplitude_m: float
+    ) -> tuple[MechanicalNetwork, float, complex]:
+        """Network, valve flow factor and base gain for a sine command at an operating point.
+
+        The achieved base amplitude depends on the load, and a non-linear tyre's load on the base
+        amplitude: the tyre is linearised for the base amplitude the actuator achieves against the
+        nominal tyre, then the flow factor and gain follow from the linearised load. The remaining
+        inconsistency is the gain's change with the tyre's linearisation times the linearisation's
+        change with amplitude, both small (well below 1e-3 of the amplitude). Deterministic: the
+        same operating point always gives the same solution.
         """
-        if self.setup.nonlinearity is None or not self.setup.has_tyre or freq_hz <= 0 or amplitude_m <= 0:
+        network = self._nominal_network
+        if self.setup.nonlinearity is not None and self.setup.has_tyre:
+            nominal_load = self._load_n_per_m(network, freq_hz)
+            nominal_flow = self.actuator.flow_factor(freq_hz, amplitude_m, nominal_load)
+            nominal_gain = self.actuator.gain(freq_hz, nominal_load, nominal_flow)
+            network = self.setup.operating_network(freq_hz, abs(nominal_gain) * amplitude_m)
+        load = self._load_n_per_m(network, freq_hz)
+        flow = self.actuator.flow_factor(freq_hz, amplitude_m, load)
+        return network, flow, self.actuator.gain(freq_hz, load, flow)
+
+    def set_operating_point(self, freq_hz: float, amplitude_m: float) -> None:
+        """Tell the plant the excitation's frequency and commanded amplitude.
+
+        A non-linear tyre is linearised for the base amplitude the actuator achieves at that
+        frequency, and the servo valve's flow limit becomes its equivalent gain there. A point
+        within 2 % in frequency of the current one at the same amplitude keeps the current
+        linearisation, so callers may report the operating point as often as they like (every block
+        of a sweep). The discrete system is rebuilt only when the network or the flow factor
+        changes; no effect on the hammer setup or without excitation.
+        """
+        if self._hammer or freq_hz <= 0 or amplitude_m <= 0:
             return
         if self._operating_point is not None:
             current_hz, current_amplitude_m = self._operating_point
@@ -223,17 +224,24 @@ class PlantSimulator:
             ):
                 return
         self._operating_point = (float(freq_hz), float(amplitude_m))
-        base_amplitude_m = abs(self.actuator.gain(freq_hz)) * amplitude_m
-        self._stepper = self._build_stepper(self.setup.operating_network(freq_hz, base_amplitude_m))
+        network, flow_factor, _ = self._operating_solution(freq_hz, amplitude_m)
+        if network is not self._network or flow_factor != self._flow_factor:
+            self._stepper = self._build_stepper(network, flow_factor)
+
+    def base_gain(self, freq_hz: float, amplitude_m: float) -> complex:
+        """Achieved base displacement per unit command for a sine command at an operating point."""
+        if self._hammer:
+            raise ValueError("the hammer setup has no actuator")
+        return self._operating_solution(freq_hz, amplitude_m)[2]
 
     def exact_response(self, freq_hz: float, amplitude_m: float) -> dict[str, complex]:
         """The plant's exact response per metre of base displacement at an operating point.
 
         Keys are network outputs (``f_wfs``, ``f_contact``, ``f_plate``, ``a_hub``, ``z_rim``, ...);
-        ``amplitude_m`` is the commanded amplitude as for :meth:`set_operating_point`.
+        ``amplitude_m`` is the commanded amplitude as for :meth:`set_operating_point`, and
+        :meth:`base_gain` the base displacement per unit command there.
         """
-        base_amplitude_m = abs(self.actuator.gain(freq_hz)) * amplitude_m
-        network = self.setup.operating_network(freq_hz, base_amplitude_m)
+        network = self._nominal_network if self._hammer else self._operating_solution(freq_hz, amplitude_m)[0]
         return {k: complex(v[0]) for k, v in network.frequency_response(freq_hz).items()}
 
     def set_output_rate(self, output_rate_hz: float) -> None:
@@ -271,6 +279,7 @@ class PlantSimulator:
         if self._hammer:
             internal[1] = u
         self._wfs_converter(internal)
+        self.converter_fz_n = internal[self.channels.index("fz_wfs_n")].copy()
         out = self._decimator(internal)
         self._output_noise(out)
         if not self._hammer and self.realism.accelerometer_dynamics:
@@ -301,12 +310,26 @@ class PlantSimulator:
     def reset(self) -> None:
         """Back to rest: zero state, the nominal tyre, fresh filters and the seed's first noise sample."""
         self._rng = np.random.default_rng(self.realism.seed)
+        self.mount(self.setup)
+
+    def mount(self, setup: BenchSetup) -> None:
+        """Put ``setup`` on the bench, at rest: what a technician changes between runs.
+
+        The mechanical state starts from rest (the specimen was just mounted), the filters start
+        fresh (the channels may change: the hammer setup has its own), the operating point is
+        forgotten. The sensor realism, the actuator, the output rate and the noise stream carry on.
+        """
+        self.setup = setup
+        self._hammer = setup.kind is BenchKind.HAMMER
+        self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
+        self._nominal_network = setup.network()
         self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
         self.latency_samples = self._decimator.latency_samples
         self._operating_point: tuple[float, float] | None = None
-        self._stepper = self._build_stepper(self.setup.network())
+        self._stepper = self._build_stepper(self._nominal_network, 1.0)
         self._x = np.zeros(len(self._system.states))
         self._u_prev = 0.0
+        self.converter_fz_n = np.zeros(0)
 
     # ------------------------------------------------------------------ offline runs
     def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:

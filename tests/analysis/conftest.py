@@ -22,7 +22,7 @@ from bench.simulated_campaign import (
     simulate_dwells,
     simulate_sweep,
 )
-from simulators.plant import PlantSimulator
+from simulators.plant import IdealServo, PlantSimulator
 
 #: A tyre that is not the paper's: softer, heavier tread, more damping, lighter wheel.
 OTHER_TYRE = Tyre(stiffness_n_per_m=290e3, damping_ns_per_m=125.0, wheel_mass_kg=26.0, tread_mass_kg=4.6)
@@ -42,7 +42,7 @@ def run_dwells(setup, freqs, amplitude_m, seed) -> DwellRun:
     """A simulated dwell grid with the true contact force kept for comparison, and its fits."""
     records = simulate_dwells(setup, freqs, amplitude_m, seed=seed, include_truth=True)
     fits = [fit_dwell_record(r, WHEEL_CHANNELS) for r in records]
-    return DwellRun(PlantSimulator(setup), amplitude_m, records, fits)
+    return DwellRun(PlantSimulator(setup, actuator=IdealServo()), amplitude_m, records, fits)
 
 
 @pytest.fixture(scope="session")
