@@ -116,6 +116,9 @@ def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterato
                         paced=config.simulation.paced,
                         seed=config.simulation.seed,
                         tyre_pressure_bar=config.specimen.tyre_pressure_bar,
+                        specimen_mounted=config.specimen.wheel_fitted,
+                        tyre_model=config.specimen.tyre_model,
+                        nonlinear=config.specimen.nonlinear,
                     )
                 )
             )

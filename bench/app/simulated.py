@@ -13,25 +13,35 @@ import asyncio
 import threading
 from dataclasses import dataclass
 
-from simulators.world import SimulatedOperator, SimulatedWorld
-
+from bench.models.benches import TyreModel
+from bench.models.setup import BenchSetup
 from sequences import Prompt
-from simulators.bench_sim import BenchRunner
+from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
+from simulators.plant import PlantSimulator, SensorRealism
 from simulators.ports import PtyLink
 from simulators.wfs_device import WfsDevice
+from simulators.world import SimulatedOperator, SimulatedWorld
+
+#: Output samples per block the unpaced bench advances: large blocks keep the simulation's
+#: overhead small when it runs far faster than real time; paced, blocks are 10 ms.
+UNPACED_BLOCK_S = 0.05
 
 
 @dataclass(frozen=True)
 class SimulatedLabSettings:
     """``kind``: "shaker" or "four_post"; ``paced``: real time (a dry run one can watch) or as fast
-    as the engine drains the WFS; ``seed``: sensor noise; ``tyre_pressure_bar``: the tyre fitted at
-    power-up; ``wheel_speed_rad_s``: the wheel's rotation (0: standing)."""
+    as the engine drains the WFS; ``seed``: sensor noise; what stands on the bench at power-up: the
+    tyre pressure, whether the wheel (car) is mounted, the tyre model (1-3, None: the world's
+    default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing)."""
 
     kind: str = "shaker"
     paced: bool = False
     seed: int = 1
     tyre_pressure_bar: float = 2.5
+    specimen_mounted: bool = True
+    tyre_model: int | None = None
+    nonlinear: bool = True
     wheel_speed_rad_s: float = 0.0
 
 
@@ -43,12 +53,20 @@ class SimulatedLab:
     def __init__(self, settings: SimulatedLabSettings | None = None) -> None:
         self.settings = settings or SimulatedLabSettings()
         s = self.settings
-        self.world = SimulatedWorld.create(kind=s.kind, tyre_pressure_bar=s.tyre_pressure_bar, seed=s.seed)
-        self.bench = self.world.bench
+        plant = PlantSimulator(BenchSetup.paper_hammer(), SensorRealism(seed=s.seed))
+        self.bench = SimulatedBench(plant)
+        self.world = SimulatedWorld(
+            self.bench,
+            kind=s.kind,
+            pressure_bar=s.tyre_pressure_bar,
+            specimen_mounted=s.specimen_mounted,
+            model=TyreModel(s.tyre_model) if s.tyre_model is not None else None,
+            nonlinear=s.nonlinear,
+        )
         self.operator = SimulatedOperator(self.world)
         self.link = PtyLink()
         self.device = WfsDevice(self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s)
-        self.runner = BenchRunner(self.bench, paced=s.paced)
+        self.runner = BenchRunner(self.bench, paced=s.paced, block_s=0.01 if s.paced else UNPACED_BLOCK_S)
         self.runner.sinks.append(self.device)
         self.server = ControllerServer(self.bench)
         self._loop = asyncio.new_event_loop()

@@ -130,7 +130,26 @@ class LinkCounted(Protocol):
         ...
 
 
-class Acquisition(SampleSource, StreamControl, LinkCounted, Protocol):
+class CaptureLike(Protocol):
+    """A triggered block of Fz: ``samples_n`` at ``rate_hz``, the trigger at ``pre_trigger_samples``."""
+
+    samples_n: np.ndarray
+    rate_hz: float
+    pre_trigger_samples: int
+
+
+class TriggeredCapture(Protocol):
+    def arm_capture(self, trigger_level_n: float, pre_trigger_s: float, length_s: float) -> tuple[int, int]:
+        """Arm a capture of Fz at the converter rate: a change beyond ``trigger_level_n`` from the
+        present load fires it. Returns the block's samples and pre-trigger samples."""
+        ...
+
+    def wait_capture(self, timeout_s: float) -> CaptureLike:
+        """The armed capture, once fired and received (LinkTimeoutError after ``timeout_s``)."""
+        ...
+
+
+class Acquisition(SampleSource, StreamControl, TriggeredCapture, LinkCounted, Protocol):
     """The WFS acquisition as the engine drives it."""
 
 

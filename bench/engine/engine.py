@@ -35,6 +35,7 @@ from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
     DwellGrid,
     FreeRun,
+    HammerTest,
     Hydraulics,
     MeanPosition,
     Prompt,
@@ -48,6 +49,9 @@ from sequences import (
 log = logging.getLogger(__name__)
 
 DISPLACEMENT = "z_base_m"
+HAMMER_CHANNEL = ev.ChannelSpec(
+    "fz_wfs_n", "N", "Fz of the bare sensor, triggered capture at the converter rate"
+)
 
 #: The bench condition a prompt's answer establishes, by the prompt's action: (name, value), where a
 #: value of None stands for the answer itself.
@@ -64,13 +68,15 @@ CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
 @dataclass(frozen=True)
 class EngineTiming:
     """Wall-clock bounds (s): how long to wait for a block of frames, how often to read the
-    controller's status during an excitation, and the margin (s of samples) beyond an excitation's
-    planned duration after which it counts as hung."""
+    controller's status during an excitation, the margins (s of samples) within which an excitation
+    must start and beyond its planned duration after which it counts as hung, and how long a triggered
+    capture may take to arrive after the blow was asked for (beyond its own length)."""
 
     block_timeout_s: float = 0.05
     status_period_s: float = 0.2
     start_margin_s: float = 2.0
     end_margin_s: float = 5.0
+    capture_timeout_s: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -287,6 +293,11 @@ class Engine:
             run_id = self.run_id(sequence, index)
             if resume is None or not resume.run_complete(run_id):
                 self._sweep_run(run_id, step)
+        elif isinstance(step, HammerTest):
+            run_id = self.run_id(sequence, index)
+            if resume is None or not resume.run_complete(run_id):
+                done = resume.completed_points(run_id) if resume else set()
+                self._hammer_run(run_id, step, done)
         else:
             raise RunStoppedError(
                 RunState.INTERLOCKED, f"step {index}: {type(step).__name__} is not supported"
@@ -340,6 +351,66 @@ class Engine:
                     span.end,
                 )
             )
+
+    def _hammer_run(self, run_id: str, step: HammerTest, done: set[int]) -> None:
+        """Per blow: arm the triggered capture, ask for the blow, record the captured block.
+
+        The blocks are recorded one after the other in the run's single Fz channel at the
+        converter's rate; each blow is a point spanning its block, its hold from the trigger on."""
+        samples = 0
+        started = False
+        status, reason = "complete", ""
+        try:
+            for blow in range(step.blows):
+                if blow in done:
+                    continue
+                self._checkpoint()
+                self.acquisition.arm_capture(step.trigger_level_n, step.pre_trigger_s, step.capture_s)
+                self._ask(step.strike_prompt(blow + 1))
+                capture = self.acquisition.wait_capture(step.capture_s + self.timing.capture_timeout_s)
+                if not started:
+                    started = True
+                    self.bus.publish(
+                        ev.RunStarted(
+                            run_id,
+                            step.kind,
+                            step_fields(step),
+                            dict(self.conditions),
+                            (HAMMER_CHANNEL,),
+                            capture.rate_hz,
+                        )
+                    )
+                n = len(capture.samples_n)
+                columns = {HAMMER_CHANNEL.name: np.asarray(capture.samples_n, dtype=np.float32)}
+                self.bus.publish(ev.SamplesRecorded(run_id, samples, columns))
+                trigger = samples + capture.pre_trigger_samples
+                self.bus.publish(
+                    ev.PointDone(
+                        run_id,
+                        blow,
+                        1,
+                        "done",
+                        0.0,
+                        0.0,
+                        0.0,
+                        0.0,
+                        float("nan"),
+                        samples,
+                        trigger,
+                        samples + n,
+                        samples + n,
+                    )
+                )
+                samples += n
+        except RunStoppedError as stop:
+            status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
+            raise
+        except Exception as exc:
+            status, reason = "failed", f"{type(exc).__name__}: {exc}"
+            raise
+        finally:
+            if started:
+                self.bus.publish(ev.RunFinished(run_id, status, reason, self.acquisition.link_counters()))
 
     def _point(self, run: _RunRecording, index: int, dwell: SineDwell) -> None:
         """One dwell, repeated with a corrected command while the achieved amplitude is off."""
@@ -478,7 +549,7 @@ class Engine:
 
 
 def _is_measurement(step: object) -> bool:
-    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep)
+    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | HammerTest)
 
 
 class _RunRecording:
