@@ -19,10 +19,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from scipy import signal
 
 from bench.models.setup import BenchSetup
-from simulators.controller_model import ControllerModel
+from simulators.controller_model import CONTROLLER_CLOCK_HZ, ControllerModel
 from simulators.plant import PlantSimulator, SensorRealism
+from simulators.plant.simulator import ServoActuator
 from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
@@ -51,6 +53,36 @@ class BenchSink(Protocol):
     def deliver(self, block: BenchBlock) -> None: ...
 
 
+class ControllerTransducer:
+    """The controller's own displacement transducer on post 1, sampled on the controller's clock.
+
+    The actuator's motion follows its command through the servo's dynamics (``actuator``); the
+    transducer reads it at every ``internal_rate_hz / CONTROLLER_CLOCK_HZ``-th internal sample,
+    before and apart from the WFS acquisition (its anti-alias filter and output rate play no part).
+    """
+
+    def __init__(self, actuator: ServoActuator, internal_rate_hz: float) -> None:
+        step = internal_rate_hz / CONTROLLER_CLOCK_HZ
+        if abs(step - round(step)) > 1e-9 * step or round(step) < 1:
+            raise ValueError(f"internal rate {internal_rate_hz:g} Hz is no multiple of the controller clock")
+        self._step = round(step)
+        system = actuator.system().select(["z_base"])
+        a, b, c, d, _ = signal.cont2discrete(
+            (system.A, system.B, system.C, system.D), 1 / internal_rate_hz, "foh"
+        )
+        self._b, self._a = signal.ss2tf(a, b, c, d)
+        self._b = self._b[0]
+        self._state = np.zeros(len(self._a) - 1)
+        self._phase = 0  # internal samples since the last controller sample, modulo the step
+
+    def read(self, command_m: np.ndarray) -> np.ndarray:
+        """The displacement (m) at the controller's sample instants within the block ``command_m``."""
+        z, self._state = signal.lfilter(self._b, self._a, command_m, zi=self._state)
+        first = (self._step - 1 - self._phase) % self._step
+        self._phase = (self._phase + len(command_m)) % self._step
+        return z[first :: self._step]
+
+
 class SimulatedBench:
     """Plant plus controller model, advanced in whole output samples."""
 
@@ -58,6 +90,7 @@ class SimulatedBench:
         self.plant = plant
         self.lock = threading.RLock()
         self.controller = ControllerModel(plant.internal_rate_hz, clock)
+        self.transducer = ControllerTransducer(plant.actuator, plant.internal_rate_hz)
         self._internal_samples = 0
 
     @classmethod
@@ -84,6 +117,7 @@ class SimulatedBench:
             plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
             channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
+            ctrl.measure_amplitude(self.transducer.read(command))
             self._internal_samples += n_internal
             return BenchBlock(start_s, plant.output_rate_hz, channels)
 

@@ -23,7 +23,7 @@ C = Command
 
 DWELL = {
     "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 2.0, "frequency_hz": 10.0, "dwell_s": 0.0,
-    "taper_in_s": 0.5, "taper_out_s": 0.4, "mean_mm": 0.0,
+    "taper_in_s": 0.5, "taper_out_s": 0.4, "mean_mm": 0.0, "watchdog_ms": 0,
 }  # fmt: skip
 
 
@@ -36,6 +36,7 @@ def run(
         command = model.command_block(BLOCK)
         z = command[OVERSAMPLING - 1 :: OVERSAMPLING] + z_extra_m
         model.observe(z, np.full(len(z), force_n), RATE / OVERSAMPLING)
+        model.measure_amplitude(z)  # the measured rate is the controller's 1 kHz clock
         out.append(command)
     return np.concatenate(out) if out else np.zeros(0)
 
