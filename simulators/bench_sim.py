@@ -86,7 +86,8 @@ class ControllerTransducer:
 class SimulatedBench:
     """Plant plus controller model, advanced in whole output samples."""
 
-    def __init__(self, plant: PlantSimulator, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, plant: PlantSimulator, clock: Callable[[], float] | None = time.monotonic) -> None:
+        """``clock``: seconds for the controller's watchdog (None: the controller's sample clock)."""
         self.plant = plant
         self.lock = threading.RLock()
         self.controller = ControllerModel(plant.internal_rate_hz, clock)
