@@ -22,13 +22,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import TypeVar
 
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.client.base import ModbusBaseClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+from pymodbus.pdu import ModbusPDU
 
 from drivers.errors import (
     CommandOutcomeUnknownError,
@@ -139,7 +141,12 @@ class ActuatorClient:
         modbus = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1)
         limits = limits or SoftLimits()
         return cls(
-            modbus, register_map or load_register_map(), limits, read_attempts, timeout_s, on_link_lost
+            modbus,
+            register_map or load_register_map(),
+            limits,
+            read_attempts,
+            timeout_s,
+            on_link_lost=on_link_lost,
         )
 
     @classmethod
@@ -160,7 +167,12 @@ class ActuatorClient:
         )
         limits = limits or SoftLimits()
         return cls(
-            modbus, register_map or load_register_map(), limits, read_attempts, timeout_s, on_link_lost
+            modbus,
+            register_map or load_register_map(),
+            limits,
+            read_attempts,
+            timeout_s,
+            on_link_lost=on_link_lost,
         )
 
     # -- connection ---------------------------------------------------------------------------
@@ -188,11 +200,12 @@ class ActuatorClient:
 
     # -- low level ----------------------------------------------------------------------------
 
-    async def _call(self, operation: str, function_code: int, coro):
-        """Run one request and turn every pymodbus failure into a typed error; a reply of another
-        function code than the request's raises :class:`MismatchedReplyError`."""
+    async def _call(self, operation: str, function_code: int, request: Callable[[], Awaitable[ModbusPDU]]):
+        """Send ``request()`` and turn every pymodbus failure into a typed error (pymodbus raises
+        "not connected" when the request is made, before it is awaited); a reply of another function
+        code than the request's raises :class:`MismatchedReplyError`."""
         try:
-            response = await coro
+            response = await request()
         except ConnectionException as exc:
             raise ConnectionLostError(f"{operation}: link to the controller is down ({exc})") from exc
         except ModbusIOException as exc:
@@ -230,7 +243,9 @@ class ActuatorClient:
                 deadline = loop.time() + self.timeout_s
                 try:
                     response = await self._call(
-                        operation, function_code, read(first, count=count, device_id=self.map.device_id)
+                        operation,
+                        function_code,
+                        partial(read, first, count=count, device_id=self.map.device_id),
                     )
                     if len(response.registers) == count:
                         return list(response.registers)
@@ -264,7 +279,7 @@ class ActuatorClient:
                     response = await self._call(
                         operation,
                         FC_WRITE_MULTIPLE,
-                        self._modbus.write_registers(address, words, device_id=self.map.device_id),
+                        partial(self._modbus.write_registers, address, words, device_id=self.map.device_id),
                     )
                     if (response.address, response.count) != (address, len(words)):
                         raise MismatchedReplyError(
