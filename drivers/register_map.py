@@ -103,9 +103,9 @@ CONTROLLER_CHANNELS = 4
 #: every post of a four-post rig, driven together
 ALL_POSTS = (1 << CONTROLLER_CHANNELS) - 1
 
-#: the Modbus function codes the controller serves: read holding, read input, write single, write multiple
+#: the only Modbus function codes the controller serves: read holding, read input, write single,
+#: write multiple registers (any other answers ILLEGAL_FUNCTION)
 FC_READ_HOLDING, FC_READ_INPUT, FC_WRITE_SINGLE, FC_WRITE_MULTIPLE = 3, 4, 6, 16
-SERVED_FUNCTION_CODES = frozenset({FC_READ_HOLDING, FC_READ_INPUT, FC_WRITE_SINGLE, FC_WRITE_MULTIPLE})
 #: quantity limits of the Modbus specification (registers per read, per write multiple)
 MAX_READ_QUANTITY = 125
 MAX_WRITE_QUANTITY = 123
