@@ -346,7 +346,8 @@ class ActuatorClient:
 
     async def configure(self, setpoint: DwellSetpoint | SweepSetpoint, channel_mask: int = ALL_POSTS) -> None:
         """Check ``setpoint`` against the soft limits, then write it with the interlock thresholds."""
-        values = setpoint.registers(self.limits)  # raises LimitError before anything is written
+        self.limits.check_interlock()  # LimitError before anything is written
+        values = setpoint.registers(self.limits)  # idem
         values["channel_mask"] = channel_mask
         values["displacement_limit_mm"] = self.limits.displacement_limit_mm
         values["force_limit_n"] = self.limits.force_limit_n

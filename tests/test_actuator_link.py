@@ -103,6 +103,27 @@ async def test_out_of_limit_setpoints_refused_before_anything_is_written(client,
     assert controller.writes_received == before
 
 
+@pytest.mark.parametrize(
+    "limits",
+    [SoftLimits(force_limit_n=-100.0), SoftLimits(displacement_limit_mm=-1.0), SoftLimits(force_limit_n=0.0)],
+)
+async def test_negative_or_zero_interlock_limits_are_refused_before_anything_is_written(
+    client, controller, limits
+):
+    client.limits = limits
+    before = controller.writes_received
+    with pytest.raises(LimitError):
+        await client.configure(DWELL)
+    assert controller.writes_received == before
+
+
+async def test_a_mask_with_no_existing_post_is_refused_by_the_controller(client):
+    for mask in (0, 0xFFF0, 0x0002):  # the simulated shaker has post 1 only
+        with pytest.raises(CommandRejectedError, match="INVALID_SETPOINT"):
+            await client.configure(DWELL, channel_mask=mask)
+    await client.configure(DWELL, channel_mask=0x0001)
+
+
 async def test_command_not_allowed_in_state_is_a_typed_refusal(client):
     await client.configure(DWELL)
     with pytest.raises(CommandRejectedError, match="NOT_ALLOWED_IN_STATE"):
