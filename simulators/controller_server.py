@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 from pymodbus import FramerType
 from pymodbus.constants import ExcCodes
-from pymodbus.exceptions import NoSuchIdException
 from pymodbus.pdu import DecodePDU, ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
@@ -126,7 +125,7 @@ class _Connection(ServerRequestHandler):
 
     def __init__(self, owner, *args) -> None:
         super().__init__(owner, *args)
-        self._pending: deque[tuple[ModbusPDU, tuple | None]] = deque()
+        self._pending: deque[tuple[ModbusPDU, tuple | None, int]] = deque()  # request, sender, bytes
         self._serial = asyncio.Lock()
 
     def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
@@ -138,15 +137,15 @@ class _Connection(ServerRequestHandler):
                 return len(data)
         used = super().callback_data(data, addr)
         if self.last_pdu:  # the base class scheduled handle_later for it
-            self._pending.append((self.last_pdu, self.last_addr))
+            self._pending.append((self.last_pdu, self.last_addr, used))
         return used
 
     def handle_later(self) -> None:
-        pdu, addr = self._pending.popleft()
-        self.loop.create_task(self._serve(pdu, addr))
+        self.loop.create_task(self._serve(*self._pending.popleft()))
 
-    async def _serve(self, pdu: ModbusPDU, addr: tuple | None) -> None:
-        """Answer one request after the ones before it; the reply carries this request's ids."""
+    async def _serve(self, pdu: ModbusPDU, addr: tuple | None, request_bytes: int) -> None:
+        """Answer one request (``request_bytes`` long on the wire) after the ones before it; the
+        reply carries this request's ids."""
         owner = self.server
         async with self._serial:
             if pdu.dev_id != owner.unit_id:
@@ -156,14 +155,11 @@ class _Connection(ServerRequestHandler):
             else:
                 try:
                     response = await pdu.datastore_update(owner.context, pdu.dev_id)
-                except NoSuchIdException:
-                    response = ExceptionResponse(pdu.function_code, ExcCodes.GATEWAY_NO_RESPONSE)
                 except Exception:  # a model failure must answer, not kill the connection
                     log.exception("controller failed to serve %s", pdu)
                     response = ExceptionResponse(pdu.function_code, ExcCodes.DEVICE_FAILURE)
             response.transaction_id, response.dev_id = pdu.transaction_id, pdu.dev_id
             if owner.baudrate:
-                request_bytes = len(self.framer.buildFrame(pdu)) if not isinstance(pdu, _Refused) else 8
                 wire_bytes = request_bytes + len(self.framer.buildFrame(response))
                 await asyncio.sleep(wire_bytes * _BITS_PER_BYTE / owner.baudrate)
             self.server_send(response, addr)

@@ -7,9 +7,11 @@ import asyncio
 import struct
 
 import pytest
+from pymodbus import FramerType
 
 from drivers.register_map import Command, ControllerState, ErrorCode
 from simulators.controller_model import POWER_UP
+from simulators.controller_server import ControllerServer
 
 TID = 0x1234
 
@@ -126,8 +128,6 @@ def _words_of(image: list[int], address: int, width: int) -> list[int]:
 
 async def test_a_write_over_one_server_reads_back_over_another(controller, bench):
     """Two servers on one controller (TCP and RTU in ``sim serve``) show the same holding registers."""
-    from simulators.controller_server import ControllerServer
-
     other = ControllerServer(bench)
     host, port = await other.serve_tcp("127.0.0.1", 0)
     other.address = (host, port)
@@ -160,3 +160,50 @@ async def test_malformed_mbap_header_closes_the_connection(controller, header):
 async def test_other_unit_ids_get_gateway_target_failed_to_respond(controller):
     reply = await _exchange(controller, _mbap(struct.pack(">BHH", 4, 0, 1), unit=2))
     assert reply == bytes([0x84, 0x0B])
+
+
+def _modbus_crc(frame: bytes) -> bytes:
+    """CRC-16/MODBUS (reflected 0xA001, initial 0xFFFF), low byte first: the RTU frame check."""
+    crc = 0xFFFF
+    for byte in frame:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return struct.pack("<H", crc)
+
+
+@pytest.fixture
+async def rtu_controller(bench):
+    """The controller serving RTU frames over TCP on 127.0.0.1 (a serial-to-Ethernet converter)."""
+    server = ControllerServer(bench)
+    server.address = await server.serve_tcp("127.0.0.1", 0, framer=FramerType.RTU)
+    yield server
+    await server.close()
+
+
+async def _rtu_exchange(controller, adu: bytes) -> bytes:
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        writer.write(adu + _modbus_crc(adu))
+        await writer.drain()
+        try:
+            return await asyncio.wait_for(reader.read(256), 0.5)
+        except TimeoutError:
+            return b""  # no answer
+    finally:
+        writer.close()
+
+
+@pytest.mark.parametrize(
+    ("adu", "reply"),
+    [
+        (bytes([1, 5, 0, 0, 0xFF, 0]), bytes([1, 0x85, 1])),  # coil write: ILLEGAL_FUNCTION
+        (bytes([1, 22, 0, 0, 0, 0, 0, 4]), bytes([1, 0x96, 1])),  # mask write: ILLEGAL_FUNCTION
+        (bytes([1, 3, 0, 0, 0, 0]), bytes([1, 0x83, 3])),  # quantity 0: ILLEGAL_DATA_VALUE
+        (bytes([1, 3, 0, 5, 0, 1]), bytes([1, 0x83, 2])),  # the gap: ILLEGAL_DATA_ADDRESS
+        (bytes([2, 4, 0, 0, 0, 1]), b""),  # another device on the line: not ours to answer
+    ],
+)
+async def test_rtu_frames_get_the_same_refusals_and_other_devices_no_answer(rtu_controller, adu, reply):
+    expected = reply + _modbus_crc(reply) if reply else b""
+    assert await _rtu_exchange(rtu_controller, adu) == expected
