@@ -440,7 +440,8 @@ async def test_heartbeat_loss_is_an_event_when_replies_stop(client, controller):
     reasons: list[str] = []
     client.on_link_lost = reasons.append
     await client.start_heartbeat(period_s=0.05, watchdog_ms=1000)
-    await asyncio.sleep(0.2)
+    echo = (await client.read_status()).heartbeat_echo
+    await async_wait_until(lambda: _heartbeat_changed(client, echo), 5.0, "a heartbeat to land")
     assert not client.heartbeat_lost.is_set()
     controller.faults.delay_next, controller.faults.delay_s = 1000, 5.0  # the controller hangs
     await asyncio.wait_for(client.heartbeat_lost.wait(), 1.0 + 0.3 + 1.0)
