@@ -387,7 +387,7 @@ class ActuatorClient:
         controller's watchdog may have expired). Cleared by :meth:`start_heartbeat`.
 
         With the link closed it is set within one heartbeat period plus one reply timeout; when
-        replies merely stop, within the watchdog time plus one reply timeout.
+        replies merely stop, within the watchdog time plus one period and one reply timeout.
         """
         return self._heartbeat_lost
 

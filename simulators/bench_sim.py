@@ -23,8 +23,7 @@ from scipy import signal
 
 from bench.models.setup import BenchSetup
 from simulators.controller_model import CONTROLLER_CLOCK_HZ, ControllerModel
-from simulators.plant import PlantSimulator, SensorRealism
-from simulators.plant.simulator import ServoActuator
+from simulators.plant import PlantSimulator, SensorRealism, ServoActuator
 from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
