@@ -149,14 +149,20 @@ class ControllerModel:
         )
         return not violated
 
-    def command(self, code: int) -> ErrorCode | None:
-        """Execute a command code; return the reason when it is refused."""
+    def command_refusal(self, code: int) -> ErrorCode | None:
+        """Why the command ``code`` would be refused in the present state (None: it is allowed);
+        changes nothing, so a write carrying setpoints and a command can be refused as a whole."""
         try:
             command = Command(code)
         except ValueError:
-            return self._refuse(ErrorCode.UNKNOWN_COMMAND)
-        if self.state not in ALLOWED[command]:
-            return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
+            return ErrorCode.UNKNOWN_COMMAND
+        return None if self.state in ALLOWED[command] else ErrorCode.NOT_ALLOWED_IN_STATE
+
+    def command(self, code: int) -> ErrorCode | None:
+        """Execute a command code; return the reason when it is refused."""
+        if (reason := self.command_refusal(code)) is not None:
+            return self._refuse(reason)
+        command = Command(code)
         if command is Command.START:
             return self._start()
         if command is Command.STOP:

@@ -321,9 +321,12 @@ class ControllerServer:
         command = touched.pop("command", None)
         with self.bench.lock:
             ctrl = self.bench.controller
-            refused = ctrl.write_setpoints(touched) if touched else None
-            if refused is None and command is not None:
-                refused = ctrl.command(int(command))
+            if command is not None and ctrl.command_refusal(int(command)) is not None:
+                refused = ctrl.command(int(command))  # records the reason; the setpoints stay as they are
+            else:
+                refused = ctrl.write_setpoints(touched) if touched else None
+                if refused is None and command is not None:
+                    refused = ctrl.command(int(command))
         if refused is not None:
             return ExcCodes(REFUSAL_EXCEPTION[refused])
         return None

@@ -9,7 +9,7 @@ import struct
 import pytest
 from pymodbus import FramerType
 
-from drivers.register_map import Command, ControllerState, ErrorCode
+from drivers.register_map import Command, ControllerState, ErrorCode, WaveformCode
 from simulators.controller_model import POWER_UP
 from simulators.controller_server import ControllerServer
 
@@ -207,3 +207,16 @@ async def _rtu_exchange(controller, adu: bytes) -> bytes:
 async def test_rtu_frames_get_the_same_refusals_and_other_devices_no_answer(rtu_controller, adu, reply):
     expected = reply + _modbus_crc(reply) if reply else b""
     assert await _rtu_exchange(rtu_controller, adu) == expected
+
+
+@pytest.mark.parametrize(("command", "exception"), [(0, 0x03), (99, 0x03), (int(Command.START), 0x06)])
+async def test_a_refused_command_written_with_setpoints_applies_none_of_them(
+    controller, bench, command, exception
+):
+    """Command, waveform and channel mask in one write (function 16 from address 0): the command is
+    refused (unknown, or START with hydraulics off), so the waveform and mask are not applied."""
+    before = await _holding_image(controller)
+    pdu = struct.pack(">BHHB3H", 16, 0, 3, 6, command, int(WaveformCode.SINE_DWELL), 0x0001)
+    assert await _exchange(controller, _mbap(pdu)) == bytes([0x90, exception])
+    assert await _holding_image(controller) == before
+    assert bench.controller.state == ControllerState.OFF
