@@ -71,7 +71,7 @@ def main() -> None:
     reads, writes = asyncio.run(modbus(n))
     b50 = np.percentile(base, 50)
     print(f"baseline TCP echo      : p50 {b50 * 1e3:.3f} ms  p99 {np.percentile(base, 99) * 1e3:.3f} ms")
-    for name, t in (("read status (20 regs)", reads), ("write command (1 reg)", writes)):
+    for name, t in (("read status (17 regs, 2 requests)", reads), ("write command (1 reg)", writes)):
         p50, p99 = np.percentile(t, 50), np.percentile(t, 99)
         print(f"{name:23}: p50 {p50 * 1e3:.3f} ms  p99 {p99 * 1e3:.3f} ms  ({p50 / b50:.1f}x the echo p50)")
 

@@ -58,4 +58,9 @@ class NotConfiguredError(CommandRejectedError):
 
 
 class MalformedReplyError(LinkError):
-    """A reply could not be parsed."""
+    """A reply could not be parsed, or holds a value the protocol does not define."""
+
+
+class MismatchedReplyError(MalformedReplyError):
+    """A reply that does not belong to its request: another function code, address, quantity or
+    byte count (a late reply to an earlier request). Reads are retried; a write's outcome is unknown."""

@@ -95,6 +95,43 @@ class ErrorCode(enum.IntEnum):
     INVALID_SETPOINT = 3
 
 
+#: the controller's states in which the actuator moves (an excitation runs or tapers out)
+MOVING_STATES = frozenset({ControllerState.RUNNING, ControllerState.TAPERING})
+
+#: servo channels of the controller: bit i of ``channel_mask`` drives post i + 1
+CONTROLLER_CHANNELS = 4
+#: every post of a four-post rig, driven together
+ALL_POSTS = (1 << CONTROLLER_CHANNELS) - 1
+
+#: the only Modbus function codes the controller serves: read holding, read input, write single,
+#: write multiple registers (any other answers ILLEGAL_FUNCTION)
+FC_READ_HOLDING, FC_READ_INPUT, FC_WRITE_SINGLE, FC_WRITE_MULTIPLE = 3, 4, 6, 16
+#: quantity limits of the Modbus specification (registers per read, per write multiple)
+MAX_READ_QUANTITY = 125
+MAX_WRITE_QUANTITY = 123
+
+
+class ModbusExceptionCode(enum.IntEnum):
+    """The Modbus exception codes the controller answers with."""
+
+    ILLEGAL_FUNCTION = 1
+    ILLEGAL_ADDRESS = 2
+    ILLEGAL_VALUE = 3
+    DEVICE_FAILURE = 4
+    DEVICE_BUSY = 6
+    GATEWAY_NO_RESPONSE = 0x0B
+
+
+#: the exception reply by which the controller refuses a write, per reason in ``error_code``
+REFUSAL_EXCEPTION: dict[ErrorCode, ModbusExceptionCode] = {
+    ErrorCode.UNKNOWN_COMMAND: ModbusExceptionCode.ILLEGAL_VALUE,
+    ErrorCode.INVALID_SETPOINT: ModbusExceptionCode.ILLEGAL_VALUE,
+    ErrorCode.NOT_ALLOWED_IN_STATE: ModbusExceptionCode.DEVICE_BUSY,
+}
+#: exception codes that mean "refused, the reason is in error_code" (any other is a device failure)
+REFUSAL_CODES = frozenset(REFUSAL_EXCEPTION.values())
+
+
 @dataclass(frozen=True)
 class Register:
     """One named value: ``width`` consecutive registers from ``address`` in ``table``."""
@@ -166,6 +203,18 @@ class RegisterMap:
         regs = self.table(table).values()
         first = min(r.address for r in regs)
         return first, max(r.address + r.width for r in regs) - first
+
+    def runs(self, table: str) -> list[tuple[int, int]]:
+        """``[(first_address, count), ...]``: the runs of consecutive registers of ``table``, split
+        at the gaps (the controller refuses a request that touches an address the map leaves out) and
+        at most :data:`MAX_READ_QUANTITY` registers long (one read request each)."""
+        runs: list[tuple[int, int]] = []
+        for reg in sorted(self.table(table).values(), key=lambda r: r.address):
+            if runs and sum(runs[-1]) == reg.address and runs[-1][1] + reg.width <= MAX_READ_QUANTITY:
+                runs[-1] = (runs[-1][0], runs[-1][1] + reg.width)
+            else:
+                runs.append((reg.address, reg.width))
+        return runs
 
     def decode_span(self, table: str, first: int, words: list[int]) -> dict[str, float | int]:
         """Decode every register of ``table`` contained in ``words`` read from ``first``."""

@@ -30,6 +30,14 @@ class SoftLimits:
     min_taper_s: float = 0.1
     max_duration_s: float = 3600.0
 
+    def check_interlock(self) -> None:
+        """The interlock thresholds written with every setpoint: finite and not negative (the
+        controller refuses a negative one, and 0 would mean its hardware limit, not "none")."""
+        _finite(displacement_limit_mm=self.displacement_limit_mm, force_limit_n=self.force_limit_n)
+        for name in ("displacement_limit_mm", "force_limit_n"):
+            if getattr(self, name) <= 0:
+                raise LimitError(f"{name}={getattr(self, name)} must be > 0")
+
     def check_amplitude(self, amplitude_mm: float, mean_mm: float) -> None:
         _finite(amplitude_mm=amplitude_mm, mean_mm=mean_mm)
         if not 0.0 <= amplitude_mm <= self.max_amplitude_mm:

@@ -21,7 +21,8 @@ from typing import Protocol
 import numpy as np
 
 from bench.models.setup import BenchKind, BenchSetup
-from simulators.controller_model import MOVING, ControllerModel
+from drivers.register_map import MOVING_STATES
+from simulators.controller_model import CONTROLLER_CLOCK_HZ, ControllerModel
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from simulators.worker import Worker
 
@@ -57,6 +58,28 @@ class BenchSink(Protocol):
     def deliver(self, block: BenchBlock) -> None: ...
 
 
+class ControllerTransducer:
+    """The controller's own displacement transducer on post 1, sampled on the controller's clock.
+
+    It reads the actuator's true displacement at every ``internal_rate_hz / CONTROLLER_CLOCK_HZ``-th
+    internal sample of the plant, before and apart from the WFS acquisition (its anti-alias filter and
+    output rate play no part).
+    """
+
+    def __init__(self, internal_rate_hz: float) -> None:
+        step = internal_rate_hz / CONTROLLER_CLOCK_HZ
+        if abs(step - round(step)) > 1e-9 * step or round(step) < 1:
+            raise ValueError(f"internal rate {internal_rate_hz:g} Hz is no multiple of the controller clock")
+        self._step = round(step)
+        self._phase = 0  # internal samples since the last controller sample, modulo the step
+
+    def read(self, displacement_m: np.ndarray) -> np.ndarray:
+        """The displacement (m) at the controller's sample instants within the internal-rate block."""
+        first = (self._step - 1 - self._phase) % self._step
+        self._phase = (self._phase + len(displacement_m)) % self._step
+        return displacement_m[first :: self._step]
+
+
 class SimulatedBench:
     """Plant plus controller model, advanced in whole output samples.
 
@@ -68,10 +91,12 @@ class SimulatedBench:
     #: channels the bench's transducers always deliver (the WFS device wires them to aux inputs)
     BENCH_CHANNELS = ("z_base_m", "f_plate_n", "a_hub_m_s2")
 
-    def __init__(self, plant: PlantSimulator, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, plant: PlantSimulator, clock: Callable[[], float] | None = time.monotonic) -> None:
+        """``clock``: seconds for the controller's watchdog (None: the controller's sample clock)."""
         self.plant = plant
         self.lock = threading.RLock()
         self.controller = ControllerModel(plant.internal_rate_hz, clock)
+        self.transducer = ControllerTransducer(plant.internal_rate_hz)
         self._internal_samples = 0
         self._blows: list[tuple[int, HalfSinePulse]] = []  # (first internal sample, pulse)
 
@@ -94,7 +119,7 @@ class SimulatedBench:
         """The actuator runs, tapers, or its command is not yet back at rest (mean position zero)."""
         with self.lock:
             ctrl = self.controller
-            return ctrl.state in MOVING or not ctrl.generator.at_rest
+            return ctrl.state in MOVING_STATES or not ctrl.generator.at_rest
 
     def mount(self, setup: BenchSetup) -> None:
         """Put another specimen on the bench (see :meth:`PlantSimulator.mount`); only at rest.
@@ -147,6 +172,7 @@ class SimulatedBench:
                 plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
                 channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
+            ctrl.measure_amplitude(self.transducer.read(plant.converter_z_base_m))
             self._internal_samples += n_internal
             fast = {"fz_wfs_n": plant.converter_fz_n}
             return BenchBlock(start_s, plant.output_rate_hz, channels, fast, plant.internal_rate_hz)

@@ -19,7 +19,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.register_map import Command, ControllerState, ErrorCode, InterlockFlag, WaveformCode
+from drivers.register_map import (
+    ALL_POSTS,
+    MOVING_STATES,
+    Command,
+    ControllerState,
+    ErrorCode,
+    InterlockFlag,
+    WaveformCode,
+)
 from simulators.function_generator import FunctionGenerator
 from simulators.plant.excitation import SineDwell, Sweep, Waveform
 
@@ -30,9 +38,26 @@ UNTIL_STOPPED_S = 1e6
 CONTROLLER_CLOCK_HZ = 1000
 #: shortest taper the controller accepts (s): a shorter one would be a step
 MIN_TAPER_S = 0.05
-MOVING = (ControllerState.RUNNING, ControllerState.TAPERING)
-_NON_NEGATIVE = ("dwell_s", "sweep_duration_s", "amplitude_mm", "watchdog_ms")
-_POSITIVE = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")
+#: highest excitation frequency the controller accepts (Hz): the servo actuator's bandwidth
+MAX_FREQUENCY_HZ = 200.0
+#: heartbeat watchdog at power-up (ms): armed, so a host that never beats cannot keep it running
+POWER_UP_WATCHDOG_MS = 1500
+#: the holding registers at power-up: the values in force until the host writes others
+POWER_UP: dict[str, float] = {
+    "waveform": WaveformCode.STATIC, "channel_mask": ALL_POSTS, "heartbeat": 0,
+    "watchdog_ms": POWER_UP_WATCHDOG_MS, "amplitude_mm": 0.0, "frequency_hz": 1.0, "dwell_s": 0.0,
+    "sweep_start_hz": 1.0, "sweep_end_hz": 10.0, "sweep_duration_s": 10.0, "taper_in_s": 1.0,
+    "taper_out_s": 1.0, "mean_mm": 0.0, "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
+}  # fmt: skip
+_NON_NEGATIVE = (
+    "dwell_s",
+    "sweep_duration_s",
+    "amplitude_mm",
+    "watchdog_ms",
+    "displacement_limit_mm",
+    "force_limit_n",
+)
+_FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")  # in (0, MAX_FREQUENCY_HZ]
 _TAPERS = ("taper_in_s", "taper_out_s")
 _STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm")  # within the hardware stroke (mm)
 _IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
@@ -64,7 +89,9 @@ class ControllerModel:
     """State machine, interlocks and readbacks of the simulated servo controller.
 
     ``internal_rate_hz`` is the rate of the displacement command (the plant's internal rate);
-    ``clock`` returns seconds for the heartbeat watchdog (None: the controller's sample clock).
+    ``clock`` returns seconds for the heartbeat watchdog (None: the controller's sample clock);
+    ``posts`` is how many of the controller's channels have an actuator (posts 1..``posts``; the
+    simulated plant stands on post 1).
     """
 
     #: hardware limits (mm from the centre of the stroke, N): always enforced; the interlock limits
@@ -72,18 +99,17 @@ class ControllerModel:
     HARDWARE_STROKE_MM = 50.0
     HARDWARE_FORCE_N = 50_000.0
 
-    def __init__(self, internal_rate_hz: float, clock: Callable[[], float] | None = None) -> None:
+    def __init__(
+        self, internal_rate_hz: float, clock: Callable[[], float] | None = None, posts: int = 1
+    ) -> None:
         self.generator = FunctionGenerator(internal_rate_hz)
+        self.existing_posts = (1 << posts) - 1
+        self._driven_posts = 0  # the channel mask of the running excitation
         self._clock = clock or (lambda: self.generator.n / internal_rate_hz)
         self.state = ControllerState.OFF
         self.flags = InterlockFlag(0)
         self.error = ErrorCode.NONE
-        self.setpoints: dict[str, float] = {
-            "waveform": 0, "channel_mask": 0x000F, "heartbeat": 0, "watchdog_ms": 0, "amplitude_mm": 0.0,
-            "frequency_hz": 1.0, "dwell_s": 0.0, "sweep_start_hz": 1.0, "sweep_end_hz": 10.0,
-            "sweep_duration_s": 10.0, "taper_in_s": 1.0, "taper_out_s": 1.0, "mean_mm": 0.0,
-            "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
-        }  # fmt: skip
+        self.setpoints: dict[str, float] = dict(POWER_UP)
         self.readback = Readback()
         self._last_heartbeat_s = self._clock()
         self._rest_state = ControllerState.HYDRAULICS_HIGH  # where a taper to rest ends
@@ -100,10 +126,9 @@ class ControllerModel:
         """
         if not all(self._valid(name, value) for name, value in values.items()):
             return self._refuse(ErrorCode.INVALID_SETPOINT)
-        # only a changed heartbeat proves the host alive (a frozen counter does not); arming the
-        # watchdog starts its time afresh
-        beat = "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]
-        if beat or "watchdog_ms" in values:
+        # only a changed heartbeat proves the host alive: neither a frozen counter nor a rewritten
+        # watchdog_ms (a host rewriting its configuration) restarts the watchdog's time
+        if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
         self.error = ErrorCode.NONE
@@ -115,7 +140,8 @@ class ControllerModel:
             return False
         violated = (
             (name in _NON_NEGATIVE and value < 0)
-            or (name in _POSITIVE and value <= 0)
+            or (name in _FREQUENCIES and not 0 < value <= MAX_FREQUENCY_HZ)
+            or (name == "channel_mask" and not int(value) & self.existing_posts)
             or (name in _TAPERS and value < MIN_TAPER_S)
             or (name == "waveform" and value not in tuple(WaveformCode))
             or (name in _STROKE and abs(value) > self.HARDWARE_STROKE_MM)
@@ -123,14 +149,20 @@ class ControllerModel:
         )
         return not violated
 
-    def command(self, code: int) -> ErrorCode | None:
-        """Execute a command code; return the reason when it is refused."""
+    def command_refusal(self, code: int) -> ErrorCode | None:
+        """Why the command ``code`` would be refused in the present state (None: it is allowed);
+        changes nothing, so a write carrying setpoints and a command can be refused as a whole."""
         try:
             command = Command(code)
         except ValueError:
-            return self._refuse(ErrorCode.UNKNOWN_COMMAND)
-        if self.state not in ALLOWED[command]:
-            return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
+            return ErrorCode.UNKNOWN_COMMAND
+        return None if self.state in ALLOWED[command] else ErrorCode.NOT_ALLOWED_IN_STATE
+
+    def command(self, code: int) -> ErrorCode | None:
+        """Execute a command code; return the reason when it is refused."""
+        if (reason := self.command_refusal(code)) is not None:
+            return self._refuse(reason)
+        command = Command(code)
         if command is Command.START:
             return self._start()
         if command is Command.STOP:
@@ -164,6 +196,7 @@ class ControllerModel:
         except ValueError:
             return self._refuse(ErrorCode.INVALID_SETPOINT)
         self.generator.start(waveform, self.setpoints["mean_mm"] / 1000, self.setpoints["taper_out_s"])
+        self._driven_posts = int(self.setpoints["channel_mask"]) & self.existing_posts
         self._phase_cycles = 0.0
         self.readback.cycle_count = 0
         self._rest_state = ControllerState.HYDRAULICS_HIGH
@@ -225,15 +258,20 @@ class ControllerModel:
             self._stop()
 
     def command_block(self, n: int) -> np.ndarray:
-        """The displacement command (m) for the next ``n`` internal samples."""
+        """The displacement command (m) of post 1 for the next ``n`` internal samples."""
         self.check_watchdog()
         out = self.generator.block(n)
         self._follow_generator()
-        return out
+        return self.post_command(1, out)
+
+    def post_command(self, post: int, command_m: np.ndarray) -> np.ndarray:
+        """The generator's ``command_m`` as post ``post`` (1-based) receives it: a post the running
+        excitation's ``channel_mask`` leaves out stays at rest (zero)."""
+        return command_m if self._driven_posts >> (post - 1) & 1 else np.zeros_like(command_m)
 
     def current_frequency_hz(self) -> float:
         waveform = self.generator.waveform
-        if waveform is None or self.state not in MOVING:
+        if waveform is None or self.state not in MOVING_STATES:
             return 0.0
         return float(waveform.frequency_hz(self.generator.elapsed_s))
 
@@ -245,8 +283,7 @@ class ControllerModel:
     def observe(self, z_base_m: np.ndarray, f_plate_n: np.ndarray, rate_hz: float) -> None:
         """Update readbacks and the limit interlocks from a block measured at ``rate_hz``.
 
-        Achieved amplitude: half the peak-to-peak displacement over the last two cycles (at least
-        0.2 s). The displacement limit applies to the distance from the present mean position.
+        The displacement limit applies to the distance from the present mean position.
         """
         rb = self.readback
         g = self.generator
@@ -256,14 +293,23 @@ class ControllerModel:
         rb.displacement_mm = float(z_base_m[-1] * 1000)
         rb.force_n = float(f_plate_n[-1])
         rb.frequency_hz = self.current_frequency_hz()
-        window = int(rate_hz * max(0.2, 2.0 / rb.frequency_hz if rb.frequency_hz else 0.2))
-        self._history = np.concatenate([self._history, z_base_m])[-window:]
-        moving = self.state in MOVING
-        rb.achieved_amplitude_mm = float(np.ptp(self._history) / 2 * 1000) if moving else 0.0
+        moving = self.state in MOVING_STATES
         if moving:
             self._phase_cycles += rb.frequency_hz * len(z_base_m) / rate_hz
             rb.cycle_count = int(self._phase_cycles)
         self._check_limits(z_base_m, f_plate_n)
+
+    def measure_amplitude(self, z_m: np.ndarray) -> None:
+        """Update ``achieved_amplitude_mm`` from the actuator displacement ``z_m`` (m) of post 1,
+        sampled on the controller's own clock (:data:`CONTROLLER_CLOCK_HZ`), whatever the WFS does.
+
+        Half the peak-to-peak displacement over the last two cycles (at least 0.2 s); 0 at rest.
+        """
+        frequency_hz = self.current_frequency_hz()
+        window_s = max(0.2, 2.0 / frequency_hz) if frequency_hz else 0.2
+        self._history = np.concatenate([self._history, z_m])[-round(CONTROLLER_CLOCK_HZ * window_s) :]
+        moving = self.state in MOVING_STATES and len(self._history)
+        self.readback.achieved_amplitude_mm = float(np.ptp(self._history) / 2 * 1000) if moving else 0.0
 
     def _check_limits(self, z_base_m: np.ndarray, f_plate_n: np.ndarray) -> None:
         """Trip on |z - present mean| beyond the interlock limit, on |z| beyond the hardware stroke
@@ -277,7 +323,7 @@ class ControllerModel:
             tripped |= InterlockFlag.DISPLACEMENT
         if np.max(np.abs(f_plate_n)) > force_limit:
             tripped |= InterlockFlag.FORCE
-        if tripped and self.state in MOVING:
+        if tripped and self.state in MOVING_STATES:
             self.flags |= tripped
             if self.state == ControllerState.RUNNING:
                 self._stop()

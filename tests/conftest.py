@@ -35,5 +35,9 @@ async def client(controller):
     host, port = controller.address
     client = ActuatorClient.tcp(host, port, limits=SoftLimits(), timeout_s=0.3)
     await client.connect()
+    # the watchdog is armed at power-up; tests that are not about it run with it off (as a lab may
+    # set it), so that a loaded machine cannot trip a dwell that no heartbeat keeps alive
+    with controller.bench.lock:
+        assert controller.bench.controller.write_setpoints({"watchdog_ms": 0}) is None
     yield client
     await client.close()

@@ -13,6 +13,7 @@ import pytest
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.constants import ExcCodes
 
+from bench.models.setup import BenchSetup
 from drivers.actuator import ActuatorClient
 from drivers.errors import (
     CommandOutcomeUnknownError,
@@ -32,6 +33,9 @@ from drivers.register_map import (
     load_register_map,
 )
 from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from simulators.bench_sim import SimulatedBench
+from simulators.controller_server import ControllerServer
+from simulators.plant import PlantSimulator, SensorRealism
 from tests.waiting import async_wait_until
 
 DWELL = DwellSetpoint(freq_hz=10.0, amplitude_mm=2.0, taper_in_s=0.2, taper_out_s=0.2)
@@ -99,6 +103,27 @@ async def test_out_of_limit_setpoints_refused_before_anything_is_written(client,
     assert controller.writes_received == before
 
 
+@pytest.mark.parametrize(
+    "limits",
+    [SoftLimits(force_limit_n=-100.0), SoftLimits(displacement_limit_mm=-1.0), SoftLimits(force_limit_n=0.0)],
+)
+async def test_negative_or_zero_interlock_limits_are_refused_before_anything_is_written(
+    client, controller, limits
+):
+    client.limits = limits
+    before = controller.writes_received
+    with pytest.raises(LimitError):
+        await client.configure(DWELL)
+    assert controller.writes_received == before
+
+
+async def test_a_mask_with_no_existing_post_is_refused_by_the_controller(client):
+    for mask in (0, 0xFFF0, 0x0002):  # the simulated shaker has post 1 only
+        with pytest.raises(CommandRejectedError, match="INVALID_SETPOINT"):
+            await client.configure(DWELL, channel_mask=mask)
+    await client.configure(DWELL, channel_mask=0x0001)
+
+
 async def test_command_not_allowed_in_state_is_a_typed_refusal(client):
     await client.configure(DWELL)
     with pytest.raises(CommandRejectedError, match="NOT_ALLOWED_IN_STATE"):
@@ -145,11 +170,6 @@ async def test_start_is_refused_unless_the_last_configure_completed(client, cont
     await client.stop()
 
 
-def test_raw_register_writes_are_not_public():
-    """Every setpoint goes through the checked operations; a raw write would bypass the soft limits."""
-    assert not hasattr(ActuatorClient, "write")
-
-
 async def test_garbage_writes_are_refused_by_the_controller(client, controller):
     [(address, words)] = controller.map.encode_many("holding", {"command": 999})
     assert (await _raw_write(controller, address, words)).exception_code == ExcCodes.ILLEGAL_VALUE
@@ -165,35 +185,70 @@ async def test_garbage_writes_are_refused_by_the_controller(client, controller):
     assert (await client.read_status()).state == ControllerState.OFF
 
 
-async def test_heartbeat_loss_tapers_to_a_stop_within_watchdog_plus_taper(client):
-    # the fixture's client: 0.3 s timeout x 3 read attempts + 0.05 s period = 0.95 s < 1 s watchdog
-    period_s, watchdog_s, taper_s = 0.05, 1.0, 0.2
-    await _arm(client)
-    await client.configure(DWELL)
-    await client.start_heartbeat(period_s=period_s, watchdog_ms=int(watchdog_s * 1000))
-    await client.start()
-    # while the heartbeat runs, the excitation keeps running beyond two watchdog periods
-    await asyncio.sleep(2 * watchdog_s)
-    assert (await client.read_status()).state == ControllerState.RUNNING
-    await client.stop_heartbeat()
-    lost_at = time.monotonic()  # the last heartbeat landed at most one period before
-    tripped = await async_wait_until(
-        lambda: _state_is(client, ControllerState.TAPERING, ControllerState.INTERLOCK),
-        watchdog_s + 5.0,
-        "the watchdog to trip",
-    )
-    tripped_after_s = time.monotonic() - lost_at
-    assert InterlockFlag.WATCHDOG in tripped.interlock
-    # never before the watchdog has expired (the heartbeat really held it off) ...
-    assert tripped_after_s >= watchdog_s - period_s
-    # ... and soon after it (the trip is checked every 10 ms bench block; margin for a loaded runner)
-    assert tripped_after_s <= watchdog_s + 0.5
-    rest = await async_wait_until(lambda: _state_is(client, ControllerState.INTERLOCK), 5.0, "rest")
-    # the taper lasts taper_out on the controller's own sample clock (ms), whatever the runner's lag
-    assert rest.sample_count - tripped.sample_count <= taper_s * 1000 + 20
-    assert abs(rest.displacement_mm) < 0.05
-    await client.reset_interlock()
-    assert (await client.read_status()).state == ControllerState.HYDRAULICS_LOW
+class SteppedClock:
+    """The controller's watchdog clock, advanced by the test with the bench it steps."""
+
+    def __init__(self) -> None:
+        self.now_s = 0.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+async def test_heartbeat_loss_tapers_to_a_stop_within_watchdog_plus_taper():
+    """On a stepped clock: the bench advances only when the test says, so the watchdog's bound is
+    checked in controller time, whatever the load of the machine."""
+    period_s, watchdog_s, taper_s, block_s = 0.05, 1.0, 0.2, 0.01
+    clock = SteppedClock()
+    bench = SimulatedBench(PlantSimulator(BenchSetup.paper_shaker(), SensorRealism(seed=1)), clock)
+    server = ControllerServer(bench)
+    host, port = await server.serve_tcp("127.0.0.1", 0)
+    client = ActuatorClient.tcp(host, port, timeout_s=0.3)
+
+    def step(seconds: float) -> None:
+        for _ in range(round(seconds / block_s)):
+            clock.now_s += block_s
+            bench.advance(round(block_s * bench.output_rate_hz))
+
+    try:
+        await client.connect()
+        await _arm(client)
+        await client.configure(DWELL)
+        await client.start_heartbeat(period_s=period_s, watchdog_ms=int(watchdog_s * 1000))
+        await client.start()
+        # two watchdog periods of controller time, a heartbeat period after each heartbeat received
+        echo = (await client.read_status()).heartbeat_echo
+        for _ in range(round(2 * watchdog_s / period_s)):
+            status = await async_wait_until(
+                lambda echo=echo: _heartbeat_changed(client, echo), 5.0, "the next heartbeat"
+            )
+            echo, last_beat_s = status.heartbeat_echo, clock.now_s
+            step(period_s)
+        assert (await client.read_status()).state == ControllerState.RUNNING
+        await client.stop_heartbeat()
+        if (await client.read_status()).heartbeat_echo != echo:
+            last_beat_s = clock.now_s  # one more heartbeat landed before the task stopped
+        while bench.controller.state == ControllerState.RUNNING:
+            step(block_s)
+        tripped = await client.read_status()
+        # the watchdog is checked once per block of the bench: the trip comes within one block
+        assert watchdog_s <= clock.now_s - last_beat_s <= watchdog_s + block_s + 1e-9
+        assert InterlockFlag.WATCHDOG in tripped.interlock
+        step(taper_s + block_s)
+        rest = await client.read_status()
+        assert rest.state == ControllerState.INTERLOCK
+        assert rest.sample_count - tripped.sample_count <= (taper_s + block_s) * 1000
+        assert abs(rest.displacement_mm) < 0.05
+        await client.reset_interlock()
+        assert (await client.read_status()).state == ControllerState.HYDRAULICS_LOW
+    finally:
+        await client.close()
+        await server.close()
+
+
+async def _heartbeat_changed(client: ActuatorClient, echo: int):
+    status = await client.read_status()
+    return status if status.heartbeat_echo != echo else None
 
 
 async def test_heartbeat_refuses_a_watchdog_one_slow_reply_would_trip(client, controller):
@@ -355,3 +410,41 @@ async def _run(*cmd: str) -> str:
 async def _true_after(value: bool) -> bool:
     """An awaitable view of a plain condition, for ``async_wait_until``."""
     return value
+
+
+async def test_heartbeat_loss_is_an_event_when_the_controller_goes_away(controller):
+    host, port = controller.address
+    reasons: list[str] = []
+    client = ActuatorClient.tcp(host, port, timeout_s=0.3, on_link_lost=reasons.append)
+    await client.connect()
+    try:
+        await _arm(client)
+        await client.configure(DWELL)
+        await client.start_heartbeat(period_s=0.05, watchdog_ms=1000)
+        await client.start()
+        assert not client.heartbeat_lost.is_set()
+        await controller.close()  # the controller's end of the link goes away mid-run
+        closed_at = time.monotonic()
+        # documented: within one heartbeat period plus one reply timeout (0.35 s); the wait allows
+        # a loaded machine a further second before calling the bound broken
+        await asyncio.wait_for(client.heartbeat_lost.wait(), 0.05 + 0.3 + 1.0)
+        assert time.monotonic() - closed_at <= 0.05 + 0.3 + 1.0
+        assert len(reasons) == 1
+        assert "link lost" in reasons[0]
+    finally:
+        await client.close()
+
+
+async def test_heartbeat_loss_is_an_event_when_replies_stop(client, controller):
+    await _arm(client)
+    reasons: list[str] = []
+    client.on_link_lost = reasons.append
+    await client.start_heartbeat(period_s=0.05, watchdog_ms=1000)
+    echo = (await client.read_status()).heartbeat_echo
+    await async_wait_until(lambda: _heartbeat_changed(client, echo), 5.0, "a heartbeat to land")
+    assert not client.heartbeat_lost.is_set()
+    controller.faults.delay_next, controller.faults.delay_s = 1000, 5.0  # the controller hangs
+    await asyncio.wait_for(client.heartbeat_lost.wait(), 1.0 + 0.3 + 1.0)
+    assert len(reasons) == 1
+    assert "no heartbeat acknowledged" in reasons[0]
+    controller.faults.delay_next = 0

@@ -6,10 +6,10 @@ the client the other, 8N1 (ptys refuse parity).
 
 from __future__ import annotations
 
+import asyncio
 import os
 import shutil
 import subprocess
-import time
 
 import pytest
 
@@ -73,14 +73,30 @@ async def test_dwell_over_rtu_on_a_pty_pair(rtu_client):
     )
     assert running.frequency_hz == pytest.approx(8.0)
     assert running.achieved_amplitude_mm == pytest.approx(1.5, rel=0.02)
+    before_stop = await client.read_status()
     await client.stop()
-    stopped_at = time.monotonic()
     assert (await client.read_status()).state == ControllerState.TAPERING
     rest = await async_wait_until(
         lambda: _status_when(client, lambda s: s.state == ControllerState.HYDRAULICS_HIGH),
         2.0,
         "the tapered stop",
     )
-    assert time.monotonic() - stopped_at >= 0.25  # the 0.3 s taper, paced in real time
+    # the 0.3 s taper, counted on the controller's clock (1 kHz ticks, updated every 10 ms block)
+    assert rest.sample_count - before_stop.sample_count >= 300 - 10
     assert abs(rest.displacement_mm) < 0.05
     assert rest.cycle_count >= 4
+
+
+async def test_the_rtu_line_is_paced_at_its_baud_rate(rtu_client):
+    """A status read is two requests (input registers 0-6 and 10-19): 8 + 19 and 8 + 25 bytes on
+    the wire, 600 bits, 5.2 ms at 115200 baud; a pty alone would answer far sooner."""
+    client = rtu_client
+    await client.connect()
+    wire_s = (8 + 5 + 2 * 7 + 8 + 5 + 2 * 10) * 10 / 115200
+    loop = asyncio.get_running_loop()
+    durations = []
+    for _ in range(5):
+        started = loop.time()
+        await client.read_status()
+        durations.append(loop.time() - started)
+    assert min(durations) >= wire_s

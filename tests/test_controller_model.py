@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from drivers.register_map import Command, ControllerState, ErrorCode, InterlockFlag, WaveformCode
-from simulators.controller_model import MIN_TAPER_S, ControllerModel
+from simulators.controller_model import MAX_FREQUENCY_HZ, MIN_TAPER_S, POWER_UP, ControllerModel
 from simulators.function_generator import MEAN_RATE_MM_S
 
 RATE = 10_000.0  # internal samples per second
@@ -23,7 +23,7 @@ C = Command
 
 DWELL = {
     "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 2.0, "frequency_hz": 10.0, "dwell_s": 0.0,
-    "taper_in_s": 0.5, "taper_out_s": 0.4, "mean_mm": 0.0,
+    "taper_in_s": 0.5, "taper_out_s": 0.4, "mean_mm": 0.0, "watchdog_ms": 0,
 }  # fmt: skip
 
 
@@ -36,6 +36,7 @@ def run(
         command = model.command_block(BLOCK)
         z = command[OVERSAMPLING - 1 :: OVERSAMPLING] + z_extra_m
         model.observe(z, np.full(len(z), force_n), RATE / OVERSAMPLING)
+        model.measure_amplitude(z)  # the measured rate is the controller's 1 kHz clock
         out.append(command)
     return np.concatenate(out) if out else np.zeros(0)
 
@@ -379,3 +380,70 @@ def test_readbacks_count_cycles_amplitude_and_the_controller_clock():
     assert rb.cycle_count == 20
     assert rb.achieved_amplitude_mm == pytest.approx(2.0, rel=1e-3)
     assert rb.sample_count == 2000  # 1 kHz
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        {"frequency_hz": MAX_FREQUENCY_HZ * 1.01},
+        {"frequency_hz": 1e6},
+        {"sweep_end_hz": MAX_FREQUENCY_HZ + 1.0},
+        {"displacement_limit_mm": -1.0},
+        {"force_limit_n": -100.0},
+        {"channel_mask": 0},
+        {"channel_mask": 0xFFF0},  # posts 5..16: none exists
+    ],
+)
+def test_frequency_ceiling_negative_limits_and_empty_masks_are_refused(values):
+    model = armed()
+    before = dict(model.setpoints)
+    assert model.write_setpoints(values) == ErrorCode.INVALID_SETPOINT
+    assert model.setpoints == before
+
+
+def test_the_frequency_ceiling_itself_runs():
+    model = armed({**DWELL, "frequency_hz": MAX_FREQUENCY_HZ, "amplitude_mm": 0.1})
+    act(model, C.START)
+    run(model, 0.6)
+    assert model.readback.frequency_hz == MAX_FREQUENCY_HZ
+
+
+def test_channel_mask_selects_the_posts_that_move():
+    # a four-post controller: post 1 (the plant) moves only when its bit is set
+    model = ControllerModel(RATE, posts=4)
+    act(model, C.HYDRAULICS_LOW, C.HYDRAULICS_HIGH)
+    assert model.write_setpoints({**DWELL, "channel_mask": 0b0010}) is None  # post 2 only
+    act(model, C.START)
+    assert np.all(run(model, 1.0) == 0.0)
+    assert model.state == S.RUNNING
+    act(model, C.STOP)
+    run_until(model, S.HYDRAULICS_HIGH, 1.0)
+    assert model.write_setpoints({"channel_mask": 0b0011}) is None
+    act(model, C.START)
+    assert np.max(np.abs(run(model, 1.0))) == pytest.approx(0.002, rel=1e-3)
+
+
+def test_power_up_values_are_in_force_and_the_watchdog_is_armed():
+    model = ControllerModel(RATE)
+    assert model.setpoints == POWER_UP
+    assert POWER_UP["watchdog_ms"] > 0
+    act(model, C.HYDRAULICS_LOW, C.HYDRAULICS_HIGH, C.START)  # the power-up values run: hold the mean
+    watchdog_s = POWER_UP["watchdog_ms"] / 1000
+    run(model, watchdog_s - 0.02)
+    assert model.state == S.RUNNING
+    run(model, 0.02 + 2 * BLOCK / RATE)  # no heartbeat ever: the armed watchdog trips (checked per block)
+    assert model.flags == InterlockFlag.WATCHDOG
+
+
+def test_rewriting_watchdog_ms_while_running_does_not_restart_the_watchdog():
+    watchdog_s = 0.2
+    model = armed({**DWELL, "watchdog_ms": watchdog_s * 1000})
+    act(model, C.START)
+    blocks = 0
+    while model.flags == InterlockFlag(0) and blocks < RATE / BLOCK:
+        run(model, BLOCK / RATE)
+        blocks += 1
+        if blocks % 5 == 0:  # a host rewriting its configuration every 50 ms, never beating
+            assert model.write_setpoints({"watchdog_ms": watchdog_s * 1000}) is None
+    assert model.flags == InterlockFlag.WATCHDOG
+    assert watchdog_s <= model.generator.n / RATE <= watchdog_s + 2 * BLOCK / RATE

@@ -158,6 +158,7 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
     rate_hz = bench.output_rate_hz
     try:
         await client.connect()
+        await client.start_heartbeat()  # the controller's watchdog is armed from power-up
         await client.hydraulics_low()
         await client.hydraulics_high()
         await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))

@@ -131,7 +131,9 @@ class PlantSimulator:
     delay of the anti-alias filter, as in a real acquisition); all channels share that delay.
     ``f_contact_n`` is the true contact force: a reference for tests, not a sensor.
     :attr:`converter_fz_n` holds the last advance's WFS Fz at the internal (converter) rate, noise
-    and quantisation included, before the anti-alias filter: what a triggered capture buffers.
+    and quantisation included, before the anti-alias filter: what a triggered capture buffers;
+    :attr:`converter_z_base_m` the actuator's displacement at the internal rate, noise-free (what the
+    controller's own transducer samples).
     """
 
     def __init__(
@@ -280,6 +282,7 @@ class PlantSimulator:
             internal[1] = u
         self._wfs_converter(internal)
         self.converter_fz_n = internal[self.channels.index("fz_wfs_n")].copy()
+        self.converter_z_base_m = internal[self.channels.index("z_base_m")].copy()
         out = self._decimator(internal)
         self._output_noise(out)
         if not self._hammer and self.realism.accelerometer_dynamics:
@@ -330,6 +333,7 @@ class PlantSimulator:
         self._x = np.zeros(len(self._system.states))
         self._u_prev = 0.0
         self.converter_fz_n = np.zeros(0)
+        self.converter_z_base_m = np.zeros(0)
 
     # ------------------------------------------------------------------ offline runs
     def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:
