@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import astuple
 from datetime import UTC, datetime
 from itertools import pairwise
 from pathlib import Path
@@ -366,7 +365,7 @@ class RunWriter:
                 f"{row.hold_end_sample} <= end {row.end_sample} <= recorded {self._samples} do not hold",
             )
         table = self._group[s.POINTS]
-        record = np.array([astuple(row)], dtype=s.POINT_DTYPE)
+        record = np.array([tuple(getattr(row, name) for name in s.POINT_DTYPE.names)], dtype=s.POINT_DTYPE)
         _append_rows(table, record)
         if row.status == "done":
             self._done |= {row.index}
