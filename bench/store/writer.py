@@ -340,7 +340,8 @@ class RunWriter:
 
     def add_point(self, row: PointRow) -> None:
         """Add one row to the points table. A point index can be ``"done"`` once only in a step
-        (this run and the runs it resumes); its sample positions must lie in what was recorded."""
+        (this run and the runs it resumes); its sample positions must lie in what was recorded.
+        A done row is flushed at once, so a resume never repeats a point that was reported done."""
         where = f"{self._group.name}/{s.POINTS}"
         self._check_open(where)
         if row.status not in s.POINT_STATUSES:
@@ -367,9 +368,11 @@ class RunWriter:
         table = self._group[s.POINTS]
         record = np.array([tuple(getattr(row, name) for name in s.POINT_DTYPE.names)], dtype=s.POINT_DTYPE)
         _append_rows(table, record)
-        if row.status == "done":
+        if row.status == "done":  # a done point is what a resume starts from: durable at once
             self._done |= {row.index}
-        self._campaign.flush_if_due()
+            self._campaign.flush()
+        else:
+            self._campaign.flush_if_due()
 
     def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
         """An event of this run (prompt and answer, interlock, state change, link gap, ...), at the
