@@ -1,7 +1,9 @@
 """Write a campaign file incrementally: one run at a time, blocks of samples as they arrive.
 
-Durability is flush-based (why not SWMR: ``docs/hdf5.md``). Every write checks the cadence and
-flushes the whole file, then ``fsync`` s it, once :data:`~bench.store.schema.FLUSH_INTERVAL_S` of
+Durability is flush-based (why not SWMR: ``docs/hdf5.md``). Sample blocks are kept in memory
+until the next flush, which writes them (one resize and one write per channel, however many blocks
+arrived) and then flushes the whole file and ``fsync`` s it. Every write checks the cadence and
+flushes once :data:`~bench.store.schema.FLUSH_INTERVAL_S` of
 sample time or of wall time has passed since the last flush; :meth:`RunWriter.flush` forces one.
 Between flushes nothing is promised; after one, everything written so far survives the writer
 being killed. A run is created with status ``"incomplete"`` and keeps it until
@@ -213,6 +215,8 @@ class CampaignWriter:
 
     def flush(self) -> None:
         """Make everything written so far durable: HDF5 flush, then fsync of the file."""
+        if self._run is not None:
+            self._run._write_pending()
         self._file.flush()
         os.fsync(self._file.id.get_vfd_handle())
         self._last_flush_wall_s = time.monotonic()
@@ -278,6 +282,7 @@ class RunWriter:
         self._channels: dict[str, h5py.Dataset] = dict(group[s.CHANNELS].items())
         self._samples = min((ds.shape[0] for ds in self._channels.values()), default=0)
         self._durable_samples = self._samples
+        self._pending: dict[str, list[np.ndarray]] = {name: [] for name in self._channels}
         self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
         self.is_open = True
 
@@ -311,12 +316,9 @@ class RunWriter:
         n = next(iter(lengths.values()))
         if n == 0:
             return
-        start = self._samples
         for name, block in blocks.items():
-            ds = self._channels[name]
-            ds.resize((start + n,))
-            ds[start:] = block
-        self._samples = start + n
+            self._pending[name].append(block)
+        self._samples += n
         self._campaign.flush_if_due()
 
     def _converted(self, name: str, values: np.ndarray) -> np.ndarray:
@@ -431,6 +433,17 @@ class RunWriter:
         self._group.attrs.update({"status": status, "reason": reason, "finished": _now_iso()})
         self.is_open = False
         self._campaign._run_closed(self)
+
+    def _write_pending(self) -> None:
+        """Write the blocks appended since the last flush: one resize and one write per channel."""
+        for name, blocks in self._pending.items():
+            if blocks:
+                ds = self._channels[name]
+                data = np.concatenate(blocks)
+                start = ds.shape[0]
+                ds.resize((start + data.shape[0],))
+                ds[start:] = data
+                blocks.clear()
 
     def _flushed(self) -> None:
         self._durable_samples = self._samples
