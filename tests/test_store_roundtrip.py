@@ -341,3 +341,49 @@ def test_file_is_versioned_and_bounded_for_hdf5_1_10(campaign):
     with h5py.File(path, "r") as f:
         assert (f.attrs["schema"], f.attrs["schema_version"]) == (SCHEMA_NAME, SCHEMA_VERSION)
         assert f.id.get_create_plist().get_version()[0] == 2  # superblock v2: no open-for-write flag
+
+
+class SimulatedClock:
+    """Wall seconds that advance only when the test says so."""
+
+    def __init__(self) -> None:
+        self.now_s = 0.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+def test_flush_cadence_is_one_second_of_samples_or_of_wall_time(tmp_path):
+    clock = SimulatedClock()
+    writer = CampaignWriter.create(
+        tmp_path / "c.h5",
+        software_version="",
+        config_toml="",
+        sequence_toml="",
+        sequence_name="",
+        clock=clock,
+    )
+    run = writer.begin_run(
+        "r", kind="sweep", step={}, conditions={}, channels=CHANNELS[1:2], sample_rate_hz=FS_HZ
+    )
+    run.append({"z_base_m": np.zeros(999)})
+    assert (run.samples, run.durable_samples) == (999, 0)
+    run.append({"z_base_m": np.zeros(1)})  # one second of samples: flushed
+    assert run.durable_samples == 1000
+    run.append({"z_base_m": np.zeros(10)})
+    clock.now_s = 0.999
+    assert not writer.flush_if_due()
+    assert run.durable_samples == 1000
+    clock.now_s = 1.0  # one second of wall time with few samples (a stalled stream): flushed
+    assert writer.flush_if_due()
+    assert run.durable_samples == 1010
+    run.append({"z_base_m": np.zeros(10)})
+    run.add_event("state", "paused")  # any write checks the cadence
+    assert run.durable_samples == 1010
+    clock.now_s = 2.5
+    run.add_event("state", "running")
+    assert run.durable_samples == 1020
+    run.append({"z_base_m": np.zeros(10)})
+    run.add_point(PointRow(0, 1.0, 1.0, 0, 0, 1030, 1030))  # a done point is durable at once
+    assert run.durable_samples == 1030
+    writer.close()

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
 from itertools import pairwise
 from pathlib import Path
@@ -47,12 +47,15 @@ class CampaignWriter:
     :meth:`close` (or a ``with`` block), which finishes nothing: an unfinished run stays incomplete.
     """
 
-    def __init__(self, file: h5py.File, path: Path, *, flush_interval_s: float) -> None:
+    def __init__(
+        self, file: h5py.File, path: Path, *, flush_interval_s: float, clock: Callable[[], float]
+    ) -> None:
         self._file = file
         self.path = path
         self.flush_interval_s = flush_interval_s
         self._run: RunWriter | None = None
-        self._last_flush_wall_s = time.monotonic()
+        self._clock = clock
+        self._last_flush_wall_s = clock()
 
     @classmethod
     def create(
@@ -65,10 +68,13 @@ class CampaignWriter:
         sequence_name: str,
         config_name: str = "",
         flush_interval_s: float = s.FLUSH_INTERVAL_S,
+        clock: Callable[[], float] = time.monotonic,
     ) -> CampaignWriter:
         """A new campaign file at ``path`` (refused if one exists: a campaign is never overwritten)
         holding what produced it: the software version, the bench configuration and the sequence as
-        TOML text with their names (file names, or a description when they came from elsewhere)."""
+        TOML text with their names (file names, or a description when they came from elsewhere).
+        ``flush_interval_s`` and ``clock`` (wall seconds) set the flush cadence; tests pass a
+        simulated clock."""
         path = Path(path)
         try:
             file = h5py.File(path, "x", libver=s.LIBVER, track_order=True)
@@ -87,12 +93,18 @@ class CampaignWriter:
         attrs["sequence_toml"] = sequence_toml
         file.create_group(s.RUNS, track_order=True)
         _create_table(file, s.EVENTS, s.EVENT_DTYPE)
-        writer = cls(file, path, flush_interval_s=flush_interval_s)
+        writer = cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
         writer.flush()
         return writer
 
     @classmethod
-    def open_append(cls, path: str | Path, *, flush_interval_s: float = s.FLUSH_INTERVAL_S) -> CampaignWriter:
+    def open_append(
+        cls,
+        path: str | Path,
+        *,
+        flush_interval_s: float = s.FLUSH_INTERVAL_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> CampaignWriter:
         """Reopen a campaign file to resume it; the file is checked by the reader first, so a file
         that does not follow the schema is refused before anything is written to it."""
         path = Path(path)
@@ -101,7 +113,7 @@ class CampaignWriter:
             file = h5py.File(path, "r+")
         except OSError as err:
             raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
-        return cls(file, path, flush_interval_s=flush_interval_s)
+        return cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
 
     def __enter__(self) -> CampaignWriter:
         return self
@@ -219,7 +231,7 @@ class CampaignWriter:
             self._run._write_pending()
         self._file.flush()
         os.fsync(self._file.id.get_vfd_handle())
-        self._last_flush_wall_s = time.monotonic()
+        self._last_flush_wall_s = self._clock()
         if self._run is not None:
             self._run._flushed()
 
@@ -230,7 +242,7 @@ class CampaignWriter:
         run = self._run
         pending = run.samples - run.durable_samples if run is not None else 0
         due_samples = run is not None and pending >= self.flush_interval_s * run.sample_rate_hz
-        if due_samples or time.monotonic() - self._last_flush_wall_s >= self.flush_interval_s:
+        if due_samples or self._clock() - self._last_flush_wall_s >= self.flush_interval_s:
             self.flush()
             return True
         return False
