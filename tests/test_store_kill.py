@@ -135,6 +135,7 @@ def test_killed_writer_leaves_a_readable_file_short_of_at_most_one_second(tmp_pa
         assert sorted(run.completed_point_indices()) == list(range(len(run.points)))
         assert durable_points <= run.completed_point_indices()
         assert len(run.dwell_records()) == len(run.points)
+        next_index = len(run.points)
 
     if shutil.which("h5dump"):
         subprocess.run(["h5dump", "-H", str(path)], capture_output=True, timeout=60, check=True)
@@ -146,6 +147,19 @@ def test_killed_writer_leaves_a_readable_file_short_of_at_most_one_second(tmp_pa
             check=True,
         ).stdout
         assert f"({n - 1}): {n - 1}\n" in out
+
+    # resume: continue the run after its durable end, redo the interrupted point, finish
+    with CampaignWriter.open_append(path) as writer:
+        run = writer.continue_run("001-grid")
+        start = run.samples
+        run.append(expected(start, POINT))
+        run.add_point(PointRow(next_index, 10.0, 1.0, start, start + 100, start + POINT, start + POINT))
+        run.finish("complete")
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        indices = [p.index for p in run.points]
+        assert indices == list(range(next_index + 1)), "every point exactly once"
+        assert run.status == "complete"
 
 
 if __name__ == "__main__":

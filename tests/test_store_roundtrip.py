@@ -387,3 +387,36 @@ def test_flush_cadence_is_one_second_of_samples_or_of_wall_time(tmp_path):
     run.add_point(PointRow(0, 1.0, 1.0, 0, 0, 1030, 1030))  # a done point is durable at once
     assert run.durable_samples == 1030
     writer.close()
+
+
+def test_a_continued_run_that_resumes_another_keeps_the_whole_chain_once(campaign):
+    path, writer = campaign
+    run = writer.begin_run(
+        "a", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ
+    )
+    run.append(_dwell_block(0, *DWELLS[0]))
+    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    writer.close()
+    with CampaignWriter.open_append(path) as writer:
+        run = writer.begin_run(
+            "b",
+            kind="dwell_grid",
+            step={},
+            conditions={},
+            channels=CHANNELS,
+            sample_rate_hz=FS_HZ,
+            resumes="a",
+        )
+        run.append(_dwell_block(0, *DWELLS[1]))
+        run.add_point(PointRow(1, 12.5, 2.0, 0, 500, 2500, 3000))
+    with CampaignWriter.open_append(path) as writer:
+        run = writer.continue_run("b")
+        run.append(_dwell_block(3000, *DWELLS[2]))
+        for index in (0, 1):  # done in "a" and in "b" before the interruption
+            with pytest.raises(StoreError, match=f"point {index} is done already"):
+                run.add_point(PointRow(index, 31.0, 1.0, 3000, 3500, 5500, 6000))
+        run.add_point(PointRow(2, 31.0, 1.0, 3000, 3500, 5500, 6000))
+        run.finish("complete")
+    with open_campaign(path) as f:
+        assert f.run("b").completed_point_indices() == {0, 1, 2}
+        assert [r.freq_hz for r in f.run("b").dwell_records()] == [5.0, 12.5, 31.0]

@@ -207,14 +207,14 @@ class CampaignWriter:
         point; the engine repeats that point."""
         where = f"/{s.RUNS}/{run_id}"
         self._check_no_open_run(where)
-        self._resumable(run_id)
+        done = self._resumable(run_id)
         group = self._file[s.RUNS][run_id]
         lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
         usable = min(lengths.values(), default=0)
         for name, length in lengths.items():
             if length > usable:  # the writer died between two channels' appends: cut to the common length
                 group[s.CHANNELS][name].resize((usable,))
-        self._run = RunWriter(self, group, done_before=frozenset())
+        self._run = RunWriter(self, group, done_before=done)
         self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
         self.flush()
         return self._run
