@@ -221,7 +221,7 @@ class RunView:
             raise StoreError(
                 path, f"{where}/{s.CHANNELS}", f"channels of a finished run differ in length: {lengths}"
             )
-        self.channels: Mapping[str, np.ndarray] = _Channels(path, datasets, self.n_samples)
+        self.channels = _Channels(path, datasets, self.n_samples)
         self.points = _read_points(path, _member(path, group, s.POINTS, h5py.Dataset), self.n_samples)
         self.events = _read_events(path, _member(path, group, s.EVENTS, h5py.Dataset))
         self.link_counters = {
@@ -301,7 +301,7 @@ class RunView:
         self._require(("dwell_grid", "free_run"), "dwell records")
         records = []
         for run, p in self._done_points():
-            channels = run.channels.slice(p.start_sample, p.end_sample)  # type: ignore[attr-defined]
+            channels = run.channels.slice(p.start_sample, p.end_sample)
             fs = run.sample_rate_hz
             hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
             records.append(DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s=hold_s))
@@ -322,7 +322,7 @@ class RunView:
                 self.path, f"/{s.RUNS}/{self.run_id}@step", f"no number for {', '.join(missing)}"
             )
         run, p = self._single_point(0)
-        channels = run.channels.slice(p.start_sample, p.end_sample)  # type: ignore[attr-defined]
+        channels = run.channels.slice(p.start_sample, p.end_sample)
         step = self.step
         return SweepRecord(
             float(step["start_hz"]),
@@ -337,7 +337,7 @@ class RunView:
         """Hammer blow ``blow`` (its point index) at the run's sample rate."""
         self._require(("hammer",), "hammer record")
         run, p = self._single_point(blow)
-        return HammerRecord(run.sample_rate_hz, run.channels.slice(p.start_sample, p.end_sample))  # type: ignore[attr-defined]
+        return HammerRecord(run.sample_rate_hz, run.channels.slice(p.start_sample, p.end_sample))
 
 
 def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[PointRow, ...]:
