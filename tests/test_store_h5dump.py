@@ -126,7 +126,7 @@ def _matches(doc: Documented, obj: DumpedObject) -> bool:
             obj.kind == "dataset"
             and obj.dtype == f"compound({' '.join(doc.types)})"
             and obj.space == "unlimited"
-            and "gzip" in obj.filters
+            and obj.filters == []
         )
     if doc.kind == "channel":
         return (

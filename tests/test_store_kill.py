@@ -72,17 +72,25 @@ def write_until_killed(path: Path) -> None:
         sample_rate_hz=FS_HZ,
     )
     durable = 0
-    while True:
-        start = run.samples
-        run.append(expected(start, BLOCK))
-        print(f"appended {run.samples}", flush=True)
-        if run.samples % POINT == 0:
-            index = run.samples // POINT - 1
-            run.add_point(PointRow(index, 10.0, 1.0, start + BLOCK - POINT, start - 800, start, run.samples))
-            print(f"done {index}", flush=True)
+
+    def report(what: str) -> None:
+        nonlocal durable
+        print(what, flush=True)
         if run.durable_samples != durable:
             durable = run.durable_samples
             print(f"durable {durable}", flush=True)
+
+    while True:
+        start = run.samples
+        run.append(expected(start, BLOCK))
+        report(f"appended {run.samples}")
+        if run.samples % (POINT // 2) == 0:
+            run.add_event("state", "half a point", samples=run.samples)
+            report(f"event {run.samples}")
+        if run.samples % POINT == 0:
+            index = run.samples // POINT - 1
+            run.add_point(PointRow(index, 10.0, 1.0, start + BLOCK - POINT, start - 800, start, run.samples))
+            report(f"done {index}")
 
 
 def _kill_after_durable(path: Path, min_durable: int) -> list[tuple[str, int]]:
@@ -135,6 +143,8 @@ def test_killed_writer_leaves_a_readable_file_short_of_at_most_one_second(tmp_pa
         assert sorted(run.completed_point_indices()) == list(range(len(run.points)))
         assert durable_points <= run.completed_point_indices()
         assert len(run.dwell_records()) == len(run.points)
+        durable_events = {v for k, v in reports[:last_durable_at] if k == "event"}
+        assert durable_events <= {e.fields["samples"] for e in run.events}
         next_index = len(run.points)
 
     if shutil.which("h5dump"):

@@ -371,22 +371,26 @@ def test_flush_cadence_is_one_second_of_samples_or_of_wall_time(tmp_path):
     run.append({"z_base_m": np.zeros(1)})  # one second of samples: flushed
     assert run.durable_samples == 1000
     run.append({"z_base_m": np.zeros(10)})
+    run.add_point(PointRow(0, 1.0, 1.0, 0, 0, 1010, 1010))
     clock.now_s = 0.999
     assert not writer.flush_if_due()
-    assert run.durable_samples == 1000
-    clock.now_s = 1.0  # one second of wall time with few samples (a stalled stream): flushed
+    clock.now_s = 1.0  # one second of wall time: flushed, but a partial chunk waits for the run's end
     assert writer.flush_if_due()
-    assert run.durable_samples == 1010
-    run.append({"z_base_m": np.zeros(10)})
+    assert run.durable_samples == 1000
     run.add_event("state", "paused")  # any write checks the cadence
-    assert run.durable_samples == 1010
     clock.now_s = 2.5
     run.add_event("state", "running")
-    assert run.durable_samples == 1020
-    run.append({"z_base_m": np.zeros(10)})
-    run.add_point(PointRow(0, 1.0, 1.0, 0, 0, 1030, 1030))  # a done point is durable at once
-    assert run.durable_samples == 1030
+    assert run.durable_samples == 1000
+    run.append({"z_base_m": np.zeros(990)})  # the second chunk is full
+    assert run.durable_samples == 2000
+    run.append({"z_base_m": np.zeros(5)})
+    run.finish("complete")  # the last partial chunk
+    assert run.durable_samples == 2005
     writer.close()
+    with open_campaign(tmp_path / "c.h5") as f:
+        (view,) = f.runs
+        assert (view.n_samples, [p.end_sample for p in view.points]) == (2005, [1010])
+        assert [e.text for e in view.events] == ["paused", "running"]
 
 
 def test_a_continued_run_that_resumes_another_keeps_the_whole_chain_once(campaign):

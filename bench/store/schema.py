@@ -28,11 +28,14 @@ LIBVER = ("v108", "v110")
 
 #: Writer cadence: the file is flushed once this much sample time or wall time has passed since
 #: the last flush (checked on every write), so at most this much of the recording is ever at risk.
+#: A channel's chunk holds this much sample time.
 FLUSH_INTERVAL_S = 1.0
 
-#: Samples per chunk of a channel dataset (about 4 s at 1 kHz; 16 KiB of float32 before gzip).
-CHUNK_SAMPLES = 4096
-#: Rows per chunk of the points and events tables.
+#: File-space strategy: freed file space is never reused while the file is open, so a write
+#: never lands where the last flushed state of the file still points.
+FS_STRATEGY = "none"
+#: Rows per chunk of the points and events tables (uncompressed: a table's last chunk is
+#: rewritten as rows arrive, which only an unfiltered chunk survives a crash in the middle of).
 TABLE_CHUNK_ROWS = 64
 GZIP_LEVEL = 1
 

@@ -1,13 +1,15 @@
 """Write a campaign file incrementally: one run at a time, blocks of samples as they arrive.
 
-Durability is flush-based (why not SWMR: ``docs/hdf5.md``). Sample blocks are kept in memory
-until the next flush, which writes them (one resize and one write per channel, however many blocks
-arrived) and then flushes the whole file and ``fsync`` s it. Every write checks the cadence and
-flushes once :data:`~bench.store.schema.FLUSH_INTERVAL_S` of
-sample time or of wall time has passed since the last flush; :meth:`RunWriter.flush` forces one.
-Between flushes nothing is promised; after one, everything written so far survives the writer
-being killed. A run is created with status ``"incomplete"`` and keeps it until
-:meth:`RunWriter.finish`, so a run whose writer died reads as incomplete.
+Durability is flush-based (why not SWMR, and why this is safe: ``docs/hdf5.md``). A channel's
+chunk holds one flush interval of samples. Sample blocks are kept in memory until a flush, which
+writes the whole chunks they fill (one write per channel), the point rows whose samples are now
+written, then flushes the whole file and ``fsync`` s it. A chunk is written once and never
+rewritten, so a writer killed in the middle of a flush cannot damage what an earlier flush made
+durable; the last, partial chunk is written when the run ends. Every write checks the cadence and
+flushes once a chunk is full or :data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has
+passed since the last flush, so less than one flush interval of samples is ever at risk. A run is
+created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a run whose
+writer died reads as incomplete.
 
 Resume (``docs/hdf5.md``): :meth:`CampaignWriter.open_append` reopens a file;
 :meth:`CampaignWriter.continue_run` goes on writing an incomplete run where its durable data ends,
@@ -77,7 +79,7 @@ class CampaignWriter:
         simulated clock."""
         path = Path(path)
         try:
-            file = h5py.File(path, "x", libver=s.LIBVER, track_order=True)
+            file = h5py.File(path, "x", libver=s.LIBVER, track_order=True, fs_strategy=s.FS_STRATEGY)
         except FileExistsError as err:
             raise StoreError(path, "", "exists already; resume it or choose another name") from err
         except OSError as err:
@@ -113,6 +115,7 @@ class CampaignWriter:
             file = h5py.File(path, "r+")
         except OSError as err:
             raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
+        _rebuild_table(file, s.EVENTS, s.EVENT_DTYPE)
         return cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
 
     def __enter__(self) -> CampaignWriter:
@@ -182,7 +185,7 @@ class CampaignWriter:
                 shape=(0,),
                 maxshape=(None,),
                 dtype=np.dtype(spec.dtype).newbyteorder("<"),
-                chunks=(s.CHUNK_SAMPLES,),
+                chunks=(max(1, int(sample_rate_hz * self.flush_interval_s)),),
                 compression="gzip",
                 compression_opts=s.GZIP_LEVEL,
                 shuffle=True,
@@ -214,6 +217,8 @@ class CampaignWriter:
         for name, length in lengths.items():
             if length > usable:  # the writer died between two channels' appends: cut to the common length
                 group[s.CHANNELS][name].resize((usable,))
+        _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
+        _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
         self._run = RunWriter(self, group, done_before=done)
         self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
         self.flush()
@@ -226,9 +231,14 @@ class CampaignWriter:
         self.flush_if_due()
 
     def flush(self) -> None:
-        """Make everything written so far durable: HDF5 flush, then fsync of the file."""
+        """Make durable what can be written safely: the whole chunks of samples, the point rows
+        whose samples they hold, events, attributes; HDF5 flush, then fsync of the file."""
+        self._flush(final=False)
+
+    def _flush(self, *, final: bool) -> None:
+        """``final``: the run ends, so its last partial chunk is written too."""
         if self._run is not None:
-            self._run._write_pending()
+            self._run._write_pending(final=final)
         self._file.flush()
         os.fsync(self._file.id.get_vfd_handle())
         self._last_flush_wall_s = self._clock()
@@ -236,12 +246,11 @@ class CampaignWriter:
             self._run._flushed()
 
     def flush_if_due(self) -> bool:
-        """Flush when the open run's unflushed samples span the flush interval or the interval's
-        wall time has passed; returns whether it flushed. Every write calls it; an engine whose
-        stream stalls calls it from its idle loop too."""
+        """Flush when the open run's unwritten samples fill a chunk (one flush interval of
+        samples) or the interval's wall time has passed; returns whether it flushed. Every write
+        calls it; an engine whose stream stalls calls it from its idle loop too."""
         run = self._run
-        pending = run.samples - run.durable_samples if run is not None else 0
-        due_samples = run is not None and pending >= self.flush_interval_s * run.sample_rate_hz
+        due_samples = run is not None and run.samples - run.durable_samples >= run.chunk_samples
         if due_samples or self._clock() - self._last_flush_wall_s >= self.flush_interval_s:
             self.flush()
             return True
@@ -249,7 +258,7 @@ class CampaignWriter:
 
     def close(self) -> None:
         if self._file.id.valid:
-            self.flush()
+            self._flush(final=True)
             self._file.close()
         self._run = None
 
@@ -279,7 +288,7 @@ class CampaignWriter:
 
     def _run_closed(self, run: RunWriter) -> None:
         if self._run is run:
-            self.flush()
+            self._flush(final=True)
             self._run = None
 
 
@@ -292,9 +301,11 @@ class RunWriter:
         self.run_id = group.name.rsplit("/", 1)[-1]
         self.sample_rate_hz = float(group.attrs["sample_rate_hz"])
         self._channels: dict[str, h5py.Dataset] = dict(group[s.CHANNELS].items())
+        self.chunk_samples = next(iter(self._channels.values())).chunks[0]
         self._samples = min((ds.shape[0] for ds in self._channels.values()), default=0)
-        self._durable_samples = self._samples
+        self._written = self._durable_samples = self._samples
         self._pending: dict[str, list[np.ndarray]] = {name: [] for name in self._channels}
+        self._pending_rows: list[np.ndarray] = []  # point rows waiting for their samples
         self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
         self.is_open = True
 
@@ -305,7 +316,7 @@ class RunWriter:
 
     @property
     def durable_samples(self) -> int:
-        """Samples made durable by the last flush."""
+        """Samples made durable by the last flush (whole chunks until the run ends)."""
         return self._durable_samples
 
     def append(self, columns: Mapping[str, np.ndarray]) -> None:
@@ -355,7 +366,7 @@ class RunWriter:
     def add_point(self, row: PointRow) -> None:
         """Add one row to the points table. A point index can be ``"done"`` once only in a step
         (this run and the runs it resumes); its sample positions must lie in what was recorded.
-        A done row is flushed at once, so a resume never repeats a point that was reported done."""
+        The row goes to the file with the flush that writes its last sample, never before."""
         where = f"{self._group.name}/{s.POINTS}"
         self._check_open(where)
         if row.status not in s.POINT_STATUSES:
@@ -379,14 +390,11 @@ class RunWriter:
                 f"point {row.index}: samples start {row.start_sample} <= hold {row.hold_start_sample}.."
                 f"{row.hold_end_sample} <= end {row.end_sample} <= recorded {self._samples} do not hold",
             )
-        table = self._group[s.POINTS]
         record = np.array([tuple(getattr(row, name) for name in s.POINT_DTYPE.names)], dtype=s.POINT_DTYPE)
-        _append_rows(table, record)
-        if row.status == "done":  # a done point is what a resume starts from: durable at once
+        self._pending_rows.append(record)
+        if row.status == "done":
             self._done |= {row.index}
-            self._campaign.flush()
-        else:
-            self._campaign.flush_if_due()
+        self._campaign.flush_if_due()
 
     def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
         """An event of this run (prompt and answer, interlock, state change, link gap, ...), at the
@@ -446,19 +454,26 @@ class RunWriter:
         self.is_open = False
         self._campaign._run_closed(self)
 
-    def _write_pending(self) -> None:
-        """Write the blocks appended since the last flush: one resize and one write per channel."""
-        for name, blocks in self._pending.items():
-            if blocks:
-                ds = self._channels[name]
+    def _write_pending(self, *, final: bool) -> None:
+        """Write the whole chunks the pending blocks fill (all of them when ``final``), one resize
+        and one write per channel, then the point rows whose samples are written."""
+        upto = self._samples if final else self._samples // self.chunk_samples * self.chunk_samples
+        if upto > self._written:
+            n = upto - self._written
+            for name, blocks in self._pending.items():
                 data = np.concatenate(blocks)
-                start = ds.shape[0]
-                ds.resize((start + data.shape[0],))
-                ds[start:] = data
-                blocks.clear()
+                ds = self._channels[name]
+                ds.resize((upto,))
+                ds[self._written :] = data[:n]
+                blocks[:] = [data[n:]] if n < data.shape[0] else []
+            self._written = upto
+        ready = [row for row in self._pending_rows if row["end_sample"][0] <= self._written]
+        if ready:
+            _append_rows(self._group[s.POINTS], np.concatenate(ready))
+            self._pending_rows = [row for row in self._pending_rows if row["end_sample"][0] > self._written]
 
     def _flushed(self) -> None:
-        self._durable_samples = self._samples
+        self._durable_samples = self._written
 
     def _check_open(self, where: str) -> None:
         if not self.is_open and not where.startswith(f"{self._group.name}/{s.RESULTS}"):
@@ -491,9 +506,19 @@ def _create_table(parent: h5py.Group, name: str, dtype: np.dtype) -> None:
         maxshape=(None,),
         dtype=dtype,
         chunks=(s.TABLE_CHUNK_ROWS,),
-        compression="gzip",
-        compression_opts=s.GZIP_LEVEL,
     )
+
+
+def _rebuild_table(parent: h5py.Group, name: str, dtype: np.dtype) -> None:
+    """Recreate a table with its rows before appending to it in a new session. A writer killed
+    after writing rows into the table's last chunk but before flushing its new length leaves those
+    rows' string references behind the table's end; HDF5 would try to free them when new rows are
+    written over them, and fail. A fresh dataset has no such leftovers."""
+    rows = parent[name][()]
+    del parent[name]
+    _create_table(parent, name, dtype)
+    if rows.shape[0]:
+        _append_rows(parent[name], rows)
 
 
 def _append_rows(table: h5py.Dataset, rows: np.ndarray) -> None:
