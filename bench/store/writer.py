@@ -350,8 +350,8 @@ class RunWriter:
         if array.ndim != 1:
             raise StoreError(self._campaign.path, where, f"a block must be 1-D, got shape {array.shape}")
         dtype = self._channels[name].dtype
-        if dtype.kind == "f":
-            return array.astype(dtype, copy=False)
+        if dtype.kind == "f":  # a copy: the block is held until the flush, the caller may reuse its buffer
+            return array.astype(dtype)
         if array.dtype.kind not in "iu":
             raise StoreError(self._campaign.path, where, f"{dtype} channel given {array.dtype} values")
         low, high = _DTYPE_LIMITS[dtype.str[1:]]
