@@ -424,3 +424,17 @@ def test_a_continued_run_that_resumes_another_keeps_the_whole_chain_once(campaig
     with open_campaign(path) as f:
         assert f.run("b").completed_point_indices() == {0, 1, 2}
         assert [r.freq_hz for r in f.run("b").dwell_records()] == [5.0, 12.5, 31.0]
+
+
+def test_a_block_is_copied_so_the_caller_may_reuse_its_buffer(campaign):
+    path, writer = campaign
+    run = writer.begin_run(
+        "r", kind="sweep", step={}, conditions={}, channels=CHANNELS[1:2], sample_rate_hz=FS_HZ
+    )
+    buffer = np.arange(10, dtype=np.float32)
+    run.append({"z_base_m": buffer})
+    buffer[:] = -1.0  # the acquisition refills its buffer before the writer flushes
+    run.finish("complete")
+    writer.close()
+    with open_campaign(path) as f:
+        np.testing.assert_array_equal(f.runs[0].channels["z_base_m"], np.arange(10, dtype=np.float32))
