@@ -1,0 +1,402 @@
+"""Read a campaign file, whatever wrote it, into the analysis's records.
+
+:func:`open_campaign` checks the whole file against the schema before returning (names, versions,
+attributes, JSON texts, dtypes, every point's sample range), so a bad file is refused at once with
+its path and the place inside it; sample data are read only when asked for. The analysis records
+come from the points table: one :class:`~bench.analysis.records.DwellRecord` per done point,
+sliced from the run's channels by its sample positions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from itertools import pairwise
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from bench.analysis.records import (
+    FREE_RUN_CHANNELS,
+    WFS_FORCE,
+    WHEEL_CHANNELS,
+    DwellRecord,
+    HammerRecord,
+    SweepRecord,
+)
+from bench.store import schema as s
+from bench.store.results import read_tree
+from bench.store.schema import ChannelSpec, PointRow, StoreError
+
+#: Channels each kind of run needs for its analysis records.
+REQUIRED_CHANNELS = {
+    "dwell_grid": WHEEL_CHANNELS,
+    "free_run": FREE_RUN_CHANNELS,
+    "sweep": WHEEL_CHANNELS,
+    "hammer": (WFS_FORCE,),
+}
+_ROOT_TEXT_ATTRS = (
+    "software_version",
+    "created",
+    "config_name",
+    "config_toml",
+    "sequence_name",
+    "sequence_toml",
+)
+_RUN_TEXT_ATTRS = (
+    "kind",
+    "status",
+    "reason",
+    "started",
+    "finished",
+    "step",
+    "conditions",
+    "resumes",
+    "resumed_by",
+)
+_SWEEP_KEYS = ("start_hz", "end_hz", "duration_s", "amplitude_mm")
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """One row of an ``events`` table; ``sample`` is the run's recorded length when it happened
+    (-1 for campaign-level events)."""
+
+    time_unix_s: float
+    sample: int
+    kind: str
+    text: str
+    fields: Mapping[str, Any] = field(default_factory=dict)
+
+
+def open_campaign(path: str | Path) -> CampaignFile:
+    """Open and check the campaign file at ``path``; close it with ``close()`` or a ``with`` block."""
+    path = Path(path)
+    try:
+        file = h5py.File(path, "r")
+    except FileNotFoundError as err:
+        raise StoreError(path, "", "no such file") from err
+    except OSError as err:
+        raise StoreError(path, "", f"not a readable HDF5 file ({err})") from err
+    try:
+        return CampaignFile(file, path)
+    except BaseException:
+        file.close()
+        raise
+
+
+@contextmanager
+def _reading(path: Path, where: str) -> Iterator[None]:
+    """HDF5's own errors (a truncated or damaged file) as a :class:`StoreError` naming ``where``."""
+    try:
+        yield
+    except (OSError, RuntimeError, KeyError) as err:
+        raise StoreError(path, where, f"unreadable ({err})") from err
+
+
+def _attr(path: Path, obj: h5py.HLObject, name: str, kind: type) -> Any:
+    where = f"{obj.name}@{name}"
+    if name not in obj.attrs:
+        raise StoreError(path, where, "missing attribute")
+    value = obj.attrs[name]
+    if kind is str:
+        if isinstance(value, bytes):
+            value = value.decode()
+        if not isinstance(value, str):
+            raise StoreError(path, where, f"must be text, found {value!r}")
+        return value
+    if not isinstance(value, int | float | np.integer | np.floating) or isinstance(value, bool | np.bool_):
+        raise StoreError(path, where, f"must be a number, found {value!r}")
+    return kind(value)
+
+
+def _member(path: Path, group: h5py.Group, name: str, kind: type) -> Any:
+    where = f"{group.name}/{name}".replace("//", "/")
+    item = group.get(name)
+    if item is None:
+        raise StoreError(path, where, f"missing {'group' if kind is h5py.Group else 'dataset'}")
+    if not isinstance(item, kind):
+        raise StoreError(path, where, f"must be a {'group' if kind is h5py.Group else 'dataset'}")
+    return item
+
+
+def _text(value: bytes | str) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+class CampaignFile:
+    """A checked campaign file: what produced it, its runs in the order they began, its events."""
+
+    def __init__(self, file: h5py.File, path: Path) -> None:
+        self._file, self.path = file, path
+        with _reading(path, "/"):
+            schema = _attr(path, file, "schema", str) if "schema" in file.attrs else None
+            if schema != s.SCHEMA_NAME:
+                raise StoreError(path, "/@schema", f"is {schema!r}, not a {s.SCHEMA_NAME!r} file")
+            version = _attr(path, file, "schema_version", int)
+            if version != s.SCHEMA_VERSION:
+                raise StoreError(
+                    path, "/@schema_version", f"is {version}; this software reads version {s.SCHEMA_VERSION}"
+                )
+            self.schema_version = version
+            info = {name: _attr(path, file, name, str) for name in _ROOT_TEXT_ATTRS}
+            self.software_version, self.created = info["software_version"], info["created"]
+            self.config_name, self.config_toml = info["config_name"], info["config_toml"]
+            self.sequence_name, self.sequence_toml = info["sequence_name"], info["sequence_toml"]
+            self.events = _read_events(path, _member(path, file, s.EVENTS, h5py.Dataset))
+            runs = _member(path, file, s.RUNS, h5py.Group)
+            self.runs = tuple(RunView(path, runs[run_id], self.run) for run_id in runs)
+        self._by_id = {run.run_id: run for run in self.runs}
+
+    def run(self, run_id: str) -> RunView:
+        if run_id not in self._by_id:
+            raise StoreError(
+                self.path, f"/{s.RUNS}/{run_id}", f"no such run (runs: {', '.join(self._by_id)})"
+            )
+        return self._by_id[run_id]
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> CampaignFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class _Channels(Mapping[str, np.ndarray]):
+    """A run's channels by name, each read from the file when asked for (its first ``n`` samples)."""
+
+    def __init__(self, path: Path, datasets: Mapping[str, h5py.Dataset], n: int) -> None:
+        self._path, self._datasets, self._n = path, datasets, n
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        ds = self._datasets[name]
+        with _reading(self._path, ds.name):
+            return ds[: self._n]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._datasets)
+
+    def __len__(self) -> int:
+        return len(self._datasets)
+
+    def slice(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        out = {}
+        for name, ds in self._datasets.items():
+            with _reading(self._path, ds.name):
+                out[name] = ds[start:stop]
+        return out
+
+
+class RunView:
+    """One checked run: attributes, channel specs, points, events; samples read on demand."""
+
+    def __init__(self, path: Path, group: h5py.Group, lookup: Callable[[str], RunView]) -> None:
+        self.path, self._lookup = path, lookup
+        where = group.name
+        self.run_id = where.rsplit("/", 1)[-1]
+        text = {name: _attr(path, group, name, str) for name in _RUN_TEXT_ATTRS}
+        self.kind, self.status, self.reason = text["kind"], text["status"], text["reason"]
+        self.started, self.finished = text["started"], text["finished"]
+        self.resumes, self.resumed_by = text["resumes"] or None, text["resumed_by"] or None
+        if self.kind not in s.RUN_KINDS:
+            raise StoreError(path, f"{where}@kind", f"{self.kind!r} is not one of {', '.join(s.RUN_KINDS)}")
+        if self.status not in (*s.FINISH_STATUSES, s.INCOMPLETE):
+            raise StoreError(path, f"{where}@status", f"{self.status!r} is not a run status")
+        self.step = s.from_json(text["step"], path=path, where=f"{where}@step")
+        self.conditions = s.from_json(text["conditions"], path=path, where=f"{where}@conditions")
+        self.sample_rate_hz = _attr(path, group, "sample_rate_hz", float)
+        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
+            raise StoreError(path, f"{where}@sample_rate_hz", f"{self.sample_rate_hz} must be positive")
+        datasets = self._channel_datasets(_member(path, group, s.CHANNELS, h5py.Group))
+        lengths = {name: ds.shape[0] for name, ds in datasets.items()}
+        self.n_samples = min(lengths.values(), default=0)
+        if self.status != s.INCOMPLETE and len(set(lengths.values())) > 1:
+            raise StoreError(
+                path, f"{where}/{s.CHANNELS}", f"channels of a finished run differ in length: {lengths}"
+            )
+        self.channels = _Channels(path, datasets, self.n_samples)
+        self.points = _read_points(path, _member(path, group, s.POINTS, h5py.Dataset), self.n_samples)
+        self.events = _read_events(path, _member(path, group, s.EVENTS, h5py.Dataset))
+        self.link_counters = {
+            k: v.item() if isinstance(v, np.generic) else v
+            for k, v in _member(path, group, s.LINK, h5py.Group).attrs.items()
+        }
+        self._results = _member(path, group, s.RESULTS, h5py.Group)
+
+    def _channel_datasets(self, group: h5py.Group) -> dict[str, h5py.Dataset]:
+        datasets = {}
+        specs = []
+        for name, item in group.items():
+            where = f"{group.name}/{name}"
+            if not isinstance(item, h5py.Dataset) or item.ndim != 1:
+                raise StoreError(self.path, where, "a channel must be a 1-D dataset")
+            if item.dtype.str[1:] not in s.CHANNEL_DTYPES:
+                raise StoreError(self.path, where, f"dtype {item.dtype} is not one of {s.CHANNEL_DTYPES}")
+            rate = _attr(self.path, item, "sample_rate_hz", float)
+            if rate != self.sample_rate_hz:
+                raise StoreError(self.path, f"{where}@sample_rate_hz", f"{rate} Hz differs from the run's")
+            unit = _attr(self.path, item, "unit", str)
+            description = _attr(self.path, item, "description", str)
+            specs.append(ChannelSpec(name, unit, item.dtype.str[1:], description))
+            datasets[name] = item
+        self.channel_specs = tuple(specs)
+        return datasets
+
+    @property
+    def result_names(self) -> tuple[str, ...]:
+        return tuple(self._results)
+
+    def results(self, name: str) -> dict[str, Any]:
+        """The stored result ``name`` as the nested mapping it was written from."""
+        where = f"{self._results.name}/{name}"
+        if name not in self._results:
+            raise StoreError(self.path, where, f"no such result (has {', '.join(self._results) or 'none'})")
+        with _reading(self.path, where):
+            return read_tree(self._results[name], path=self.path)
+
+    def _chain(self) -> list[RunView]:
+        """This run and the runs it resumes, oldest first."""
+        chain, run = [self], self
+        while run.resumes is not None:
+            run = self._lookup(run.resumes)
+            if run in chain:
+                raise StoreError(
+                    self.path, f"/{s.RUNS}/{run.run_id}@resumes", "runs resume each other in a loop"
+                )
+            chain.insert(0, run)
+        return chain
+
+    def completed_point_indices(self) -> frozenset[int]:
+        """Indices of the step's points done in this run or in the runs it resumes: a resume skips
+        them."""
+        return frozenset(p.index for run in self._chain() for p in run.points if p.status == "done")
+
+    def _done_points(self) -> list[tuple[RunView, PointRow]]:
+        done = [(run, p) for run in self._chain() for p in run.points if p.status == "done"]
+        return sorted(done, key=lambda item: item[1].index)
+
+    def _require(self, kinds: tuple[str, ...], what: str) -> None:
+        if self.kind not in kinds:
+            raise StoreError(self.path, f"/{s.RUNS}/{self.run_id}@kind", f"a {self.kind} run has no {what}")
+        missing = [c for c in REQUIRED_CHANNELS[self.kind] if c not in self.channels]
+        if missing:
+            raise StoreError(
+                self.path,
+                f"/{s.RUNS}/{self.run_id}/{s.CHANNELS}/{missing[0]}",
+                f"missing: a {self.kind} run needs {', '.join(REQUIRED_CHANNELS[self.kind])}"
+                f" (it has {', '.join(self.channels)})",
+            )
+
+    def dwell_records(self) -> list[DwellRecord]:
+        """One record per done point of a dwell grid or free run (and of the runs it resumes), in
+        point order: the run's channels from ``start_sample`` to ``end_sample``, ``hold_s`` from the
+        hold samples, the amplitude as commanded (``amplitude_mm``)."""
+        self._require(("dwell_grid", "free_run"), "dwell records")
+        records = []
+        for run, p in self._done_points():
+            channels = run.channels.slice(p.start_sample, p.end_sample)
+            fs = run.sample_rate_hz
+            hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
+            records.append(DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s=hold_s))
+        return records
+
+    def _single_point(self, index: int) -> tuple[RunView, PointRow]:
+        for run, p in self._done_points():
+            if p.index == index:
+                return run, p
+        raise StoreError(self.path, f"/{s.RUNS}/{self.run_id}/{s.POINTS}", f"no done point {index}")
+
+    def sweep_record(self) -> SweepRecord:
+        """The sweep (point 0) with its start, end, duration and amplitude from the run's step."""
+        self._require(("sweep",), "sweep record")
+        missing = [k for k in _SWEEP_KEYS if not isinstance(self.step.get(k), int | float)]
+        if missing:
+            raise StoreError(
+                self.path, f"/{s.RUNS}/{self.run_id}@step", f"no number for {', '.join(missing)}"
+            )
+        run, p = self._single_point(0)
+        channels = run.channels.slice(p.start_sample, p.end_sample)
+        step = self.step
+        return SweepRecord(
+            float(step["start_hz"]),
+            float(step["end_hz"]),
+            float(step["duration_s"]),
+            float(step["amplitude_mm"]) * 1e-3,
+            run.sample_rate_hz,
+            channels,
+        )
+
+    def hammer_record(self, blow: int = 0) -> HammerRecord:
+        """Hammer blow ``blow`` (its point index) at the run's sample rate."""
+        self._require(("hammer",), "hammer record")
+        run, p = self._single_point(blow)
+        return HammerRecord(run.sample_rate_hz, run.channels.slice(p.start_sample, p.end_sample))
+
+
+def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[PointRow, ...]:
+    missing = [
+        name for name in s.POINT_DTYPE.names if table.dtype.names is None or name not in table.dtype.names
+    ]
+    if missing:
+        raise StoreError(path, table.name, f"points table lacks field(s) {', '.join(missing)}")
+    with _reading(path, table.name):
+        rows = table[()]
+    points = []
+    for i, row in enumerate(rows):
+        where = f"{table.name}[{i}]"
+        p = PointRow(
+            index=int(row["index"]),
+            freq_hz=float(row["freq_hz"]),
+            amplitude_mm=float(row["amplitude_mm"]),
+            start_sample=int(row["start_sample"]),
+            hold_start_sample=int(row["hold_start_sample"]),
+            hold_end_sample=int(row["hold_end_sample"]),
+            end_sample=int(row["end_sample"]),
+            status=_text(row["status"]),
+            attempt=int(row["attempt"]),
+            requested_amplitude_mm=float(row["requested_amplitude_mm"]),
+            corrected_amplitude_mm=float(row["corrected_amplitude_mm"]),
+            achieved_amplitude_mm=float(row["achieved_amplitude_mm"]),
+            settled=bool(row["settled"]),
+            note=_text(row["note"]),
+        )
+        if p.status not in s.POINT_STATUSES:
+            raise StoreError(path, f"{where}.status", f"{p.status!r} is not one of {s.POINT_STATUSES}")
+        order = (p.start_sample, p.hold_start_sample, p.hold_end_sample, p.end_sample)
+        if p.start_sample < 0 or any(a > b for a, b in pairwise(order)):
+            raise StoreError(path, where, f"point {p.index}: sample positions {order} are not in order")
+        if p.end_sample > n_samples:
+            raise StoreError(
+                path,
+                where,
+                f"point {p.index}: end_sample {p.end_sample} beyond the {n_samples} recorded samples",
+            )
+        points.append(p)
+    return tuple(points)
+
+
+def _read_events(path: Path, table: h5py.Dataset) -> tuple[Event, ...]:
+    missing = [
+        name for name in s.EVENT_DTYPE.names if table.dtype.names is None or name not in table.dtype.names
+    ]
+    if missing:
+        raise StoreError(path, table.name, f"events table lacks field(s) {', '.join(missing)}")
+    with _reading(path, table.name):
+        rows = table[()]
+    return tuple(
+        Event(
+            float(row["time_unix_s"]),
+            int(row["sample"]),
+            _text(row["kind"]),
+            _text(row["text"]),
+            s.from_json(_text(row["fields"]), path=path, where=f"{table.name}[{i}].fields"),
+        )
+        for i, row in enumerate(rows)
+    )

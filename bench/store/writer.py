@@ -1,0 +1,556 @@
+"""Write a campaign file incrementally: one run at a time, blocks of samples as they arrive.
+
+Durability is flush-based (why not SWMR, and why this is safe: ``docs/hdf5.md``). A channel's
+chunk holds one flush interval of samples. Sample blocks are kept in memory until a flush, which
+writes the whole chunks they fill (one write per channel), the point rows whose samples are now
+written, then flushes the whole file and ``fsync`` s it. A chunk is written once and never
+rewritten, so a writer killed in the middle of a flush cannot damage what an earlier flush made
+durable; the last, partial chunk is written when the run ends. Every write checks the cadence and
+flushes once a chunk is full or :data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has
+passed since the last flush, so less than one flush interval of samples is ever at risk. A run is
+created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a run whose
+writer died reads as incomplete.
+
+Resume (``docs/hdf5.md``): :meth:`CampaignWriter.open_append` reopens a file;
+:meth:`CampaignWriter.continue_run` goes on writing an incomplete run where its durable data ends,
+or :meth:`CampaignWriter.begin_run` with ``resumes=`` starts a new run that takes over the points
+the old one had not done. Either way a point can be marked done once only.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from datetime import UTC, datetime
+from itertools import pairwise
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from bench.store import schema as s
+from bench.store.reader import open_campaign
+from bench.store.results import as_mapping, write_tree
+from bench.store.schema import ChannelSpec, PointRow, StoreError
+
+_DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
+
+
+def _now_iso() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+class CampaignWriter:
+    """The writing side of one campaign file; one run is written at a time.
+
+    Use :meth:`create` for a new file and :meth:`open_append` to resume one; close with
+    :meth:`close` (or a ``with`` block), which finishes nothing: an unfinished run stays incomplete.
+    """
+
+    def __init__(
+        self, file: h5py.File, path: Path, *, flush_interval_s: float, clock: Callable[[], float]
+    ) -> None:
+        self._file = file
+        self.path = path
+        self.flush_interval_s = flush_interval_s
+        self._run: RunWriter | None = None
+        self._clock = clock
+        self._last_flush_wall_s = clock()
+
+    @classmethod
+    def create(
+        cls,
+        path: str | Path,
+        *,
+        software_version: str,
+        config_toml: str,
+        sequence_toml: str,
+        sequence_name: str,
+        config_name: str = "",
+        flush_interval_s: float = s.FLUSH_INTERVAL_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> CampaignWriter:
+        """A new campaign file at ``path`` (refused if one exists: a campaign is never overwritten)
+        holding what produced it: the software version, the bench configuration and the sequence as
+        TOML text with their names (file names, or a description when they came from elsewhere).
+        ``flush_interval_s`` and ``clock`` (wall seconds) set the flush cadence; tests pass a
+        simulated clock."""
+        path = Path(path)
+        try:
+            file = h5py.File(path, "x", libver=s.LIBVER, track_order=True, fs_strategy=s.FS_STRATEGY)
+        except FileExistsError as err:
+            raise StoreError(path, "", "exists already; resume it or choose another name") from err
+        except OSError as err:
+            raise StoreError(path, "", f"cannot be created ({err})") from err
+        attrs = file.attrs
+        attrs["schema"] = s.SCHEMA_NAME
+        attrs["schema_version"] = s.SCHEMA_VERSION
+        attrs["software_version"] = software_version
+        attrs["created"] = _now_iso()
+        attrs["config_name"] = config_name
+        attrs["config_toml"] = config_toml
+        attrs["sequence_name"] = sequence_name
+        attrs["sequence_toml"] = sequence_toml
+        file.create_group(s.RUNS, track_order=True)
+        _create_table(file, s.EVENTS, s.EVENT_DTYPE)
+        writer = cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
+        writer.flush()
+        return writer
+
+    @classmethod
+    def open_append(
+        cls,
+        path: str | Path,
+        *,
+        flush_interval_s: float = s.FLUSH_INTERVAL_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> CampaignWriter:
+        """Reopen a campaign file to resume it; the file is checked by the reader first, so a file
+        that does not follow the schema is refused before anything is written to it."""
+        path = Path(path)
+        open_campaign(path).close()
+        try:
+            file = h5py.File(path, "r+")
+        except OSError as err:
+            raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
+        _rebuild_table(file, s.EVENTS, s.EVENT_DTYPE)
+        return cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
+
+    def __enter__(self) -> CampaignWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def run_ids(self) -> tuple[str, ...]:
+        return tuple(self._file[s.RUNS])
+
+    def begin_run(
+        self,
+        run_id: str,
+        *,
+        kind: str,
+        step: Mapping[str, Any],
+        conditions: Mapping[str, Any],
+        channels: Sequence[ChannelSpec],
+        sample_rate_hz: float,
+        resumes: str | None = None,
+    ) -> RunWriter:
+        """Create ``/runs/<run_id>`` with its channels, points, events and link counters.
+
+        ``step``: the sequence step that produced the run (JSON-able mapping); ``conditions``: what
+        the operator answered or the bench was set to (tyre pressure, wheel fitted, ...).
+        ``resumes``: the id of an incomplete run of the same step whose remaining points this run
+        takes over; points that run has done cannot be done again here.
+        """
+        where = f"/{s.RUNS}/{run_id}"
+        self._check_no_open_run(where)
+        if not run_id or "/" in run_id or run_id == ".":
+            raise StoreError(self.path, where, f"run id {run_id!r} cannot name an HDF5 group")
+        if run_id in self._file[s.RUNS]:
+            raise StoreError(self.path, where, "exists already: continue it or give a new run id")
+        if kind not in s.RUN_KINDS:
+            raise StoreError(self.path, where, f"kind {kind!r} is not one of {', '.join(s.RUN_KINDS)}")
+        if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+            raise StoreError(self.path, where, f"sample rate {sample_rate_hz} Hz must be positive")
+        _check_channels(self.path, where, channels)
+        done_before: frozenset[int] = frozenset()
+        if resumes is not None:
+            done_before = self._resumable(resumes)
+        step_json = s.to_json(step, path=self.path, where=f"{where}@step")
+        conditions_json = s.to_json(conditions, path=self.path, where=f"{where}@conditions")
+
+        group = self._file[s.RUNS].create_group(run_id, track_order=True)
+        group.attrs.update(
+            {
+                "kind": kind,
+                "status": s.INCOMPLETE,
+                "reason": "",
+                "started": _now_iso(),
+                "finished": "",
+                "step": step_json,
+                "conditions": conditions_json,
+                "sample_rate_hz": float(sample_rate_hz),
+                "resumes": resumes or "",
+                "resumed_by": "",
+            }
+        )
+        channel_group = group.create_group(s.CHANNELS, track_order=True)
+        for spec in channels:
+            ds = channel_group.create_dataset(
+                spec.name,
+                shape=(0,),
+                maxshape=(None,),
+                dtype=np.dtype(spec.dtype).newbyteorder("<"),
+                chunks=(max(1, int(sample_rate_hz * self.flush_interval_s)),),
+                compression="gzip",
+                compression_opts=s.GZIP_LEVEL,
+                shuffle=True,
+            )
+            ds.attrs.update(
+                {"unit": spec.unit, "description": spec.description, "sample_rate_hz": float(sample_rate_hz)}
+            )
+        _create_table(group, s.POINTS, s.POINT_DTYPE)
+        _create_table(group, s.EVENTS, s.EVENT_DTYPE)
+        group.create_group(s.LINK)
+        group.create_group(s.RESULTS, track_order=True)
+        if resumes is not None:
+            self._file[s.RUNS][resumes].attrs["resumed_by"] = run_id
+        self._run = RunWriter(self, group, done_before=done_before)
+        self.flush()
+        return self._run
+
+    def continue_run(self, run_id: str) -> RunWriter:
+        """Go on writing the incomplete run ``run_id`` after its last durable sample: new samples
+        are appended, new points and events added; an ``"resumed"`` event marks the place. The
+        samples of the point that was interrupted stay in the arrays, unreferenced by any done
+        point; the engine repeats that point."""
+        where = f"/{s.RUNS}/{run_id}"
+        self._check_no_open_run(where)
+        done = self._resumable(run_id)
+        group = self._file[s.RUNS][run_id]
+        lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
+        usable = min(lengths.values(), default=0)
+        for name, length in lengths.items():
+            if length > usable:  # the writer died between two channels' appends: cut to the common length
+                group[s.CHANNELS][name].resize((usable,))
+        _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
+        _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
+        self._run = RunWriter(self, group, done_before=done)
+        self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
+        self.flush()
+        return self._run
+
+    def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
+        """A campaign-level event (``/events``), for what happens between runs: prompts and their
+        answers, hydraulics, tare. ``sample`` is -1 there."""
+        _append_event(self._file[s.EVENTS], path=self.path, sample=-1, kind=kind, text=text, fields=fields)
+        self.flush_if_due()
+
+    def flush(self) -> None:
+        """Make durable what can be written safely: the whole chunks of samples, the point rows
+        whose samples they hold, events, attributes; HDF5 flush, then fsync of the file."""
+        self._flush(final=False)
+
+    def _flush(self, *, final: bool) -> None:
+        """``final``: the run ends, so its last partial chunk is written too."""
+        if self._run is not None:
+            self._run._write_pending(final=final)
+        self._file.flush()
+        os.fsync(self._file.id.get_vfd_handle())
+        self._last_flush_wall_s = self._clock()
+        if self._run is not None:
+            self._run._flushed()
+
+    def flush_if_due(self) -> bool:
+        """Flush when the open run's unwritten samples fill a chunk (one flush interval of
+        samples) or the interval's wall time has passed; returns whether it flushed. Every write
+        calls it; an engine whose stream stalls calls it from its idle loop too."""
+        run = self._run
+        due_samples = run is not None and run.samples - run.durable_samples >= run.chunk_samples
+        if due_samples or self._clock() - self._last_flush_wall_s >= self.flush_interval_s:
+            self.flush()
+            return True
+        return False
+
+    def close(self) -> None:
+        if self._file.id.valid:
+            self._flush(final=True)
+            self._file.close()
+        self._run = None
+
+    def _check_no_open_run(self, where: str) -> None:
+        if self._run is not None and self._run.is_open:
+            raise StoreError(
+                self.path, where, f"run {self._run.run_id!r} is still being written: finish it first"
+            )
+
+    def _resumable(self, run_id: str) -> frozenset[int]:
+        """The done point indices of the incomplete run ``run_id`` (and the runs it resumes)."""
+        where = f"/{s.RUNS}/{run_id}"
+        runs = self._file[s.RUNS]
+        if run_id not in runs:
+            raise StoreError(self.path, where, "no such run to resume")
+        attrs = runs[run_id].attrs
+        if attrs["status"] != s.INCOMPLETE:
+            raise StoreError(
+                self.path, where, f"is {attrs['status']!r}; only an incomplete run can be resumed"
+            )
+        if attrs["resumed_by"]:
+            raise StoreError(self.path, where, f"was resumed already by run {attrs['resumed_by']!r}")
+        done = _done_indices(runs[run_id][s.POINTS])
+        if attrs["resumes"]:
+            done |= _chain_done(runs, attrs["resumes"])
+        return frozenset(done)
+
+    def _run_closed(self, run: RunWriter) -> None:
+        if self._run is run:
+            self._flush(final=True)
+            self._run = None
+
+
+class RunWriter:
+    """Writes one run: sample blocks, point rows, events, link counters, results, its end."""
+
+    def __init__(self, campaign: CampaignWriter, group: h5py.Group, *, done_before: frozenset[int]) -> None:
+        self._campaign = campaign
+        self._group = group
+        self.run_id = group.name.rsplit("/", 1)[-1]
+        self.sample_rate_hz = float(group.attrs["sample_rate_hz"])
+        self._channels: dict[str, h5py.Dataset] = dict(group[s.CHANNELS].items())
+        self.chunk_samples = next(iter(self._channels.values())).chunks[0]
+        self._samples = min((ds.shape[0] for ds in self._channels.values()), default=0)
+        self._written = self._durable_samples = self._samples
+        self._pending: dict[str, list[np.ndarray]] = {name: [] for name in self._channels}
+        self._pending_rows: list[np.ndarray] = []  # point rows waiting for their samples
+        self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
+        self.is_open = True
+
+    @property
+    def samples(self) -> int:
+        """Samples appended so far (durable or not)."""
+        return self._samples
+
+    @property
+    def durable_samples(self) -> int:
+        """Samples made durable by the last flush (whole chunks until the run ends)."""
+        return self._durable_samples
+
+    def append(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Append one block: a 1-D array per channel of the run, all of one length. Integer
+        channels take integer arrays whose values their dtype holds (else refused, naming the
+        channel); float channels are stored as float32."""
+        where = f"{self._group.name}/{s.CHANNELS}"
+        self._check_open(where)
+        if set(columns) != set(self._channels):
+            missing, extra = set(self._channels) - set(columns), set(columns) - set(self._channels)
+            raise StoreError(
+                self._campaign.path,
+                where,
+                f"block channels differ: missing {sorted(missing)}, unknown {sorted(extra)}",
+            )
+        blocks = {name: self._converted(name, values) for name, values in columns.items()}
+        lengths = {name: block.shape[0] for name, block in blocks.items()}
+        if len(set(lengths.values())) != 1:
+            raise StoreError(self._campaign.path, where, f"block channels have different lengths: {lengths}")
+        n = next(iter(lengths.values()))
+        if n == 0:
+            return
+        for name, block in blocks.items():
+            self._pending[name].append(block)
+        self._samples += n
+        self._campaign.flush_if_due()
+
+    def _converted(self, name: str, values: np.ndarray) -> np.ndarray:
+        where = f"{self._group.name}/{s.CHANNELS}/{name}"
+        array = np.asarray(values)
+        if array.ndim != 1:
+            raise StoreError(self._campaign.path, where, f"a block must be 1-D, got shape {array.shape}")
+        dtype = self._channels[name].dtype
+        if dtype.kind == "f":  # a copy: the block is held until the flush, the caller may reuse its buffer
+            return array.astype(dtype)
+        if array.dtype.kind not in "iu":
+            raise StoreError(self._campaign.path, where, f"{dtype} channel given {array.dtype} values")
+        low, high = _DTYPE_LIMITS[dtype.str[1:]]
+        if array.size and (array.min() < low or array.max() > high):
+            raise StoreError(
+                self._campaign.path,
+                where,
+                f"values {array.min()}..{array.max()} outside {dtype} ({low}..{high})",
+            )
+        return array.astype(dtype)
+
+    def add_point(self, row: PointRow) -> None:
+        """Add one row to the points table. A point index can be ``"done"`` once only in a step
+        (this run and the runs it resumes); its sample positions must lie in what was recorded.
+        The row goes to the file with the flush that writes its last sample, never before."""
+        where = f"{self._group.name}/{s.POINTS}"
+        self._check_open(where)
+        if row.status not in s.POINT_STATUSES:
+            raise StoreError(
+                self._campaign.path, where, f"status {row.status!r} not one of {s.POINT_STATUSES}"
+            )
+        if row.status == "done" and row.index in self._done:
+            raise StoreError(self._campaign.path, where, f"point {row.index} is done already")
+        order = (
+            0,
+            row.start_sample,
+            row.hold_start_sample,
+            row.hold_end_sample,
+            row.end_sample,
+            self._samples,
+        )
+        if any(a > b for a, b in pairwise(order)):
+            raise StoreError(
+                self._campaign.path,
+                where,
+                f"point {row.index}: samples start {row.start_sample} <= hold {row.hold_start_sample}.."
+                f"{row.hold_end_sample} <= end {row.end_sample} <= recorded {self._samples} do not hold",
+            )
+        record = np.array([tuple(getattr(row, name) for name in s.POINT_DTYPE.names)], dtype=s.POINT_DTYPE)
+        self._pending_rows.append(record)
+        if row.status == "done":
+            self._done |= {row.index}
+        self._campaign.flush_if_due()
+
+    def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
+        """An event of this run (prompt and answer, interlock, state change, link gap, ...), at the
+        current sample position; ``fields`` are stored as JSON."""
+        self._check_open(f"{self._group.name}/{s.EVENTS}")
+        _append_event(
+            self._group[s.EVENTS],
+            path=self._campaign.path,
+            sample=self._samples,
+            kind=kind,
+            text=text,
+            fields=fields,
+        )
+        self._campaign.flush_if_due()
+
+    def set_link_counters(self, counters: Mapping[str, int | float]) -> None:
+        """Replace the link counters (frames, gaps, CRC rejects, Modbus retries, ...) as attributes."""
+        link = self._group[s.LINK]
+        self._check_open(link.name)
+        for key, value in counters.items():
+            if not isinstance(value, int | float | np.integer | np.floating) or isinstance(value, bool):
+                raise StoreError(
+                    self._campaign.path, f"{link.name}@{key}", f"counter {value!r} is not a number"
+                )
+            link.attrs[key] = value
+        self._campaign.flush_if_due()
+
+    def write_results(self, name: str, result: Mapping[str, Any] | object) -> None:
+        """Store an analysis result (a nested mapping or a dataclass instance) under
+        ``results/<name>``; a name is written once (a re-analysis writes a new name). Results may
+        be written after :meth:`finish` (the analysis runs after the run)."""
+        where = f"{self._group.name}/{s.RESULTS}/{name}"
+        tree = as_mapping(result)
+        if tree is None:
+            raise StoreError(
+                self._campaign.path, where, f"a result must be a mapping, got {type(result).__name__}"
+            )
+        results = self._group[s.RESULTS]
+        if not name or "/" in name or name == ".":
+            raise StoreError(self._campaign.path, where, f"name {name!r} cannot name an HDF5 group")
+        if name in results:
+            raise StoreError(self._campaign.path, where, "exists already: results are never overwritten")
+        write_tree(results.create_group(name), tree, path=self._campaign.path)
+        self._campaign.flush()
+
+    def flush(self) -> None:
+        self._campaign.flush()
+
+    def finish(self, status: str, reason: str = "") -> None:
+        """End the run with ``status`` (one of :data:`~bench.store.schema.FINISH_STATUSES`) and why."""
+        self._check_open(self._group.name)
+        if status not in s.FINISH_STATUSES:
+            raise StoreError(
+                self._campaign.path, self._group.name, f"status {status!r} not one of {s.FINISH_STATUSES}"
+            )
+        self._group.attrs.update({"status": status, "reason": reason, "finished": _now_iso()})
+        self.is_open = False
+        self._campaign._run_closed(self)
+
+    def _write_pending(self, *, final: bool) -> None:
+        """Write the whole chunks the pending blocks fill (all of them when ``final``), one resize
+        and one write per channel, then the point rows whose samples are written."""
+        upto = self._samples if final else self._samples // self.chunk_samples * self.chunk_samples
+        if upto > self._written:
+            n = upto - self._written
+            for name, blocks in self._pending.items():
+                data = np.concatenate(blocks)
+                ds = self._channels[name]
+                ds.resize((upto,))
+                ds[self._written :] = data[:n]
+                blocks[:] = [data[n:]] if n < data.shape[0] else []
+            self._written = upto
+        ready = [row for row in self._pending_rows if row["end_sample"][0] <= self._written]
+        if ready:
+            _append_rows(self._group[s.POINTS], np.concatenate(ready))
+            self._pending_rows = [row for row in self._pending_rows if row["end_sample"][0] > self._written]
+
+    def _flushed(self) -> None:
+        self._durable_samples = self._written
+
+    def _check_open(self, where: str) -> None:
+        if not self.is_open and not where.startswith(f"{self._group.name}/{s.RESULTS}"):
+            raise StoreError(self._campaign.path, where, f"run {self.run_id!r} is finished")
+
+
+def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:
+    names = [c.name for c in channels]
+    if not names:
+        raise StoreError(path, where, "a run needs at least one channel")
+    if len(set(names)) != len(names):
+        raise StoreError(path, where, f"channel names repeat: {names}")
+    for spec in channels:
+        if not spec.name or "/" in spec.name or spec.name == ".":
+            raise StoreError(
+                path, f"{where}/{s.CHANNELS}", f"channel name {spec.name!r} cannot name a dataset"
+            )
+        if spec.dtype not in s.CHANNEL_DTYPES:
+            raise StoreError(
+                path,
+                f"{where}/{s.CHANNELS}/{spec.name}",
+                f"dtype {spec.dtype!r} not one of {s.CHANNEL_DTYPES}",
+            )
+
+
+def _create_table(parent: h5py.Group, name: str, dtype: np.dtype) -> None:
+    parent.create_dataset(
+        name,
+        shape=(0,),
+        maxshape=(None,),
+        dtype=dtype,
+        chunks=(s.TABLE_CHUNK_ROWS,),
+    )
+
+
+def _rebuild_table(parent: h5py.Group, name: str, dtype: np.dtype) -> None:
+    """Recreate a table with its rows before appending to it in a new session. A writer killed
+    after writing rows into the table's last chunk but before flushing its new length leaves those
+    rows' string references behind the table's end; HDF5 would try to free them when new rows are
+    written over them, and fail. A fresh dataset has no such leftovers."""
+    rows = parent[name][()]
+    del parent[name]
+    _create_table(parent, name, dtype)
+    if rows.shape[0]:
+        _append_rows(parent[name], rows)
+
+
+def _append_rows(table: h5py.Dataset, rows: np.ndarray) -> None:
+    n = table.shape[0]
+    table.resize((n + rows.shape[0],))
+    table[n:] = rows
+
+
+def _append_event(
+    table: h5py.Dataset, *, path: Path, sample: int, kind: str, text: str, fields: Mapping[str, Any]
+) -> None:
+    fields_json = s.to_json(fields, path=path, where=f"{table.name} {kind!r} fields")
+    row = np.array([(time.time(), sample, kind, text, fields_json)], dtype=s.EVENT_DTYPE)
+    _append_rows(table, row)
+
+
+def _done_indices(points: h5py.Dataset) -> set[int]:
+    rows = points[()]
+    return {
+        int(i) for i, status in zip(rows["index"], rows["status"], strict=True) if _text(status) == "done"
+    }
+
+
+def _chain_done(runs: h5py.Group, run_id: str) -> set[int]:
+    done: set[int] = set()
+    seen: set[str] = set()
+    while run_id and run_id not in seen and run_id in runs:
+        seen.add(run_id)
+        done |= _done_indices(runs[run_id][s.POINTS])
+        run_id = runs[run_id].attrs["resumes"]
+    return done
+
+
+def _text(value: bytes | str) -> str:
+    return value.decode() if isinstance(value, bytes) else value

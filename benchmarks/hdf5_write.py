@@ -1,0 +1,144 @@
+"""HDF5 campaign writing: throughput against the 1 kHz frame rate, and the time from a block's
+arrival to its being durable.
+
+Every WFS channel of a frame (15 channels: sample, seq, six loads, angle, speed, four aux, status)
+is written through the store's writer in 0.1 s blocks (100 frames, as the WFS reader delivers
+them), with its flush cadence (flush and fsync once a second of samples or of wall time).
+
+1. Throughput: ``--seconds`` of frames written as fast as they come. Baseline (same run): the same
+   blocks as raw bytes to a plain file, fsync'd as often -- the floor any recorder pays.
+2. Latency: ``--paced-seconds`` of frames arriving in real time (a block every 0.1 s). A block is
+   durable when a flush that covers it has returned; the figure is the worst arrival-to-durable
+   time, with the worst time a single write call keeps the caller (flush included).
+
+Run: python benchmarks/hdf5_write.py [--seconds 600] [--paced-seconds 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench.store import CampaignWriter, ChannelSpec
+
+FRAME_RATE_HZ = 1000.0
+BLOCK = 100
+CHANNELS = (
+    ChannelSpec("sample", "1", "u4"),
+    ChannelSpec("seq", "1", "u4"),
+    *(ChannelSpec(name, "N", "f4") for name in ("fx_wfs_n", "fy_wfs_n", "fz_wfs_n")),
+    *(ChannelSpec(name, "N m", "f4") for name in ("mx_wfs_n_m", "my_wfs_n_m", "mz_wfs_n_m")),
+    ChannelSpec("angle_rad", "rad"),
+    ChannelSpec("speed_rad_s", "rad/s"),
+    ChannelSpec("z_base_m", "m"),
+    ChannelSpec("f_plate_n", "N"),
+    ChannelSpec("a_hub_m_s2", "m/s^2"),
+    ChannelSpec("aux3", "V"),
+    ChannelSpec("status", "1", "u2"),
+)
+
+
+def blocks(n_frames: int):
+    """Synthetic blocks: noisy sines, as compressible as measured signals (not constant)."""
+    rng = np.random.default_rng(0)
+    for start in range(0, n_frames, BLOCK):
+        i = np.arange(start, start + BLOCK)
+        t = i / FRAME_RATE_HZ
+        block = {
+            "sample": i.astype(np.uint32),
+            "seq": i.astype(np.uint32),
+            "status": np.zeros(BLOCK, np.uint16),
+        }
+        for k, spec in enumerate(CHANNELS):
+            if spec.dtype == "f4":
+                block[spec.name] = (
+                    np.sin(2 * np.pi * (3 + k) * t) + 1e-3 * rng.standard_normal(BLOCK)
+                ).astype("f4")
+        yield block
+
+
+def write_campaign(path: Path, n_frames: int, *, paced: bool) -> dict[str, float]:
+    """Write ``n_frames`` through the store; returns wall time, worst arrival-to-durable and worst
+    call times (seconds)."""
+    writer = CampaignWriter.create(
+        path, software_version="bench", config_toml="", sequence_toml="", sequence_name=""
+    )
+    run = writer.begin_run(
+        "001", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FRAME_RATE_HZ
+    )
+    pending: list[tuple[int, float]] = []  # (end sample, arrival time) of blocks not yet durable
+    worst_durable_s = worst_call_s = 0.0
+    start = time.perf_counter()
+    for n, block in enumerate(blocks(n_frames)):
+        if paced:
+            due = start + n * BLOCK / FRAME_RATE_HZ
+            while (now := time.perf_counter()) < due:
+                time.sleep(due - now)
+        arrival = time.perf_counter()
+        run.append(block)
+        done = time.perf_counter()
+        worst_call_s = max(worst_call_s, done - arrival)
+        pending.append((run.samples, arrival))
+        while pending and pending[0][0] <= run.durable_samples:
+            worst_durable_s = max(worst_durable_s, done - pending.pop(0)[1])
+    run.finish("complete")
+    writer.close()
+    end = time.perf_counter()
+    for _, arrival in pending:  # made durable by finish()
+        worst_durable_s = max(worst_durable_s, end - arrival)
+    return {"wall_s": end - start, "durable_s": worst_durable_s, "call_s": worst_call_s}
+
+
+def raw_baseline(path: Path, n_frames: int) -> float:
+    """The same blocks as raw bytes, fsync'd once a second of frames; wall seconds."""
+    start = time.perf_counter()
+    with open(path, "wb") as f:
+        for n, block in enumerate(blocks(n_frames)):
+            for values in block.values():
+                f.write(values.tobytes())
+            if (n + 1) * BLOCK % FRAME_RATE_HZ == 0:
+                f.flush()
+                os.fsync(f.fileno())
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--seconds", type=float, default=600.0, help="frames written as fast as they come")
+    parser.add_argument("--paced-seconds", type=float, default=10.0, help="frames arriving in real time")
+    args = parser.parse_args()
+    n_fast = int(args.seconds * FRAME_RATE_HZ) // BLOCK * BLOCK
+    n_paced = int(args.paced_seconds * FRAME_RATE_HZ) // BLOCK * BLOCK
+    with tempfile.TemporaryDirectory(dir=".") as tmp:
+        base_s = raw_baseline(Path(tmp) / "raw.bin", n_fast)
+        fast = write_campaign(Path(tmp) / "fast.h5", n_fast, paced=False)
+        size_mb = (Path(tmp) / "fast.h5").stat().st_size / 1e6
+        paced = write_campaign(Path(tmp) / "paced.h5", n_paced, paced=True)
+    fps = n_fast / fast["wall_s"]
+    raw_mb = n_fast * sum(np.dtype(c.dtype).itemsize for c in CHANNELS) / 1e6
+    seconds = n_fast / FRAME_RATE_HZ
+    print(f"frames: {n_fast} ({seconds:g} s at 1 kHz), {len(CHANNELS)} channels, blocks of {BLOCK}")
+    print(f"baseline raw bytes + fsync/s : {n_fast / base_s:,.0f} frames/s")
+    print(
+        f"store, as fast as they come  : {fps:,.0f} frames/s = {fps / FRAME_RATE_HZ:,.0f}x the 1 kHz "
+        f"frame rate ({fast['wall_s'] / base_s:.1f}x the baseline's time); "
+        f"file {size_mb:.1f} MB for {raw_mb:.1f} MB raw"
+    )
+    print(
+        f"  worst arrival-to-durable {1e3 * fast['durable_s']:.1f} ms, "
+        f"worst write call {1e3 * fast['call_s']:.1f} ms"
+    )
+    print(
+        f"store, paced 1 kHz, {n_paced / FRAME_RATE_HZ:g} s : "
+        f"worst arrival-to-durable {1e3 * paced['durable_s']:.0f} ms, "
+        f"worst write call {1e3 * paced['call_s']:.1f} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()

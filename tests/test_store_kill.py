@@ -1,0 +1,176 @@
+"""A writer killed with SIGKILL mid-run leaves a file that opens (h5py, h5dump), keeps everything it
+reported durable, loses at most one second of samples, and reads as an incomplete run.
+
+The writer is this module run as a script (``python tests/test_store_kill.py FILE``): it writes
+synthetic 1 kHz frames in 0.1 s blocks as fast as it can (every WFS channel, a done point every
+second of samples) and reports on stdout what it appended, what became durable and which points
+it marked done. The test kills it once it has reported enough, at three different depths.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))
+
+from bench.store import CampaignWriter, ChannelSpec, PointRow, open_campaign  # noqa: E402
+
+FS_HZ = 1000.0
+BLOCK = 100  # samples per block: 0.1 s at 1 kHz, as the WFS reader delivers them
+POINT = 1000  # samples per point
+CHANNELS = (
+    ChannelSpec("sample", "1", "u4", "acquisition sample index"),
+    ChannelSpec("seq", "1", "u4", "frame sequence counter"),
+    *(ChannelSpec(f"{name}_wfs_n", "N", "f4", f"WFS {name}") for name in ("fx", "fy", "fz")),
+    *(ChannelSpec(f"{name}_wfs_n_m", "N m", "f4", f"WFS {name}") for name in ("mx", "my", "mz")),
+    ChannelSpec("angle_rad", "rad", "f4", "wheel angle"),
+    ChannelSpec("speed_rad_s", "rad/s", "f4", "wheel speed"),
+    ChannelSpec("z_base_m", "m", "f4", "aux0: bench displacement"),
+    ChannelSpec("f_plate_n", "N", "f4", "aux1: plate force"),
+    ChannelSpec("a_hub_m_s2", "m/s^2", "f4", "aux2: hub acceleration"),
+    ChannelSpec("aux3", "V", "f4", "aux3: spare"),
+    ChannelSpec("status", "1", "u2", "status bits"),
+)
+
+
+def expected(start: int, n: int) -> dict[str, np.ndarray]:
+    """The synthetic frames ``start .. start + n``: every channel a known function of the sample."""
+    i = np.arange(start, start + n)
+    t = i / FS_HZ
+    columns = {
+        "sample": i.astype(np.uint32),
+        "seq": (i + 7).astype(np.uint32),
+        "status": (i % 3).astype(np.uint16),
+    }
+    for k, spec in enumerate(CHANNELS):
+        if spec.dtype == "f4":
+            columns[spec.name] = np.sin(2 * np.pi * (1.0 + k) * t).astype(np.float32) * (k + 1)
+    return columns
+
+
+def write_until_killed(path: Path) -> None:
+    writer = CampaignWriter.create(
+        path, software_version="test", config_toml="", sequence_toml="", sequence_name="kill test"
+    )
+    run = writer.begin_run(
+        "001-grid",
+        kind="dwell_grid",
+        step={"type": "dwell_grid"},
+        conditions={},
+        channels=CHANNELS,
+        sample_rate_hz=FS_HZ,
+    )
+    durable = 0
+
+    def report(what: str) -> None:
+        nonlocal durable
+        print(what, flush=True)
+        if run.durable_samples != durable:
+            durable = run.durable_samples
+            print(f"durable {durable}", flush=True)
+
+    while True:
+        start = run.samples
+        run.append(expected(start, BLOCK))
+        report(f"appended {run.samples}")
+        if run.samples % (POINT // 2) == 0:
+            run.add_event("state", "half a point", samples=run.samples)
+            report(f"event {run.samples}")
+        if run.samples % POINT == 0:
+            index = run.samples // POINT - 1
+            run.add_point(PointRow(index, 10.0, 1.0, start + BLOCK - POINT, start - 800, start, run.samples))
+            report(f"done {index}")
+
+
+def _kill_after_durable(path: Path, min_durable: int) -> list[tuple[str, int]]:
+    """Run the writer until it reports ``min_durable`` durable samples, SIGKILL it, return its
+    reports in order."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen(
+        [sys.executable, __file__, str(path)], stdout=subprocess.PIPE, text=True, env=env, cwd=ROOT
+    )
+    reports: list[tuple[str, int]] = []
+    deadline = time.monotonic() + 120  # wall clock as a timeout only
+    try:
+        for line in proc.stdout:
+            key, value = line.split()
+            reports.append((key, int(value)))
+            if key == "durable" and int(value) >= min_durable:
+                proc.send_signal(signal.SIGKILL)
+                break
+            assert time.monotonic() < deadline, "the writer never reported enough durable samples"
+        else:
+            pytest.fail(f"the writer stopped by itself (exit {proc.wait()})")
+        for line in proc.stdout:  # what it reported before the kill took effect
+            key, value = line.split()
+            reports.append((key, int(value)))
+    finally:
+        proc.kill()
+        proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    return reports
+
+
+@pytest.mark.parametrize("min_durable", [2000, 5000, 9000])
+def test_killed_writer_leaves_a_readable_file_short_of_at_most_one_second(tmp_path, min_durable):
+    path = tmp_path / "campaign.h5"
+    reports = _kill_after_durable(path, min_durable)
+    last_appended = max(v for k, v in reports if k == "appended")
+    last_durable_at = max(i for i, (k, _) in enumerate(reports) if k == "durable")
+    last_durable = reports[last_durable_at][1]
+    durable_points = {v for k, v in reports[:last_durable_at] if k == "done"}
+
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        assert run.status == "incomplete"
+        n = run.n_samples
+        assert n >= last_durable, "samples reported durable were lost"
+        assert last_appended - n <= FS_HZ, f"lost {last_appended - n} samples, more than 1 s"
+        want = expected(0, n)
+        for name in want:  # every surviving sample is intact, in every channel
+            np.testing.assert_array_equal(run.channels[name], want[name], err_msg=name)
+        assert sorted(run.completed_point_indices()) == list(range(len(run.points)))
+        assert durable_points <= run.completed_point_indices()
+        assert len(run.dwell_records()) == len(run.points)
+        durable_events = {v for k, v in reports[:last_durable_at] if k == "event"}
+        assert durable_events <= {e.fields["samples"] for e in run.events}
+        next_index = len(run.points)
+
+    if shutil.which("h5dump"):
+        subprocess.run(["h5dump", "-H", str(path)], capture_output=True, timeout=60, check=True)
+        out = subprocess.run(
+            ["h5dump", "-d", "/runs/001-grid/channels/sample", "-s", str(n - 1), "-c", "1", str(path)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+        ).stdout
+        assert f"({n - 1}): {n - 1}\n" in out
+
+    # resume: continue the run after its durable end, redo the interrupted point, finish
+    with CampaignWriter.open_append(path) as writer:
+        run = writer.continue_run("001-grid")
+        start = run.samples
+        run.append(expected(start, POINT))
+        run.add_point(PointRow(next_index, 10.0, 1.0, start, start + 100, start + POINT, start + POINT))
+        run.finish("complete")
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        indices = [p.index for p in run.points]
+        assert indices == list(range(next_index + 1)), "every point exactly once"
+        assert run.status == "complete"
+
+
+if __name__ == "__main__":
+    write_until_killed(Path(sys.argv[1]))
