@@ -24,10 +24,10 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import AuxInput, FrameChannels
 from bench.engine.contracts import Operator
-from bench.engine.engine import Engine, SyncBits
+from bench.engine.engine import Engine, SyncBits, is_measurement
 from bench.engine.interlocks import standard_interlocks
 from bench.models.parameters import WfsSensor
-from bench.store import RUN_KINDS, CampaignWriter, open_campaign
+from bench.store import CampaignWriter, open_campaign
 from drivers.actuator import ActuatorClient
 from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
@@ -223,7 +223,7 @@ def run_campaign(
     planned = {
         Engine.run_id(plan.sequence, i)
         for i, step in enumerate(plan.sequence.steps)
-        if step.kind in RUN_KINDS
+        if is_measurement(step)
     }
     if existing and not resume and existing & planned:
         raise ValueError(

@@ -49,6 +49,8 @@ from sequences import (
 log = logging.getLogger(__name__)
 
 DISPLACEMENT = "z_base_m"
+#: The recorded kind of a run, by the kind of its step (a single dwell is a grid of one point).
+RUN_KIND = {"sine_dwell": "dwell_grid"}
 HAMMER_CHANNEL = ev.ChannelSpec(
     "fz_wfs_n", "N", "Fz of the bare sensor, triggered capture at the converter rate"
 )
@@ -260,7 +262,7 @@ class Engine:
             done = all(
                 resume.run_complete(self.run_id(sequence, i))
                 for i in segment
-                if _is_measurement(sequence.steps[i])
+                if is_measurement(sequence.steps[i])
             )
             chosen += [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
         return chosen
@@ -548,7 +550,7 @@ class Engine:
         self.bus.publish(ev.StateChanged(old, new, trigger))
 
 
-def _is_measurement(step: object) -> bool:
+def is_measurement(step: object) -> bool:
     return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | HammerTest)
 
 
@@ -571,7 +573,7 @@ class _RunRecording:
         e.bus.publish(
             ev.RunStarted(
                 self.run_id,
-                type(self.step).kind,
+                RUN_KIND.get(self.step.kind, self.step.kind),
                 step_fields(self.step),
                 dict(e.conditions),
                 e.channels.specs(),

@@ -51,7 +51,7 @@ FINISH_STATUSES = ("complete", "aborted", "interlocked", "e-stopped", "failed")
 #: Status of a run that was begun and not finished: running now, or its writer died.
 INCOMPLETE = "incomplete"
 CHANNEL_DTYPES = ("f4", "u4", "u2")
-POINT_STATUSES = ("done", "repeated", "aborted")
+POINT_STATUSES = ("done", "repeated", "interrupted", "aborted")
 
 _STR = h5py.string_dtype("utf-8")
 

@@ -282,7 +282,8 @@ class PlantSimulator:
             internal[1] = u
         self._wfs_converter(internal)
         self.converter_fz_n = internal[self.channels.index("fz_wfs_n")].copy()
-        self.converter_z_base_m = internal[self.channels.index("z_base_m")].copy()
+        z_row = self.channels.index("z_base_m") if "z_base_m" in self.channels else None
+        self.converter_z_base_m = internal[z_row].copy() if z_row is not None else np.zeros(u.size)
         out = self._decimator(internal)
         self._output_noise(out)
         if not self._hammer and self.realism.accelerometer_dynamics:
