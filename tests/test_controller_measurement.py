@@ -42,7 +42,8 @@ def test_achieved_amplitude_does_not_depend_on_the_wfs_output_rate(output_rate_h
     _run_s(bench, 0.6)  # taper in (0.2 s) plus 0.4 s of hold: at least two cycles
     assert bench.controller.state == ControllerState.RUNNING
     # the servo-hydraulic actuator's gain at 40 Hz with the wheel as its load (the plant's exact
-    # operating point); a 40 Hz sine sampled at 1 kHz may miss its peak by up to 1 - cos(pi * 40 / 1000) = 0.8 %
+    # operating point); a 40 Hz sine sampled at 1 kHz may miss its peak by up to
+    # 1 - cos(pi * 40 / 1000) = 0.8 %
     expected_mm = AMPLITUDE_MM * abs(bench.plant.base_gain(FREQ_HZ, AMPLITUDE_MM / 1e3))
     peak_miss = 1 - math.cos(math.pi * FREQ_HZ / 1000)
     measured = bench.controller.readback.achieved_amplitude_mm
