@@ -205,7 +205,8 @@ class ShakerAmplitudeResult:
         rubber = f"stiffness rise with frequency {rise}, hysteretic damping {hysteretic}"
         lines = [
             f"{self.label}: {len(self.fits)} dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz;"
-            f" Model {int(ident.best)} selected (BIC {bics}); {rubber}",
+            f" Model {int(ident.best)} selected (lowest BIC with every parameter determined; BIC {bics});"
+            f" {rubber}",
             f"{self.label} Model {int(ident.best)} (95 %): {_values_text(best.values, best.ci95)};"
             f" F_wfs/F_contact rms error {100 * best.ratio_relative_rms:.2f} %",
         ]
@@ -218,6 +219,7 @@ class ShakerAmplitudeResult:
         for model, fit in ident.fits.items():
             if not fit.converged:
                 lines.append(f"FLAG {self.label} Model {int(model)}: the fit did not converge")
+        lines += [f"FLAG {self.label}: {finding}" for finding in ident.findings]
         lines.append(
             f"{self.label} valid band ({_tolerance_text(self.valid_band_raw)}):"
             f" raw {_band_text(self.valid_band_raw)},"
@@ -313,7 +315,7 @@ def _analyse_amplitude(
     with _named(label):
         frfs = shaker_frfs(fits, plate, wfs=WFS_FORCE, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
         ident = identify_shaker(
-            frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor
+            frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
         )
         best = ident.best_fit
         comp = design_model_compensator(
