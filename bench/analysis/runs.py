@@ -60,6 +60,8 @@ from bench.analysis.records import (
     DwellRecord,
     HammerRecord,
     SweepRecord,
+    amplitude_label,
+    dwell_problems,
     fit_dwell_record,
     record_channels,
 )
@@ -107,15 +109,44 @@ def _unsettled(records: Sequence[DwellRecord], fits: Sequence[DwellFit]) -> tupl
 
 def _fit_grid(
     records: Sequence[DwellRecord], channels: tuple[str, ...], settle_s: float, what: str
-) -> tuple[list[DwellRecord], list[DwellFit]]:
-    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error."""
+) -> tuple[list[DwellRecord], list[DwellFit], tuple[str, ...]]:
+    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error. Dwells
+    with a problem (:func:`~bench.analysis.records.dwell_problems`: dead or frozen channel, the
+    actuator not following, a mislabelled record) are left out and returned as ``rejected``
+    (label and why); the rest is analysed."""
     if not records:
         raise AnalysisInputError(f"{what}: no dwell records given")
     ordered = sorted(records, key=lambda r: r.freq_hz)
     for a, b in itertools.pairwise(ordered):
         if a.freq_hz == b.freq_hz:
             raise AnalysisInputError(f"{what}: two records of the same dwell ({a.label})")
-    return ordered, [fit_dwell_record(r, channels, settle_s=settle_s) for r in ordered]
+    kept, fits, rejected = [], [], []
+    signal = tuple(c for c in channels if c != HUB_ACCELERATION)  # the shaker clamps the hub
+    for record in ordered:
+        fit = fit_dwell_record(record, channels, settle_s=settle_s)
+        problems = dwell_problems(record, fit, signal)
+        if problems:
+            rejected.append(f"{record.label}: {'; '.join(problems)}")
+        else:
+            kept.append(record)
+            fits.append(fit)
+    if not fits:
+        raise AnalysisInputError(f"{what}: every dwell was rejected ({'; '.join(rejected)})")
+    return kept, fits, tuple(rejected)
+
+
+def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellRecord]]:
+    """Dwells by amplitude; amplitudes with the same label (4 significant digits: 2e-3 and
+    2.0000001e-3 m) are one group, keyed by the group's most common amplitude."""
+    by_label: dict[str, list[DwellRecord]] = {}
+    for r in records:
+        _positive(f"{r.label}: amplitude", r.amplitude_m)
+        by_label.setdefault(amplitude_label(r.amplitude_m), []).append(r)
+    groups = {}
+    for members in by_label.values():
+        amplitudes = [float(r.amplitude_m) for r in members]
+        groups[max(set(amplitudes), key=amplitudes.count)] = members
+    return dict(sorted(groups.items()))
 
 
 def _band_text(band: ValidBand) -> str:
@@ -146,6 +177,7 @@ class FreeRunResult:
     plate: PlateMass
     fits: tuple[DwellFit, ...]
     unsettled: tuple[str, ...]
+    rejected: tuple[str, ...] = ()
 
     def summary_lines(self) -> list[str]:
         p = self.plate
@@ -155,15 +187,16 @@ class FreeRunResult:
             f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
         ]
         lines += [f"FLAG free run not settled: {u}" for u in self.unsettled]
+        lines += [f"FLAG free run rejected: {r}" for r in self.rejected]
         return lines
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
     """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``)."""
-    ordered, fits = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
+    ordered, fits, rejected = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
     with _named("free run"):
         plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
-    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits))
+    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits), rejected)
 
 
 # ---------------------------------------------------------------------------------------- shaker
@@ -191,10 +224,11 @@ class ShakerAmplitudeResult:
     valid_band_raw: ValidBand
     valid_band_compensated: ValidBand
     unsettled: tuple[str, ...]
+    rejected: tuple[str, ...] = ()
 
     @property
     def label(self) -> str:
-        return f"{1e3 * self.amplitude_m:g} mm"
+        return amplitude_label(self.amplitude_m)
 
     def summary_lines(self) -> list[str]:
         ident = self.identification
@@ -227,6 +261,7 @@ class ShakerAmplitudeResult:
             f" (compensator design error {100 * self.compensator.design_error:.2f} %)"
         )
         lines += [f"FLAG not settled: {u}" for u in self.unsettled]
+        lines += [f"FLAG rejected: {r}" for r in self.rejected]
         return lines
 
 
@@ -307,8 +342,8 @@ def _analyse_amplitude(
     settle_s: float,
     band_hz: float | None,
 ) -> ShakerAmplitudeResult:
-    label = f"{1e3 * amplitude_m:g} mm"
-    ordered, fits = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
+    label = amplitude_label(amplitude_m)
+    ordered, fits, rejected = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
     rates = {r.sample_rate_hz for r in ordered}
     if len(rates) != 1:
         raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
@@ -342,6 +377,7 @@ def _analyse_amplitude(
         band_raw,
         band_comp,
         _unsettled(ordered, fits),
+        rejected,
     )
 
 
@@ -366,10 +402,7 @@ def analyse_shaker_campaign(
     if not records:
         raise AnalysisInputError("shaker campaign: no dwell records given")
     free = analyse_free_run(free_run, settle_s=settle_s)
-    groups: dict[float, list[DwellRecord]] = {}
-    for r in records:
-        _positive(f"{r.label}: amplitude", r.amplitude_m)
-        groups.setdefault(float(r.amplitude_m), []).append(r)
+    groups = _group_amplitudes(records)
     results = {
         a: _analyse_amplitude(
             a,
