@@ -35,7 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfiltfilt, welch
 
-from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response, half_cosine_rolloff
+from bench.analysis.fir import (
+    STOP_BAND_FACTOR,
+    StreamingFir,
+    apply_aligned,
+    design_fir,
+    fir_response,
+    half_cosine_rolloff,
+)
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 from bench.models.benches import TyreModel
@@ -218,7 +225,7 @@ def design_model_compensator(
 
     In the band the error is weighted relative to the target (``1 / max(|G|, 0.05)^2`` for ``G_F``,
     ``1 / m_wheel^2`` for ``G_A``); above it the target rolls off to zero by a half cosine up to
-    ``1.5 band_hz`` and is weighted 1e-3, with a small ridge on the taps: the gain stays bounded.
+    ``STOP_BAND_FACTOR band_hz`` and is weighted 1e-3, with a small ridge on the taps: the gain stays bounded.
     """
     fs = as_sample_rate(fs_hz)
     if not 0 < band_hz < fs / 3:
@@ -226,7 +233,7 @@ def design_model_compensator(
     f = np.linspace(0, fs / 2, 6 * n_taps + 1)
     f[0] = min(0.01, band_hz / 100)  # the inverse is evaluated just above DC
     g_f, g_a = inverse_response(model, tyre, sensor, f, rubber)
-    stop = 1.5 * band_hz
+    stop = STOP_BAND_FACTOR * band_hz
     roll = half_cosine_rolloff(f, band_hz, stop)
     outside = np.where(f <= band_hz, 1.0, 1e-3)
     w_f = outside / np.maximum(np.abs(g_f), 0.05) ** 2
