@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import f as f_distribution
+from scipy.special import fdtri
 
 from bench.analysis.frf import Frf, phasor_ratio
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
@@ -110,7 +110,7 @@ def _residual_growth_limit(fit: _Fit, half: _Fit, n_channels: int) -> np.ndarray
     exceeds with probability ``SETTLING_FALSE_ALARM / n_channels`` (F test, effective dof)."""
     rho = np.clip(fit.residual_lag1, 0.0, 0.95)
     dof = np.maximum(half.dof * (1 - rho**2) / (1 + rho**2), 1.0)
-    return np.sqrt(f_distribution.ppf(1 - SETTLING_FALSE_ALARM / n_channels, dof, dof))
+    return np.sqrt(fdtri(dof, dof, 1 - SETTLING_FALSE_ALARM / n_channels))  # the F quantile
 
 
 def _local_noise_variance(res: np.ndarray, w_dt: float, n_harm: int, dof_factor: float) -> np.ndarray | None:
