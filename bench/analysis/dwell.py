@@ -32,6 +32,9 @@ from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_sig
 #: Probability that a settled dwell (stationary noise) is flagged by the residual test, all its
 #: channels together.
 SETTLING_FALSE_ALARM = 0.01
+#: ... and it must have grown by at least this much: in long windows the F test alone flagged a growth
+#: of a few ten percent from the non-linear tyre's slow settling, harmless to the fundamental.
+MIN_RESIDUAL_GROWTH = 1.5
 DRIFT_SIGMAS = 5.0
 
 
@@ -107,10 +110,12 @@ def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int) -> _Fit:
 
 def _residual_growth_limit(fit: _Fit, half: _Fit, n_channels: int) -> np.ndarray:
     """Largest ratio of the first half's residual rms to the last half's that stationary noise
-    exceeds with probability ``SETTLING_FALSE_ALARM / n_channels`` (F test, effective dof)."""
+    exceeds with probability ``SETTLING_FALSE_ALARM / n_channels`` (F test, effective dof), and
+    at least ``MIN_RESIDUAL_GROWTH``."""
     rho = np.clip(fit.residual_lag1, 0.0, 0.95)
     dof = np.maximum(half.dof * (1 - rho**2) / (1 + rho**2), 1.0)
-    return np.sqrt(fdtri(dof, dof, 1 - SETTLING_FALSE_ALARM / n_channels))  # the F quantile
+    quantile = np.sqrt(fdtri(dof, dof, 1 - SETTLING_FALSE_ALARM / n_channels))
+    return np.maximum(quantile, MIN_RESIDUAL_GROWTH)
 
 
 def _local_noise_variance(res: np.ndarray, w_dt: float, n_harm: int, dof_factor: float) -> np.ndarray | None:
