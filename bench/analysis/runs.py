@@ -79,6 +79,9 @@ from bench.models.parameters import Tyre, WfsSensor
 
 #: Design band of the model compensator over the highest analysed frequency.
 DESIGN_BAND_MARGIN = 1.15
+#: Unreliable sweep bins in a row that do not end a valid band (one noisy bin is not its end; the
+#: dwell grids' points are far apart and any unreliable dwell ends the band).
+SWEEP_MAX_GAP_BINS = 1
 #: The wheel mass is estimated from the sweep between 1 Hz (or the sweep's start) and this fraction
 #: of its end: the band-pass's skirts then stay inside the swept band.
 WHEEL_MASS_BAND_TOP_FRACTION = 5 / 6
@@ -154,7 +157,23 @@ def _band_text(band: ValidBand) -> str:
         return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
     if not band.determined:
         return f"not determined (only {band.lowest_hz:.4g} Hz passes, then {band.limited_by})"
-    return f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (ends: {band.limited_by})"
+    skipped = f"; skips unreliable {_ranges_text(np.array(band.skipped_hz))}" if band.skipped_hz else ""
+    return (
+        f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (starts: {band.starts_at};"
+        f" ends: {band.limited_by}{skipped})"
+    )
+
+
+def _ranges_text(freq_hz: np.ndarray, step_hz: float | None = None) -> str:
+    """Frequencies as ranges of neighbouring points (``step_hz`` apart; default: the smallest
+    spacing): ``0.122-2.2 Hz, 29.9 Hz``."""
+    f = np.sort(np.asarray(freq_hz, dtype=float))
+    if f.size == 0:
+        return "none"
+    step = step_hz or (float(np.min(np.diff(f))) if f.size > 1 else 1.0)
+    breaks = np.flatnonzero(np.diff(f) > 1.5 * step) + 1
+    runs = np.split(f, breaks)
+    return ", ".join(f"{r[0]:.4g} Hz" if r.size == 1 else f"{r[0]:.4g}-{r[-1]:.4g} Hz" for r in runs)
 
 
 def _tolerance_text(band: ValidBand) -> str:
@@ -314,6 +333,22 @@ class ShakerCampaignResult:
         return lines
 
 
+def _ratio_band(ratio: Frf, max_gap_points: int = 0) -> ValidBand:
+    """The uncertainty-aware valid band of a force ratio (measured over true contact force)."""
+    return valid_band(
+        ratio.freq_hz, ratio.value, ratio.reliable, sigma=ratio.sigma, max_gap_points=max_gap_points
+    )
+
+
+def _sweep_ratio(frfs: FourPostFrfs, response: str, name: str) -> Frf:
+    """``response / F_contact`` from the sweep FRFs over Z, usable wherever both are (the sweep's
+    flank bias is common to both and cancels, see :attr:`SweepFrf.ratio_usable`)."""
+    num, den = frfs.sweeps[response], frfs.contact_per_z
+    h, sigma = phasor_ratio(num.frf.value, num.frf.sigma, den.value, den.sigma)
+    usable = num.ratio_usable & frfs.sweeps["f_plate"].ratio_usable
+    return Frf(den.freq_hz, h, sigma, usable, name, "f_contact")
+
+
 def _design_band(highest_hz: float, given_hz: float | None) -> float:
     return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
 
@@ -362,11 +397,7 @@ def _analyse_amplitude(
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
         compensated = _compensated_ratio(fits, plate, comp)
-        raw = frfs.wfs_per_contact
-        band_raw = valid_band(raw.freq_hz, raw.value, raw.reliable, sigma=raw.sigma)
-        band_comp = valid_band(
-            compensated.freq_hz, compensated.value, compensated.reliable, sigma=compensated.sigma
-        )
+        band_raw, band_comp = _ratio_band(frfs.wfs_per_contact), _ratio_band(compensated)
     return ShakerAmplitudeResult(
         amplitude_m,
         tuple(fits),
@@ -492,9 +523,17 @@ class FourPostResult:
             f"quarter car taken as given: {'; '.join(car.taken_as_given)}",
         ]
         if self.unreliable_bins:
+            sweeps = self.frfs.sweeps
+            frfs = (self.frfs.wfs_per_z, self.frfs.contact_per_z, self.frfs.accel_per_z)
+            bad = ~np.logical_and.reduce([frf.reliable for frf in frfs])
+            flank = bad & (sweeps["f_wfs"].flank | sweeps["f_plate"].flank | sweeps["a_hub"].flank)
+            step = float(f[1] - f[0]) if f.size > 1 else None
             lines.append(
                 f"FLAG {self.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
-                " (sweep flanks, low excitation or coherence): not used"
+                f" over Z and not used by the quarter car: on the sweep's flanks"
+                f" {_ranges_text(f[flank], step)}"
+                f" (biased over Z, usable in the force ratios); low excitation or coherence"
+                f" {_ranges_text(f[bad & ~flank], step)}"
             )
         if not car.converged:
             lines.append("FLAG the quarter-car fit did not converge")
@@ -605,18 +644,15 @@ def analyse_four_post(
             hub_acceleration=HUB_ACCELERATION,
             extra_responses={name: x[keep] for name, x in compensated.items()},
         )
-        contact = frfs.contact_per_z
-        ratios, bands = {}, {}
-        for name, per_z in (
-            ("raw", frfs.wfs_per_z),
-            ("hub_compensated", frfs.sweeps["hub_compensated"].frf),
-            ("model_compensated", frfs.sweeps["model_compensated"].frf),
-        ):
-            h, sigma = phasor_ratio(per_z.value, per_z.sigma, contact.value, contact.sigma)
-            ratios[name] = Frf(
-                contact.freq_hz, h, sigma, per_z.reliable & contact.reliable, name, "f_contact"
+        ratios = {
+            name: _sweep_ratio(frfs, response, name)
+            for name, response in (
+                ("raw", "f_wfs"),
+                ("hub_compensated", "hub_compensated"),
+                ("model_compensated", "model_compensated"),
             )
-            bands[name] = valid_band(contact.freq_hz, h, ratios[name].reliable, sigma=sigma)
+        }
+        bands = {name: _ratio_band(ratio, SWEEP_MAX_GAP_BINS) for name, ratio in ratios.items()}
         car = fit_quarter_car(frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber)
     all_reliable = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     return FourPostResult(
