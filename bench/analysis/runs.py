@@ -68,10 +68,12 @@ from bench.analysis.records import (
 from bench.analysis.shaker_models import LINEAR, RubberTerms
 from bench.analysis.tyre_fit import (
     AmplitudeDependence,
+    RatioPeak,
     ShakerIdentification,
     TyreFit,
     amplitude_dependence,
     identify_shaker,
+    ratio_peak,
 )
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
@@ -244,6 +246,7 @@ class ShakerAmplitudeResult:
     valid_band_compensated: ValidBand
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
+    model_peak: RatioPeak | None = None
 
     @property
     def label(self) -> str:
@@ -273,6 +276,15 @@ class ShakerAmplitudeResult:
             if not fit.converged:
                 lines.append(f"FLAG {self.label} Model {int(model)}: the fit did not converge")
         lines += [f"FLAG {self.label}: {finding}" for finding in ident.findings]
+        raw = self.frfs.wfs_per_contact
+        top = int(np.argmax(np.where(raw.reliable, np.abs(raw.value), -np.inf)))
+        if self.model_peak is not None:
+            p = self.model_peak
+            lines.append(
+                f"{self.label} |F_wfs/F_contact| peak of Model {int(ident.best)}: {p.height:.3g} +/-"
+                f" {p.height_ci95:.2g} at {p.freq_hz:.4g} +/- {p.freq_ci95_hz:.2g} Hz (95 %); largest"
+                f" measured {np.abs(raw.value[top]):.3g} at {raw.freq_hz[top]:g} Hz"
+            )
         lines.append(
             f"{self.label} valid band ({_tolerance_text(self.valid_band_raw)}):"
             f" raw {_band_text(self.valid_band_raw)},"
@@ -397,6 +409,7 @@ def _analyse_amplitude(
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
         compensated = _compensated_ratio(fits, plate, comp)
+        peak = ratio_peak(best, sensor, (fits[0].freq_hz, fits[-1].freq_hz))
         band_raw, band_comp = _ratio_band(frfs.wfs_per_contact), _ratio_band(compensated)
     return ShakerAmplitudeResult(
         amplitude_m,
@@ -409,6 +422,7 @@ def _analyse_amplitude(
         band_comp,
         _unsettled(ordered, fits),
         rejected,
+        peak,
     )
 
 

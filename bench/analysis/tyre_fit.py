@@ -36,9 +36,10 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from bench.analysis.frf import Frf
-from bench.analysis.lsq import LsqResult, far_outside_noise, relative_resolution, weighted_fit
+from bench.analysis.lsq import Z95, LsqResult, far_outside_noise, relative_resolution, weighted_fit
 from bench.analysis.plate_mass import ShakerErrors
 from bench.analysis.shaker_models import RubberTerms, shaker_response
 from bench.analysis.validation import AnalysisInputError
@@ -79,6 +80,8 @@ SIDEWALL_START_STIFFNESS_RATIO = 30.0
 #: Solver evaluations per parameter: a short search from each start, the full budget for the best.
 SEARCH_BUDGET = 15
 FULL_BUDGET = 200
+#: Log-spaced points on which the model's ratio peak is first located (then refined by Brent's method).
+PEAK_GRID_POINTS = 400
 
 
 @dataclass(frozen=True)
@@ -520,3 +523,57 @@ def amplitude_dependence(
         stiffness_change=k / k[0] - 1,
         damping_change=d / d[0] - 1,
     )
+
+
+@dataclass(frozen=True)
+class RatioPeak:
+    """The peak of ``|F_wfs / F_contact|`` of an identified model: ``freq_hz`` and ``height`` with
+    their 95 % half-widths (the fit's covariance propagated). A dwell grid can miss the peak: its
+    largest measured point is only a lower bound."""
+
+    freq_hz: float
+    freq_ci95_hz: float
+    height: float
+    height_ci95: float
+
+
+def _peak(
+    model: TyreModel,
+    values: Mapping[str, float],
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    band: tuple[float, float],
+) -> tuple[float, float]:
+    """Frequency and height of the largest ``|F_wfs / F_contact|`` of the model in ``band``."""
+    tyre, rubber = _model_objects(model, values, wheel_mass_kg)
+
+    def magnitude(f_hz: float | np.ndarray) -> np.ndarray:
+        wfs, contact = shaker_response(model, tyre, sensor, np.atleast_1d(f_hz), rubber)
+        return np.abs(wfs / contact)
+
+    grid = np.geomspace(band[0], band[1], PEAK_GRID_POINTS)
+    i = int(np.argmax(magnitude(grid)))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best = minimize_scalar(
+        lambda f: -magnitude(f)[0], bounds=(lo, hi), method="bounded", options={"xatol": 1e-9 * hi}
+    )
+    return float(best.x), float(-best.fun)
+
+
+def ratio_peak(fit: TyreFit, sensor: WfsSensor, band_hz: tuple[float, float]) -> RatioPeak:
+    """Peak of the model's ``|F_wfs / F_contact|`` in ``band_hz`` (see :class:`RatioPeak`); 95 %
+    half-widths ``1.96 sqrt(g^T C g)`` with ``g`` the central-difference gradient over the fitted
+    parameters."""
+    names = [n for n in fit.lsq.values if n != PLATE_MASS_OFFSET]
+    index = [list(fit.lsq.values).index(n) for n in names]
+    cov = fit.lsq.covariance[np.ix_(index, index)]
+    wheel = fit.tyre.wheel_mass_kg
+    f0, h0 = _peak(fit.model, fit.lsq.values, wheel, sensor, band_hz)
+    grad = np.zeros((2, len(names)))
+    for j, name in enumerate(names):
+        step = 1e-4 * abs(fit.lsq.values[name]) or 1e-6
+        up = _peak(fit.model, {**fit.lsq.values, name: fit.lsq.values[name] + step}, wheel, sensor, band_hz)
+        down = _peak(fit.model, {**fit.lsq.values, name: fit.lsq.values[name] - step}, wheel, sensor, band_hz)
+        grad[:, j] = (np.array(up) - np.array(down)) / (2 * step)
+    half = Z95 * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", grad, cov, grad), 0.0))
+    return RatioPeak(f0, float(half[0]), h0, float(half[1]))
