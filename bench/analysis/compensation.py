@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.signal import butter, sosfiltfilt, welch
 
 from bench.analysis.fir import (
@@ -143,7 +144,8 @@ def _coloured_noise_covariance(X: np.ndarray, res: np.ndarray, fs: float) -> np.
     density = np.interp(np.fft.rfftfreq(n, 1 / fs), f_psd, psd) * fs / 2
     density[1 : (n + 1) // 2] *= 2  # bins standing for their negative-frequency twins
     meat = (spec.conj().T * density) @ spec
-    bread = np.linalg.inv(X.T @ X)
+    r_inv = solve_triangular(np.linalg.qr(X, mode="r"), np.eye(X.shape[1]))
+    bread = r_inv @ r_inv.T  # (X'X)^-1 from the QR factor, without squaring X's condition
     return bread @ (meat.real / n) @ bread
 
 

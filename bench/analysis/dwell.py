@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.special import fdtri
 
 from bench.analysis.frf import Frf, phasor_ratio
@@ -95,12 +96,14 @@ def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int) -> _Fit:
         cols += [np.cos(k * w * t), np.sin(k * w * t)]
     X = np.stack(cols, axis=1)
     w_dt = w * (t[1] - t[0]) if t.size > 1 else 0.0
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    # QR instead of the normal equations: (X'X)^-1 = R^-1 R^-T without squaring X's condition
+    q, r = np.linalg.qr(X)
+    coef = solve_triangular(r, q.T @ y)
     res = y - X @ coef
     dof = max(t.size - X.shape[1], 1)
     var = np.sum(res**2, axis=0) / dof
-    cov = np.linalg.inv(X.T @ X)
-    white = var * (cov[1, 1] + cov[2, 2])
+    r_inv = solve_triangular(r, np.eye(r.shape[0]))
+    white = var * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))  # diagonal of (X'X)^-1
     local = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
     fundamental_sigma = np.sqrt(white if local is None else local)
     power = np.maximum(np.sum(res**2, axis=0), 1e-300)

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import freqz, lfilter
 
 from bench.analysis.validation import AnalysisInputError
 
@@ -27,9 +27,9 @@ STOP_BAND_FACTOR = 1.5
 
 
 def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndarray:
-    """Complex frequency response of FIR ``taps`` at ``freq_hz``."""
-    n = np.arange(np.asarray(taps).size)
-    return np.exp(-2j * np.pi * np.outer(np.asarray(freq_hz, dtype=float) / fs_hz, n)) @ taps
+    """Complex frequency response of FIR ``taps`` at ``freq_hz`` (:func:`scipy.signal.freqz`)."""
+    f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
+    return freqz(np.asarray(taps, dtype=float), 1.0, worN=f, fs=fs_hz)[1].reshape(np.shape(freq_hz))
 
 
 def design_fir(
