@@ -45,7 +45,7 @@ MIN_NOISE_SAMPLES = 16
 MIN_SIGNAL_TO_NOISE = 20.0
 #: Peaks used by the decrement lie above this multiple of NOISE_MULTIPLE times the noise (near the
 #: noise floor the largest of signal plus noise is biased upwards, flattening the decay) and above
-#: this fraction of the largest peak (four decades of power: a long decay, not its noisy end).
+#: this fraction of the largest peak (a fiftieth: the well-resolved part of the decay).
 PEAK_NOISE_FACTOR = 4.0
 PEAK_FRACTION = 0.02
 #: Successive decay peaks are one damped period apart; 0.7 of it keeps noise wiggles from counting

@@ -575,6 +575,51 @@ def _tyre_below(
     return fit.model, fit.tyre, fit.rubber, f"the shaker identification at {shaker.label}", shaker.compensator
 
 
+def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
+    """The sweep's channels, after checking that it covers the band it claims (errors name it)."""
+    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+    fs = float(sweep.sample_rate_hz)
+    with _named(sweep.label):
+        if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
+            raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
+        _positive("amplitude", sweep.amplitude_m)
+        _positive("sweep duration", sweep.sweep_s)
+        if sweep.duration_s < sweep.sweep_s - 1 / fs:
+            raise AnalysisInputError(
+                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
+                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
+                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
+            )
+    return rec
+
+
+def _compensate_sweep(
+    sweep: SweepRecord, rec: dict[str, np.ndarray], plate: PlateMass, comp: ModelCompensator
+) -> tuple[WheelMass, dict[str, np.ndarray], slice]:
+    """m_wheel and the accelerometer's lag from the run (contact force ``F_plate - m_comp z''``),
+    the hub-acceleration and model-compensated forces, and the span of the record where the
+    differentiator and the compensator are defined (their windows inside the record)."""
+    fs = float(sweep.sample_rate_hz)
+    a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
+    f_contact = rec[PLATE_FORCE] - plate.mass_kg * a_contact
+    inner = np.isfinite(a_contact)
+    mass = estimate_wheel_mass(
+        f_contact[inner],
+        rec[WFS_FORCE][inner],
+        rec[HUB_ACCELERATION][inner],
+        fs,
+        a_contact=a_contact[inner],
+        band_hz=(max(1.0, sweep.start_hz), WHEEL_MASS_BAND_TOP_FRACTION * sweep.end_hz),
+    )
+    accel = advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
+    compensated = {
+        "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
+        "model_compensated": comp.apply(rec[WFS_FORCE], accel),
+    }
+    idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
+    return mass, compensated, slice(int(idx[0]), int(idx[-1]) + 1)
+
+
 def analyse_four_post(
     sweep: SweepRecord,
     free_run: Sequence[DwellRecord],
@@ -604,19 +649,8 @@ def analyse_four_post(
             f"wheel mass {wheel_mass_kg:g} kg differs from the {tyre_obj.wheel_mass_kg:g} kg"
             " the tyre describes"
         )
-    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+    rec = _checked_sweep(sweep)
     fs = float(sweep.sample_rate_hz)
-    with _named(label):
-        if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
-            raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
-        _positive("amplitude", sweep.amplitude_m)
-        _positive("sweep duration", sweep.sweep_s)
-        if sweep.duration_s < sweep.sweep_s - 1 / fs:
-            raise AnalysisInputError(
-                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
-                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
-                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
-            )
     post = analyse_free_run(free_run, settle_s=settle_s)
     with _named(label):
         if shaker_comp is not None and shaker_comp.fs_hz == fs:
@@ -628,25 +662,7 @@ def analyse_four_post(
                 else _design_band(sweep.end_hz, compensation_band_hz)
             )
             comp = design_model_compensator(model, tyre_obj, sensor, rubber, fs_hz=fs, band_hz=band)
-        a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
-        f_contact = rec[PLATE_FORCE] - post.plate.mass_kg * a_contact
-        inner = np.isfinite(a_contact)
-        mass = estimate_wheel_mass(
-            f_contact[inner],
-            rec[WFS_FORCE][inner],
-            rec[HUB_ACCELERATION][inner],
-            fs,
-            a_contact=a_contact[inner],
-            band_hz=(max(1.0, sweep.start_hz), WHEEL_MASS_BAND_TOP_FRACTION * sweep.end_hz),
-        )
-        accel = advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
-        compensated = {
-            "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
-            "model_compensated": comp.apply(rec[WFS_FORCE], accel),
-        }
-        # the differentiator and the compensator leave NaN where their windows leave the record: cut
-        idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
-        keep = slice(int(idx[0]), int(idx[-1]) + 1)
+        mass, compensated, keep = _compensate_sweep(sweep, rec, post.plate, comp)
         frfs = four_post_frfs(
             {name: x[keep] for name, x in rec.items()},
             fs,
