@@ -470,6 +470,7 @@ def analyse_shaker_campaign(
                 sensor=sensor,
                 stiffness_rise=any(i.frequency_dependent_stiffness for i in idents),
                 hysteretic=any(i.hysteretic_damping for i in idents),
+                errors={a: r.frfs.errors for a, r in results.items()},
             )
     return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence)
 

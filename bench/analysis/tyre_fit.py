@@ -497,8 +497,10 @@ def amplitude_dependence(
     sensor: WfsSensor,
     stiffness_rise: bool,
     hysteretic: bool,
+    errors: Mapping[float, ShakerErrors] | None = None,
 ) -> AmplitudeDependence:
-    """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping."""
+    """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping;
+    ``errors``: each amplitude's shared errors (propagated), ``None`` for independent points."""
     amps = sorted(per_amplitude)
     fits = tuple(
         fit_tyre_model(
@@ -508,6 +510,7 @@ def amplitude_dependence(
             sensor=sensor,
             stiffness_rise=stiffness_rise,
             hysteretic=hysteretic,
+            errors=None if errors is None else errors[a],
         )
         for a in amps
     )
