@@ -224,6 +224,12 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _D
     var_w = s_w**2 + (RELATIVE_SIGMA_FLOOR * np.abs(h_w)) ** 2 + (np.abs(h_w) * rel_z) ** 2
     var_c = s_c**2 + (RELATIVE_SIGMA_FLOOR * np.abs(h_c)) ** 2 + (np.abs(h_p) * rel_z) ** 2
     cov_cw = h_p * np.conj(h_w) * rel_z**2  # d(F/Z) = dF/Z - (F/Z) dZ/Z: one dZ for both
+    dead = (var_w <= 0) | (var_c <= 0)
+    if dead.any():
+        raise AnalysisInputError(
+            f"F_wfs/Z or F_contact/Z is exactly zero with zero uncertainty at {f[dead].tolist()} Hz:"
+            " a dead or frozen channel"
+        )
     l11 = np.sqrt(var_w)
     l21 = cov_cw / l11
     l22 = np.sqrt(np.maximum(var_c - np.abs(l21) ** 2, 1e-30 * var_c))
