@@ -33,9 +33,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.signal import butter, sosfiltfilt, welch
 
-from bench.analysis.fir import StreamingFir, apply_aligned, design_fir, fir_response, half_cosine_rolloff
+from bench.analysis.fir import (
+    STOP_BAND_FACTOR,
+    StreamingFir,
+    apply_aligned,
+    design_fir,
+    fir_response,
+    half_cosine_rolloff,
+)
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 from bench.models.benches import TyreModel
@@ -136,7 +144,8 @@ def _coloured_noise_covariance(X: np.ndarray, res: np.ndarray, fs: float) -> np.
     density = np.interp(np.fft.rfftfreq(n, 1 / fs), f_psd, psd) * fs / 2
     density[1 : (n + 1) // 2] *= 2  # bins standing for their negative-frequency twins
     meat = (spec.conj().T * density) @ spec
-    bread = np.linalg.inv(X.T @ X)
+    r_inv = solve_triangular(np.linalg.qr(X, mode="r"), np.eye(X.shape[1]))
+    bread = r_inv @ r_inv.T  # (X'X)^-1 from the QR factor, without squaring X's condition
     return bread @ (meat.real / n) @ bread
 
 
@@ -218,7 +227,7 @@ def design_model_compensator(
 
     In the band the error is weighted relative to the target (``1 / max(|G|, 0.05)^2`` for ``G_F``,
     ``1 / m_wheel^2`` for ``G_A``); above it the target rolls off to zero by a half cosine up to
-    ``1.5 band_hz`` and is weighted 1e-3, with a small ridge on the taps: the gain stays bounded.
+    ``STOP_BAND_FACTOR band_hz`` and is weighted 1e-3, with a small ridge on the taps: the gain stays bounded.
     """
     fs = as_sample_rate(fs_hz)
     if not 0 < band_hz < fs / 3:
@@ -226,7 +235,7 @@ def design_model_compensator(
     f = np.linspace(0, fs / 2, 6 * n_taps + 1)
     f[0] = min(0.01, band_hz / 100)  # the inverse is evaluated just above DC
     g_f, g_a = inverse_response(model, tyre, sensor, f, rubber)
-    stop = 1.5 * band_hz
+    stop = STOP_BAND_FACTOR * band_hz
     roll = half_cosine_rolloff(f, band_hz, stop)
     outside = np.where(f <= band_hz, 1.0, 1e-3)
     w_f = outside / np.maximum(np.abs(g_f), 0.05) ** 2

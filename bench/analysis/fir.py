@@ -17,15 +17,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import freqz, lfilter
 
 from bench.analysis.validation import AnalysisInputError
 
+#: Where a filter's target has rolled off to zero, as a multiple of its band's upper end: the
+#: half-cosine taper between them keeps the taps short and the gain above the band bounded.
+STOP_BAND_FACTOR = 1.5
+
 
 def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndarray:
-    """Complex frequency response of FIR ``taps`` at ``freq_hz``."""
-    n = np.arange(np.asarray(taps).size)
-    return np.exp(-2j * np.pi * np.outer(np.asarray(freq_hz, dtype=float) / fs_hz, n)) @ taps
+    """Complex frequency response of FIR ``taps`` at ``freq_hz`` (:func:`scipy.signal.freqz`)."""
+    f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
+    return freqz(np.asarray(taps, dtype=float), 1.0, worN=f, fs=fs_hz)[1].reshape(np.shape(freq_hz))
 
 
 def design_fir(
@@ -123,7 +127,7 @@ def double_differentiator(fs_hz: float, *, band_hz: float, n_taps: int = 61) -> 
     """
     latency = (n_taps - 1) // 2
     f = np.linspace(0, fs_hz / 2, 8 * n_taps)
-    stop = min(1.4 * band_hz, fs_hz / 2)
+    stop = min(STOP_BAND_FACTOR * band_hz, fs_hz / 2)
     target = -((2 * np.pi * f) ** 2) * half_cosine_rolloff(f, band_hz, stop)
     # relative accuracy in the band: |error|^2 weighted by 1 / |target|^2 (floored below 0.5 Hz)
     w_floor = 2 * np.pi * np.maximum(f, 0.5)

@@ -71,13 +71,16 @@ class ValidBand:
 
     ``lowest_hz`` is the lowest reliable point (where the data begins to say anything: with a
     ``sigma``, a point is reliable only if its standard uncertainty is at most half the tolerances,
-    so that noise alone can neither pass nor fail it);
+    so that noise alone can neither pass nor fail it); ``starts_at`` says why the band starts there:
+    ``"start of data"`` or how many unreliable points lie below it.
     ``upper_hz`` is the highest frequency up to which every point from ``lowest_hz`` on keeps
     ``| |H| - 1 | <= amplitude_tolerance`` and ``|phase H| <= phase_tolerance_deg``; it is the last
     point that passes (no interpolation: conservative). ``n_points``: how many points pass from
     ``lowest_hz`` on. One point is no band: with fewer than two the band is not ``determined`` and
     ``upper_hz`` is 0.0. ``limited_by`` says what ended the band: ``"amplitude"``, ``"phase"``,
     ``"unreliable point"`` or ``"end of data"`` (the band may extend beyond the data).
+    ``skipped_hz``: unreliable points inside the band that did not end it (runs of at most
+    ``max_gap_points`` between passing points: one noisy sweep bin is not the end of a band).
     """
 
     upper_hz: float
@@ -86,6 +89,8 @@ class ValidBand:
     amplitude_tolerance: float
     phase_tolerance_deg: float
     n_points: int
+    starts_at: str = "start of data"
+    skipped_hz: tuple[float, ...] = ()
 
     @property
     def determined(self) -> bool:
@@ -101,6 +106,7 @@ def valid_band(
     amplitude_tolerance: float = AMPLITUDE_TOLERANCE,
     phase_tolerance_deg: float = PHASE_TOLERANCE_DEG,
     sigma: np.ndarray | None = None,
+    max_gap_points: int = 0,
 ) -> ValidBand:
     """Valid band of a force ratio sampled at ascending ``freq_hz`` (see :class:`ValidBand`)."""
     f = np.asarray(freq_hz, dtype=float)
@@ -108,6 +114,7 @@ def valid_band(
     ok_points = np.ones(f.size, bool) if reliable is None else np.asarray(reliable, bool)
     if f.size == 0 or f.shape != h.shape or f.shape != ok_points.shape:
         raise AnalysisInputError("valid band needs equal-length, non-empty frequency and ratio arrays")
+    given = ok_points
     if sigma is not None:
         relative = np.asarray(sigma, dtype=float) / np.abs(h)
         determined = (relative <= 0.5 * amplitude_tolerance) & (
@@ -119,15 +126,39 @@ def valid_band(
     if not ok_points.any():
         raise AnalysisInputError("valid band needs at least one reliable point")
     start = int(np.argmax(ok_points))  # the band begins at the lowest reliable point
+    if start == 0:
+        starts_at = "start of data"
+    elif given[start - 1]:  # reliable data whose uncertainty is too large to judge it
+        starts_at = f"uncertainty above half the tolerances at the {start} points below"
+    else:
+        starts_at = f"{start} unreliable points below"
     f, h, ok_points = f[start:], h[start:], ok_points[start:]
     amp_bad = ~(np.abs(np.abs(h) - 1.0) <= amplitude_tolerance)
     phase_bad = ~(np.abs(np.degrees(np.angle(h))) <= phase_tolerance_deg)
-    causes = (("unreliable point", ~ok_points), ("amplitude", amp_bad), ("phase", phase_bad))
-    first_bad = f.size
-    limited_by = "end of data"
-    for cause, bad in causes:
-        idx = np.flatnonzero(bad)
-        if idx.size and idx[0] < first_bad:
-            first_bad, limited_by = int(idx[0]), cause
-    upper = float(f[first_bad - 1]) if first_bad >= 2 else 0.0
-    return ValidBand(upper, float(f[0]), limited_by, amplitude_tolerance, phase_tolerance_deg, first_bad)
+    end, limited_by, gap, skipped = f.size, "end of data", 0, []
+    for i in range(f.size):
+        if not ok_points[i]:
+            gap += 1
+            if gap > max_gap_points:
+                end, limited_by = i - gap + 1, "unreliable point"
+                break
+            continue
+        if amp_bad[i] or phase_bad[i]:
+            end, limited_by = i - gap, "amplitude" if amp_bad[i] else "phase"
+            break
+        skipped += [float(x) for x in f[i - gap : i]]
+        gap = 0
+    else:
+        end -= gap  # trailing unreliable points are not part of the band
+    n_pass = end - len(skipped)
+    upper = float(f[end - 1]) if n_pass >= 2 else 0.0
+    return ValidBand(
+        upper,
+        float(f[0]),
+        limited_by,
+        amplitude_tolerance,
+        phase_tolerance_deg,
+        n_pass,
+        starts_at,
+        tuple(skipped),
+    )

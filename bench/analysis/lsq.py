@@ -21,10 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import chi2 as chi2_distribution
 
 Z95 = 1.959964
 UNDETERMINED_RELATIVE_CI = 0.5
 _NULL_SPACE = 1e-9
+#: A fit is far outside the noise when its chi^2 exceeds this quantile of the chi^2 distribution of
+#: its degrees of freedom (a model that describes the data reaches it once in a thousand fits) ...
+OUTSIDE_NOISE_QUANTILE = 0.999
+#: ... and its reduced chi^2 is at least this: the point uncertainties are themselves estimated
+#: (from a few cycles' residuals), so a correct model's reduced chi^2 scatters wider than chi^2 says.
+OUTSIDE_NOISE_MIN_REDUCED_CHI2 = 2.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +52,14 @@ class LsqResult:
     @property
     def reduced_chi2(self) -> float:
         return self.chi2 / max(self.n_residuals - self.n_parameters, 1)
+
+
+def far_outside_noise(fit: LsqResult) -> bool:
+    """The residuals are far larger than the data's stated uncertainty: the model (or something
+    taken as known, such as a sensor or a mass) does not describe the data. A finding, not noise."""
+    dof = max(fit.n_residuals - fit.n_parameters, 1)
+    limit = max(chi2_distribution.ppf(OUTSIDE_NOISE_QUANTILE, dof), OUTSIDE_NOISE_MIN_REDUCED_CHI2 * dof)
+    return fit.chi2 > limit
 
 
 def relative_resolution(name: str, values: Mapping[str, float]) -> float:

@@ -52,13 +52,33 @@ def identify_plate_mass(plate_per_z: Frf) -> PlateMass:
 
 
 @dataclass(frozen=True)
+class ShakerErrors:
+    """The parts of the shaker FRFs' errors that points share, for a fit that propagates them.
+
+    Per dwell (ascending frequency, as the FRFs): ``wfs_sigma`` and ``plate_sigma``, the
+    independent noise of ``F_wfs`` and ``F_shaker`` over ``|Z|`` (N/m); ``displacement_relative_sigma``,
+    ``sigma_Z / |Z|``: the displacement's error enters ``F_wfs/Z`` and ``F_contact/Z`` of one dwell
+    together. ``plate_mass_kg``/``plate_mass_sigma_kg``: m_comp of the free run, whose error is
+    common to every ``F_contact/Z`` point (as ``w^2 dm``) and passes almost one to one into m_T.
+    """
+
+    wfs_sigma: np.ndarray
+    plate_sigma: np.ndarray
+    displacement_relative_sigma: np.ndarray
+    plate_mass_kg: float
+    plate_mass_sigma_kg: float
+
+
+@dataclass(frozen=True)
 class ShakerFrfs:
     """The FRFs of a shaker dwell grid after plate-mass correction: ``wfs_per_z`` (F_wfs / Z),
-    ``contact_per_z`` (F_contact / Z) and the paper's ``wfs_per_contact`` (F_wfs / F_contact)."""
+    ``contact_per_z`` (F_contact / Z) and the paper's ``wfs_per_contact`` (F_wfs / F_contact);
+    ``errors``: the parts of their errors the points share (for an identification)."""
 
     wfs_per_z: Frf
     contact_per_z: Frf
     wfs_per_contact: Frf
+    errors: ShakerErrors
 
 
 def contact_force_phasors(
@@ -105,10 +125,14 @@ def shaker_frfs(
     h_c = h_p + m * w2
     sig_hc = np.hypot(sig_hp, w2 * plate.sigma_kg)
     ratio, sig_ratio = phasor_ratio(a_w, s_w, a_c, s_c)
+    errors = ShakerErrors(
+        s_w / np.abs(a_z), s_p / np.abs(a_z), s_z / np.abs(a_z), plate.mass_kg, plate.sigma_kg
+    )
     return ShakerFrfs(
         Frf(f, h_w, sig_hw, reliable, wfs, displacement),
         Frf(f, h_c, sig_hc, reliable, "f_contact", displacement),
         Frf(f, ratio, sig_ratio, reliable, wfs, "f_contact"),
+        errors,
     )
 
 

@@ -176,11 +176,13 @@ class QuarterCarFit:
 
     ``suspension`` (what stands above the sensor), ``tyre`` (given), ``rubber`` (given, with the
     hysteretic loss fitted on the post) and
-    ``accelerometer_delay_s``; ``values``/``ci95``: every fitted parameter and its 95 % half-width
-    by name with units; ``undetermined``: fitted parameters the data does not determine (do not
-    use their numbers); ``taken_as_given``: what this data cannot identify and was taken from
-    elsewhere. Modes: ``body_frequency_hz``/``wheel_frequency_hz`` (undamped, with 95 %
-    half-widths) and their damping ratios. ``band_hz``: lowest and highest reliable bin used.
+    ``accelerometer_delay_s``; ``lsq``: the least-squares result, whose ``values``/``ci95`` (every
+    fitted parameter and its 95 % half-width by name with units), ``undetermined`` (fitted
+    parameters the data does not determine: do not use their numbers), ``chi2``, ``n_residuals``,
+    ``n_parameters``, ``converged`` and ``reduced_chi2`` are properties of the fit too;
+    ``taken_as_given``: what this data cannot identify and was taken from elsewhere. Modes:
+    ``body_frequency_hz``/``wheel_frequency_hz`` (undamped, with 95 % half-widths) and their
+    damping ratios. ``band_hz``: lowest and highest reliable bin used.
     """
 
     model: TyreModel
@@ -188,9 +190,7 @@ class QuarterCarFit:
     rubber: RubberTerms
     suspension: Suspension
     accelerometer_delay_s: float
-    values: dict[str, float]
-    ci95: dict[str, float]
-    undetermined: tuple[str, ...]
+    lsq: LsqResult
     taken_as_given: tuple[str, ...]
     body_frequency_hz: float
     body_frequency_ci95_hz: float
@@ -198,15 +198,39 @@ class QuarterCarFit:
     wheel_frequency_hz: float
     wheel_frequency_ci95_hz: float
     wheel_damping_ratio: float
-    chi2: float
-    n_residuals: int
-    n_parameters: int
-    converged: bool
     band_hz: tuple[float, float]
 
     @property
+    def values(self) -> dict[str, float]:
+        return self.lsq.values
+
+    @property
+    def ci95(self) -> dict[str, float]:
+        return self.lsq.ci95
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        return self.lsq.undetermined
+
+    @property
+    def chi2(self) -> float:
+        return self.lsq.chi2
+
+    @property
+    def n_residuals(self) -> int:
+        return self.lsq.n_residuals
+
+    @property
+    def n_parameters(self) -> int:
+        return self.lsq.n_parameters
+
+    @property
+    def converged(self) -> bool:
+        return self.lsq.converged
+
+    @property
     def reduced_chi2(self) -> float:
-        return self.chi2 / max(self.n_residuals - self.n_parameters, 1)
+        return self.lsq.reduced_chi2
 
 
 def quarter_car_modes(
@@ -363,9 +387,7 @@ def fit_quarter_car(
         rubber=rubber_fit,
         suspension=suspension,
         accelerometer_delay_s=fit.values[DELAY],
-        values=fit.values,
-        ci95=fit.ci95,
-        undetermined=fit.undetermined,
+        lsq=fit,
         taken_as_given=tuple(given),
         body_frequency_hz=f_b,
         body_frequency_ci95_hz=ci_b,
@@ -373,10 +395,6 @@ def fit_quarter_car(
         wheel_frequency_hz=f_w,
         wheel_frequency_ci95_hz=ci_w,
         wheel_damping_ratio=z_w,
-        chi2=fit.chi2,
-        n_residuals=fit.n_residuals,
-        n_parameters=fit.n_parameters,
-        converged=fit.converged,
         band_hz=(float(data.freq_hz[0]), float(data.freq_hz[n - 1])),
     )
 

@@ -30,6 +30,16 @@ FREE_RUN_CHANNELS = (DISPLACEMENT, PLATE_FORCE)
 
 #: Time left for settling at the start of a dwell's hold phase before the analysed window.
 DEFAULT_SETTLE_S = 0.2
+#: Largest relative difference between a dwell's measured and declared displacement amplitude. A
+#: servo-hydraulic actuator follows its command within a few percent over the dwell band (the
+#: simulated controller within 1 % to 100 Hz); a record far off did not excite what it claims: the
+#: actuator did not move, or the record's amplitude or frequency is mislabelled (a fit at the wrong
+#: frequency over whole cycles sees almost none of the signal).
+AMPLITUDE_MISMATCH = 0.2
+#: A channel carries the excitation when its fundamental exceeds this many standard uncertainties
+#: (and the rounding of its own level): otherwise it is dead (zeros) or frozen (a constant).
+MIN_SIGNAL_SIGMAS = 5.0
+_ROUNDING = 1e-9
 
 
 @dataclass(frozen=True)
@@ -52,7 +62,7 @@ class DwellRecord:
     @property
     def label(self) -> str:
         """How errors and reports name this record."""
-        return f"dwell {1e3 * self.amplitude_m:g} mm at {self.freq_hz:g} Hz"
+        return dwell_label(self.freq_hz, self.amplitude_m)
 
 
 @dataclass(frozen=True)
@@ -89,6 +99,39 @@ class HammerRecord:
     @property
     def label(self) -> str:
         return f"hammer blow at {self.sample_rate_hz:g} Hz sampling"
+
+
+def dwell_label(freq_hz: float, amplitude_m: float) -> str:
+    """How errors and reports name a dwell."""
+    return f"dwell {1e3 * amplitude_m:g} mm at {freq_hz:g} Hz"
+
+
+def amplitude_label(amplitude_m: float) -> str:
+    """How reports name an amplitude group (4 significant digits: equal labels, equal groups)."""
+    return f"{1e3 * amplitude_m:.4g} mm"
+
+
+def dwell_problems(record: DwellRecord, fit: DwellFit, signal_channels: Sequence[str]) -> tuple[str, ...]:
+    """Why a fitted dwell cannot be used, if it cannot: the measured displacement amplitude far from
+    the declared one (``AMPLITUDE_MISMATCH``), or a channel without signal at the excitation
+    frequency (``MIN_SIGNAL_SIGMAS``). Empty when the dwell is usable."""
+    problems = []
+    z = abs(fit.channels[DISPLACEMENT].amplitude)
+    if not abs(z / record.amplitude_m - 1) <= AMPLITUDE_MISMATCH:
+        problems.append(
+            f"measured displacement amplitude {1e3 * z:.3g} mm against the declared"
+            f" {1e3 * record.amplitude_m:g} mm: the actuator did not follow, or the record's frequency"
+            " or amplitude is mislabelled"
+        )
+    for name in signal_channels:
+        c = fit.channels[name]
+        floor = MIN_SIGNAL_SIGMAS * c.amplitude_sigma + _ROUNDING * (abs(c.offset) + c.residual_rms)
+        if not abs(c.amplitude) > floor:
+            problems.append(
+                f"channel {name!r} carries no signal at {record.freq_hz:g} Hz (fundamental"
+                f" {abs(c.amplitude):.3g}, offset {c.offset:.4g}): dead or frozen channel"
+            )
+    return tuple(problems)
 
 
 def record_channels(

@@ -60,16 +60,20 @@ from bench.analysis.records import (
     DwellRecord,
     HammerRecord,
     SweepRecord,
+    amplitude_label,
+    dwell_problems,
     fit_dwell_record,
     record_channels,
 )
 from bench.analysis.shaker_models import LINEAR, RubberTerms
 from bench.analysis.tyre_fit import (
     AmplitudeDependence,
+    RatioPeak,
     ShakerIdentification,
     TyreFit,
     amplitude_dependence,
     identify_shaker,
+    ratio_peak,
 )
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
@@ -77,6 +81,9 @@ from bench.models.parameters import Tyre, WfsSensor
 
 #: Design band of the model compensator over the highest analysed frequency.
 DESIGN_BAND_MARGIN = 1.15
+#: Unreliable sweep bins in a row that do not end a valid band (one noisy bin is not its end; the
+#: dwell grids' points are far apart and any unreliable dwell ends the band).
+SWEEP_MAX_GAP_BINS = 1
 #: The wheel mass is estimated from the sweep between 1 Hz (or the sweep's start) and this fraction
 #: of its end: the band-pass's skirts then stay inside the swept band.
 WHEEL_MASS_BAND_TOP_FRACTION = 5 / 6
@@ -107,15 +114,44 @@ def _unsettled(records: Sequence[DwellRecord], fits: Sequence[DwellFit]) -> tupl
 
 def _fit_grid(
     records: Sequence[DwellRecord], channels: tuple[str, ...], settle_s: float, what: str
-) -> tuple[list[DwellRecord], list[DwellFit]]:
-    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error."""
+) -> tuple[list[DwellRecord], list[DwellFit], tuple[str, ...]]:
+    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error. Dwells
+    with a problem (:func:`~bench.analysis.records.dwell_problems`: dead or frozen channel, the
+    actuator not following, a mislabelled record) are left out and returned as ``rejected``
+    (label and why); the rest is analysed."""
     if not records:
         raise AnalysisInputError(f"{what}: no dwell records given")
     ordered = sorted(records, key=lambda r: r.freq_hz)
     for a, b in itertools.pairwise(ordered):
         if a.freq_hz == b.freq_hz:
             raise AnalysisInputError(f"{what}: two records of the same dwell ({a.label})")
-    return ordered, [fit_dwell_record(r, channels, settle_s=settle_s) for r in ordered]
+    kept, fits, rejected = [], [], []
+    signal = tuple(c for c in channels if c != HUB_ACCELERATION)  # the shaker clamps the hub
+    for record in ordered:
+        fit = fit_dwell_record(record, channels, settle_s=settle_s)
+        problems = dwell_problems(record, fit, signal)
+        if problems:
+            rejected.append(f"{record.label}: {'; '.join(problems)}")
+        else:
+            kept.append(record)
+            fits.append(fit)
+    if not fits:
+        raise AnalysisInputError(f"{what}: every dwell was rejected ({'; '.join(rejected)})")
+    return kept, fits, tuple(rejected)
+
+
+def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellRecord]]:
+    """Dwells by amplitude; amplitudes with the same label (4 significant digits: 2e-3 and
+    2.0000001e-3 m) are one group, keyed by the group's most common amplitude."""
+    by_label: dict[str, list[DwellRecord]] = {}
+    for r in records:
+        _positive(f"{r.label}: amplitude", r.amplitude_m)
+        by_label.setdefault(amplitude_label(r.amplitude_m), []).append(r)
+    groups = {}
+    for members in by_label.values():
+        amplitudes = [float(r.amplitude_m) for r in members]
+        groups[max(set(amplitudes), key=amplitudes.count)] = members
+    return dict(sorted(groups.items()))
 
 
 def _band_text(band: ValidBand) -> str:
@@ -123,7 +159,23 @@ def _band_text(band: ValidBand) -> str:
         return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
     if not band.determined:
         return f"not determined (only {band.lowest_hz:.4g} Hz passes, then {band.limited_by})"
-    return f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (ends: {band.limited_by})"
+    skipped = f"; skips unreliable {_ranges_text(np.array(band.skipped_hz))}" if band.skipped_hz else ""
+    return (
+        f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (starts: {band.starts_at};"
+        f" ends: {band.limited_by}{skipped})"
+    )
+
+
+def _ranges_text(freq_hz: np.ndarray, step_hz: float | None = None) -> str:
+    """Frequencies as ranges of neighbouring points (``step_hz`` apart; default: the smallest
+    spacing): ``0.122-2.2 Hz, 29.9 Hz``."""
+    f = np.sort(np.asarray(freq_hz, dtype=float))
+    if f.size == 0:
+        return "none"
+    step = step_hz or (float(np.min(np.diff(f))) if f.size > 1 else 1.0)
+    breaks = np.flatnonzero(np.diff(f) > 1.5 * step) + 1
+    runs = np.split(f, breaks)
+    return ", ".join(f"{r[0]:.4g} Hz" if r.size == 1 else f"{r[0]:.4g}-{r[-1]:.4g} Hz" for r in runs)
 
 
 def _tolerance_text(band: ValidBand) -> str:
@@ -146,6 +198,7 @@ class FreeRunResult:
     plate: PlateMass
     fits: tuple[DwellFit, ...]
     unsettled: tuple[str, ...]
+    rejected: tuple[str, ...] = ()
 
     def summary_lines(self) -> list[str]:
         p = self.plate
@@ -155,15 +208,16 @@ class FreeRunResult:
             f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
         ]
         lines += [f"FLAG free run not settled: {u}" for u in self.unsettled]
+        lines += [f"FLAG free run rejected: {r}" for r in self.rejected]
         return lines
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
     """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``)."""
-    ordered, fits = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
+    ordered, fits, rejected = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
     with _named("free run"):
         plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
-    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits))
+    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits), rejected)
 
 
 # ---------------------------------------------------------------------------------------- shaker
@@ -191,10 +245,12 @@ class ShakerAmplitudeResult:
     valid_band_raw: ValidBand
     valid_band_compensated: ValidBand
     unsettled: tuple[str, ...]
+    rejected: tuple[str, ...] = ()
+    model_peak: RatioPeak | None = None
 
     @property
     def label(self) -> str:
-        return f"{1e3 * self.amplitude_m:g} mm"
+        return amplitude_label(self.amplitude_m)
 
     def summary_lines(self) -> list[str]:
         ident = self.identification
@@ -205,7 +261,8 @@ class ShakerAmplitudeResult:
         rubber = f"stiffness rise with frequency {rise}, hysteretic damping {hysteretic}"
         lines = [
             f"{self.label}: {len(self.fits)} dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz;"
-            f" Model {int(ident.best)} selected (BIC {bics}); {rubber}",
+            f" Model {int(ident.best)} selected (lowest BIC with every parameter determined; BIC {bics});"
+            f" {rubber}",
             f"{self.label} Model {int(ident.best)} (95 %): {_values_text(best.values, best.ci95)};"
             f" F_wfs/F_contact rms error {100 * best.ratio_relative_rms:.2f} %",
         ]
@@ -218,6 +275,16 @@ class ShakerAmplitudeResult:
         for model, fit in ident.fits.items():
             if not fit.converged:
                 lines.append(f"FLAG {self.label} Model {int(model)}: the fit did not converge")
+        lines += [f"FLAG {self.label}: {finding}" for finding in ident.findings]
+        raw = self.frfs.wfs_per_contact
+        top = int(np.argmax(np.where(raw.reliable, np.abs(raw.value), -np.inf)))
+        if self.model_peak is not None:
+            p = self.model_peak
+            lines.append(
+                f"{self.label} |F_wfs/F_contact| peak of Model {int(ident.best)}: {p.height:.3g} +/-"
+                f" {p.height_ci95:.2g} at {p.freq_hz:.4g} +/- {p.freq_ci95_hz:.2g} Hz (95 %); largest"
+                f" measured {np.abs(raw.value[top]):.3g} at {raw.freq_hz[top]:g} Hz"
+            )
         lines.append(
             f"{self.label} valid band ({_tolerance_text(self.valid_band_raw)}):"
             f" raw {_band_text(self.valid_band_raw)},"
@@ -225,6 +292,7 @@ class ShakerAmplitudeResult:
             f" (compensator design error {100 * self.compensator.design_error:.2f} %)"
         )
         lines += [f"FLAG not settled: {u}" for u in self.unsettled]
+        lines += [f"FLAG rejected: {r}" for r in self.rejected]
         return lines
 
 
@@ -277,6 +345,22 @@ class ShakerCampaignResult:
         return lines
 
 
+def _ratio_band(ratio: Frf, max_gap_points: int = 0) -> ValidBand:
+    """The uncertainty-aware valid band of a force ratio (measured over true contact force)."""
+    return valid_band(
+        ratio.freq_hz, ratio.value, ratio.reliable, sigma=ratio.sigma, max_gap_points=max_gap_points
+    )
+
+
+def _sweep_ratio(frfs: FourPostFrfs, response: str, name: str) -> Frf:
+    """``response / F_contact`` from the sweep FRFs over Z, usable wherever both are (the sweep's
+    flank bias is common to both and cancels, see :attr:`SweepFrf.ratio_usable`)."""
+    num, den = frfs.sweeps[response], frfs.contact_per_z
+    h, sigma = phasor_ratio(num.frf.value, num.frf.sigma, den.value, den.sigma)
+    usable = num.ratio_usable & frfs.sweeps["f_plate"].ratio_usable
+    return Frf(den.freq_hz, h, sigma, usable, name, "f_contact")
+
+
 def _design_band(highest_hz: float, given_hz: float | None) -> float:
     return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
 
@@ -305,15 +389,15 @@ def _analyse_amplitude(
     settle_s: float,
     band_hz: float | None,
 ) -> ShakerAmplitudeResult:
-    label = f"{1e3 * amplitude_m:g} mm"
-    ordered, fits = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
+    label = amplitude_label(amplitude_m)
+    ordered, fits, rejected = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
     rates = {r.sample_rate_hz for r in ordered}
     if len(rates) != 1:
         raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
     with _named(label):
         frfs = shaker_frfs(fits, plate, wfs=WFS_FORCE, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
         ident = identify_shaker(
-            frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor
+            frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
         )
         best = ident.best_fit
         comp = design_model_compensator(
@@ -325,11 +409,8 @@ def _analyse_amplitude(
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
         compensated = _compensated_ratio(fits, plate, comp)
-        raw = frfs.wfs_per_contact
-        band_raw = valid_band(raw.freq_hz, raw.value, raw.reliable, sigma=raw.sigma)
-        band_comp = valid_band(
-            compensated.freq_hz, compensated.value, compensated.reliable, sigma=compensated.sigma
-        )
+        peak = ratio_peak(best, sensor, (fits[0].freq_hz, fits[-1].freq_hz))
+        band_raw, band_comp = _ratio_band(frfs.wfs_per_contact), _ratio_band(compensated)
     return ShakerAmplitudeResult(
         amplitude_m,
         tuple(fits),
@@ -340,6 +421,8 @@ def _analyse_amplitude(
         band_raw,
         band_comp,
         _unsettled(ordered, fits),
+        rejected,
+        peak,
     )
 
 
@@ -364,10 +447,7 @@ def analyse_shaker_campaign(
     if not records:
         raise AnalysisInputError("shaker campaign: no dwell records given")
     free = analyse_free_run(free_run, settle_s=settle_s)
-    groups: dict[float, list[DwellRecord]] = {}
-    for r in records:
-        _positive(f"{r.label}: amplitude", r.amplitude_m)
-        groups.setdefault(float(r.amplitude_m), []).append(r)
+    groups = _group_amplitudes(records)
     results = {
         a: _analyse_amplitude(
             a,
@@ -390,6 +470,7 @@ def analyse_shaker_campaign(
                 sensor=sensor,
                 stiffness_rise=any(i.frequency_dependent_stiffness for i in idents),
                 hysteretic=any(i.hysteretic_damping for i in idents),
+                errors={a: r.frfs.errors for a, r in results.items()},
             )
     return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence)
 
@@ -457,9 +538,17 @@ class FourPostResult:
             f"quarter car taken as given: {'; '.join(car.taken_as_given)}",
         ]
         if self.unreliable_bins:
+            sweeps = self.frfs.sweeps
+            frfs = (self.frfs.wfs_per_z, self.frfs.contact_per_z, self.frfs.accel_per_z)
+            bad = ~np.logical_and.reduce([frf.reliable for frf in frfs])
+            flank = bad & (sweeps["f_wfs"].flank | sweeps["f_plate"].flank | sweeps["a_hub"].flank)
+            step = float(f[1] - f[0]) if f.size > 1 else None
             lines.append(
                 f"FLAG {self.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
-                " (sweep flanks, low excitation or coherence): not used"
+                f" over Z and not used by the quarter car: on the sweep's flanks"
+                f" {_ranges_text(f[flank], step)}"
+                f" (biased over Z, usable in the force ratios); low excitation or coherence"
+                f" {_ranges_text(f[bad & ~flank], step)}"
             )
         if not car.converged:
             lines.append("FLAG the quarter-car fit did not converge")
@@ -485,6 +574,51 @@ def _tyre_below(
     shaker = tyre.nearest(amplitude_m)
     fit = shaker.identification.best_fit
     return fit.model, fit.tyre, fit.rubber, f"the shaker identification at {shaker.label}", shaker.compensator
+
+
+def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
+    """The sweep's channels, after checking that it covers the band it claims (errors name it)."""
+    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+    fs = float(sweep.sample_rate_hz)
+    with _named(sweep.label):
+        if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
+            raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
+        _positive("amplitude", sweep.amplitude_m)
+        _positive("sweep duration", sweep.sweep_s)
+        if sweep.duration_s < sweep.sweep_s - 1 / fs:
+            raise AnalysisInputError(
+                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
+                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
+                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
+            )
+    return rec
+
+
+def _compensate_sweep(
+    sweep: SweepRecord, rec: dict[str, np.ndarray], plate: PlateMass, comp: ModelCompensator
+) -> tuple[WheelMass, dict[str, np.ndarray], slice]:
+    """m_wheel and the accelerometer's lag from the run (contact force ``F_plate - m_comp z''``),
+    the hub-acceleration and model-compensated forces, and the span of the record where the
+    differentiator and the compensator are defined (their windows inside the record)."""
+    fs = float(sweep.sample_rate_hz)
+    a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
+    f_contact = rec[PLATE_FORCE] - plate.mass_kg * a_contact
+    inner = np.isfinite(a_contact)
+    mass = estimate_wheel_mass(
+        f_contact[inner],
+        rec[WFS_FORCE][inner],
+        rec[HUB_ACCELERATION][inner],
+        fs,
+        a_contact=a_contact[inner],
+        band_hz=(max(1.0, sweep.start_hz), WHEEL_MASS_BAND_TOP_FRACTION * sweep.end_hz),
+    )
+    accel = advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
+    compensated = {
+        "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
+        "model_compensated": comp.apply(rec[WFS_FORCE], accel),
+    }
+    idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
+    return mass, compensated, slice(int(idx[0]), int(idx[-1]) + 1)
 
 
 def analyse_four_post(
@@ -516,19 +650,8 @@ def analyse_four_post(
             f"wheel mass {wheel_mass_kg:g} kg differs from the {tyre_obj.wheel_mass_kg:g} kg"
             " the tyre describes"
         )
-    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+    rec = _checked_sweep(sweep)
     fs = float(sweep.sample_rate_hz)
-    with _named(label):
-        if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
-            raise AnalysisInputError(f"sweep band must satisfy 0 < start < end < {fs / 2:g} Hz")
-        _positive("amplitude", sweep.amplitude_m)
-        _positive("sweep duration", sweep.sweep_s)
-        if sweep.duration_s < sweep.sweep_s - 1 / fs:
-            raise AnalysisInputError(
-                f"the record is {sweep.duration_s:.4g} s long but the sweep takes {sweep.sweep_s:g} s:"
-                f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
-                f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
-            )
     post = analyse_free_run(free_run, settle_s=settle_s)
     with _named(label):
         if shaker_comp is not None and shaker_comp.fs_hz == fs:
@@ -540,25 +663,7 @@ def analyse_four_post(
                 else _design_band(sweep.end_hz, compensation_band_hz)
             )
             comp = design_model_compensator(model, tyre_obj, sensor, rubber, fs_hz=fs, band_hz=band)
-        a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
-        f_contact = rec[PLATE_FORCE] - post.plate.mass_kg * a_contact
-        inner = np.isfinite(a_contact)
-        mass = estimate_wheel_mass(
-            f_contact[inner],
-            rec[WFS_FORCE][inner],
-            rec[HUB_ACCELERATION][inner],
-            fs,
-            a_contact=a_contact[inner],
-            band_hz=(max(1.0, sweep.start_hz), WHEEL_MASS_BAND_TOP_FRACTION * sweep.end_hz),
-        )
-        accel = advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
-        compensated = {
-            "hub_compensated": hub_acceleration_compensation(rec[WFS_FORCE], accel, mass.mass_kg),
-            "model_compensated": comp.apply(rec[WFS_FORCE], accel),
-        }
-        # the differentiator and the compensator leave NaN where their windows leave the record: cut
-        idx = np.flatnonzero(inner & np.isfinite(compensated["model_compensated"]))
-        keep = slice(int(idx[0]), int(idx[-1]) + 1)
+        mass, compensated, keep = _compensate_sweep(sweep, rec, post.plate, comp)
         frfs = four_post_frfs(
             {name: x[keep] for name, x in rec.items()},
             fs,
@@ -570,18 +675,15 @@ def analyse_four_post(
             hub_acceleration=HUB_ACCELERATION,
             extra_responses={name: x[keep] for name, x in compensated.items()},
         )
-        contact = frfs.contact_per_z
-        ratios, bands = {}, {}
-        for name, per_z in (
-            ("raw", frfs.wfs_per_z),
-            ("hub_compensated", frfs.sweeps["hub_compensated"].frf),
-            ("model_compensated", frfs.sweeps["model_compensated"].frf),
-        ):
-            h, sigma = phasor_ratio(per_z.value, per_z.sigma, contact.value, contact.sigma)
-            ratios[name] = Frf(
-                contact.freq_hz, h, sigma, per_z.reliable & contact.reliable, name, "f_contact"
+        ratios = {
+            name: _sweep_ratio(frfs, response, name)
+            for name, response in (
+                ("raw", "f_wfs"),
+                ("hub_compensated", "hub_compensated"),
+                ("model_compensated", "model_compensated"),
             )
-            bands[name] = valid_band(contact.freq_hz, h, ratios[name].reliable, sigma=sigma)
+        }
+        bands = {name: _ratio_band(ratio, SWEEP_MAX_GAP_BINS) for name, ratio in ratios.items()}
         car = fit_quarter_car(frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber)
     all_reliable = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     return FourPostResult(

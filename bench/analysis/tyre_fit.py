@@ -7,27 +7,40 @@ stiffness and damping (the ratio alone does not depend on them in Model 1, and i
 explodes where the contact force nearly vanishes). The reported ratio error uses ``F_wfs/F_contact``.
 
 Fit: bounded non-linear least squares (``scipy.optimize.least_squares``) on the real and imaginary
-parts of ``(H_model - H_measured) / sigma``, parameters scaled by their start values, with the
-closed forms of :mod:`bench.analysis.shaker_models`. The wheel mass (weighed) and the sensor (hammer
-test) are known. Start values come from a linear least-squares fit of
-``Re(F_contact/Z) = k - m_T w^2`` and ``Im(F_contact/Z) = w d + h``, never from presets.
+parts of the whitened misfit ``L^-1 (H_model - H_measured)``, parameters scaled by their start
+values, with the closed forms of :mod:`bench.analysis.shaker_models`. The wheel mass (weighed) and
+the sensor (hammer test) are known. Start values come from a linear least-squares fit of
+``Re(F_contact/Z) = k - m_T w^2`` and ``Im(F_contact/Z) = w d + h``, never from presets; Model 3
+is searched from several starts (sidewall modes across the band and above it), the best kept.
+
+Correlated errors (:class:`ShakerErrors`): the displacement's error is shared by ``F_wfs/Z`` and
+``F_contact/Z`` of one dwell (``L``: the Cholesky factor of each dwell's 2x2 complex covariance),
+and m_comp's error is common to every ``F_contact/Z`` point: it is a fitted nuisance offset
+``w^2 dm`` with the free run's interval as its prior, so its uncertainty reaches m_T through the
+covariance instead of being averaged away as independent noise.
 
 Uncertainty: covariance ``s^2 (J^T J)^+`` with ``s^2 = chi^2 / dof``; 95 % intervals are 1.96
 standard deviations. A parameter is *not determined* when its 95 % half-width exceeds half its
 value (or an absolute resolution for the rubber terms), when it ends on a bound, or when it lies
 in the null space of ``J``. Models are compared by chi^2, AIC ``= chi^2 + 2 p`` and BIC
-``= chi^2 + p ln n``; the lowest BIC is the model the data supports.
+``= chi^2 + p ln n``. Model choice: the lowest BIC among the models whose parameters are all
+determined (BIC alone preferred a Model 3 with four undetermined parameters whenever the given
+sensor was off); a chosen fit far outside the noise (:func:`~bench.analysis.lsq.far_outside_noise`)
+is a finding for the user.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from bench.analysis.frf import Frf
-from bench.analysis.lsq import relative_resolution, weighted_fit
+from bench.analysis.lsq import Z95, LsqResult, far_outside_noise, relative_resolution, weighted_fit
+from bench.analysis.plate_mass import ShakerErrors
 from bench.analysis.shaker_models import RubberTerms, shaker_response
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
@@ -46,8 +59,29 @@ TYRE_PARAMETERS: dict[TyreModel, tuple[str, ...]] = {
     ),
 }
 RATE, HYST = "stiffness_rise_per_decade", "hysteretic_damping_n_per_m"
+#: Nuisance parameter: m_comp used for F_contact/Z minus the true m_comp (kg), with the free run's
+#: interval as its prior, so that its error is common to all points instead of independent noise.
+PLATE_MASS_OFFSET = "plate_mass_offset_kg"
 #: Relative floor on point uncertainties (model-form and rounding), so that no point gets infinite weight.
 RELATIVE_SIGMA_FLOOR = 1e-4
+#: Resolution of the rubber terms (95 % half-widths above it: not determined): a stiffness rise of
+#: 1 % per decade (2 % over the 0.5-70 Hz grid, the tolerance on k), a hysteretic loss of 1 % of k.
+#: A stiffness rise smaller than its resolution is not worth a parameter either.
+RATE_RESOLUTION = 0.01
+HYST_RESOLUTION = 0.01
+#: Smallest hysteretic loss worth a parameter, as a loss factor h / k (the simulated rubber's friction
+#: gives 2e-3 to 7e-3 over 1-5 mm; a smaller one changes the tread peak by well under 1 %).
+MIN_LOSS_FACTOR = 1e-3
+#: Model 3 starts: sidewall modes at these fractions of the highest data frequency (and one above the
+#: band), sidewall mass as a fraction of the wheel mass, and the ratio of its lower to upper stiffness.
+SIDEWALL_START_MODES = (0.3, 0.55, 0.8, 1.0)
+SIDEWALL_START_MASS_FRACTION = 0.03
+SIDEWALL_START_STIFFNESS_RATIO = 30.0
+#: Solver evaluations per parameter: a short search from each start, the full budget for the best.
+SEARCH_BUDGET = 15
+FULL_BUDGET = 200
+#: Log-spaced points on which the model's ratio peak is first located (then refined by Brent's method).
+PEAK_GRID_POINTS = 400
 
 
 @dataclass(frozen=True)
@@ -55,41 +89,79 @@ class TyreFit:
     """One model fitted to one data set.
 
     ``tyre``/``rubber``: the identified parameters as model objects (the known wheel mass included);
-    ``values``/``ci95``: fitted parameters and their 95 % half-widths, by name with units;
-    ``undetermined``: parameters the data does not determine; ``chi2`` over ``n_residuals`` real
-    residuals with ``n_parameters`` parameters, ``aic``, ``bic``; ``ratio_relative_rms``: rms of
-    ``|ratio_model / ratio_measured - 1|`` for ``F_wfs / F_contact``; ``converged``: the solver's verdict.
+    ``lsq``: the least-squares result (its ``values``/``ci95``, ``undetermined``, ``chi2`` over
+    ``n_residuals`` with ``n_parameters``, ``converged`` are also properties of the fit, without the
+    nuisance offset of m_comp); ``aic``, ``bic``; ``ratio_relative_rms``: rms of
+    ``|ratio_model / ratio_measured - 1|`` for ``F_wfs / F_contact``; ``n_starts``: how many start
+    values the search tried (Model 3: several sidewall modes).
     """
 
     model: TyreModel
     tyre: Tyre
     rubber: RubberTerms
-    values: dict[str, float]
-    ci95: dict[str, float]
-    undetermined: tuple[str, ...]
-    chi2: float
-    n_residuals: int
-    n_parameters: int
+    lsq: LsqResult
     aic: float
     bic: float
     ratio_relative_rms: float
-    converged: bool
+    n_starts: int = 1
+
+    @property
+    def values(self) -> dict[str, float]:
+        return {n: v for n, v in self.lsq.values.items() if n != PLATE_MASS_OFFSET}
+
+    @property
+    def ci95(self) -> dict[str, float]:
+        return {n: v for n, v in self.lsq.ci95.items() if n != PLATE_MASS_OFFSET}
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        return tuple(n for n in self.lsq.undetermined if n != PLATE_MASS_OFFSET)
+
+    @property
+    def determined(self) -> bool:
+        """Every parameter determined and the solver converged: a fit whose numbers can be used."""
+        return not self.undetermined and self.lsq.converged
+
+    @property
+    def chi2(self) -> float:
+        return self.lsq.chi2
+
+    @property
+    def n_residuals(self) -> int:
+        return self.lsq.n_residuals
+
+    @property
+    def n_parameters(self) -> int:
+        return self.lsq.n_parameters
+
+    @property
+    def converged(self) -> bool:
+        return self.lsq.converged
 
     @property
     def reduced_chi2(self) -> float:
-        return self.chi2 / max(self.n_residuals - self.n_parameters, 1)
+        return self.lsq.reduced_chi2
+
+    @property
+    def outside_noise(self) -> bool:
+        """The fit misses the data by far more than its noise (see :func:`far_outside_noise`)."""
+        return far_outside_noise(self.lsq)
 
 
 @dataclass(frozen=True)
 class ShakerIdentification:
-    """Models 1-3 fitted to one condition; ``best`` has the lowest BIC. ``frequency_dependent_stiffness``
-    and ``hysteretic_damping`` say whether the data needed those rubber terms (chosen by BIC on
-    Model 2 and kept for all models)."""
+    """Models 1-3 fitted to one condition. ``best``: the model with the lowest BIC among those whose
+    parameters are all determined (the lowest BIC overall, flagged, when none is);
+    ``frequency_dependent_stiffness`` and ``hysteretic_damping`` say whether the data needed those
+    rubber terms (chosen on Model 2, or on Model 3 when it is the best, and kept for all models);
+    ``findings``: what the user must know about the chosen fit (none determined, far outside the
+    noise)."""
 
     fits: dict[TyreModel, TyreFit]
     best: TyreModel
     frequency_dependent_stiffness: bool
     hysteretic_damping: bool
+    findings: tuple[str, ...] = ()
 
     @property
     def best_fit(self) -> TyreFit:
@@ -98,10 +170,24 @@ class ShakerIdentification:
 
 @dataclass(frozen=True)
 class _Data:
+    """Reliable points, and the whitening of each dwell's pair of errors ``(e_wfs, e_contact)``:
+    their 2x2 complex covariance ``C = L L^H`` with ``L = [[l11, 0], [l21, l22]]``."""
+
     w: np.ndarray
     freq_hz: np.ndarray
-    h: np.ndarray  # stacked [wfs; contact]
-    sigma: np.ndarray
+    h_wfs: np.ndarray
+    h_contact: np.ndarray
+    l11: np.ndarray
+    l21: np.ndarray
+    l22: np.ndarray
+    plate_mass_sigma_kg: float
+
+    def whitened(self, wfs: np.ndarray, contact: np.ndarray) -> np.ndarray:
+        """Real residuals of unit variance: ``L^-1 (model - data)``, real and imaginary parts."""
+        y1 = (wfs - self.h_wfs) / self.l11
+        y2 = (contact - self.h_contact - self.l21 * y1) / self.l22
+        r = np.concatenate([y1, y2]) * np.sqrt(2.0)
+        return np.concatenate([r.real, r.imag])
 
 
 def merge_frfs(frfs: list[Frf]) -> Frf:
@@ -118,7 +204,7 @@ def merge_frfs(frfs: list[Frf]) -> Frf:
     )
 
 
-def _data(wfs_per_z: Frf, contact_per_z: Frf) -> _Data:
+def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _Data:
     if wfs_per_z.freq_hz.shape != contact_per_z.freq_hz.shape or np.any(
         wfs_per_z.freq_hz != contact_per_z.freq_hz
     ):
@@ -127,16 +213,33 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf) -> _Data:
     if use.sum() < 4:
         raise AnalysisInputError(f"only {int(use.sum())} reliable FRF points; at least 4 needed")
     f = wfs_per_z.freq_hz[use]
-    h = np.concatenate([wfs_per_z.value[use], contact_per_z.value[use]])
-    s = np.concatenate([wfs_per_z.sigma[use], contact_per_z.sigma[use]])
-    s = np.sqrt(s**2 + (RELATIVE_SIGMA_FLOOR * np.abs(h)) ** 2)
-    return _Data(2 * np.pi * f, f, h, s)
+    h_w, h_c = wfs_per_z.value[use], contact_per_z.value[use]
+    if errors is None:  # independent points: the FRFs' own sigmas
+        s_w, s_c, rel_z, sigma_m = wfs_per_z.sigma[use], contact_per_z.sigma[use], np.zeros(f.size), 0.0
+        h_p = h_c
+    else:
+        s_w, s_c = errors.wfs_sigma[use], errors.plate_sigma[use]
+        rel_z, sigma_m = errors.displacement_relative_sigma[use], errors.plate_mass_sigma_kg
+        h_p = h_c - errors.plate_mass_kg * (2 * np.pi * f) ** 2  # F_shaker / Z
+    var_w = s_w**2 + (RELATIVE_SIGMA_FLOOR * np.abs(h_w)) ** 2 + (np.abs(h_w) * rel_z) ** 2
+    var_c = s_c**2 + (RELATIVE_SIGMA_FLOOR * np.abs(h_c)) ** 2 + (np.abs(h_p) * rel_z) ** 2
+    cov_cw = h_p * np.conj(h_w) * rel_z**2  # d(F/Z) = dF/Z - (F/Z) dZ/Z: one dZ for both
+    dead = (var_w <= 0) | (var_c <= 0)
+    if dead.any():
+        raise AnalysisInputError(
+            f"F_wfs/Z or F_contact/Z is exactly zero with zero uncertainty at {f[dead].tolist()} Hz:"
+            " a dead or frozen channel"
+        )
+    l11 = np.sqrt(var_w)
+    l21 = cov_cw / l11
+    l22 = np.sqrt(np.maximum(var_c - np.abs(l21) ** 2, 1e-30 * var_c))
+    return _Data(2 * np.pi * f, f, h_w, h_c, l11, l21, l22, float(sigma_m))
 
 
 def _start_values(data: _Data, model: TyreModel, names: tuple[str, ...], wheel_mass_kg: float) -> dict:
     """Linear least squares on the dynamic stiffness F_contact/Z (weighted by its uncertainty)."""
     n = data.w.size
-    hc, sc = data.h[n:], data.sigma[n:]
+    hc, sc = data.h_contact, np.hypot(np.abs(data.l21), data.l22)
     w = data.w
     re_cols = [np.ones(n)] + ([-(w**2)] if model is not TyreModel.WHEEL else [])
     im_cols = [w, np.ones(n)] if HYST in names else [w]
@@ -146,18 +249,40 @@ def _start_values(data: _Data, model: TyreModel, names: tuple[str, ...], wheel_m
     start = {"stiffness_n_per_m": k, "damping_ns_per_m": max(im[0], 1.0)}
     if model is not TyreModel.WHEEL:
         start["tread_mass_kg"] = float(np.clip(re[1], 0.01 * wheel_mass_kg, 0.5 * wheel_mass_kg))
-    if model is TyreModel.WHEEL_TREAD_SIDEWALL:
-        # A light sidewall, stiff towards the tread and soft towards the rim, keeps the start close to
-        # Model 2; the data decides whether they move (often it cannot: "not determined").
-        start["sidewall_mass_kg"] = 0.03 * wheel_mass_kg
-        start["sidewall_lower_stiffness_n_per_m"] = 3.0 * k
-        start["sidewall_upper_stiffness_n_per_m"] = 0.1 * k
-        start["stiffness_n_per_m"] = k - 0.1 * k * 3.0 / 3.1
     if RATE in names:
         start[RATE] = 0.0
     if HYST in names:
         start[HYST] = max(im[1], 0.0)
+    if data.plate_mass_sigma_kg > 0:
+        start[PLATE_MASS_OFFSET] = 0.0
     return start
+
+
+def _sidewall_starts(start: dict, wheel_mass_kg: float, top_hz: float) -> list[dict]:
+    """Model 3 start values: one per sidewall mode ``sqrt((L + U) / m_sw)`` tried, first one above
+    the band (close to Model 2), then modes inside the band: from the first alone the fit stops in
+    a local minimum when the mode lies in the band. A light sidewall, stiff towards the tread
+    (``L = 30 U``); the air spring keeps the static stiffness of the linear start."""
+    k = start["stiffness_n_per_m"]
+    m_sw = SIDEWALL_START_MASS_FRACTION * wheel_mass_kg
+    modes_hz = [np.sqrt(3.1 * k / m_sw) / (2 * np.pi)] + [f * top_hz for f in SIDEWALL_START_MODES]
+    starts = []
+    for mode_hz in modes_hz:
+        total = m_sw * (2 * np.pi * mode_hz) ** 2
+        upper = total / (1 + SIDEWALL_START_STIFFNESS_RATIO)
+        lower = total - upper
+        air = k - lower * upper / total
+        if air > 0.05 * k:
+            starts.append(
+                {
+                    **start,
+                    "stiffness_n_per_m": air,
+                    "sidewall_mass_kg": m_sw,
+                    "sidewall_lower_stiffness_n_per_m": lower,
+                    "sidewall_upper_stiffness_n_per_m": upper,
+                }
+            )
+    return starts
 
 
 def _bounds(name: str, wheel_mass_kg: float, k: float) -> tuple[float, float]:
@@ -170,22 +295,25 @@ def _bounds(name: str, wheel_mass_kg: float, k: float) -> tuple[float, float]:
         "sidewall_upper_stiffness_n_per_m": (1e2, 1e9),
         RATE: (-0.3, 0.5),
         HYST: (0.0, 2.0 * k),
+        PLATE_MASS_OFFSET: (-np.inf, np.inf),
     }[name]
 
 
 def _resolution(name: str, values: Mapping[str, float]) -> float:
     """Half-width of the 95 % interval above which a parameter counts as not determined."""
     if name == RATE:
-        return 0.01
+        return RATE_RESOLUTION
     if name == HYST:
-        return max(relative_resolution(name, values), 0.01 * values["stiffness_n_per_m"])
+        return max(relative_resolution(name, values), HYST_RESOLUTION * values["stiffness_n_per_m"])
+    if name == PLATE_MASS_OFFSET:
+        return np.inf  # a nuisance: its prior is the free run's interval
     return relative_resolution(name, values)
 
 
 def _model_objects(
     model: TyreModel, values: Mapping[str, float], wheel_mass_kg: float
 ) -> tuple[Tyre, RubberTerms]:
-    tyre_kw = {k: v for k, v in values.items() if k not in (RATE, HYST)}
+    tyre_kw = {k: v for k, v in values.items() if k not in (RATE, HYST, PLATE_MASS_OFFSET)}
     tyre_kw.setdefault("tread_mass_kg", 0.0)
     tyre_kw.setdefault("sidewall_mass_kg", 0.0)
     tyre = Tyre(wheel_mass_kg=wheel_mass_kg, **tyre_kw)
@@ -201,82 +329,148 @@ def fit_tyre_model(
     sensor: WfsSensor,
     stiffness_rise: bool = False,
     hysteretic: bool = False,
+    errors: ShakerErrors | None = None,
 ) -> TyreFit:
-    """Fit one model (optionally with the rubber terms) to shaker FRFs; see the module docstring."""
+    """Fit one model (optionally with the rubber terms) to shaker FRFs; see the module docstring.
+    ``errors``: the errors the points share (propagated); ``None`` takes the points as independent."""
     model = TyreModel(model)
-    data = _data(wfs_per_z, contact_per_z)
+    data = _data(wfs_per_z, contact_per_z, errors)
     names = TYRE_PARAMETERS[model] + ((RATE,) if stiffness_rise else ()) + ((HYST,) if hysteretic else ())
-    start = _start_values(data, model, names, wheel_mass_kg)
-    k0 = start["stiffness_n_per_m"]
-    scale = {n: abs(start[n]) if abs(start[n]) > 0 else (0.01 if n == RATE else 0.01 * k0) for n in names}
-    n_pts = data.w.size
+    linear_start = _start_values(data, model, names, wheel_mass_kg)
+    k0 = linear_start["stiffness_n_per_m"]
+    starts = (
+        _sidewall_starts(linear_start, wheel_mass_kg, float(data.freq_hz[-1]))
+        if model is TyreModel.WHEEL_TREAD_SIDEWALL
+        else [linear_start]
+    )
+    sigma_m = data.plate_mass_sigma_kg
 
     def residuals(values: Mapping[str, float]) -> np.ndarray:
         tyre, rubber = _model_objects(model, values, wheel_mass_kg)
         wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
-        r = (np.concatenate([wfs, contact]) - data.h) / data.sigma * np.sqrt(2.0)
-        return np.concatenate([r.real, r.imag])
+        if sigma_m == 0:
+            return data.whitened(wfs, contact)
+        # the measured F_contact/Z holds w^2 (m_comp,used - m_comp,true); its prior: the free run
+        offset = values[PLATE_MASS_OFFSET]
+        return np.append(data.whitened(wfs, contact + data.w**2 * offset), offset / sigma_m)
 
-    fit = weighted_fit(
-        residuals,
-        start,
-        {n: _bounds(n, wheel_mass_kg, k0) for n in names},
-        scale=scale,
-        resolution=_resolution,
-    )
-    values, chi2, n_res, p = fit.values, fit.chi2, fit.n_residuals, fit.n_parameters
-    tyre, rubber = _model_objects(model, values, wheel_mass_kg)
+    def scale_of(start: dict) -> dict:
+        small = {RATE: 0.01, PLATE_MASS_OFFSET: sigma_m}
+        return {n: abs(v) if abs(v) > 0 else small.get(n, 0.01 * k0) for n, v in start.items()}
+
+    def solve(start: dict, budget: int) -> LsqResult:
+        return weighted_fit(
+            residuals,
+            start,
+            {n: _bounds(n, wheel_mass_kg, k0) for n in start},
+            scale=scale_of(start),
+            resolution=_resolution,
+            max_nfev_per_parameter=budget,
+        )
+
+    fit = solve(starts[0], FULL_BUDGET)
+    if len(starts) > 1 and far_outside_noise(fit):
+        # the first start stopped far from the data: a short search from the others, the best
+        # of them to convergence, kept if it does better
+        found = min((solve(s, SEARCH_BUDGET) for s in starts[1:]), key=lambda f: f.chi2)
+        fit = min(fit, solve(found.values, FULL_BUDGET), key=lambda f: f.chi2)
+    tyre, rubber = _model_objects(model, fit.values, wheel_mass_kg)
     wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
-    ratio_meas = data.h[:n_pts] / data.h[n_pts:]
+    ratio_meas = data.h_wfs / (data.h_contact - data.w**2 * fit.values.get(PLATE_MASS_OFFSET, 0.0))
     ratio_rel = np.abs((wfs / contact) / ratio_meas - 1)
+    p, n_res = fit.n_parameters, fit.n_residuals
     return TyreFit(
         model=model,
         tyre=tyre,
         rubber=rubber,
-        values=values,
-        ci95=fit.ci95,
-        undetermined=fit.undetermined,
-        chi2=chi2,
-        n_residuals=n_res,
-        n_parameters=p,
-        aic=chi2 + 2 * p,
-        bic=chi2 + p * np.log(n_res),
+        lsq=fit,
+        aic=fit.chi2 + 2 * p,
+        bic=fit.chi2 + p * np.log(n_res),
         ratio_relative_rms=float(np.sqrt(np.mean(ratio_rel**2))),
-        converged=fit.converged,
+        n_starts=len(starts),
     )
 
 
+def _rubber_terms_relevant(fit: TyreFit) -> bool:
+    """Every rubber term of the fit is determined and large enough to matter: a stiffness rise of
+    at least ``RATE_RESOLUTION`` per decade, a hysteretic loss of at least ``MIN_LOSS_FACTOR`` k.
+    A smaller term only absorbs a model error (a wrong sensor bends F_wfs/Z as a slight rise would)."""
+    if any(n in fit.undetermined for n in (RATE, HYST)):
+        return False
+    rate_ok = RATE not in fit.values or abs(fit.values[RATE]) >= RATE_RESOLUTION
+    hyst_ok = HYST not in fit.values or fit.values[HYST] >= MIN_LOSS_FACTOR * fit.values["stiffness_n_per_m"]
+    return rate_ok and hyst_ok
+
+
+_Key = TypeVar("_Key")
+
+
+def _choose(fits: Mapping[_Key, TyreFit], keep: Callable[[TyreFit], bool]) -> _Key:
+    """The key of the lowest-BIC fit among those ``keep`` accepts (the lowest overall if none)."""
+    accepted = [key for key, fit in fits.items() if keep(fit)]
+    return min(accepted or list(fits), key=lambda key: fits[key].bic)
+
+
 def identify_shaker(
-    wfs_per_z: Frf, contact_per_z: Frf, *, wheel_mass_kg: float, sensor: WfsSensor
+    wfs_per_z: Frf,
+    contact_per_z: Frf,
+    *,
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    errors: ShakerErrors | None = None,
 ) -> ShakerIdentification:
-    """Fit Models 1-3; the rubber terms the data needs are chosen by BIC on Model 2."""
-    variants = [(rate, hyst) for rate in (False, True) for hyst in (False, True)]
-    m2 = {
-        v: fit_tyre_model(
-            TyreModel.WHEEL_TREAD,
-            wfs_per_z,
-            contact_per_z,
-            wheel_mass_kg=wheel_mass_kg,
-            sensor=sensor,
-            stiffness_rise=v[0],
-            hysteretic=v[1],
-        )
-        for v in variants
-    }
-    rate, hyst = min(m2, key=lambda v: m2[v].bic)
+    """Fit Models 1-3 and choose among the determined ones (see the module docstring).
+
+    The rubber terms are chosen on Model 2 by BIC among the variants whose terms are determined
+    and large enough to matter; Models 1 and 3 are fitted with them. The best model is the lowest
+    BIC among the fits with every parameter determined; when that is Model 3, the rubber terms
+    are chosen again on Model 3 (a Model 2 far from the data is no judge of them).
+    """
+    kw = {"wheel_mass_kg": wheel_mass_kg, "sensor": sensor, "errors": errors}
+
+    def variants(model: TyreModel) -> dict[tuple[bool, bool], TyreFit]:
+        return {
+            (rate, hyst): fit_tyre_model(
+                model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
+            )
+            for rate in (False, True)
+            for hyst in (False, True)
+        }
+
+    def rubber_choice(fits: dict[tuple[bool, bool], TyreFit]) -> tuple[bool, bool]:
+        return _choose(fits, lambda f: _rubber_terms_relevant(f) and f.determined)
+
+    m2 = variants(TyreModel.WHEEL_TREAD)
+    rate, hyst = rubber_choice(m2)
     fits = {TyreModel.WHEEL_TREAD: m2[(rate, hyst)]}
     for model in (TyreModel.WHEEL, TyreModel.WHEEL_TREAD_SIDEWALL):
         fits[model] = fit_tyre_model(
-            model,
-            wfs_per_z,
-            contact_per_z,
-            wheel_mass_kg=wheel_mass_kg,
-            sensor=sensor,
-            stiffness_rise=rate,
-            hysteretic=hyst,
+            model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
         )
-    best = min(fits, key=lambda m: fits[m].bic)
-    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst)
+    best = _choose(fits, lambda f: f.determined)
+    if best is TyreModel.WHEEL_TREAD_SIDEWALL:
+        m3 = variants(TyreModel.WHEEL_TREAD_SIDEWALL)
+        rate, hyst = rubber_choice(m3)
+        fits[TyreModel.WHEEL_TREAD_SIDEWALL] = m3[(rate, hyst)]
+        fits[TyreModel.WHEEL_TREAD] = m2[(rate, hyst)]
+        fits[TyreModel.WHEEL] = fit_tyre_model(
+            TyreModel.WHEEL, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
+        )
+        best = _choose(fits, lambda f: f.determined)
+    chosen = fits[best]
+    findings = []
+    if not chosen.determined:
+        findings.append(
+            f"no model has every parameter determined; Model {int(best)} (lowest BIC) is shown"
+            f" with {', '.join(chosen.undetermined) or 'a fit that did not converge'}"
+        )
+    if chosen.outside_noise:
+        findings.append(
+            f"Model {int(best)} misses the data far outside its noise (reduced chi^2"
+            f" {chosen.reduced_chi2:.3g}): a value taken as known (the sensor, the wheel mass, m_comp)"
+            " may be wrong, or the tyre is not one of Models 1-3"
+        )
+    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings))
 
 
 @dataclass(frozen=True)
@@ -309,8 +503,10 @@ def amplitude_dependence(
     sensor: WfsSensor,
     stiffness_rise: bool,
     hysteretic: bool,
+    errors: Mapping[float, ShakerErrors] | None = None,
 ) -> AmplitudeDependence:
-    """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping."""
+    """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping;
+    ``errors``: each amplitude's shared errors (propagated), ``None`` for independent points."""
     amps = sorted(per_amplitude)
     fits = tuple(
         fit_tyre_model(
@@ -320,6 +516,7 @@ def amplitude_dependence(
             sensor=sensor,
             stiffness_rise=stiffness_rise,
             hysteretic=hysteretic,
+            errors=None if errors is None else errors[a],
         )
         for a in amps
     )
@@ -335,3 +532,57 @@ def amplitude_dependence(
         stiffness_change=k / k[0] - 1,
         damping_change=d / d[0] - 1,
     )
+
+
+@dataclass(frozen=True)
+class RatioPeak:
+    """The peak of ``|F_wfs / F_contact|`` of an identified model: ``freq_hz`` and ``height`` with
+    their 95 % half-widths (the fit's covariance propagated). A dwell grid can miss the peak: its
+    largest measured point is only a lower bound."""
+
+    freq_hz: float
+    freq_ci95_hz: float
+    height: float
+    height_ci95: float
+
+
+def _peak(
+    model: TyreModel,
+    values: Mapping[str, float],
+    wheel_mass_kg: float,
+    sensor: WfsSensor,
+    band: tuple[float, float],
+) -> tuple[float, float]:
+    """Frequency and height of the largest ``|F_wfs / F_contact|`` of the model in ``band``."""
+    tyre, rubber = _model_objects(model, values, wheel_mass_kg)
+
+    def magnitude(f_hz: float | np.ndarray) -> np.ndarray:
+        wfs, contact = shaker_response(model, tyre, sensor, np.atleast_1d(f_hz), rubber)
+        return np.abs(wfs / contact)
+
+    grid = np.geomspace(band[0], band[1], PEAK_GRID_POINTS)
+    i = int(np.argmax(magnitude(grid)))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best = minimize_scalar(
+        lambda f: -magnitude(f)[0], bounds=(lo, hi), method="bounded", options={"xatol": 1e-9 * hi}
+    )
+    return float(best.x), float(-best.fun)
+
+
+def ratio_peak(fit: TyreFit, sensor: WfsSensor, band_hz: tuple[float, float]) -> RatioPeak:
+    """Peak of the model's ``|F_wfs / F_contact|`` in ``band_hz`` (see :class:`RatioPeak`); 95 %
+    half-widths ``1.96 sqrt(g^T C g)`` with ``g`` the central-difference gradient over the fitted
+    parameters."""
+    names = [n for n in fit.lsq.values if n != PLATE_MASS_OFFSET]
+    index = [list(fit.lsq.values).index(n) for n in names]
+    cov = fit.lsq.covariance[np.ix_(index, index)]
+    wheel = fit.tyre.wheel_mass_kg
+    f0, h0 = _peak(fit.model, fit.lsq.values, wheel, sensor, band_hz)
+    grad = np.zeros((2, len(names)))
+    for j, name in enumerate(names):
+        step = 1e-4 * abs(fit.lsq.values[name]) or 1e-6
+        up = _peak(fit.model, {**fit.lsq.values, name: fit.lsq.values[name] + step}, wheel, sensor, band_hz)
+        down = _peak(fit.model, {**fit.lsq.values, name: fit.lsq.values[name] - step}, wheel, sensor, band_hz)
+        grad[:, j] = (np.array(up) - np.array(down)) / (2 * step)
+    half = Z95 * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", grad, cov, grad), 0.0))
+    return RatioPeak(f0, float(half[0]), h0, float(half[1]))

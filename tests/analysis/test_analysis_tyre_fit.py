@@ -90,3 +90,11 @@ def test_too_few_reliable_points_raise():
     few = Frf(w.freq_hz, w.value, w.sigma, np.arange(w.freq_hz.size) < 3, "f_wfs", "z")
     with pytest.raises(AnalysisInputError, match="reliable"):
         fit_tyre_model(2, few, c, wheel_mass_kg=29.0, sensor=SENSOR)
+
+
+def test_dead_channel_named_not_a_solver_crash():
+    """All-zero F_wfs/Z points with zero sigma made the solver fail on non-finite residuals."""
+    w, c = _frfs(2, Tyre(stiffness_n_per_m=300e3))
+    dead = Frf(w.freq_hz, 0 * w.value, 0 * w.sigma, w.reliable, "f_wfs", "z")
+    with pytest.raises(AnalysisInputError, match="dead or frozen channel"):
+        fit_tyre_model(2, dead, c, wheel_mass_kg=29.0, sensor=SENSOR)
