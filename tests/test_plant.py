@@ -274,3 +274,18 @@ def test_output_rates_without_a_whole_oversampling_are_refused(rate_hz):
     with pytest.raises(ValueError, match="whole number"):
         plant.set_output_rate(rate_hz)
     assert (plant.output_rate_hz, plant.oversampling) == (1000.0, 10)
+
+
+@pytest.mark.parametrize("spacing", ["linear", "log"])
+def test_sweep_waveform_equals_its_closed_form(spacing):
+    """The sweep (through scipy's chirp) against the phase written out: linear f0 t + (f1 - f0) t^2 / 2T,
+    logarithmic f0 (exp(r t) - 1) / r with r = ln(f1 / f0) / T; tapers off to compare the carrier."""
+    f0, f1, duration = 0.1, 30.0, 60.0
+    sweep = Sweep(f0, f1, duration, 2e-3, spacing, taper_in_s=0.0, taper_out_s=0.0)
+    t = np.linspace(0, duration, 600_001)
+    if spacing == "linear":
+        phase = 2 * np.pi * (f0 * t + (f1 - f0) * t**2 / (2 * duration))
+    else:
+        rate = np.log(f1 / f0) / duration
+        phase = 2 * np.pi * f0 * np.expm1(rate * t) / rate
+    np.testing.assert_allclose(sweep.value(t), 2e-3 * np.sin(phase), atol=2e-3 * 1e-9)

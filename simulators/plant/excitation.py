@@ -8,11 +8,11 @@ its operating point.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from scipy import signal
 
 
 class Waveform(Protocol):
@@ -112,19 +112,18 @@ class Sweep:
     def duration_s(self) -> float:
         return self.sweep_s
 
-    def _phase_rad(self, t: np.ndarray) -> np.ndarray:
-        f0, f1, T = self.start_hz, self.end_hz, self.sweep_s
-        if self.spacing == "linear":
-            return 2 * np.pi * (f0 * t + (f1 - f0) * t**2 / (2 * T))
-        if f1 == f0:
-            return 2 * np.pi * f0 * t
-        rate = math.log(f1 / f0) / T
-        return 2 * np.pi * f0 * np.expm1(rate * t) / rate
-
     def value(self, t_s: np.ndarray) -> np.ndarray:
+        """The tapered sweep, ``A sin(phase)`` with the phase of :func:`scipy.signal.chirp` (its
+        cosine shifted by -90 degrees): zero phase at the start, frequency as :meth:`frequency_hz`."""
         t = np.asarray(t_s, dtype=float)
         env = taper_envelope(t, self.sweep_s, self.taper_in_s, self.taper_out_s)
-        return self.amplitude * env * np.sin(self._phase_rad(np.clip(t, 0, self.sweep_s)))
+        t_in = np.clip(t, 0, self.sweep_s)
+        if self.start_hz == self.end_hz:  # chirp's logarithmic law needs two frequencies
+            wave = np.sin(2 * np.pi * self.start_hz * t_in)
+        else:
+            method = "linear" if self.spacing == "linear" else "logarithmic"
+            wave = signal.chirp(t_in, self.start_hz, self.sweep_s, self.end_hz, method=method, phi=-90)
+        return self.amplitude * env * wave
 
     def frequency_hz(self, t_s: float) -> float:
         x = min(max(t_s / self.sweep_s, 0.0), 1.0)
