@@ -63,10 +63,11 @@ def test_command_set_in_memory(memory_rig):
     assert reader.command("RATE?").fields == ("500",)
     with pytest.raises(CommandRejectedError, match="300 Hz not possible"):
         reader.set_rate(300)
+    sub = reader.subscribe(lossless=True)
     reader.start_stream()
     with pytest.raises(CommandRejectedError, match="stop first"):
         reader.set_rate(1000)
-    block = reader.read_frames(500, timeout_s=5)
+    block = sub.read_frames(500, timeout_s=5)
     assert np.all(np.diff(block.frames["seq"].astype(np.int64)) == 1)
     assert block.frames["sample"][0] == 0
     reader.tare()
@@ -106,8 +107,9 @@ def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
     try:
         assert reader.set_rate(250) == 250
         assert bench.plant.oversampling == 40  # from the 10 kHz converter
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        frames = reader.read_frames(500, timeout_s=10).frames
+        frames = sub.read_frames(500, timeout_s=10).frames
         reader.stop_stream()
         valid = "valid rates 100 125 200 250 400 500 625 1000 1250 Hz"
         for bad in (300, 2000, 10_000, 50, 0, -250):
@@ -163,9 +165,10 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
         await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))
         await client.start()
         await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), 2.0, "the dwell")
+        sub = reader.subscribe(lossless=True)
         await asyncio.to_thread(reader.start_stream)
         n = round((settle_s + cycles / freq_hz) * rate_hz)
-        block = await asyncio.to_thread(reader.read_frames, n, 30.0)
+        block = await asyncio.to_thread(sub.read_frames, n, 30.0)
         await asyncio.to_thread(reader.stop_stream)
         assert (await client.read_status()).state == ControllerState.RUNNING
         await client.stop()
@@ -260,17 +263,18 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     reader = WfsReader(link.open_host)
     reader.start()
     try:
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        got = reader.read_frames(5000, timeout_s=20)
+        got = sub.read_frames(5000, timeout_s=20)
         # stall: nothing for a while, then the stream resumes with a gap
         device.stall(0.2)
-        got2 = reader.read_frames(3000, timeout_s=20)
+        got2 = sub.read_frames(3000, timeout_s=20)
         # disconnect and reconnect: the reader reopens the link and the stream resumes
         device.disconnect()
         wait_until(lambda: not reader.wait_connected(0), 5, "the reader to see the link drop")
         device.reconnect()
         assert reader.wait_connected(5)
-        got3 = reader.read_frames(3000, timeout_s=20)
+        got3 = sub.read_frames(3000, timeout_s=20)
         assert reader.running
         reader.command("STOP")
         counters = reader.counters
@@ -334,8 +338,9 @@ def test_stream_over_a_real_pseudo_terminal_with_rotation():
     try:
         assert reader.wait_connected(5)
         assert reader.identify() == IDENTITY
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        block = reader.read_frames(3000, timeout_s=20)
+        block = sub.read_frames(3000, timeout_s=20)
         reader.stop_stream()
         counters = reader.counters
     finally:
