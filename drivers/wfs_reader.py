@@ -225,7 +225,8 @@ class WfsReader:
     def subscribe(self, *, lossless: bool, max_blocks: int = 256) -> Subscription:
         """A new consumer of the sample stream, from the next block on (see the module docstring).
 
-        Close it when done: an open lossless subscription nobody reads stops the reader.
+        Close it when done: a lossless subscription nobody reads stops the reader, and with it the
+        replies to commands, so its consumer reads in a thread of its own.
         """
         sub = Subscription(lossless=lossless, max_blocks=max_blocks, on_close=self._unsubscribe)
         with self._subscriptions_lock:
