@@ -15,7 +15,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -30,11 +30,19 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BenchBlock:
-    """One block of the bench's output: ``channels`` sampled at ``rate_hz`` from ``start_s`` on."""
+    """One block of the bench's output: ``channels`` sampled at ``rate_hz`` from ``start_s`` on.
+
+    The analog channels lag the bench by ``latency_samples`` output samples (the acquisition's
+    anti-alias filter). ``sync_flags`` are the controller's digital sync outputs (uint8 bits of
+    :mod:`simulators.function_generator`) at every internal sample of the block, undelayed: a whole
+    number of them per output sample (none: no sync outputs).
+    """
 
     start_s: float
     rate_hz: float
     channels: dict[str, np.ndarray]
+    sync_flags: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
+    latency_samples: int = 0
 
     def __len__(self) -> int:
         return len(next(iter(self.channels.values())))
@@ -82,10 +90,11 @@ class SimulatedBench:
             n_internal = n_samples * plant.oversampling
             command = ctrl.command_block(n_internal)
             plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
+            sync = ctrl.generator.take_sync_flags()
             channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
             self._internal_samples += n_internal
-            return BenchBlock(start_s, plant.output_rate_hz, channels)
+            return BenchBlock(start_s, plant.output_rate_hz, channels, sync, plant.latency_samples)
 
 
 class BenchRunner:

@@ -15,7 +15,7 @@ from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, Lin
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
 from drivers.setpoints import DwellSetpoint, SoftLimits
 from drivers.wfs_commands import Reply, format_command, parse_reply
-from drivers.wfs_frame import Status
+from drivers.wfs_frame import FRAME_SIZE, Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
@@ -215,13 +215,15 @@ async def _state_is(client: ActuatorClient, state: ControllerState) -> bool:
 def test_overload_bits_follow_each_channels_range():
     """Ranges as the paper's Table 1: Fx, Fz 24 kN, Fy 15 kN, Mx, Mz 4.5 kN m, My 7.2 kN m."""
     bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(MemoryLink(), bench, noise_n=0.0)
+    link = MemoryLink()
+    device = WfsDevice(link, bench, noise_n=0.0)
     device.crosstalk = np.array([0.0, 1.0, 0.3, 0.3, 0.0])  # Fy = Fz, Mx = My = 0.3 m x Fz
     device.execute("START", [])
     fz = np.array([16_000.0, -16_000.0, 14_000.0])  # Fy beyond 15 kN, then within
     zeros = np.zeros(len(fz))
     channels = {"fz_wfs_n": fz, "z_base_m": zeros, "f_plate_n": zeros, "a_hub_m_s2": zeros}
-    status = device._frames(BenchBlock(0.0, 1000.0, channels))["status"]
+    device.deliver(BenchBlock(0.0, 1000.0, channels))
+    status = StreamParser().feed(link.open_host().read(3 * FRAME_SIZE)).frames["status"]
     # 16 kN: Fy (15 kN) and Mx (4.8 > 4.5 kN m) overload, Fz (24 kN) and My (7.2 kN m) do not
     assert [Status(int(s)) for s in status] == [
         Status.OVERLOAD_FY | Status.OVERLOAD_MX,
@@ -266,9 +268,10 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
         sub = reader.subscribe(lossless=True)
         reader.start_stream()
         got = sub.read_frames(5000, timeout_s=20)
-        # stall: nothing for a while, then the stream resumes with a gap
-        device.stall(0.2)
+        # stall: 200 frames are not sent, then the stream resumes with a gap
+        device.stall(200)
         got2 = sub.read_frames(3000, timeout_s=20)
+        stalled = device.frames_unsent
         # disconnect and reconnect: the reader reopens the link and the stream resumes
         device.disconnect()
         wait_until(lambda: not reader.wait_connected(0), 5, "the reader to see the link drop")
@@ -276,6 +279,7 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
         assert reader.wait_connected(5)
         got3 = sub.read_frames(3000, timeout_s=20)
         assert reader.running
+        sub.close()
         reader.command("STOP")
         counters = reader.counters
     finally:
@@ -292,7 +296,8 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     assert counters.frames_missing >= marked
     assert counters.crc_rejects > 0
     assert counters.reconnects == 1
-    assert device.frames_unsent > 0  # the stall and the disconnect really lost frames
+    assert stalled == 200 < device.frames_unsent  # the stall and the disconnect really lost frames
+    assert any(g.missing >= 200 for g in got2.gaps)
 
 
 def test_a_host_that_stops_reading_never_freezes_the_bench_and_the_watchdog_stops_it():
