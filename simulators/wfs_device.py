@@ -282,6 +282,7 @@ class WfsDevice:
             self._seq += m
             self._sample += m
             out = loads - self.tare_offset
+            tared = Status.TARED if self.tare_offset.any() else 0
         for i, name in enumerate(FORCE_FIELDS):
             frames[name] = out[:, i]
         frames["angle_rad"] = angle
@@ -290,7 +291,7 @@ class WfsDevice:
         frames["aux1"] = ch["f_plate_n"]
         frames["aux2"] = ch["a_hub_m_s2"]
         overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
-        status = overload.sum(axis=1) | (Status.TARED if self.tare_offset.any() else 0)
+        status = overload.sum(axis=1) | tared
         for bit, flag in SYNC_STATUS.items():
             status |= np.where(inputs & bit, int(flag), 0)
         frames["status"] = status

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import sys
 import threading
 
 import numpy as np
@@ -372,3 +373,99 @@ def test_reader_exposes_its_thread_id_only_while_running():
         wait_until(lambda: reader.thread_id is not None, 2.0, "reader thread start")
         assert reader.thread_id != threading.get_native_id()  # not the caller's thread
     assert reader.thread_id is None
+
+
+def test_tare_zeroes_the_loads_at_the_present_load():
+    """The actuator holds 5 mm (about 1.9 kN on the tyre); after TARE every load channel reads zero."""
+    link = MemoryLink()
+    bench, device, runner = _rig(link)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        with bench.lock:
+            assert bench.controller.write_setpoints({"waveform": WaveformCode.STATIC, "mean_mm": 5.0}) is None
+            for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
+                assert bench.controller.command(command) is None
+        sub = reader.subscribe(lossless=True, max_blocks=100_000)  # never full within this test
+        reader.start_stream()
+        before = sub.read_frames(3000, timeout_s=20).frames[-500:]  # the 0.5 s mean ramp is over
+        reader.tare()
+        after = sub.read_frames(3000, timeout_s=20).frames
+        sub.close()
+        reader.stop_stream()
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    assert not np.any(before["status"] & Status.TARED)
+    assert np.mean(before["fz"]) > 1500
+    tared = after[(after["status"] & Status.TARED) != 0]
+    assert len(tared) > 2000
+    # the tare is the mean of 100 samples with about 1 N of noise: its error is about 0.1 N
+    for channel in ("fx", "fy", "fz", "mx", "my", "mz"):
+        assert abs(np.mean(tared[channel])) < 1.0, channel
+
+
+def test_a_device_restart_is_a_resync_for_the_reader():
+    link = MemoryLink()
+    _bench, device, runner = _rig(link)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        sub = reader.subscribe(lossless=True, max_blocks=100_000)
+        reader.start_stream()
+        first = sub.read_frames(500, timeout_s=20)
+        device.restart()  # a power cycle: streaming stops, the counters start over
+        reader.start_stream()
+        second = sub.read_frames(500, timeout_s=20)
+        sub.close()
+        reader.stop_stream()
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    assert set(first.frames["boot"].tolist()) == {1}
+    assert not first.resyncs and not second.gaps
+    [resync] = second.resyncs
+    assert (resync.last_boot, resync.boot, resync.seq) == (1, 2, 0)
+    restarted = second.frames[resync.index :]
+    assert restarted["sample"][0] == 0 and np.all(np.diff(restarted["seq"].astype(np.int64)) == 1)
+
+
+def test_start_restarts_the_sample_clock_while_the_bench_numbers_frames():
+    """START from the command side races the bench thread numbering a block: the sample clock must
+    restart at exactly 0 every time (the counters change under one lock), never continue from the
+    block that was being numbered."""
+    link = MemoryLink()
+    _bench, device, runner = _rig(link)
+    host = link.open_host()
+    parser = StreamParser()
+    frames: list[np.ndarray] = []
+    done = threading.Event()
+
+    def drain() -> None:
+        while not done.is_set():
+            frames.append(parser.feed(host.read(16 * FRAME_SIZE)).frames)
+
+    drainer = threading.Thread(target=drain)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads as often as possible: the race shows if it exists
+    rng = np.random.default_rng(5)
+    try:
+        device.execute("START", [])
+        drainer.start()
+        for _ in range(500):
+            device.execute("START", [])
+            # let the bench number a few frames before the next START, at a random instant
+            target = parser.counters.frames_ok + int(rng.integers(5, 60))
+            wait_until(lambda t=target: parser.counters.frames_ok >= t, 10, "frames after START")
+    finally:
+        sys.setswitchinterval(switch)
+        runner.stop()
+        device.stop()
+        done.set()
+        drainer.join(5)
+    sample = np.concatenate(frames)["sample"].astype(np.int64)
+    back = np.flatnonzero(np.diff(sample) != 1) + 1
+    assert len(back) > 400  # the restarts really happened while frames flowed
+    assert np.all(sample[back] == 0)
