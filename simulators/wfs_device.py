@@ -56,6 +56,10 @@ SYNC_STATUS = {EXCITATION_ACTIVE: Status.EXCITATION_ACTIVE, AMPLITUDE_HOLD: Stat
 #: measuring range per channel, Fx Fy Fz (N) and Mx My Mz (N m), as the paper's Table 1; beyond it
 #: the channel's overload bit is set
 LOAD_RANGE = np.array([24_000.0, 15_000.0, 24_000.0, 4_500.0, 7_200.0, 4_500.0])
+#: input range of aux0..aux3 (m, N, m/s^2, V): the ±10 V inputs scaled to a ±50 mm displacement
+#: transducer, a ±50 kN load cell, a ±50 g accelerometer and the spare input in volts; beyond it on
+#: any aux channel the aux overload bit is set
+AUX_RANGE = np.array([0.05, 50_000.0, 490.0, 10.0])
 CROSSTALK_SPEC = 0.005
 LEVER_M = 0.3
 _MAX_LINE = 64
@@ -290,8 +294,15 @@ class WfsDevice:
         frames["aux0"] = ch["z_base_m"]
         frames["aux1"] = ch["f_plate_n"]
         frames["aux2"] = ch["a_hub_m_s2"]
-        overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
+        aux = np.column_stack([frames[f"aux{i}"] for i in range(4)])
+        with np.errstate(invalid="ignore"):  # a NaN is no overload: it is an ADC fault
+            overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
+            aux_overload = np.any(np.abs(aux) > AUX_RANGE, axis=1)
+        # the converter flags a conversion it could not complete: here, a non-finite sample
+        fault = ~(np.all(np.isfinite(loads), axis=1) & np.all(np.isfinite(aux), axis=1))
         status = overload.sum(axis=1) | tared
+        status |= np.where(aux_overload, int(Status.OVERLOAD_AUX), 0)
+        status |= np.where(fault, int(Status.ADC_FAULT), 0)
         for bit, flag in SYNC_STATUS.items():
             status |= np.where(inputs & bit, int(flag), 0)
         frames["status"] = status

@@ -233,6 +233,23 @@ def test_overload_bits_follow_each_channels_range():
     ]
 
 
+def test_aux_overload_and_adc_fault_bits():
+    """Aux ranges: 50 mm, 50 kN, 490 m/s^2 (50 g); a conversion that yields no number is an ADC fault."""
+    bench = SimulatedBench.paper_shaker(seed=2)
+    link = MemoryLink()
+    device = WfsDevice(link, bench, noise_n=0.0)
+    device.execute("START", [])
+    z = np.array([0.049, -0.051, 0.0, 0.0, 0.0, 0.0])
+    plate = np.array([0.0, 0.0, 50_001.0, 0.0, 0.0, 0.0])
+    hub = np.array([0.0, 0.0, 0.0, -491.0, 0.0, np.nan])
+    fz = np.array([0.0, 0.0, 0.0, 0.0, np.nan, 0.0])
+    channels = {"fz_wfs_n": fz, "z_base_m": z, "f_plate_n": plate, "a_hub_m_s2": hub}
+    device.deliver(BenchBlock(0.0, 1000.0, channels))
+    status = StreamParser().feed(link.open_host().read(6 * FRAME_SIZE)).frames["status"]
+    aux, fault = Status.OVERLOAD_AUX, Status.ADC_FAULT
+    assert [Status(int(s)) for s in status] == [Status(0), aux, aux, aux, fault, fault]
+
+
 def test_no_reply_is_a_timeout(memory_rig):
     _, device, reader = memory_rig
     device.stop()  # the command thread no longer answers
