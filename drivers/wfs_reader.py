@@ -322,7 +322,7 @@ class WfsReader:
                     continue
                 opened_before = True
             try:
-                data = self._port.read(min(self._port.in_waiting, self.read_size) or 1)
+                data = self._read_available(self._port)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 # pyserial raises TypeError/AttributeError when the port is closed under a read
                 self.last_error = f"read failed: {exc}"
@@ -331,6 +331,14 @@ class WfsReader:
                 continue
             if data:
                 self._consume(data)
+
+    def _read_available(self, port: SerialLike) -> bytes:
+        """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one
+        byte, then take whatever else has arrived meanwhile, without waiting for more."""
+        data = port.read(min(port.in_waiting, self.read_size) or 1)
+        if data and (waiting := min(port.in_waiting, self.read_size)):
+            data += port.read(waiting)
+        return data
 
     def _try_open(self, reopening: bool) -> bool:
         try:

@@ -200,8 +200,10 @@ class StreamParser:
 
         Vectorised over each run of frames with the same ``boot`` (one numpy pass per run).
         """
+        if len(frames) == 0:
+            return frames, [], []
         boot = frames["boot"].astype(np.int64)
-        bounds = np.concatenate(([0], np.flatnonzero(np.diff(boot)) + 1, [len(boot)])) if len(boot) else []
+        bounds = np.concatenate(([0], np.flatnonzero(np.diff(boot)) + 1, [len(boot)]))
         kept: list[np.ndarray] = []
         gaps: list[Gap] = []
         resyncs: list[Resync] = []
