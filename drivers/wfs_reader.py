@@ -36,8 +36,10 @@ from drivers.errors import (
     CommandRejectedError,
     ConnectionLostError,
     LinkTimeoutError,
+    ProtocolMismatchError,
 )
 from drivers.wfs_commands import Reply, format_command
+from drivers.wfs_frame import PROTOCOL_VERSION
 from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
@@ -281,7 +283,14 @@ class WfsReader:
         raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
 
     def identify(self) -> tuple[str, ...]:
-        return self.command("IDENT").fields
+        """The device's identity (vendor, model, serial, firmware, protocol version); raises
+        ProtocolMismatchError when it speaks another protocol version than this reader."""
+        fields = self.command("IDENT").fields
+        if not fields or fields[-1] != str(PROTOCOL_VERSION):
+            raise ProtocolMismatchError(
+                f"WFS speaks protocol {fields[-1] if fields else '?'}, this reader {PROTOCOL_VERSION}"
+            )
+        return fields
 
     def start_stream(self) -> None:
         self.command("START")

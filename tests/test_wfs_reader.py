@@ -9,6 +9,8 @@ import time
 import numpy as np
 import pytest
 
+from drivers.errors import ProtocolMismatchError
+from drivers.wfs_commands import Reply
 from drivers.wfs_reader import WfsReader
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.ports import MemoryLink, PtyLink
@@ -143,3 +145,11 @@ def test_a_lossless_subscription_paces_an_unpaced_bench():
     seq = np.concatenate(frames)["seq"].astype(np.int64)
     assert np.all(np.diff(seq) == 1)
     assert device.frames_dropped == 0 and device.frames_sent >= 3000
+
+
+def test_identify_refuses_a_device_of_another_protocol_version(pty_rig):
+    device, reader = pty_rig
+    assert reader.identify()[-1] == "2"
+    device.commands["IDENT"] = lambda args: Reply(True, "IDENT", ("WFSBENCH", "SIM-WFS6", "0001", "1.0"))
+    with pytest.raises(ProtocolMismatchError, match=r"protocol 1\.0, this reader 2"):
+        reader.identify()
