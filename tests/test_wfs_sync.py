@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import time
 
 import numpy as np
 import pytest
@@ -65,12 +66,14 @@ def test_a_sync_edge_lines_up_with_the_analog_channels_through_the_anti_alias_fi
 
 
 def _until_excitation_ends(sub: Subscription, timeout_s: float) -> SampleBlock:
-    """Blocks up to 100 frames after the excitation-active bit has risen and fallen again."""
+    """Blocks up to 100 frames after the excitation-active bit has risen and fallen again, within
+    ``timeout_s`` (or until the subscription is closed)."""
+    deadline = time.monotonic() + timeout_s
     parts: list[np.ndarray] = []
     seen_active, after = False, 0
     while after < 100:
-        block = sub.get(timeout_s)
-        assert block is not None, "no frames"
+        block = sub.get(max(deadline - time.monotonic(), 0.0))
+        assert block is not None, f"the excitation did not end within {timeout_s} s"
         assert not block.gaps and not block.resyncs
         parts.append(block.frames)
         active = (block.frames["status"] & Status.EXCITATION_ACTIVE) != 0
@@ -108,22 +111,23 @@ async def test_a_modbus_dwell_shows_its_hold_in_the_frames_and_the_wheel_loads_m
     client = ActuatorClient.tcp(host, port, limits=SoftLimits())
     reader = WfsReader(link.open_host)
     reader.start()
+    sub = reader.subscribe(lossless=True)
     rate_hz = bench.output_rate_hz
     try:
-        sub = reader.subscribe(lossless=True)
         await asyncio.to_thread(reader.start_stream)
-        collecting = asyncio.create_task(asyncio.to_thread(_until_excitation_ends, sub, 10.0))
+        collecting = asyncio.create_task(asyncio.to_thread(_until_excitation_ends, sub, 60.0))
         await client.connect()
         await client.start_heartbeat()
         await client.hydraulics_low()
         await client.hydraulics_high()
         await client.configure(DwellSetpoint(freq_hz, amplitude_mm, hold_s, taper_s, taper_s))
         await client.start()
-        frames = (await asyncio.wait_for(collecting, 60)).frames
+        frames = (await collecting).frames
         sub.close()
         await asyncio.to_thread(reader.stop_stream)
         await client.stop_heartbeat()
     finally:
+        sub.close()  # ends the collecting thread if the test failed before
         reader.close()
         await client.close()
         await server.close()
