@@ -103,7 +103,11 @@ class Subscription:
             return block
 
     def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
-        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed."""
+        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed.
+
+        On a lossy subscription the blocks it dropped meanwhile are missing without a gap: compare
+        :attr:`dropped_blocks` before and after.
+        """
         deadline = time.monotonic() + timeout_s
         parts: list[np.ndarray] = []
         gaps: list[Gap] = []
