@@ -69,11 +69,12 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
             print(f"cannot open {args.port}: {reader.last_error}", file=sys.stderr)
             return 1
         print("identity:", ",".join(reader.identify()))
+        view = reader.subscribe(lossless=False, max_blocks=64)  # a live view never slows the reader
         reader.start_stream()
         end = time.monotonic() + args.duration if args.duration else None
         try:
             while end is None or time.monotonic() < end:
-                block = reader.read_frames(max(1, int(args.interval * 1000)), timeout_s=args.interval + 5)
+                block = view.read_frames(max(1, int(args.interval * 1000)), timeout_s=args.interval + 5)
                 f = block.frames[-1]
                 c = reader.counters
                 print(
@@ -85,6 +86,7 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             pass
         finally:
+            view.close()
             reader.stop_stream()
     return 0
 

@@ -10,7 +10,7 @@ import argparse
 import os
 import time
 
-from drivers.wfs_reader import WfsReader
+from drivers.wfs_reader import Subscription, WfsReader
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.ports import PtyLink
 from simulators.wfs_device import WfsDevice
@@ -23,13 +23,13 @@ def thread_cpu_s(native_id: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def measure(reader: WfsReader, seconds: float) -> tuple[float, int]:
+def measure(reader: WfsReader, sub: Subscription, seconds: float) -> tuple[float, int]:
     tid = reader.thread_id
     if tid is None:
         raise RuntimeError("the reader thread is not running")
     cpu0, t0, frames = thread_cpu_s(tid), time.monotonic(), 0
     while time.monotonic() - t0 < seconds:
-        block = reader.get_block(timeout_s=0.5)
+        block = sub.get(timeout_s=0.5)
         frames += len(block) if block else 0
     return (thread_cpu_s(tid) - cpu0) / (time.monotonic() - t0), frames
 
@@ -49,9 +49,10 @@ def main() -> None:
     reader.start()
     try:
         reader.wait_connected(5)
-        idle_share, _ = measure(reader, min(5.0, seconds))
+        sub = reader.subscribe(lossless=True)
+        idle_share, _ = measure(reader, sub, min(5.0, seconds))
         reader.start_stream()
-        share, frames = measure(reader, seconds)
+        share, frames = measure(reader, sub, seconds)
         reader.stop_stream()
         c = reader.counters
     finally:

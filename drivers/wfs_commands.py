@@ -2,7 +2,7 @@
 
 Host to device, one ASCII line each, terminated by ``\\n``::
 
-    IDENT          -> $OK,IDENT,<vendor>,<model>,<serial>,<firmware>*HH
+    IDENT          -> $OK,IDENT,<vendor>,<model>,<serial>,<firmware>,<protocol version>*HH
     START          -> $OK,START*HH          stream frames; the sample index restarts at 0
     STOP           -> $OK,STOP*HH           stop streaming
     TARE           -> $OK,TARE*HH           zero the six load channels at the present load
@@ -14,10 +14,10 @@ Host to device, one ASCII line each, terminated by ``\\n``::
                       as a binary message when the trigger has fired
 
 A refused command answers ``$ERR,<COMMAND>,<reason>*HH``; a line that is no command answers
-``$ERR,?,<reason>*HH``. Replies are framed like NMEA
-sentences: ``$``, comma-separated printable ASCII, ``*``, two hex digits of the XOR of every byte
-between ``$`` and ``*``, then ``\\r\\n``. They are interleaved with the binary frames between two
-frames; the checksum lets the stream parser tell a reply from binary bytes that look like one.
+``$ERR,?,<reason>*HH``. Replies are framed like NMEA sentences: ``$``, comma-separated printable
+ASCII, ``*``, exactly two upper-case hex digits of the XOR of every byte between ``$`` and ``*``,
+then ``\\r\\n``. They are interleaved with the binary frames between two frames; the checksum
+lets the stream parser tell a reply from binary bytes that look like one.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ COMMANDS = ("IDENT", "START", "STOP", "TARE", "RATE", "CAPTURE")
 REPLY_START = b"$"
 REPLY_END = b"\r\n"
 MAX_REPLY_LEN = 160
+_HEX_DIGITS = frozenset(b"0123456789ABCDEF")
 UNKNOWN = "?"  # the command field of the reply to a line that is no command
 
 
@@ -81,13 +82,13 @@ def parse_reply(line: bytes) -> Reply:
     if not (line.startswith(REPLY_START) and line.endswith(REPLY_END)) or len(line) > MAX_REPLY_LEN:
         raise MalformedReplyError(f"not a reply line: {line[:40]!r}")
     body, star, tail = line[1 : -len(REPLY_END)].rpartition(b"*")
-    if not star or len(tail) != 2:
-        raise MalformedReplyError(f"reply without checksum: {line[:40]!r}")
+    if not star or len(tail) != 2 or not _HEX_DIGITS.issuperset(tail):
+        raise MalformedReplyError(f"reply without two upper-case hex checksum digits: {line[:40]!r}")
+    expected = int(tail, 16)
     try:
-        expected = int(tail, 16)
         text = body.decode("ascii")
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise MalformedReplyError(f"reply with bad checksum field or non-ASCII body: {line[:40]!r}") from exc
+    except UnicodeDecodeError as exc:
+        raise MalformedReplyError(f"reply with a non-ASCII body: {line[:40]!r}") from exc
     if checksum(body) != expected or not text.isprintable():
         raise MalformedReplyError(f"reply checksum mismatch: {line[:40]!r}")
     fields = text.split(",")

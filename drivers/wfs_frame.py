@@ -1,6 +1,7 @@
 """The WFS acquisition's binary frame: a numpy structured dtype, CRC, vectorised encode/decode.
 
-One frame per sample, 62 bytes, little-endian, no padding::
+Protocol version 2 (:data:`PROTOCOL_VERSION`). One frame per sample, 64 bytes, little-endian, no
+padding::
 
     offset  size  field          type  unit
     0       2     sync           u2    0x5AA5 (bytes A5 5A)
@@ -13,8 +14,10 @@ One frame per sample, 62 bytes, little-endian, no padding::
     42      16    aux0..aux3     f4    aux0 bench displacement m, aux1 plate force N,
                                               aux2 hub acceleration m/s^2, aux3 spare
     58      2     status         u2    Status bits
-    60      2     crc            u2    CRC-16/CCITT-FALSE over bytes 2..59
+    60      2     boot           u2    power-ups of the device (wraps at 2^16): a new value is a restart
+    62      2     crc            u2    CRC-16/CCITT-FALSE over bytes 2..61
 
+Version 1 had no ``boot`` field (62 bytes), so a restart had to be guessed from ``seq`` going back.
 The CRC is computed column by column over a whole block of frames at once, so checking a block
 costs a few dozen numpy operations whatever its length.
 """
@@ -25,6 +28,8 @@ import enum
 
 import numpy as np
 
+#: the version of the frame layout and command set; IDENT reports it as its last field
+PROTOCOL_VERSION = 2
 SYNC = 0x5AA5
 SYNC_BYTES = SYNC.to_bytes(2, "little")
 FORCE_FIELDS = ("fx", "fy", "fz", "mx", "my", "mz")
@@ -35,14 +40,18 @@ FRAME_DTYPE = np.dtype(
     + [(name, "<f4") for name in FORCE_FIELDS]
     + [("angle_rad", "<f4"), ("speed_rad_s", "<f4")]
     + [(name, "<f4") for name in AUX_FIELDS]
-    + [("status", "<u2"), ("crc", "<u2")]
+    + [("status", "<u2"), ("boot", "<u2"), ("crc", "<u2")]
 )
 FRAME_SIZE = FRAME_DTYPE.itemsize
 CRC_START, CRC_END = 2, FRAME_SIZE - 2
 
 
 class Status(enum.IntFlag):
-    """Bits of the frame's ``status`` field."""
+    """Bits of the frame's ``status`` field.
+
+    ``EXCITATION_ACTIVE`` and ``AMPLITUDE_HOLD`` are digital inputs of the acquisition wired to the
+    actuator controller's sync outputs, sampled with the analog channels (same delay).
+    """
 
     OVERLOAD_FX = 1 << 0
     OVERLOAD_FY = 1 << 1
@@ -53,9 +62,8 @@ class Status(enum.IntFlag):
     OVERLOAD_AUX = 1 << 6
     ADC_FAULT = 1 << 7
     TARED = 1 << 8
-
-
-OVERLOAD_MASK = 0x7F
+    EXCITATION_ACTIVE = 1 << 9
+    AMPLITUDE_HOLD = 1 << 10
 
 
 def _crc16_table() -> np.ndarray:
@@ -115,6 +123,19 @@ def valid(frames: np.ndarray) -> np.ndarray:
     return (frames["sync"] == SYNC) & (frames["crc"] == frame_crc(frames))
 
 
+def valid_at(data: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Boolean mask: whether the frame starting at each byte offset of ``starts`` in ``data`` (a uint8
+    array holding every one of these frames whole) has its sync word and CRC right.
+
+    Vectorised over the offsets, which may overlap: the stream parser checks every sync word of a
+    stretch of garbage at once.
+    """
+    rows = np.lib.stride_tricks.sliding_window_view(data, FRAME_SIZE)[starts]
+    stored = rows[:, -2].astype(np.uint16) | (rows[:, -1].astype(np.uint16) << 8)
+    sync = (rows[:, 0] == SYNC_BYTES[0]) & (rows[:, 1] == SYNC_BYTES[1])
+    return sync & (crc16_rows(rows[:, CRC_START:CRC_END]) == stored)
+
+
 def new_frames(n: int) -> np.ndarray:
     """A zeroed block of ``n`` frames."""
     return np.zeros(n, dtype=FRAME_DTYPE)
@@ -129,7 +150,7 @@ def encode(frames: np.ndarray) -> bytes:
 
 
 def decode(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Decode back-to-back frames: ``(frames, valid_mask)``; ``len(data)`` must be a multiple of 62."""
+    """Decode back-to-back frames: ``(frames, valid_mask)``; ``len(data)`` must be a multiple of 64."""
     if len(data) % FRAME_SIZE:
         raise ValueError(f"{len(data)} bytes is not a whole number of {FRAME_SIZE}-byte frames")
     frames = np.frombuffer(data, dtype=FRAME_DTYPE)

@@ -1,17 +1,24 @@
 """Serial reader of the WFS acquisition: a thread with blocking reads, off the event loop.
 
-The thread reads whatever the port delivers, feeds the stream parser, and hands out
-:class:`SampleBlock` s through a bounded queue (when the consumer falls behind the reader waits,
-so a device that is paced by its consumer slows down; a device whose buffers overflow meanwhile
-drops frames and the sequence counter reports the loss). Replies to text
-commands are routed to :meth:`WfsReader.command`. A port error closes the port and the thread
-reopens it until stopped: a disconnect and reconnect resume the stream, the frames lost in between
-show up as a gap; a device that restarted meanwhile (its sequence counter went back) shows up as a
-:class:`~drivers.wfs_stream.Resync`.
+The thread reads whatever the port has as soon as it has anything (``in_waiting``, at least one
+byte), feeds the stream parser, and hands each :class:`SampleBlock` to every :class:`Subscription`:
+
+- a *lossless* subscription (the run engine, the recorder) has a bounded queue; when it is full
+  the reader waits, so a device that is paced by its host slows down (a device whose buffers
+  overflow meanwhile drops frames and the sequence counter reports the loss);
+- a *lossy* subscription (a live view) never slows the reader: when its queue is full its oldest
+  block is dropped and counted (:attr:`Subscription.dropped_blocks`).
+
+Blocks that arrive while nobody subscribes are not kept. Replies to text commands are routed to
+:meth:`WfsReader.command`, which serialises the commands of several threads. A port error closes
+the port and the thread reopens it until stopped: a disconnect and reconnect resume the stream,
+the frames lost in between show up as a gap; a device that restarted meanwhile (a new boot count)
+shows up as a :class:`~drivers.wfs_stream.Resync`.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import logging
 import queue
@@ -29,9 +36,11 @@ from drivers.errors import (
     CommandRejectedError,
     ConnectionLostError,
     LinkTimeoutError,
+    ProtocolMismatchError,
 )
 from drivers.wfs_capture import Capture
 from drivers.wfs_commands import Reply, format_command
+from drivers.wfs_frame import PROTOCOL_VERSION
 from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
@@ -44,6 +53,9 @@ class SerialLike(Protocol):
     """The part of ``serial.Serial`` the reader uses (a pty, a USB adapter or an in-memory port)."""
 
     def read(self, size: int = 1) -> bytes: ...
+
+    @property
+    def in_waiting(self) -> int: ...
 
     def write(self, data: bytes) -> int | None: ...
 
@@ -63,6 +75,83 @@ class SampleBlock:
         return len(self.frames)
 
 
+class Subscription:
+    """One consumer's queue of sample blocks (see :meth:`WfsReader.subscribe`)."""
+
+    def __init__(self, *, lossless: bool, max_blocks: int, on_close: Callable[[Subscription], None]) -> None:
+        if max_blocks < 1:
+            raise ValueError(f"max_blocks must be >= 1, got {max_blocks}")
+        self.lossless = lossless
+        self.max_blocks = max_blocks
+        self.dropped_blocks = 0  # lossy only: oldest blocks dropped because the queue was full
+        self._blocks: collections.deque[SampleBlock] = collections.deque()
+        self._cond = threading.Condition()
+        self._closed = False
+        self._on_close = on_close
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def get(self, timeout_s: float | None = None) -> SampleBlock | None:
+        """The next block, or None if none arrived within ``timeout_s`` (or the subscription is closed)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._blocks or self._closed, timeout_s)
+            if not self._blocks:
+                return None
+            block = self._blocks.popleft()
+            self._cond.notify_all()
+            return block
+
+    def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
+        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed.
+
+        On a lossy subscription the blocks it dropped meanwhile are missing without a gap: compare
+        :attr:`dropped_blocks` before and after.
+        """
+        deadline = time.monotonic() + timeout_s
+        parts: list[np.ndarray] = []
+        gaps: list[Gap] = []
+        resyncs: list[Resync] = []
+        have = 0
+        while have < n:
+            block = self.get(max(deadline - time.monotonic(), 0.0))
+            if block is None:
+                raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
+            gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
+            resyncs.extend(replace(r, index=r.index + have) for r in block.resyncs)
+            parts.append(block.frames)
+            have += len(block)
+        return SampleBlock(np.concatenate(parts), tuple(gaps), tuple(resyncs))
+
+    def close(self) -> None:
+        """Stop receiving blocks; a reader waiting for room in this queue goes on."""
+        with self._cond:
+            self._closed = True
+            self._blocks.clear()
+            self._cond.notify_all()
+        self._on_close(self)
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _offer(self, block: SampleBlock, stopping: threading.Event) -> None:
+        """Reader side: queue ``block``; a lossless queue waits for room, a lossy one drops its oldest."""
+        with self._cond:
+            if self.lossless:
+                while len(self._blocks) >= self.max_blocks and not self._closed and not stopping.is_set():
+                    self._cond.wait(0.1)
+            elif len(self._blocks) >= self.max_blocks:
+                self._blocks.popleft()
+                self.dropped_blocks += 1
+            if not self._closed:
+                self._blocks.append(block)
+                self._cond.notify_all()
+
+
 class WfsReader:
     """Owns the serial port, the reader thread and the stream parser."""
 
@@ -70,16 +159,17 @@ class WfsReader:
         self,
         open_port: Callable[[], SerialLike],
         *,
-        read_size: int = 4096,
-        max_blocks: int = 256,
+        read_size: int = 65536,
         reconnect_interval_s: float = 0.1,
     ) -> None:
         self._open_port = open_port
         self.read_size = read_size
         self.reconnect_interval_s = reconnect_interval_s
-        self._blocks: queue.Queue[SampleBlock] = queue.Queue(maxsize=max_blocks)
+        self._subscriptions: list[Subscription] = []
+        self._subscriptions_lock = threading.Lock()
         self._replies: queue.Queue[Reply] = queue.Queue()
         self._captures: queue.Queue[Capture] = queue.Queue()
+        self._command_lock = threading.Lock()
         self._parser = StreamParser()
         self._lock = threading.Lock()
         self._port: SerialLike | None = None
@@ -90,7 +180,11 @@ class WfsReader:
 
     @classmethod
     def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.05, **kwargs) -> WfsReader:
-        """A reader on a serial port or pyserial URL (``/dev/ttyUSB0``, a pty path, ``socket://...``)."""
+        """A reader on a serial port or pyserial URL (``/dev/ttyUSB0``, a pty path, ``socket://...``).
+
+        ``timeout_s`` bounds a read on an idle line (how often the thread looks at its stop flag);
+        bytes are handed on as soon as they arrive, whatever it is.
+        """
         return cls(lambda: serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s), **kwargs)
 
     # -- life cycle ---------------------------------------------------------------------------
@@ -136,29 +230,20 @@ class WfsReader:
 
     # -- data ---------------------------------------------------------------------------------
 
-    def get_block(self, timeout_s: float | None = None) -> SampleBlock | None:
-        """The next block of frames, or None if none arrived within ``timeout_s``."""
-        try:
-            return self._blocks.get(timeout=timeout_s)
-        except queue.Empty:
-            return None
+    def subscribe(self, *, lossless: bool, max_blocks: int = 256) -> Subscription:
+        """A new consumer of the sample stream, from the next block on (see the module docstring).
 
-    def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
-        """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed."""
-        deadline = time.monotonic() + timeout_s
-        parts: list[np.ndarray] = []
-        gaps: list[Gap] = []
-        resyncs: list[Resync] = []
-        have = 0
-        while have < n:
-            block = self.get_block(max(deadline - time.monotonic(), 0.0))
-            if block is None:
-                raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
-            gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
-            resyncs.extend(replace(r, index=r.index + have) for r in block.resyncs)
-            parts.append(block.frames)
-            have += len(block)
-        return SampleBlock(np.concatenate(parts), tuple(gaps), tuple(resyncs))
+        Close it when done: a lossless subscription nobody reads stops the reader, and with it the
+        replies to commands, so its consumer reads in a thread of its own.
+        """
+        sub = Subscription(lossless=lossless, max_blocks=max_blocks, on_close=self._unsubscribe)
+        with self._subscriptions_lock:
+            self._subscriptions.append(sub)
+        return sub
+
+    def _unsubscribe(self, sub: Subscription) -> None:
+        with self._subscriptions_lock, contextlib.suppress(ValueError):
+            self._subscriptions.remove(sub)
 
     # -- commands -----------------------------------------------------------------------------
 
@@ -168,12 +253,18 @@ class WfsReader:
         """Send a text command and wait up to ``timeout_s`` (s) for its reply, sending it up to
         ``attempts`` times; a command of :data:`NOT_RESENT` is sent once.
 
+        Commands of several threads are serialised (one command on the line at a time), and only a
+        reply naming the command answers it.
+
         Raises CommandRejectedError on an ``ERR`` reply, LinkTimeoutError when no reply arrives,
         CommandOutcomeUnknownError when a command of :data:`NOT_RESENT` got no reply (it may have
         been carried out: check the frames' ``sample`` clock or status bits).
         """
         line = format_command(name, argument)
-        answered = name.rstrip("?").upper()
+        with self._command_lock:
+            return self._command_locked(line, name.rstrip("?").upper(), timeout_s, attempts)
+
+    def _command_locked(self, line: bytes, answered: str, timeout_s: float, attempts: int) -> Reply:
         once = answered in NOT_RESENT
         for _ in range(1 if once else attempts):
             self._drain_replies()
@@ -198,7 +289,14 @@ class WfsReader:
         raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
 
     def identify(self) -> tuple[str, ...]:
-        return self.command("IDENT").fields
+        """The device's identity (vendor, model, serial, firmware, protocol version); raises
+        ProtocolMismatchError when it speaks another protocol version than this reader."""
+        fields = self.command("IDENT").fields
+        if not fields or fields[-1] != str(PROTOCOL_VERSION):
+            raise ProtocolMismatchError(
+                f"WFS speaks protocol {fields[-1] if fields else '?'}, this reader {PROTOCOL_VERSION}"
+            )
+        return fields
 
     def start_stream(self) -> None:
         self.command("START")
@@ -268,7 +366,7 @@ class WfsReader:
                     continue
                 opened_before = True
             try:
-                data = self._port.read(self.read_size)
+                data = self._read_available(self._port)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 # pyserial raises TypeError/AttributeError when the port is closed under a read
                 self.last_error = f"read failed: {exc}"
@@ -277,6 +375,14 @@ class WfsReader:
                 continue
             if data:
                 self._consume(data)
+
+    def _read_available(self, port: SerialLike) -> bytes:
+        """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one
+        byte, then take whatever else has arrived meanwhile, without waiting for more."""
+        data = port.read(min(port.in_waiting, self.read_size) or 1)
+        if data and (waiting := min(port.in_waiting, self.read_size)):
+            data += port.read(waiting)
+        return data
 
     def _try_open(self, reopening: bool) -> bool:
         try:
@@ -309,9 +415,7 @@ class WfsReader:
         if len(result.frames) == 0 and not result.gaps and not result.resyncs:
             return
         block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
-        while not self._stop.is_set():
-            try:
-                self._blocks.put(block, timeout=0.1)
-                return
-            except queue.Full:
-                continue
+        with self._subscriptions_lock:
+            subscriptions = sorted(self._subscriptions, key=lambda sub: sub.lossless)  # lossy first
+        for sub in subscriptions:
+            sub._offer(block, self._stop)

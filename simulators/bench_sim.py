@@ -35,6 +35,10 @@ class BenchBlock:
 
     ``fast`` holds what the acquisition converts at ``fast_rate_hz`` (its 10 kHz converter) over
     the same time span, before the anti-alias filter: ``fz_wfs_n``, for a triggered capture.
+    The analog channels lag the bench by ``latency_samples`` output samples (the acquisition's
+    anti-alias filter). ``sync_flags`` are the controller's digital sync outputs (uint8 bits of
+    :mod:`simulators.function_generator`) at every internal sample of the block, undelayed: a whole
+    number of them per output sample (none: no sync outputs).
     """
 
     start_s: float
@@ -42,6 +46,8 @@ class BenchBlock:
     channels: dict[str, np.ndarray]
     fast: dict[str, np.ndarray] = field(default_factory=dict)
     fast_rate_hz: float = 0.0
+    sync_flags: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
+    latency_samples: int = 0
 
     def __len__(self) -> int:
         return len(next(iter(self.channels.values())))
@@ -164,6 +170,7 @@ class SimulatedBench:
             start_s = self._internal_samples / plant.internal_rate_hz
             n_internal = n_samples * plant.oversampling
             command = ctrl.command_block(n_internal)
+            sync = ctrl.generator.take_sync_flags()
             if plant.setup.kind is BenchKind.HAMMER:
                 channels = plant.advance(self._hammer_force_n(n_internal))
                 for name in self.BENCH_CHANNELS:
@@ -175,7 +182,15 @@ class SimulatedBench:
             ctrl.measure_amplitude(self.transducer.read(plant.converter_z_base_m))
             self._internal_samples += n_internal
             fast = {"fz_wfs_n": plant.converter_fz_n}
-            return BenchBlock(start_s, plant.output_rate_hz, channels, fast, plant.internal_rate_hz)
+            return BenchBlock(
+                start_s,
+                plant.output_rate_hz,
+                channels,
+                fast,
+                plant.internal_rate_hz,
+                sync,
+                plant.latency_samples,
+            )
 
 
 class BenchRunner:

@@ -13,6 +13,12 @@ sample instants (time is counted in samples, never read from a clock):
 
 An e-stop freezes the command at its last value; :meth:`FunctionGenerator.release` returns from
 there to rest along a mean-position ramp.
+
+Two digital sync outputs accompany the command, sample by sample (:func:`sync_flags`):
+:data:`EXCITATION_ACTIVE` while the excitation runs (its tapers included) and
+:data:`AMPLITUDE_HOLD` during its constant-amplitude part (a dwell's hold, a sweep between its
+tapers); they are wired to digital inputs of the WFS acquisition, which locates each point in its
+samples with them.
 """
 
 from __future__ import annotations
@@ -21,10 +27,36 @@ import math
 
 import numpy as np
 
-from simulators.plant.excitation import Waveform, taper_envelope
+from simulators.plant.excitation import SineDwell, Sweep, Waveform, taper_envelope
 
 #: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
 MEAN_RATE_MM_S = 10.0
+#: sync output bits (uint8 per internal sample): the excitation runs / its amplitude is held constant
+EXCITATION_ACTIVE = 0x01
+AMPLITUDE_HOLD = 0x02
+
+
+def hold_window_s(waveform: Waveform) -> tuple[float, float]:
+    """Start and end (s from the excitation's start) of the waveform's constant-amplitude part."""
+    if isinstance(waveform, SineDwell):
+        return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
+    if isinstance(waveform, Sweep):
+        return waveform.taper_in_s, waveform.sweep_s - waveform.taper_out_s
+    return 0.0, 0.0
+
+
+def sync_flags(
+    t_s: np.ndarray, waveform: Waveform, stop_s: float | None = None, taper_out_s: float = 0.0
+) -> np.ndarray:
+    """The sync outputs (uint8 bits) at times ``t_s`` (s from the excitation's start) of ``waveform``
+    stopped early at ``stop_s`` (None: not stopped) with a taper of ``taper_out_s``."""
+    end_s = waveform.duration_s if stop_s is None else min(waveform.duration_s, stop_s + taper_out_s)
+    hold_start_s, hold_end_s = hold_window_s(waveform)
+    if stop_s is not None:
+        hold_end_s = min(hold_end_s, stop_s)
+    active = (t_s >= 0) & (t_s < end_s)
+    hold = (t_s >= hold_start_s) & (t_s < hold_end_s)
+    return (active * EXCITATION_ACTIVE | hold * AMPLITUDE_HOLD).astype(np.uint8)
 
 
 class MeanRamp:
@@ -70,6 +102,7 @@ class FunctionGenerator:
         self._stop_n: int | None = None
         self._stopping = False
         self._frozen_m: float | None = None
+        self._sync: list[np.ndarray] = []  # sync outputs of the blocks generated since the last take
 
     # -- control ------------------------------------------------------------------------------
 
@@ -141,8 +174,10 @@ class FunctionGenerator:
     # -- generation ---------------------------------------------------------------------------
 
     def block(self, count: int) -> np.ndarray:
-        """The command (m) for the next ``count`` internal samples."""
+        """The command (m) for the next ``count`` internal samples (their sync outputs are kept for
+        :meth:`take_sync_flags`)."""
         n = self.n + np.arange(count)
+        self._sync.append(self._sync_flags(n))
         if self._frozen_m is not None:
             out = np.full(count, self._frozen_m)
         else:
@@ -154,6 +189,18 @@ class FunctionGenerator:
             self.last_m = float(out[-1])
             self._end_excitation(self.n - 1)
         return out
+
+    def take_sync_flags(self) -> np.ndarray:
+        """The sync outputs (uint8 bits) of every internal sample generated since the last call."""
+        flags = np.concatenate(self._sync) if self._sync else np.zeros(0, np.uint8)
+        self._sync = []
+        return flags
+
+    def _sync_flags(self, n: np.ndarray) -> np.ndarray:
+        if self._waveform is None or self._frozen_m is not None:
+            return np.zeros(len(n), np.uint8)
+        stop_s = None if self._stop_n is None else (self._stop_n - self._start_n) / self.rate_hz
+        return sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
 
     def _excitation(self, n: np.ndarray) -> np.ndarray:
         assert self._waveform is not None

@@ -4,7 +4,14 @@ Channels: Fz is the plant's WFS force; Fx, Fy, Mx, My, Mz are crosstalk of Fz (s
 the ±0.5 % specification; moments over a 0.3 m lever) plus seeded noise; aux0/aux1/aux2 carry the
 bench displacement, plate force and hub acceleration, sampled in the same frame. With a wheel speed
 set, the wheel angle advances and the loads are expressed in the rotating sensor frame, so a host
-that applies the rotating-to-non-rotating transformation recovers the wheel-frame loads.
+that applies the rotating-to-non-rotating transformation recovers the wheel-frame loads. The
+controller's sync outputs arrive on two digital inputs, sampled at the converter rate and delayed
+like the analog channels (:class:`DigitalInputs`), and set the status bits ``EXCITATION_ACTIVE``
+and ``AMPLITUDE_HOLD``.
+
+Counters: ``seq`` counts the frames sent since power-up, ``sample`` the samples since the last
+START, ``boot`` the power-ups (:meth:`WfsDevice.restart` is one); the command thread and the bench
+runner change them under one lock.
 
 The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
@@ -15,8 +22,10 @@ and, until the host drains again, later blocks are only offered briefly, so a ho
 reading never freezes the bench (the bench then runs in real time and the controller's watchdog
 fires).
 
-Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (frames produced
-meanwhile are lost, the sequence counter runs on), a disconnect and reconnect of the link.
+Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
+frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart.
+
+Commands are dispatched through a table (:attr:`WfsDevice.commands`), one handler per command name.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ import contextlib
 import logging
 import threading
 import time
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -32,19 +42,26 @@ import serial
 
 from drivers.wfs_capture import MAX_CAPTURE_SAMPLES, encode_capture
 from drivers.wfs_commands import UNKNOWN, Reply, parse_command
-from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, Status, encode
+from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, PROTOCOL_VERSION, Status, encode
 from drivers.wfs_transform import rotate_to_wheel_frame
 from simulators.bench_sim import BenchBlock, SimulatedBench
 from simulators.capture_trigger import BASELINE_SAMPLES, HISTORY_SAMPLES, CaptureTrigger
 from simulators.faults import ByteFaults
+from simulators.function_generator import AMPLITUDE_HOLD, EXCITATION_ACTIVE
 from simulators.worker import Worker
 
 log = logging.getLogger(__name__)
 
-IDENTITY = ("WFSBENCH", "SIM-WFS6", "0001", "1.0")
+IDENTITY = ("WFSBENCH", "SIM-WFS6", "0001", "2.0", str(PROTOCOL_VERSION))
+#: the status bit each digital sync input sets
+SYNC_STATUS = {EXCITATION_ACTIVE: Status.EXCITATION_ACTIVE, AMPLITUDE_HOLD: Status.AMPLITUDE_HOLD}
 #: measuring range per channel, Fx Fy Fz (N) and Mx My Mz (N m), as the paper's Table 1; beyond it
 #: the channel's overload bit is set
 LOAD_RANGE = np.array([24_000.0, 15_000.0, 24_000.0, 4_500.0, 7_200.0, 4_500.0])
+#: input range of aux0..aux3 (m, N, m/s^2, V): the ±10 V inputs scaled to a ±50 mm displacement
+#: transducer, a ±50 kN load cell, a ±50 g accelerometer and the spare input in volts; beyond it on
+#: any aux channel the aux overload bit is set
+AUX_RANGE = np.array([0.05, 50_000.0, 490.0, 10.0])
 CROSSTALK_SPEC = 0.005
 LEVER_M = 0.3
 _MAX_LINE = 64
@@ -70,8 +87,32 @@ class DeviceLink(Protocol):
     def reconnect(self) -> None: ...
 
 
+class DigitalInputs:
+    """The acquisition's digital inputs: sampled at the converter rate, and each output sample takes
+    the inputs at the instant its analog channels describe (``latency`` output samples earlier, the
+    anti-alias filter's delay), so that an edge lines up with the analog channels."""
+
+    def __init__(self) -> None:
+        self._history = np.zeros(0, np.uint8)  # the latest converter samples, for the delay
+
+    def sample(self, flags: np.ndarray, n_out: int, latency_samples: int) -> np.ndarray:
+        """The inputs of ``n_out`` output samples from the block's converter-rate ``flags``."""
+        if len(flags) == 0:
+            return np.zeros(n_out, np.uint8)
+        factor = len(flags) // n_out
+        delay = latency_samples * factor
+        past = self._history[-delay:] if delay else self._history[:0]
+        past = np.concatenate([np.zeros(delay - len(past), np.uint8), past])  # inputs low at power-up
+        data = np.concatenate([past, flags])
+        self._history = data[len(data) - delay :]
+        return data[: n_out * factor : factor]
+
+
 class WfsDevice:
-    """A WFS acquisition on a serial link, fed blocks by the bench runner (a :class:`BenchSink`)."""
+    """A WFS acquisition on a serial link, fed blocks by the bench runner (a :class:`BenchSink`).
+
+    ``boot`` is the number of power-ups so far (kept in the device's non-volatile memory).
+    """
 
     def __init__(
         self,
@@ -84,6 +125,7 @@ class WfsDevice:
         noise_n: float = 1.0,
         speed_rad_s: float = 0.0,
         angle_rad: float = 0.0,
+        boot: int = 1,
     ) -> None:
         self.link = link
         self.bench = bench
@@ -99,11 +141,24 @@ class WfsDevice:
         self.tare_offset = np.zeros(6)
         self._recent = np.zeros((0, 6))
         self._write_lock = threading.Lock()
+        self._counter_lock = threading.Lock()  # seq, sample, boot, streaming: bench and command threads
         self._streaming = False
         self._seq = 0
         self._sample = 0
-        self._stall_until = 0.0
+        self.boot = boot % (1 << 16)
+        self._inputs = DigitalInputs()
+        self._stall_frames = 0
         self._link_up = True
+        #: command name (as parsed, e.g. ``RATE?``) -> handler of its arguments
+        self.commands: dict[str, Callable[[list[str]], Reply]] = {
+            "IDENT": _no_arguments("IDENT", lambda: Reply(True, "IDENT", IDENTITY)),
+            "START": _no_arguments("START", self._start),
+            "STOP": _no_arguments("STOP", self._stop_streaming),
+            "TARE": _no_arguments("TARE", self._tare),
+            "RATE": self._set_rate,
+            "RATE?": _no_arguments("RATE", lambda: Reply(True, "RATE", (str(self.rate_hz),))),
+            "CAPTURE": self._arm_capture,
+        }
         self._worker = Worker(self._serve_commands, "wfs-device")
         self._stop = self._worker.stopping
         self.frames_sent = 0
@@ -146,9 +201,18 @@ class WfsDevice:
 
     # -- faults ---------------------------------------------------------------------------------
 
-    def stall(self, duration_s: float) -> None:
-        """Send nothing for ``duration_s`` (frames produced meanwhile are lost)."""
-        self._stall_until = time.monotonic() + duration_s
+    def stall(self, frames: int) -> None:
+        """Send nothing while the next ``frames`` frames are produced (they are lost)."""
+        self._stall_frames = frames
+
+    def restart(self) -> None:
+        """A power cycle: the boot count goes up, ``seq`` and ``sample`` start from 0, streaming stops,
+        the tare is lost (the output rate, a setting of the bench, stays)."""
+        with self._counter_lock:
+            self.boot = (self.boot + 1) % (1 << 16)
+            self._seq = self._sample = 0
+            self._streaming = False
+            self.tare_offset = np.zeros(6)
 
     def disconnect(self) -> None:
         with self._write_lock:
@@ -166,9 +230,14 @@ class WfsDevice:
         """Turn a bench block into frames and send them (called by the bench runner)."""
         self._feed_capture(block)
         frames = self._frames(block)
-        if not self._streaming or len(frames) == 0:
+        if len(frames) == 0:
             return
-        if not self._link_up or time.monotonic() < self._stall_until:
+        if self._stall_frames:
+            stalled = min(self._stall_frames, len(frames))
+            self._stall_frames -= stalled
+            self.frames_unsent += stalled
+            frames = frames[stalled:]
+        if not self._link_up or len(frames) == 0:
             self.frames_unsent += len(frames)
             return
         data = self.faults.apply(encode(frames))
@@ -208,18 +277,23 @@ class WfsDevice:
         loads[:, 2] = fz
         noise = self.noise_n * self._rng.standard_normal((m, 5))
         loads[:, [0, 1, 3, 4, 5]] = fz[:, None] * self.crosstalk + noise
-        t = block.start_s + np.arange(m) / block.rate_hz
+        # the instants the (delayed) analog channels describe
+        t = block.start_s + (np.arange(m) - block.latency_samples) / block.rate_hz
         angle = np.mod(self.angle_rad + self.speed_rad_s * t, 2 * np.pi)
         loads = rotate_to_wheel_frame(loads, -angle)  # the sensor turns with the wheel
+        inputs = self._inputs.sample(block.sync_flags, m, block.latency_samples)
         self._recent = np.concatenate([self._recent, loads])[-100:]
-        if not self._streaming:
-            return np.zeros(0, FRAME_DTYPE)
         frames = np.zeros(m, FRAME_DTYPE)
-        frames["seq"] = (self._seq + np.arange(m)) % (1 << 32)
-        frames["sample"] = (self._sample + np.arange(m)) % (1 << 32)
-        self._seq += m
-        self._sample += m
-        out = loads - self.tare_offset
+        with self._counter_lock:
+            if not self._streaming:
+                return frames[:0]
+            frames["seq"] = (self._seq + np.arange(m)) % (1 << 32)
+            frames["sample"] = (self._sample + np.arange(m)) % (1 << 32)
+            frames["boot"] = self.boot
+            self._seq += m
+            self._sample += m
+            out = loads - self.tare_offset
+            tared = Status.TARED if self.tare_offset.any() else 0
         for i, name in enumerate(FORCE_FIELDS):
             frames[name] = out[:, i]
         frames["angle_rad"] = angle
@@ -227,8 +301,18 @@ class WfsDevice:
         frames["aux0"] = ch["z_base_m"]
         frames["aux1"] = ch["f_plate_n"]
         frames["aux2"] = ch["a_hub_m_s2"]
-        overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
-        frames["status"] = overload.sum(axis=1) | (Status.TARED if self.tare_offset.any() else 0)
+        aux = np.column_stack([frames[f"aux{i}"] for i in range(4)])
+        with np.errstate(invalid="ignore"):  # a NaN is no overload: it is an ADC fault
+            overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
+            aux_overload = np.any(np.abs(aux) > AUX_RANGE, axis=1)
+        # the converter flags a conversion it could not complete: here, a non-finite sample
+        fault = ~(np.all(np.isfinite(loads), axis=1) & np.all(np.isfinite(aux), axis=1))
+        status = overload.sum(axis=1) | tared
+        status |= np.where(aux_overload, int(Status.OVERLOAD_AUX), 0)
+        status |= np.where(fault, int(Status.ADC_FAULT), 0)
+        for bit, flag in SYNC_STATUS.items():
+            status |= np.where(inputs & bit, int(flag), 0)
+        frames["status"] = status
         return frames
 
     # -- triggered capture ----------------------------------------------------------------------
@@ -252,6 +336,8 @@ class WfsDevice:
     def _arm_capture(self, args: list[str]) -> Reply:
         """``CAPTURE <trigger_level_n> <pre_trigger_s> <length_s>``: arm (replacing an armed capture)."""
         rate_hz = self.bench.plant.internal_rate_hz
+        if len(args) != 3:
+            return Reply(False, "CAPTURE", ("bad arguments",))
         try:
             level_n, pre_s, length_s = (float(a) for a in args)
         except ValueError:
@@ -312,40 +398,34 @@ class WfsDevice:
         self._reply(self.execute(name, args))
 
     def execute(self, name: str, args: list[str]) -> Reply:
-        """Carry out one command and return the reply."""
-        if name == "RATE" and len(args) == 1:
-            return self._set_rate(args[0])
-        if name == "CAPTURE" and len(args) == 3:
-            return self._arm_capture(args)
-        handler = (
-            {
-                "IDENT": lambda: Reply(True, "IDENT", IDENTITY),
-                "START": self._start,
-                "STOP": self._stop_streaming,
-                "TARE": self._tare,
-                "RATE?": lambda: Reply(True, "RATE", (str(self.rate_hz),)),
-            }.get(name)
-            if not args
-            else None
-        )
-        return handler() if handler else Reply(False, name.rstrip("?"), ("bad arguments",))
+        """Carry out one command (a name of :attr:`commands`) and return the reply."""
+        handler = self.commands.get(name)
+        if handler is None:
+            return Reply(False, UNKNOWN, ("unknown command",))
+        return handler(args)
 
     def _start(self) -> Reply:
-        self._sample = 0
-        self._streaming = True
+        with self._counter_lock:
+            self._sample = 0
+            self._streaming = True
         return Reply(True, "START")
 
     def _stop_streaming(self) -> Reply:
-        self._streaming = False
+        with self._counter_lock:
+            self._streaming = False
         return Reply(True, "STOP")
 
     def _tare(self) -> Reply:
         if len(self._recent) == 0:
             return Reply(False, "TARE", ("no samples yet",))
-        self.tare_offset = self._recent.mean(axis=0)
+        with self._counter_lock:
+            self.tare_offset = self._recent.mean(axis=0)
         return Reply(True, "TARE")
 
-    def _set_rate(self, text: str) -> Reply:
+    def _set_rate(self, args: list[str]) -> Reply:
+        if len(args) != 1:
+            return Reply(False, "RATE", ("bad arguments",))
+        text = args[0]
         if self._streaming:
             return Reply(False, "RATE", ("stop first",))
         valid = self.valid_rates()
@@ -363,3 +443,8 @@ class WfsDevice:
         with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
             if self._link_up:
                 self._write_all(reply.encode(), _REPLY_TIMEOUT_S)
+
+
+def _no_arguments(name: str, handler: Callable[[], Reply]) -> Callable[[list[str]], Reply]:
+    """A command handler that refuses arguments (``$ERR,<name>,bad arguments``)."""
+    return lambda args: Reply(False, name, ("bad arguments",)) if args else handler()

@@ -153,8 +153,9 @@ def test_hammer_test_over_a_real_pty_gives_the_sensor_eigenfrequency_and_damping
     try:
         with WfsReader.serial(link.path) as reader:
             assert reader.wait_connected(5)
-            reader.start_stream()
-            reader.read_frames(50, timeout_s=5)  # 50 ms converted: the history holds the baseline
+            with reader.subscribe(lossless=True) as frames:
+                reader.start_stream()
+                frames.read_frames(50, timeout_s=5)  # 50 ms converted: the history holds the baseline
             samples, pre = reader.arm_capture(500.0, 0.005, 0.1)
             assert (samples, pre) == (1000, 50)
             world.strike_hammer(3000.0, 1.5e-4)

@@ -1,5 +1,6 @@
 """WFS frame codec and command set: byte-exact layout, CRC, garbage replies."""
 
+import binascii
 import struct
 
 import numpy as np
@@ -14,6 +15,7 @@ from drivers.wfs_frame import (
     decode,
     encode,
     new_frames,
+    valid_at,
 )
 
 
@@ -21,23 +23,43 @@ def test_crc16_ccitt_false_check_value():
     assert crc16_ccitt(b"123456789") == 0x29B1
 
 
-def test_vectorised_crc_agrees_with_bytewise():
-    rows = np.random.default_rng(3).integers(0, 256, (500, 58), dtype=np.uint8)
-    assert crc16_rows(rows).tolist() == [crc16_ccitt(r.tobytes()) for r in rows]
+def test_crc_agrees_with_the_standard_library():
+    """binascii.crc_hqx with initial value 0xFFFF is an independent CRC-16/CCITT-FALSE."""
+    rows = np.random.default_rng(3).integers(0, 256, (500, 60), dtype=np.uint8)
+    reference = [binascii.crc_hqx(r.tobytes(), 0xFFFF) for r in rows]
+    assert crc16_rows(rows).tolist() == reference
+    assert [crc16_ccitt(r.tobytes()) for r in rows] == reference
+    frames = new_frames(50)
+    frames["seq"] = np.arange(50)
+    frames["boot"] = 7
+    data = encode(frames)
+    offsets = range(0, len(data), FRAME_SIZE)
+    stamped = [int.from_bytes(data[i + 62 : i + 64], "little") for i in offsets]
+    assert stamped == [binascii.crc_hqx(data[i + 2 : i + 62], 0xFFFF) for i in offsets]
+
+
+def test_valid_at_checks_frames_at_any_byte_offset():
+    frames = new_frames(3)
+    frames["seq"] = [5, 6, 7]
+    data = bytearray(b"\xa5\x5a\x00" + encode(frames) + b"\xa5")
+    data[3 + FRAME_SIZE + 20] ^= 0x10  # break the second frame
+    starts = np.array([0, 3, 3 + FRAME_SIZE, 3 + 2 * FRAME_SIZE])
+    assert valid_at(np.frombuffer(bytes(data), np.uint8), starts).tolist() == [False, True, False, True]
 
 
 def test_frame_layout_is_byte_exact():
     f = new_frames(1)
-    f["seq"], f["sample"], f["fz"], f["aux2"], f["status"] = 7, 3, 1.5, -2.0, 0x0104
+    f["seq"], f["sample"], f["fz"], f["aux2"], f["status"], f["boot"] = 7, 3, 1.5, -2.0, 0x0104, 0x0302
     data = encode(f)
-    assert FRAME_SIZE == 62 == len(data)
+    assert FRAME_SIZE == 64 == len(data)
     assert data[0:2] == b"\xa5\x5a"
     assert data[2:6] == struct.pack("<I", 7)
     assert data[6:10] == struct.pack("<I", 3)
     assert data[18:22] == struct.pack("<f", 1.5)  # fz: third force channel at offset 10 + 8
     assert data[50:54] == struct.pack("<f", -2.0)  # aux2 at 42 + 8
     assert data[58:60] == b"\x04\x01"
-    assert data[60:62] == struct.pack("<H", crc16_ccitt(data[2:60]))
+    assert data[60:62] == b"\x02\x03"  # boot
+    assert data[62:64] == struct.pack("<H", crc16_ccitt(data[2:62]))
 
 
 def test_encode_decode_round_trip_and_single_bit_errors_detected():
@@ -91,9 +113,14 @@ def test_reply_byte_exact_and_round_trip():
         b"$\xff\xfe*00\r\n",
         b"$MAYBE,RATE*" + b"00\r\n",
         b"$OK,RATE*ZZ\r\n",
+        b"$OK,RATE,1000* 7\r\n",  # a space for a hex digit (the checksum is 0x07)
+        b"$OK,RATE,1000*+7\r\n",
+        b"$OK,RATE,1000*7\r\n",
+        b"$OK,IDENT*7a\r\n",  # lower-case hex (the checksum is 0x7A)
         b"$" + b"A" * 300 + b"*00\r\n",
     ],
 )
 def test_garbage_replies_are_malformed(line):
+    """Each line is one fault away from a valid reply (``$OK,IDENT*7A``, ``$OK,RATE,1000*07``)."""
     with pytest.raises(MalformedReplyError):
         parse_reply(line)

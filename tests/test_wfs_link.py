@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import sys
 import threading
 
 import numpy as np
@@ -15,7 +16,7 @@ from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, Lin
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
 from drivers.setpoints import DwellSetpoint, SoftLimits
 from drivers.wfs_commands import Reply, format_command, parse_reply
-from drivers.wfs_frame import Status
+from drivers.wfs_frame import FRAME_SIZE, Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
@@ -63,10 +64,11 @@ def test_command_set_in_memory(memory_rig):
     assert reader.command("RATE?").fields == ("500",)
     with pytest.raises(CommandRejectedError, match="300 Hz not possible"):
         reader.set_rate(300)
+    sub = reader.subscribe(lossless=True)
     reader.start_stream()
     with pytest.raises(CommandRejectedError, match="stop first"):
         reader.set_rate(1000)
-    block = reader.read_frames(500, timeout_s=5)
+    block = sub.read_frames(500, timeout_s=5)
     assert np.all(np.diff(block.frames["seq"].astype(np.int64)) == 1)
     assert block.frames["sample"][0] == 0
     reader.tare()
@@ -106,8 +108,9 @@ def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
     try:
         assert reader.set_rate(250) == 250
         assert bench.plant.oversampling == 40  # from the 10 kHz converter
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        frames = reader.read_frames(500, timeout_s=10).frames
+        frames = sub.read_frames(500, timeout_s=10).frames
         reader.stop_stream()
         valid = "valid rates 100 125 200 250 400 500 625 1000 1250 Hz"
         for bad in (300, 2000, 10_000, 50, 0, -250):
@@ -164,9 +167,10 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
         await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))
         await client.start()
         await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), 2.0, "the dwell")
+        sub = reader.subscribe(lossless=True)
         await asyncio.to_thread(reader.start_stream)
         n = round((settle_s + cycles / freq_hz) * rate_hz)
-        block = await asyncio.to_thread(reader.read_frames, n, 30.0)
+        block = await asyncio.to_thread(sub.read_frames, n, 30.0)
         await asyncio.to_thread(reader.stop_stream)
         assert (await client.read_status()).state == ControllerState.RUNNING
         await client.stop()
@@ -213,19 +217,38 @@ async def _state_is(client: ActuatorClient, state: ControllerState) -> bool:
 def test_overload_bits_follow_each_channels_range():
     """Ranges as the paper's Table 1: Fx, Fz 24 kN, Fy 15 kN, Mx, Mz 4.5 kN m, My 7.2 kN m."""
     bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(MemoryLink(), bench, noise_n=0.0)
+    link = MemoryLink()
+    device = WfsDevice(link, bench, noise_n=0.0)
     device.crosstalk = np.array([0.0, 1.0, 0.3, 0.3, 0.0])  # Fy = Fz, Mx = My = 0.3 m x Fz
     device.execute("START", [])
     fz = np.array([16_000.0, -16_000.0, 14_000.0])  # Fy beyond 15 kN, then within
     zeros = np.zeros(len(fz))
     channels = {"fz_wfs_n": fz, "z_base_m": zeros, "f_plate_n": zeros, "a_hub_m_s2": zeros}
-    status = device._frames(BenchBlock(0.0, 1000.0, channels))["status"]
+    device.deliver(BenchBlock(0.0, 1000.0, channels))
+    status = StreamParser().feed(link.open_host().read(3 * FRAME_SIZE)).frames["status"]
     # 16 kN: Fy (15 kN) and Mx (4.8 > 4.5 kN m) overload, Fz (24 kN) and My (7.2 kN m) do not
     assert [Status(int(s)) for s in status] == [
         Status.OVERLOAD_FY | Status.OVERLOAD_MX,
         Status.OVERLOAD_FY | Status.OVERLOAD_MX,
         Status(0),
     ]
+
+
+def test_aux_overload_and_adc_fault_bits():
+    """Aux ranges: 50 mm, 50 kN, 490 m/s^2 (50 g); a conversion that yields no number is an ADC fault."""
+    bench = SimulatedBench.paper_shaker(seed=2)
+    link = MemoryLink()
+    device = WfsDevice(link, bench, noise_n=0.0)
+    device.execute("START", [])
+    z = np.array([0.049, -0.051, 0.0, 0.0, 0.0, 0.0])
+    plate = np.array([0.0, 0.0, 50_001.0, 0.0, 0.0, 0.0])
+    hub = np.array([0.0, 0.0, 0.0, -491.0, 0.0, np.nan])
+    fz = np.array([0.0, 0.0, 0.0, 0.0, np.nan, 0.0])
+    channels = {"fz_wfs_n": fz, "z_base_m": z, "f_plate_n": plate, "a_hub_m_s2": hub}
+    device.deliver(BenchBlock(0.0, 1000.0, channels))
+    status = StreamParser().feed(link.open_host().read(6 * FRAME_SIZE)).frames["status"]
+    aux, fault = Status.OVERLOAD_AUX, Status.ADC_FAULT
+    assert [Status(int(s)) for s in status] == [Status(0), aux, aux, aux, fault, fault]
 
 
 def test_no_reply_is_a_timeout(memory_rig):
@@ -261,18 +284,21 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     reader = WfsReader(link.open_host)
     reader.start()
     try:
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        got = reader.read_frames(5000, timeout_s=20)
-        # stall: nothing for a while, then the stream resumes with a gap
-        device.stall(0.2)
-        got2 = reader.read_frames(3000, timeout_s=20)
+        got = sub.read_frames(5000, timeout_s=20)
+        # stall: 200 frames are not sent, then the stream resumes with a gap
+        device.stall(200)
+        got2 = sub.read_frames(3000, timeout_s=20)
+        stalled = device.frames_unsent
         # disconnect and reconnect: the reader reopens the link and the stream resumes
         device.disconnect()
         wait_until(lambda: not reader.wait_connected(0), 5, "the reader to see the link drop")
         device.reconnect()
         assert reader.wait_connected(5)
-        got3 = reader.read_frames(3000, timeout_s=20)
+        got3 = sub.read_frames(3000, timeout_s=20)
         assert reader.running
+        sub.close()
         reader.command("STOP")
         counters = reader.counters
     finally:
@@ -289,7 +315,8 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     assert counters.frames_missing >= marked
     assert counters.crc_rejects > 0
     assert counters.reconnects == 1
-    assert device.frames_unsent > 0  # the stall and the disconnect really lost frames
+    assert stalled == 200 < device.frames_unsent  # the stall and the disconnect really lost frames
+    assert any(g.missing >= 200 for g in got2.gaps)
 
 
 def test_a_host_that_stops_reading_never_freezes_the_bench_and_the_watchdog_stops_it():
@@ -335,8 +362,9 @@ def test_stream_over_a_real_pseudo_terminal_with_rotation():
     try:
         assert reader.wait_connected(5)
         assert reader.identify() == IDENTITY
+        sub = reader.subscribe(lossless=True)
         reader.start_stream()
-        block = reader.read_frames(3000, timeout_s=20)
+        block = sub.read_frames(3000, timeout_s=20)
         reader.stop_stream()
         counters = reader.counters
     finally:
@@ -363,3 +391,99 @@ def test_reader_exposes_its_thread_id_only_while_running():
         wait_until(lambda: reader.thread_id is not None, 2.0, "reader thread start")
         assert reader.thread_id != threading.get_native_id()  # not the caller's thread
     assert reader.thread_id is None
+
+
+def test_tare_zeroes_the_loads_at_the_present_load():
+    """The actuator holds 5 mm (about 1.9 kN on the tyre); after TARE every load channel reads zero."""
+    link = MemoryLink()
+    bench, device, runner = _rig(link)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        with bench.lock:
+            assert bench.controller.write_setpoints({"waveform": WaveformCode.STATIC, "mean_mm": 5.0}) is None
+            for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
+                assert bench.controller.command(command) is None
+        sub = reader.subscribe(lossless=True, max_blocks=100_000)  # never full within this test
+        reader.start_stream()
+        before = sub.read_frames(3000, timeout_s=20).frames[-500:]  # the 0.5 s mean ramp is over
+        reader.tare()
+        after = sub.read_frames(3000, timeout_s=20).frames
+        sub.close()
+        reader.stop_stream()
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    assert not np.any(before["status"] & Status.TARED)
+    assert np.mean(before["fz"]) > 1500
+    tared = after[(after["status"] & Status.TARED) != 0]
+    assert len(tared) > 2000
+    # the tare is the mean of 100 samples with about 1 N of noise: its error is about 0.1 N
+    for channel in ("fx", "fy", "fz", "mx", "my", "mz"):
+        assert abs(np.mean(tared[channel])) < 1.0, channel
+
+
+def test_a_device_restart_is_a_resync_for_the_reader():
+    link = MemoryLink()
+    _bench, device, runner = _rig(link)
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        sub = reader.subscribe(lossless=True, max_blocks=100_000)
+        reader.start_stream()
+        first = sub.read_frames(500, timeout_s=20)
+        device.restart()  # a power cycle: streaming stops, the counters start over
+        reader.start_stream()
+        second = sub.read_frames(500, timeout_s=20)
+        sub.close()
+        reader.stop_stream()
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    assert set(first.frames["boot"].tolist()) == {1}
+    assert not first.resyncs and not second.gaps
+    [resync] = second.resyncs
+    assert (resync.last_boot, resync.boot, resync.seq) == (1, 2, 0)
+    restarted = second.frames[resync.index :]
+    assert restarted["sample"][0] == 0 and np.all(np.diff(restarted["seq"].astype(np.int64)) == 1)
+
+
+def test_start_restarts_the_sample_clock_while_the_bench_numbers_frames():
+    """START from the command side races the bench thread numbering a block: the sample clock must
+    restart at exactly 0 every time (the counters change under one lock), never continue from the
+    block that was being numbered."""
+    link = MemoryLink()
+    _bench, device, runner = _rig(link)
+    host = link.open_host()
+    parser = StreamParser()
+    frames: list[np.ndarray] = []
+    done = threading.Event()
+
+    def drain() -> None:
+        while not done.is_set():
+            frames.append(parser.feed(host.read(16 * FRAME_SIZE)).frames)
+
+    drainer = threading.Thread(target=drain)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads as often as possible: the race shows if it exists
+    rng = np.random.default_rng(5)
+    try:
+        device.execute("START", [])
+        drainer.start()
+        for _ in range(500):
+            device.execute("START", [])
+            # let the bench number a few frames before the next START, at a random instant
+            target = parser.counters.frames_ok + int(rng.integers(5, 60))
+            wait_until(lambda t=target: parser.counters.frames_ok >= t, 10, "frames after START")
+    finally:
+        sys.setswitchinterval(switch)
+        runner.stop()
+        device.stop()
+        done.set()
+        drainer.join(5)
+    sample = np.concatenate(frames)["sample"].astype(np.int64)
+    back = np.flatnonzero(np.diff(sample) != 1) + 1
+    assert len(back) > 400  # the restarts really happened while frames flowed
+    assert np.all(sample[back] == 0)

@@ -4,15 +4,16 @@ import numpy as np
 import pytest
 
 from drivers.wfs_commands import Reply
-from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, encode, new_frames
-from drivers.wfs_stream import DUPLICATE_WINDOW, Resync, StreamParser
+from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, encode, new_frames
+from drivers.wfs_stream import Resync, StreamParser
 from simulators.faults import ByteFaults, FaultLog
 
 
-def _frames(n: int, first_seq: int = 0) -> np.ndarray:
+def _frames(n: int, first_seq: int = 0, boot: int = 1) -> np.ndarray:
     f = new_frames(n)
-    f["seq"] = np.arange(first_seq, first_seq + n)
+    f["seq"] = (np.arange(n) + first_seq) % 2**32
     f["sample"] = f["seq"]
+    f["boot"] = boot
     f["fz"] = np.sin(np.arange(n) * 0.1) * 1000
     return np.frombuffer(encode(f), dtype=FRAME_DTYPE).copy()
 
@@ -67,13 +68,13 @@ def test_duplicated_frames_are_dropped_and_counted():
 
 
 def test_device_restart_is_a_resync_and_the_new_stream_is_delivered():
-    """After 100 000 frames the device restarts and counts from 0 again: not 50 000 duplicates."""
+    """After 100 000 frames the device restarts (boot 1 -> 2) and counts from 0 again."""
     parser = StreamParser()
     assert len(parser.feed(encode(_frames(100_000))).frames) == 100_000
-    restarted = _frames(50_000)
+    restarted = _frames(50_000, boot=2)
     result = parser.feed(encode(restarted[:20_000]) + encode(restarted[20_000:30_000]))
     assert np.array_equal(result.frames, restarted[:30_000])
-    assert result.resyncs == [Resync(0, 99_999, 0)]
+    assert result.resyncs == [Resync(0, 1, 2, 99_999, 0)]
     assert result.gaps == []
     assert parser.counters.resyncs == 1 and parser.counters.duplicates == 0
     # the new stream is then checked for gaps and duplicates as usual
@@ -84,26 +85,74 @@ def test_device_restart_is_a_resync_and_the_new_stream_is_delivered():
 
 def test_restart_inside_a_block_is_reported_where_it_happens():
     parser = StreamParser()
-    result = parser.feed(encode(np.concatenate([_frames(5000), _frames(300)])))
+    result = parser.feed(encode(np.concatenate([_frames(5000), _frames(300, boot=2)])))
     assert len(result.frames) == 5300
-    assert result.resyncs == [Resync(5000, 4999, 0)]
+    assert result.resyncs == [Resync(5000, 1, 2, 4999, 0)]
 
 
-def test_short_step_back_is_a_duplicate_but_after_a_reopen_a_resync():
+def test_restart_within_256_frames_of_power_up_delivers_every_new_frame():
     parser = StreamParser()
-    parser.feed(encode(_frames(DUPLICATE_WINDOW + 100)))
-    assert len(parser.feed(encode(_frames(10, first_seq=100))).frames) == 0
-    assert parser.counters.duplicates == 10 and parser.counters.resyncs == 0
+    parser.feed(encode(_frames(100)))
+    result = parser.feed(encode(_frames(100, boot=2)))
+    assert result.frames["seq"].tolist() == list(range(100))
+    assert result.resyncs == [Resync(0, 1, 2, 99, 0)]
+    assert parser.counters.duplicates == 0 and parser.counters.frames_missing == 0
+
+
+def test_restart_after_the_counter_passed_half_its_range_is_no_gap():
+    parser = StreamParser()
+    parser.feed(encode(_frames(50, first_seq=2**31 + 5)))
+    result = parser.feed(encode(_frames(50, boot=2)))
+    assert len(result.frames) == 50 and result.gaps == []
+    assert result.resyncs == [Resync(0, 1, 2, 2**31 + 54, 0)]
+    assert parser.counters.frames_missing == 0 and parser.counters.gaps == 0
+
+
+def test_stale_copy_arriving_late_is_dropped_without_a_resync():
+    """A copy of frame 100 arrives 900 frames late, then one from before a restart: both dropped."""
+    sent = _frames(1100)
+    parser = StreamParser()
+    data = encode(sent[:1000]) + encode(sent[100:101]) + encode(sent[1000:])
+    got = parser.feed(data).frames
+    assert got["seq"].tolist() == list(range(1100))  # each frame once, none missing
+    assert parser.counters.duplicates == 1
+    assert parser.counters.resyncs == 0 and parser.counters.frames_missing == 0
+    after_restart = _frames(20, boot=2)
+    result = parser.feed(encode(after_restart[:10]) + encode(sent[500:501]) + encode(after_restart[10:]))
+    assert result.frames["seq"].tolist() == list(range(20))
+    assert len(result.resyncs) == 1 and parser.counters.duplicates == 2
+
+
+def test_boot_count_wraps_and_stays_a_restart():
+    parser = StreamParser()
+    parser.feed(encode(_frames(10, boot=0xFFFF)))
+    result = parser.feed(encode(_frames(10, boot=0)))
+    assert result.resyncs == [Resync(0, 0xFFFF, 0, 9, 0)] and len(result.frames) == 10
+
+
+def test_after_a_reopen_lost_frames_are_a_gap_and_a_restart_a_resync():
+    parser = StreamParser()
+    parser.feed(encode(_frames(300)))
     parser.feed(encode(_frames(1))[:30])  # half a frame of the old connection
     parser.reopened()
-    result = parser.feed(encode(_frames(10, first_seq=3)))
-    assert result.frames["seq"].tolist() == list(range(3, 13))
-    assert parser.counters.resyncs == 1
-    # without a restart, the frames lost while the link was down are a gap
+    result = parser.feed(encode(_frames(5, first_seq=320)))
+    assert [(g.first_seq, g.missing) for g in result.gaps] == [(300, 20)]
+    assert parser.counters.resyncs == 0 and parser.counters.bytes_discarded == 0
     parser.reopened()
-    result = parser.feed(encode(_frames(5, first_seq=20)))
-    assert [(g.first_seq, g.missing) for g in result.gaps] == [(13, 7)]
-    assert parser.counters.resyncs == 1
+    result = parser.feed(encode(_frames(10, first_seq=3, boot=2)))
+    assert result.frames["seq"].tolist() == list(range(3, 13))
+    assert result.resyncs == [Resync(0, 1, 2, 324, 3)] and result.gaps == []
+
+
+def test_garbage_of_sync_words_is_skipped_and_every_sync_word_rejected():
+    sent = _frames(200)
+    garbage = SYNC_BYTES * 5000 + b"\xa5"
+    stream = encode(sent[:100]) + garbage + encode(sent[100:])
+    parser = StreamParser()
+    got, gaps, _ = _feed_in_chunks(parser, stream, np.random.default_rng(7))
+    assert np.array_equal(got, sent) and gaps == []
+    assert parser.counters.crc_rejects == 5000
+    assert parser.counters.bytes_discarded == len(garbage)
 
 
 def test_sequence_counter_wraps_without_a_gap():

@@ -190,20 +190,6 @@ class _Data:
         return np.concatenate([r.real, r.imag])
 
 
-def merge_frfs(frfs: list[Frf]) -> Frf:
-    """Several FRFs of the same quantity (e.g. the 1/2/5 mm grids) as one data set for a joint fit."""
-    if not frfs:
-        raise AnalysisInputError("no FRFs to merge")
-    return Frf(
-        freq_hz=np.concatenate([f.freq_hz for f in frfs]),
-        value=np.concatenate([f.value for f in frfs]),
-        sigma=np.concatenate([f.sigma for f in frfs]),
-        reliable=np.concatenate([f.reliable for f in frfs]),
-        output=frfs[0].output,
-        input=frfs[0].input,
-    )
-
-
 def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _Data:
     if wfs_per_z.freq_hz.shape != contact_per_z.freq_hz.shape or np.any(
         wfs_per_z.freq_hz != contact_per_z.freq_hz

@@ -111,10 +111,6 @@ class Decimator:
         new._history[:, :-keep] = self._history[:, -keep : -keep + 1]
         return new
 
-    def prime(self, values: np.ndarray) -> None:
-        """Fill the history as if each channel had held ``values`` for ever (a plant at rest)."""
-        self._history[:] = np.asarray(values, dtype=float)[:, None]
-
     def __call__(self, block: np.ndarray) -> np.ndarray:
         """Decimate ``block`` (channels x samples, samples a multiple of ``factor``)."""
         n = block.shape[1]

@@ -1,0 +1,155 @@
+"""WFS reader for the run engine: command latency, commands from several threads, subscriptions."""
+
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from drivers.errors import ProtocolMismatchError
+from drivers.wfs_commands import Reply
+from drivers.wfs_reader import WfsReader
+from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.ports import MemoryLink, PtyLink
+from simulators.wfs_device import IDENTITY, WfsDevice
+
+
+@pytest.fixture
+def pty_rig():
+    """A simulated WFS on a real pseudo-terminal, the bench unpaced, a reader on the pty's path."""
+    link = PtyLink()
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(link, bench, seed=3)
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    device.start()
+    runner.start()
+    reader = WfsReader.serial(link.path)
+    reader.start()
+    assert reader.wait_connected(5)
+    yield device, reader
+    reader.close()
+    runner.stop()
+    device.stop()
+    link.close()
+    assert runner.error is None
+
+
+def test_command_replies_on_a_pty_come_back_within_milliseconds(pty_rig):
+    """The reader hands a reply on as soon as its bytes arrive, not after a read timeout (50 ms)."""
+    _, reader = pty_rig
+    latencies_s = []
+    for _ in range(30):
+        t0 = time.perf_counter()
+        assert reader.identify() == IDENTITY
+        latencies_s.append(time.perf_counter() - t0)
+    # on an idle machine the median is about 0.3 ms; the bound leaves room for a busy one
+    assert statistics.median(latencies_s) < 0.02
+
+
+def test_commands_of_two_threads_never_take_each_others_replies(pty_rig):
+    """Two threads hammer commands on one reader over a real pty while frames stream: every command
+    gets its own reply on the first attempt within its timeout."""
+    _, reader = pty_rig
+    sub = reader.subscribe(lossless=False, max_blocks=4)
+    reader.start_stream()
+    errors: list[BaseException] = []
+    answers: dict[str, list[tuple[str, ...]]] = {"IDENT": [], "RATE?": []}
+
+    def hammer(name: str) -> None:
+        try:
+            for _ in range(150):
+                answers[name].append(reader.command(name, timeout_s=1.0, attempts=1).fields)
+        except Exception as exc:  # reported by the main thread
+            errors.append(exc)
+
+    threads = [threading.Thread(target=hammer, args=(name,)) for name in answers]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    reader.stop_stream()
+    sub.close()
+    assert errors == []
+    assert answers["IDENT"] == [IDENTITY] * 150
+    assert answers["RATE?"] == [("1000",)] * 150
+
+
+def test_a_lossy_view_never_slows_a_lossless_consumer():
+    """The lossless consumer gets every frame, paced by its own reading; a live view that is never
+    read keeps only its newest blocks and counts what it dropped."""
+    link = MemoryLink()
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(link, bench, seed=3)
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    device.start()
+    runner.start()
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        engine = reader.subscribe(lossless=True, max_blocks=8)
+        view = reader.subscribe(lossless=False, max_blocks=3)
+        reader.start_stream()
+        block = engine.read_frames(20_000, timeout_s=30)
+        engine.close()  # closed first: a full lossless queue nobody reads would hold the replies up
+        newest_seq = int(block.frames["seq"][-1])
+        reader.stop_stream()
+        kept = [view.get(0) for _ in range(4)]
+        view.close()
+        assert view.get(0) is None and view.closed
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    seq = block.frames["seq"].astype(np.int64)
+    assert np.all(np.diff(seq) == 1) and not block.gaps
+    assert reader.counters.frames_missing == 0 and device.frames_dropped == 0
+    # the view holds at most 3 blocks, the newest ones, and counted every other block as dropped
+    assert kept[3] is None and all(b is not None for b in kept[:3])
+    view_seq = np.concatenate([b.frames["seq"] for b in kept[:3]]).astype(np.int64)
+    assert np.all(np.diff(view_seq) == 1)
+    assert view_seq[-1] >= newest_seq
+    assert view.dropped_blocks > 10
+
+
+def test_a_lossless_subscription_paces_an_unpaced_bench():
+    """A consumer that drains slowly slows the bench down instead of losing frames."""
+    link = MemoryLink(capacity=4096)
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(link, bench, seed=3)
+    runner = BenchRunner(bench, paced=False)
+    runner.sinks.append(device)
+    device.start()
+    runner.start()
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        engine = reader.subscribe(lossless=True, max_blocks=2)
+        reader.start_stream()
+        frames = []
+        while sum(len(f) for f in frames) < 3000:
+            block = engine.get(5)
+            assert block is not None
+            frames.append(block.frames)
+            time.sleep(0.002)  # a slow consumer: the reader waits for room, the device for the reader
+        engine.close()
+        reader.stop_stream()
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
+    seq = np.concatenate(frames)["seq"].astype(np.int64)
+    assert np.all(np.diff(seq) == 1)
+    assert device.frames_dropped == 0 and device.frames_sent >= 3000
+
+
+def test_identify_refuses_a_device_of_another_protocol_version(pty_rig):
+    device, reader = pty_rig
+    assert reader.identify()[-1] == "2"
+    device.commands["IDENT"] = lambda args: Reply(True, "IDENT", ("WFSBENCH", "SIM-WFS6", "0001", "1.0"))
+    with pytest.raises(ProtocolMismatchError, match=r"protocol 1\.0, this reader 2"):
+        reader.identify()
