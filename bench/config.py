@@ -215,9 +215,9 @@ KIND_DEFAULTS: dict[str, dict[str, object]] = {
     "shaker": {},
     "four_post": {
         "limits": BenchLimits(
-            stroke_mm=50.0, velocity_mm_s=1000.0, acceleration_m_s2=300.0, force_n=20_000.0, max_freq_hz=50.0
+            stroke_mm=40.0, velocity_mm_s=1000.0, acceleration_m_s2=300.0, force_n=20_000.0, max_freq_hz=50.0
         ),
-        "interlocks": Interlocks(displacement_mm=60.0, force_n=25_000.0),
+        "interlocks": Interlocks(displacement_mm=45.0, force_n=25_000.0),
         "masses": Masses(plate_kg=15.0),
     },
 }

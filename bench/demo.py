@@ -23,13 +23,12 @@ import dataclasses
 import time
 from pathlib import Path
 
-import h5py
-
 from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, plan_sequence, run_campaign
 from bench.app.post_run import CampaignKnowledge
 from bench.config import default_bench_config
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre, WfsSensor
+from bench.store import open_campaign
 from sequences import load_sequence, shipped_file
 
 #: The demo's sequences, in the paper's order, each with the kind of bench it runs on.
@@ -73,10 +72,8 @@ def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
 
 def _recorded_s(path: Path) -> float:
     """Sample time recorded in the campaign file (s)."""
-    with h5py.File(path, "r") as f:
-        return sum(
-            run["channels/sample"].shape[0] / run.attrs["sample_rate_hz"] for run in f["runs"].values()
-        )
+    with open_campaign(path) as campaign:
+        return sum(run.n_samples / run.sample_rate_hz for run in campaign.runs)
 
 
 def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:

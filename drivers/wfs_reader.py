@@ -25,7 +25,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -221,6 +221,10 @@ class WfsReader:
 
     def wait_connected(self, timeout_s: float) -> bool:
         return self._connected.wait(timeout_s)
+
+    def link_counters(self) -> dict[str, int]:
+        """The link counters by name (what a run records beside its samples)."""
+        return asdict(self.counters)
 
     @property
     def counters(self) -> LinkCounters:

@@ -211,6 +211,7 @@ class BenchRunner:
         self._worker = Worker(self._run, "bench-runner")
         self._stop = self._worker.stopping
         self.error: BaseException | None = None
+        self.delivering = threading.Event()  # set once the first block reached the sinks (powered up)
 
     def start(self) -> None:
         self._worker.start()
@@ -235,6 +236,7 @@ class BenchRunner:
                 block = self.bench.advance(n_samples)
                 for sink in self.sinks:
                     sink.deliver(block)
+                self.delivering.set()
         except Exception as exc:  # a broken bench must be visible, not a silent dead thread
             self.error = exc
             log.exception("bench runner stopped")

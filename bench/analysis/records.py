@@ -50,7 +50,10 @@ class DwellRecord:
     first sample. ``hold_s``: start and end of the constant-amplitude hold in record time (after
     the taper-in, before the taper-out), as the run engine knows it; ``None`` when the whole record
     is the hold. The analysis leaves a settling time at the start of the hold and checks that the
-    dwell settled (:func:`bench.analysis.dwell.fit_dwell`).
+    dwell settled (:func:`bench.analysis.dwell.fit_dwell`). ``nominal_amplitude_m``: the amplitude
+    of the grid the dwell belongs to, when a bench limit (velocity, acceleration) lowered this
+    dwell's amplitude below it; the dwell is analysed with its grid (``None``: the grid's amplitude
+    is ``amplitude_m``).
     """
 
     freq_hz: float
@@ -58,6 +61,12 @@ class DwellRecord:
     sample_rate_hz: float
     channels: Mapping[str, np.ndarray]
     hold_s: tuple[float, float] | None = None
+    nominal_amplitude_m: float | None = None
+
+    @property
+    def grid_amplitude_m(self) -> float:
+        """The amplitude of the grid this dwell belongs to."""
+        return self.amplitude_m if self.nominal_amplitude_m is None else self.nominal_amplitude_m
 
     @property
     def label(self) -> str:

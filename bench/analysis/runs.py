@@ -141,15 +141,16 @@ def _fit_grid(
 
 
 def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellRecord]]:
-    """Dwells by amplitude; amplitudes with the same label (4 significant digits: 2e-3 and
-    2.0000001e-3 m) are one group, keyed by the group's most common amplitude."""
+    """Dwells by their grid's amplitude (a dwell a bench limit lowered stays with its grid);
+    amplitudes with the same label (4 significant digits: 2e-3 and 2.0000001e-3 m) are one group,
+    keyed by the group's most common amplitude."""
     by_label: dict[str, list[DwellRecord]] = {}
     for r in records:
         _positive(f"{r.label}: amplitude", r.amplitude_m)
-        by_label.setdefault(amplitude_label(r.amplitude_m), []).append(r)
+        by_label.setdefault(amplitude_label(r.grid_amplitude_m), []).append(r)
     groups = {}
     for members in by_label.values():
-        amplitudes = [float(r.amplitude_m) for r in members]
+        amplitudes = [float(r.grid_amplitude_m) for r in members]
         groups[max(set(amplitudes), key=amplitudes.count)] = members
     return dict(sorted(groups.items()))
 

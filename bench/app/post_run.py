@@ -157,6 +157,12 @@ class PostRunAnalysis:
 
     def _four_post(self, run) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
+        if run.conditions.get("bench") != "four_post":
+            note = (
+                "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
+                " from its dwell grids; the sweep analysis is the four-post bench's)"
+            )
+            return "sweep", [note], {}
         if not k.post_free_run:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
@@ -165,7 +171,10 @@ class PostRunAnalysis:
             nearest = min(k.shaker, key=lambda p: abs(p - (pressure if pressure is not None else p)))
             tyre = k.shaker[nearest]
         if tyre is None:
-            raise ValueError("no tyre identified on the shaker and none configured")
+            raise ValueError(
+                "the four-post analysis needs the tyre below the sensor: run the shaker campaign"
+                " (its dwell grids) into the same campaign file first"
+            )
         result = analyse_four_post(
             run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )

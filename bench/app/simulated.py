@@ -81,6 +81,8 @@ class SimulatedLab:
         self._thread.start()
         self.device.start()
         self.runner.start()
+        if not self.runner.delivering.wait(10):  # the devices are powered up: the WFS has samples
+            raise RuntimeError(f"the simulated bench produced no samples: {self.runner.error}")
         future = asyncio.run_coroutine_threadsafe(self.server.serve_tcp("127.0.0.1", 0), self._loop)
         self.address = future.result(10)
         return self

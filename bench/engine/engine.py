@@ -69,14 +69,15 @@ CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
 
 @dataclass(frozen=True)
 class EngineTiming:
-    """Wall-clock bounds (s): how long to wait for a block of frames, how often to read the
-    controller's status during an excitation, the margins (s of samples) within which an excitation
-    must start and beyond its planned duration after which it counts as hung, and how long a triggered
-    capture may take to arrive after the blow was asked for (beyond its own length)."""
+    """Bounds (s): how long to wait for a block of frames, how often to read the controller's status
+    during an excitation, how long after START (wall clock: frames recorded before the START took
+    effect may still be queued) the excitation must show on the sync bits, the margin (s of samples)
+    beyond its planned duration after which a started excitation counts as hung, and how long a
+    triggered capture may take to arrive after the blow was asked for (beyond its own length)."""
 
     block_timeout_s: float = 0.05
     status_period_s: float = 0.2
-    start_margin_s: float = 2.0
+    start_timeout_s: float = 5.0
     end_margin_s: float = 5.0
     capture_timeout_s: float = 10.0
 
@@ -635,9 +636,8 @@ class _RunRecording:
         e.actuator.configure(setpoint)
         e.actuator.start()
         tracker = SpanTracker(e.sync_bits.active, e.sync_bits.hold)
-        first = self.samples
-        start_limit = first + round(e.timing.start_margin_s * e.sample_rate_hz)
-        end_limit = first + round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
+        start_deadline_s = e._clock() + e.timing.start_timeout_s
+        overrun = round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
         stopping: str | None = None
         while not tracker.ended:
             columns = self._next_columns()
@@ -650,9 +650,9 @@ class _RunRecording:
             if stopping is None and (e._abort.is_set() or e._pause.is_set()):
                 stopping = "abort" if e._abort.is_set() else "pause"
                 e._defensive_stop()
-            if not tracker.started and self.samples > start_limit:
+            if not tracker.started and e._clock() > start_deadline_s:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
-            if self.samples > end_limit:
+            if tracker.started and self.samples > tracker.start + overrun:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
         if stopping == "abort":
             e._abort_now()

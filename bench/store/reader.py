@@ -297,14 +297,17 @@ class RunView:
     def dwell_records(self) -> list[DwellRecord]:
         """One record per done point of a dwell grid or free run (and of the runs it resumes), in
         point order: the run's channels from ``start_sample`` to ``end_sample``, ``hold_s`` from the
-        hold samples, the amplitude as commanded (``amplitude_mm``)."""
+        hold samples, the amplitude as commanded (``amplitude_mm``) and the grid's nominal amplitude
+        when a bench limit lowered it (``requested_amplitude_mm``)."""
         self._require(("dwell_grid", "free_run"), "dwell records")
         records = []
         for run, p in self._done_points():
             channels = run.channels.slice(p.start_sample, p.end_sample)
             fs = run.sample_rate_hz
             hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
-            records.append(DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s=hold_s))
+            nominal_m = p.requested_amplitude_mm * 1e-3 if math.isfinite(p.requested_amplitude_mm) else None
+            record = DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s, nominal_m)
+            records.append(record)
         return records
 
     def _single_point(self, index: int) -> tuple[RunView, PointRow]:
