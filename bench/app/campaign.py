@@ -221,9 +221,7 @@ def run_campaign(
     if existing is None and resume:
         raise ValueError(f"{out_path}: no campaign file to resume")
     planned = {
-        Engine.run_id(plan.sequence, i)
-        for i, step in enumerate(plan.sequence.steps)
-        if is_measurement(step)
+        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
     }
     if existing and not resume and existing & planned:
         raise ValueError(

@@ -4,8 +4,9 @@ What is analysed after which run (the paper's procedure):
 
 - hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on);
 - free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow);
-- dwell grid with the wheel: the tyre identification and the compensation, over every complete grid
-  of the campaign at the same tyre pressure (so the result grows as the amplitudes come in);
+- dwell grids with the wheel: the tyre identification and the compensation, over every complete grid
+  of the campaign at the same tyre pressure, once that pressure's grids are done (the next run is of
+  another kind or pressure, or the sequence ends);
 - four-post sweep: m_wheel, the quarter car and the valid bands, with the post's own free run and the
   tyre identified on the shaker at the nearest pressure (or the configured tyre).
 
@@ -69,27 +70,62 @@ class PostRunAnalysis:
         self.campaign_path = campaign_path
         self.publish = publish
         self.knowledge = knowledge
+        self._pending_grid: tuple[str, object] | None = None  # (run id, tyre pressure) not analysed yet
         with open_campaign(campaign_path) as campaign:
-            for run in campaign.runs:
-                if run.status == "complete":
-                    try:
-                        self._analyse(run)
-                    except (AnalysisInputError, ValueError) as exc:
-                        log.warning("earlier run %s not analysed: %s", run.run_id, exc)
+            complete = [run for run in campaign.runs if run.status == "complete"]
+            for i, run in enumerate(complete):
+                if run.kind == "dwell_grid" and not self._grids_end(run, complete[i + 1 : i + 2]):
+                    continue  # the pressure's grids are analysed together, after the last of them
+                try:
+                    self._analyse(run)
+                except (AnalysisInputError, ValueError) as exc:
+                    log.warning("earlier run %s not analysed: %s", run.run_id, exc)
+
+    @staticmethod
+    def _grids_end(run, following) -> bool:
+        """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
+        pressure = run.conditions.get("tyre_pressure_bar")
+        return (
+            not following
+            or following[0].kind != "dwell_grid"
+            or (following[0].conditions.get("tyre_pressure_bar") != pressure)
+        )
 
     def __call__(self, event: ev.Event) -> None:
-        if not isinstance(event, ev.RunFinished) or event.status != "complete":
-            return
+        """Dwell grids wait until the next run shows that their pressure's grids are done (another
+        kind of run, another pressure, or the end of the sequence); every other run is analysed as
+        soon as it is complete."""
+        if isinstance(event, ev.RunStarted) and self._pending_grid is not None:
+            if (
+                event.kind != "dwell_grid"
+                or event.conditions.get("tyre_pressure_bar") != self._pending_grid[1]
+            ):
+                self._analyse_pending_grid()
+        elif isinstance(event, ev.SequenceFinished) and self._pending_grid is not None:
+            self._analyse_pending_grid()
+        elif isinstance(event, ev.RunFinished) and event.status == "complete":
+            with open_campaign(self.campaign_path) as campaign:
+                run = campaign.run(event.run_id)
+                if run.kind == "dwell_grid":
+                    self._pending_grid = (event.run_id, run.conditions.get("tyre_pressure_bar"))
+                    return
+            self._report(event.run_id)
+
+    def _analyse_pending_grid(self) -> None:
+        run_id, _ = self._pending_grid
+        self._pending_grid = None
+        self._report(run_id)
+
+    def _report(self, run_id: str) -> None:
+        """Analyse run ``run_id`` from the file and publish the result (a failure as a flag)."""
         with open_campaign(self.campaign_path) as campaign:
-            run = campaign.run(event.run_id)
+            run = campaign.run(run_id)
             try:
                 name, lines, results = self._analyse(run)
             except (AnalysisInputError, ValueError) as exc:
-                log.warning("analysis of %s failed: %s", event.run_id, exc)
+                log.warning("analysis of %s failed: %s", run_id, exc)
                 name, lines, results = "analysis", (f"FLAG analysis failed: {exc}",), {"error": str(exc)}
-        self.publish(
-            ev.AnalysisDone(event.run_id, name, tuple(lines), {"summary": "\n".join(lines), **results})
-        )
+        self.publish(ev.AnalysisDone(run_id, name, tuple(lines), {"summary": "\n".join(lines), **results}))
 
     def _analyse(self, run) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge

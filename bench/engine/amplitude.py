@@ -13,8 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.analysis.dwell import fit_dwell
-
 #: The command is never scaled by more than this factor in one correction (a broken displacement
 #: channel must not drive the actuator to its limits).
 MAX_CORRECTION_FACTOR = 1.5
@@ -64,10 +62,15 @@ class AmplitudeControl:
         return AmplitudeDecision(False, corrected, error)
 
 
-def achieved_amplitude_mm(
-    displacement_m: np.ndarray, sample_rate_hz: float, freq_hz: float, start: int, stop: int
-) -> float:
-    """The fundamental's amplitude (mm) of ``displacement_m[start:stop]`` at ``freq_hz`` (whole cycles)."""
-    window = np.asarray(displacement_m[start:stop], dtype=float)
-    fit = fit_dwell({"z": window}, sample_rate_hz, freq_hz)
-    return 1e3 * abs(fit.channels["z"].amplitude)
+def achieved_amplitude_mm(displacement_m: np.ndarray, sample_rate_hz: float, freq_hz: float) -> float:
+    """The fundamental's amplitude (mm) at ``freq_hz`` over the latest whole cycles of
+    ``displacement_m`` (least squares on sine, cosine and offset); NaN when it holds no whole cycle."""
+    n_cycles = int(np.floor(len(displacement_m) * freq_hz / sample_rate_hz + 1e-9))
+    if n_cycles < 1:
+        return float("nan")
+    n = round(n_cycles * sample_rate_hz / freq_hz)
+    window = np.asarray(displacement_m[len(displacement_m) - n :], dtype=float)
+    phase = 2 * np.pi * freq_hz * np.arange(n) / sample_rate_hz
+    design = np.column_stack([np.sin(phase), np.cos(phase), np.ones(n)])
+    (a, b, _), *_ = np.linalg.lstsq(design, window, rcond=None)
+    return 1e3 * float(np.hypot(a, b))

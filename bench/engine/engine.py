@@ -618,14 +618,23 @@ class _RunRecording:
         return columns
 
     def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
-        z = np.concatenate(self.displacement) if self.displacement else np.zeros(0)
+        """The displacement's amplitude over the hold after its settling time (NaN: too short)."""
         settle = round(dwell.settle_s * self.engine.sample_rate_hz)
         start = min(span.hold_start + settle, span.hold_end)
-        try:
-            return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz, start, span.hold_end)
-        except ValueError as exc:  # a window shorter than one cycle (a hold cut short)
-            log.warning("%s: achieved amplitude not measured: %s", self.run_id, exc)
-            return float("nan")
+        z = self._displacement(start, span.hold_end)
+        return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
+
+    def _displacement(self, start: int, stop: int) -> np.ndarray:
+        """The recorded displacement from run sample ``start`` to ``stop``."""
+        parts, end = [], self.samples
+        for block in reversed(self.displacement):
+            first = end - len(block)
+            if first < stop and end > start:
+                parts.append(block[max(start - first, 0) : stop - first])
+            if first <= start:
+                break
+            end = first
+        return np.concatenate(parts[::-1]) if parts else np.zeros(0)
 
     def excite(self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float) -> ExcitationSpan:
         """Configure, start and record one excitation until the controller's active output falls.
