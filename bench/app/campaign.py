@@ -18,6 +18,7 @@ from bench.app.actuator_thread import ThreadedActuator
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.recorder import Recorder
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
+from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
 from bench.engine import events as ev
@@ -101,8 +102,8 @@ class BenchDevices:
 def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterator[BenchDevices]:
     """Open the configured devices, or the simulated lab when the configuration names none.
 
-    ``operator``: who answers prompts (default: the simulated operator on the simulated bench, a
-    terminal prompt on real hardware -- the front ends pass their own)."""
+    ``operator``: who answers prompts (default: the simulated operator on the simulated bench, the
+    terminal on real hardware; the front ends pass their own)."""
     transports = {config.actuator.transport, config.wfs.transport}
     if "simulated" in transports and transports != {"simulated"}:
         raise ValueError(f"{config.source}: a simulated device cannot be mixed with real ones")
@@ -127,8 +128,7 @@ def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterato
             operator = operator or TargetAnswers(lab.operator)
         else:
             host, port, wfs_url = config.actuator.host, config.actuator.port, config.wfs.device
-        if operator is None:
-            raise ValueError("real hardware needs an operator who answers the prompts")
+        operator = operator or TerminalOperator()
         actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
         actuator.connect()

@@ -19,7 +19,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
 from drivers.errors import LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
+    AnswerError,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -307,8 +308,15 @@ class Engine:
             )
 
     def _ask(self, prompt: Prompt) -> None:
+        """Ask the operator; a refused confirmation, or no answer at all, aborts the sequence."""
         self.bus.publish(ev.PromptAsked(prompt.id, prompt.text))
-        answer = self.operator.answer(prompt)
+        try:
+            answer = self.operator.answer(prompt)
+        except AnswerError as exc:
+            self._abort_now(f"no valid answer to prompt {prompt.id!r}: {exc}")
+        if prompt.answer == "confirm" and answer is False:
+            self.bus.publish(ev.PromptAnswered(prompt.id, prompt.text, answer, prompt.unit))
+            self._abort_now(f"the operator declined: {prompt.text}")
         self.conditions[prompt.id] = answer
         if prompt.action in CONDITION_OF_ACTION:
             name, value = CONDITION_OF_ACTION[prompt.action]
@@ -530,11 +538,11 @@ class Engine:
             self._abort_now()
         self.machine.fire(Trigger.RESUME)
 
-    def _abort_now(self) -> None:
+    def _abort_now(self, reason: str = "aborted by the operator") -> NoReturn:
         self._force_state(Trigger.ABORT)
         self._defensive_stop()
         self.machine.fire(Trigger.STOPPED)
-        raise RunStoppedError(RunState.ABORTED, "aborted by the operator")
+        raise RunStoppedError(RunState.ABORTED, reason)
 
     def _defensive_stop(self) -> None:
         """Taper the actuator out; a link error here is logged (the watchdog stops the controller)."""

@@ -14,7 +14,7 @@ from bench.engine.channels import FrameChannels
 from bench.engine.engine import Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
-from sequences import DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
+from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench
 
 RATE_HZ = 1000.0
@@ -225,3 +225,25 @@ def test_a_sweep_is_one_point_spanning_its_tapers():
     (point,) = of(seen, ev.PointDone)
     assert point.end_sample - point.start_sample == 3000
     assert point.hold_end_sample - point.hold_start_sample == 2000
+
+
+class Declines:
+    def answer(self, prompt: Prompt) -> object:
+        return False
+
+
+class Silent:
+    def answer(self, prompt: Prompt) -> object:
+        raise AnswerError(f"{prompt.id}: no answer, the input ended")
+
+
+@pytest.mark.parametrize(("operator", "reason"), [(Declines(), "declined"), (Silent(), "no valid answer")])
+def test_a_declined_or_unanswered_prompt_aborts_before_anything_moves(operator, reason):
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    engine.operator = operator
+    wheel = Prompt("wheel", "Remove the wheel", action="remove_wheel")
+    outcome = engine.run(sequence(wheel, FreeRun(grid())))
+    assert outcome.status == "aborted" and reason in outcome.reason
+    assert not any(line.startswith(("configure", "start")) for line in bench.log)
+    assert of(seen, ev.RunStarted) == []
