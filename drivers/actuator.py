@@ -139,11 +139,10 @@ class ActuatorClient:
     ) -> ActuatorClient:
         """A client over Modbus TCP (pymodbus' own retries are off: this class decides)."""
         modbus = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1)
-        limits = limits or SoftLimits()
         return cls(
             modbus,
             register_map or load_register_map(),
-            limits,
+            limits or SoftLimits(),
             read_attempts,
             timeout_s,
             on_link_lost=on_link_lost,
@@ -165,11 +164,10 @@ class ActuatorClient:
         modbus = AsyncModbusSerialClient(
             port, baudrate=baudrate, timeout=timeout_s, retries=0, reconnect_delay=0.1
         )
-        limits = limits or SoftLimits()
         return cls(
             modbus,
             register_map or load_register_map(),
-            limits,
+            limits or SoftLimits(),
             read_attempts,
             timeout_s,
             on_link_lost=on_link_lost,

@@ -54,6 +54,32 @@ class LsqResult:
         return self.chi2 / max(self.n_residuals - self.n_parameters, 1)
 
 
+class FitStatistics:
+    """The goodness-of-fit figures of a result that holds its :class:`LsqResult` as ``lsq``."""
+
+    lsq: LsqResult
+
+    @property
+    def chi2(self) -> float:
+        return self.lsq.chi2
+
+    @property
+    def n_residuals(self) -> int:
+        return self.lsq.n_residuals
+
+    @property
+    def n_parameters(self) -> int:
+        return self.lsq.n_parameters
+
+    @property
+    def converged(self) -> bool:
+        return self.lsq.converged
+
+    @property
+    def reduced_chi2(self) -> float:
+        return self.lsq.reduced_chi2
+
+
 def far_outside_noise(fit: LsqResult) -> bool:
     """The residuals are far larger than the data's stated uncertainty: the model (or something
     taken as known, such as a sensor or a mass) does not describe the data. A finding, not noise."""

@@ -51,7 +51,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench.analysis.frf import Frf, phasor_ratio
-from bench.analysis.lsq import Z95, LsqResult, correlated_residual_factor, relative_resolution, weighted_fit
+from bench.analysis.lsq import (
+    Z95,
+    FitStatistics,
+    LsqResult,
+    correlated_residual_factor,
+    relative_resolution,
+    weighted_fit,
+)
 from bench.analysis.plate_mass import PlateMass
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
 from bench.analysis.sweep import SweepFrf, sweep_frfs
@@ -171,7 +178,7 @@ def four_post_frfs(
 
 
 @dataclass(frozen=True)
-class QuarterCarFit:
+class QuarterCarFit(FitStatistics):
     """The quarter car identified from a four-post run.
 
     ``suspension`` (what stands above the sensor), ``tyre`` (given), ``rubber`` (given, with the
@@ -211,26 +218,6 @@ class QuarterCarFit:
     @property
     def undetermined(self) -> tuple[str, ...]:
         return self.lsq.undetermined
-
-    @property
-    def chi2(self) -> float:
-        return self.lsq.chi2
-
-    @property
-    def n_residuals(self) -> int:
-        return self.lsq.n_residuals
-
-    @property
-    def n_parameters(self) -> int:
-        return self.lsq.n_parameters
-
-    @property
-    def converged(self) -> bool:
-        return self.lsq.converged
-
-    @property
-    def reduced_chi2(self) -> float:
-        return self.lsq.reduced_chi2
 
 
 def quarter_car_modes(

@@ -39,7 +39,14 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from bench.analysis.frf import Frf
-from bench.analysis.lsq import Z95, LsqResult, far_outside_noise, relative_resolution, weighted_fit
+from bench.analysis.lsq import (
+    Z95,
+    FitStatistics,
+    LsqResult,
+    far_outside_noise,
+    relative_resolution,
+    weighted_fit,
+)
 from bench.analysis.plate_mass import ShakerErrors
 from bench.analysis.shaker_models import RubberTerms, shaker_response
 from bench.analysis.validation import AnalysisInputError
@@ -85,7 +92,7 @@ PEAK_GRID_POINTS = 400
 
 
 @dataclass(frozen=True)
-class TyreFit:
+class TyreFit(FitStatistics):
     """One model fitted to one data set.
 
     ``tyre``/``rubber``: the identified parameters as model objects (the known wheel mass included);
@@ -121,26 +128,6 @@ class TyreFit:
     def determined(self) -> bool:
         """Every parameter determined and the solver converged: a fit whose numbers can be used."""
         return not self.undetermined and self.lsq.converged
-
-    @property
-    def chi2(self) -> float:
-        return self.lsq.chi2
-
-    @property
-    def n_residuals(self) -> int:
-        return self.lsq.n_residuals
-
-    @property
-    def n_parameters(self) -> int:
-        return self.lsq.n_parameters
-
-    @property
-    def converged(self) -> bool:
-        return self.lsq.converged
-
-    @property
-    def reduced_chi2(self) -> float:
-        return self.lsq.reduced_chi2
 
     @property
     def outside_noise(self) -> bool:
