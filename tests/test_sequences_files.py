@@ -94,7 +94,7 @@ def test_paper_four_post():
         "linear",
     )
     actions = [s.action for s in sequence.steps if isinstance(s, Prompt)]
-    assert actions == ["car_off_posts", "car_on_posts", "set_damper"]
+    assert actions == ["car_off_posts", "car_on_posts", "set_tyre_pressure", "set_damper"]
     assert sequence.points() == 10 + 1
     free_run = next(s for s in sequence.steps if isinstance(s, FreeRun))
     dwells_s = sum(_dwell_s(f) for f in free_run.grid.freqs_hz)

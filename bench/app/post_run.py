@@ -8,7 +8,9 @@ What is analysed after which run (the paper's procedure):
   of the campaign at the same tyre pressure, once that pressure's grids are done (the next run is of
   another kind or pressure, or the sequence ends);
 - four-post sweep: m_wheel, the quarter car and the valid bands, with the post's own free run and the
-  tyre identified on the shaker at the nearest pressure (or the configured tyre).
+  tyre identified on the shaker at the pressure nearest the one the sweep's run records (its
+  ``set_tyre_pressure`` prompt; a run that records none is not analysed against a guessed tyre),
+  or the configured tyre when the campaign has no shaker identification.
 
 The records are read back from the campaign file with the store's reader, exactly as any other file
 that follows the schema would be analysed. An analysis that fails is reported as a flagged result;
@@ -39,6 +41,9 @@ from bench.models.parameters import Tyre, WfsSensor
 from bench.store import open_campaign
 
 log = logging.getLogger(__name__)
+
+#: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
+PRESSURE_MATCH_BAR = 0.05
 
 
 @dataclass
@@ -203,9 +208,15 @@ class PostRunAnalysis:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
         tyre: ShakerCampaignResult | Tyre | None = k.configured_tyre
+        notes: list[str] = []
         if k.shaker:
-            nearest = min(k.shaker, key=lambda p: abs(p - (pressure if pressure is not None else p)))
-            tyre = k.shaker[nearest]
+            identified_bar, tyre = shaker_result_at(k.shaker, pressure)
+            notes.append(f"tyre at {pressure:g} bar: shaker identification at {identified_bar:g} bar")
+            if abs(identified_bar - pressure) > PRESSURE_MATCH_BAR:
+                notes.append(
+                    f"FLAG no shaker identification at the car's {pressure:g} bar: the nearest, at"
+                    f" {identified_bar:g} bar, describes a tyre of another stiffness"
+                )
         if tyre is None:
             raise ValueError(
                 "the four-post analysis needs the tyre below the sensor: run the shaker campaign"
@@ -217,8 +228,28 @@ class PostRunAnalysis:
         k.four_post = result
         return (
             "four_post",
-            result.summary_lines(),
+            [*result.summary_lines()[:1], *notes, *result.summary_lines()[1:]],
             {
                 "m_wheel_kg": result.wheel_mass.mass_kg,
+                **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
         )
+
+
+def shaker_result_at(
+    shaker: dict[float, ShakerCampaignResult], pressure_bar: float | None
+) -> tuple[float, ShakerCampaignResult]:
+    """The shaker campaign result (and its pressure, bar) for a tyre at ``pressure_bar``: the one
+    at the nearest pressure. The tyre's stiffness changes with its pressure (250 / 390 / 420 kN/m at
+    1.5 / 2.5 / 3.5 bar), so a run that records no pressure (no ``set_tyre_pressure`` prompt before
+    it) gets none: ValueError, which names the pressures identified."""
+    if not shaker:
+        raise ValueError("no shaker identification in this campaign yet")
+    known = ", ".join(f"{p:g}" for p in sorted(shaker))
+    if pressure_bar is None:
+        raise ValueError(
+            "the four-post run records no tyre pressure (no set_tyre_pressure prompt before its"
+            f" sweep): which shaker identification ({known} bar) describes its tyre is unknown"
+        )
+    nearest = min(shaker, key=lambda p: abs(p - pressure_bar))
+    return nearest, shaker[nearest]
