@@ -37,7 +37,7 @@ from bench.analysis.runs import (
 )
 from bench.analysis.validation import AnalysisInputError
 from bench.engine import events as ev
-from bench.models.parameters import Tyre, WfsSensor
+from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
 
 log = logging.getLogger(__name__)
@@ -52,7 +52,6 @@ class CampaignKnowledge:
 
     sensor: WfsSensor
     wheel_mass_kg: float
-    configured_tyre: Tyre | None = None
     shaker_free_run: list[DwellRecord] = field(default_factory=list)
     post_free_run: list[DwellRecord] = field(default_factory=list)
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
@@ -207,20 +206,17 @@ class PostRunAnalysis:
         if not k.post_free_run:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
-        tyre: ShakerCampaignResult | Tyre | None = k.configured_tyre
-        notes: list[str] = []
-        if k.shaker:
-            identified_bar, tyre = shaker_result_at(k.shaker, pressure)
-            notes.append(f"tyre at {pressure:g} bar: shaker identification at {identified_bar:g} bar")
-            if abs(identified_bar - pressure) > PRESSURE_MATCH_BAR:
-                notes.append(
-                    f"FLAG no shaker identification at the car's {pressure:g} bar: the nearest, at"
-                    f" {identified_bar:g} bar, describes a tyre of another stiffness"
-                )
-        if tyre is None:
+        if not k.shaker:
             raise ValueError(
                 "the four-post analysis needs the tyre below the sensor: run the shaker campaign"
                 " (its dwell grids) into the same campaign file first"
+            )
+        identified_bar, tyre = shaker_result_at(k.shaker, pressure)
+        notes = [f"tyre at {pressure:g} bar: shaker identification at {identified_bar:g} bar"]
+        if abs(identified_bar - pressure) > PRESSURE_MATCH_BAR:
+            notes.append(
+                f"FLAG no shaker identification at the car's {pressure:g} bar: the nearest, at"
+                f" {identified_bar:g} bar, describes a tyre of another stiffness"
             )
         result = analyse_four_post(
             run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
