@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+import bench as _wfs_bench  # noqa: F401 - first: it sets the BLAS thread limit before numpy loads
 from drivers.actuator import ActuatorClient
 from drivers.setpoints import SoftLimits
 from simulators.bench_sim import BenchRunner, SimulatedBench
