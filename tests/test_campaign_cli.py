@@ -259,7 +259,7 @@ class _NoPrompts:
         raise AssertionError(f"unexpected prompt {prompt.id}")
 
 
-def test_the_same_files_made_valid_do_reach_the_controller(tmp_path, lab_devices):
+def test_a_valid_sequence_on_the_same_configuration_reaches_the_controller(tmp_path, lab_devices):
     """The control for the tests above: a valid sequence (its hydraulics steps) with the same kind of
     configuration plans and runs on the command's own path (given an operator: on real hardware the
     command has none yet), and the served controller counts its writes."""
