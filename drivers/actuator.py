@@ -431,7 +431,9 @@ class ActuatorClient:
         loop = asyncio.get_running_loop()
         counter = 1
         confirmed_at = loop.time()
-        while True:
+        # stop_heartbeat clears the task before cancelling it: a cancellation lost inside a write
+        # (Python 3.11's wait_for drops one that arrives with the reply) still ends the loop
+        while self._heartbeat_task is asyncio.current_task():
             await asyncio.sleep(period_s)
             counter = counter % 0xFFFF + 1
             try:
