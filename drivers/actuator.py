@@ -450,6 +450,11 @@ class ActuatorClient:
                         f"no heartbeat acknowledged for {unconfirmed_s:.2f} s "
                         f"(watchdog {watchdog_s:g} s): {exc}"
                     )
+                if self._heartbeat_lost.is_set():
+                    # fail safe: a link that comes back must not revive a lost heartbeat, or it
+                    # would keep alive an excitation nobody can stop; the controller's watchdog
+                    # stops it, and start_heartbeat beats again
+                    return
 
     def _lose_heartbeat(self, reason: str) -> None:
         if self._heartbeat_lost.is_set():
