@@ -69,13 +69,15 @@ def _run_with_fault(
     config_text: str = "",
     fault_point: int = 1,
     hold_samples: int = 300,
+    measure_min_s: float = 1.0,
     settled: Callable[[ControllerSnapshot], bool] = at_rest,
 ) -> FaultRun:
     """Run a grid on the paced simulated bench with ``action(campaign)`` taken once point
-    ``fault_point`` has held its amplitude for ``hold_samples`` samples (of its 1.1 s hold); the
+    ``fault_point`` has held its amplitude for ``hold_samples`` samples (of its hold, 0.1 s longer
+    than ``measure_min_s``); the
     bench runs on until the controller is ``settled``, so the timeline shows when it got there."""
     config = bench_config(tmp_path, PACED + config_text)
-    sequence = grid_sequence(freqs_hz, measure_min_s=1.0, taper_s=TAPER_S)
+    sequence = grid_sequence(freqs_hz, measure_min_s=measure_min_s, taper_s=TAPER_S)
     path = tmp_path / "campaign.h5"
     trips_s: list[float] = []
     with lab_campaign(config, sequence, path) as campaign:
@@ -156,19 +158,23 @@ def test_controller_estop_button_freezes_the_actuator_and_marks_the_run(tmp_path
 
 
 def test_modbus_link_loss_stops_the_actuator_within_the_watchdog_and_taper(tmp_path):
-    """The Modbus cable pulled mid-point: the engine trips on the lost link and its stop may not
-    reach the controller; the controller's watchdog then tapers it out. Bound (docs/protocols.md):
-    at rest within watchdog_ms + 10 ms + taper_out_s of the loss, the watchdog part on the wall
-    clock (the simulated controller's watchdog runs on it), the taper on the bench's clock."""
+    """The Modbus cable pulled mid-point, 2.8 s before the point's planned end: the engine trips on
+    the lost link, its stop cannot reach the controller, and the controller's heartbeat watchdog
+    (1.5 s, docs/protocols.md) tapers it out. Bound: at rest within watchdog_ms + 10 ms +
+    taper_out_s of the loss; the watchdog part on the wall clock (the simulated controller's
+    watchdog runs on it), the taper on the bench's clock."""
     watchdog_s = 1.5
-
-    run = _run_with_fault(tmp_path, (10.0, 20.0), lambda c: c.lab.drop_controller_link())
+    run = _run_with_fault(tmp_path, (10.0, 20.0), lambda c: c.lab.drop_controller_link(), measure_min_s=3.0)
     assert run.outcome.status == "interlocked"
     assert "actuator link lost" in run.outcome.reason
     stop = run.timeline.first(stopped, run.injection.sim_s)
     rest = run.timeline.first(at_rest, stop.end_s)
+    assert stop.state == ControllerState.TAPERING  # stopped early, not at the point's planned end
     assert stop.wall_s - run.injection.wall_s <= watchdog_s + 0.01 + SCHEDULING_S
     assert rest.end_s - stop.end_s <= TAPER_S + 2 * run.timeline.block_s
+    assert rest.state == ControllerState.INTERLOCK  # the watchdog's trip, not a stop from the host
+    with run.campaign.lab.bench.lock:
+        assert run.campaign.lab.bench.controller.flags == InterlockFlag.WATCHDOG
     n, _ = _check_file(run.path, "interlocked", ("actuator link lost",), done_before=1)
     assert n >= run.injection.run_sample
 
