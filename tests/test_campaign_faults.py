@@ -160,11 +160,17 @@ def test_controller_estop_button_freezes_the_actuator_and_marks_the_run(tmp_path
 def test_modbus_link_loss_stops_the_actuator_within_the_watchdog_and_taper(tmp_path):
     """The Modbus cable pulled mid-point, 2.8 s before the point's planned end: the engine trips on
     the lost link, its stop cannot reach the controller, and the controller's heartbeat watchdog
-    (1.5 s, docs/protocols.md) tapers it out. Bound: at rest within watchdog_ms + 10 ms +
-    taper_out_s of the loss; the watchdog part on the wall clock (the simulated controller's
+    (the configured 1.2 s, docs/protocols.md) tapers it out. Bound: at rest within watchdog_ms +
+    10 ms + taper_out_s of the loss; the watchdog part on the wall clock (the simulated controller's
     watchdog runs on it), the taper on the bench's clock."""
-    watchdog_s = 1.5
-    run = _run_with_fault(tmp_path, (10.0, 20.0), lambda c: c.lab.drop_controller_link(), measure_min_s=3.0)
+    watchdog_s = 1.2
+    run = _run_with_fault(
+        tmp_path,
+        (10.0, 20.0),
+        lambda c: c.lab.drop_controller_link(),
+        config_text=f"[actuator]\nwatchdog_ms = {watchdog_s * 1000:.0f}\n",
+        measure_min_s=3.0,
+    )
     assert run.outcome.status == "interlocked"
     assert "actuator link lost" in run.outcome.reason
     stop = run.timeline.first(stopped, run.injection.sim_s)
@@ -174,7 +180,9 @@ def test_modbus_link_loss_stops_the_actuator_within_the_watchdog_and_taper(tmp_p
     assert rest.end_s - stop.end_s <= TAPER_S + 2 * run.timeline.block_s
     assert rest.state == ControllerState.INTERLOCK  # the watchdog's trip, not a stop from the host
     with run.campaign.lab.bench.lock:
-        assert run.campaign.lab.bench.controller.flags == InterlockFlag.WATCHDOG
+        controller = run.campaign.lab.bench.controller
+        assert controller.flags == InterlockFlag.WATCHDOG
+        assert controller.setpoints["watchdog_ms"] == watchdog_s * 1000  # the configured watchdog
     n, _ = _check_file(run.path, "interlocked", ("actuator link lost",), done_before=1)
     assert n >= run.injection.run_sample
 
