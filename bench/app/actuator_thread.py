@@ -52,24 +52,13 @@ class ControllerReadback:
 class ThreadedActuator:
     """The engine's :class:`bench.engine.contracts.Actuator` on an :class:`ActuatorClient`."""
 
-    def __init__(
-        self,
-        make_client: Callable[[], ActuatorClient],
-        *,
-        heartbeat: bool = True,
-        heartbeat_period_s: float = DEFAULT_HEARTBEAT_PERIOD_S,
-        watchdog_ms: int = DEFAULT_WATCHDOG_MS,
-    ) -> None:
-        """``make_client()`` builds the client (it must be created inside the loop's thread);
-        ``heartbeat``: beat every ``heartbeat_period_s`` once connected, arming the controller's
-        watchdog with ``watchdog_ms``."""
+    def __init__(self, make_client: Callable[[], ActuatorClient], *, heartbeat: bool = True) -> None:
+        """``make_client()`` builds the client (it must be created inside the loop's thread)."""
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="actuator-link", daemon=True)
         self._thread.start()
         self._client: ActuatorClient = self._call(self._create(make_client))
         self._heartbeat = heartbeat
-        self._heartbeat_period_s = heartbeat_period_s
-        self._watchdog_ms = watchdog_ms
 
     async def _create(self, make_client: Callable[[], ActuatorClient]) -> ActuatorClient:
         return make_client()
@@ -84,10 +73,14 @@ class ThreadedActuator:
 
     # -- life cycle ---------------------------------------------------------------------------
 
-    def connect(self) -> ActuatorStatus:
+    def connect(
+        self, heartbeat_period_s: float = DEFAULT_HEARTBEAT_PERIOD_S, watchdog_ms: int = DEFAULT_WATCHDOG_MS
+    ) -> ActuatorStatus:
+        """Connect; with the heartbeat on, beat every ``heartbeat_period_s`` and arm the
+        controller's watchdog with ``watchdog_ms``."""
         status = self._call(self._client.connect())
         if self._heartbeat:
-            self._call(self._client.start_heartbeat(self._heartbeat_period_s, self._watchdog_ms))
+            self._call(self._client.start_heartbeat(heartbeat_period_s, watchdog_ms))
         return status
 
     def close(self) -> None:

@@ -129,13 +129,9 @@ def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterato
             host, port, wfs_url = config.actuator.host, config.actuator.port, config.wfs.device
         if operator is None:
             raise ValueError("real hardware needs an operator who answers the prompts")
-        actuator = ThreadedActuator(
-            lambda: _client(config, host, port),
-            heartbeat_period_s=config.actuator.heartbeat_period_s,
-            watchdog_ms=config.actuator.watchdog_ms,
-        )
+        actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
-        actuator.connect()
+        actuator.connect(config.actuator.heartbeat_period_s, config.actuator.watchdog_ms)
         reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
         stack.enter_context(reader)
         if not reader.wait_connected(5.0):
