@@ -261,8 +261,8 @@ class _NoPrompts:
 
 def test_a_valid_sequence_on_the_same_configuration_reaches_the_controller(tmp_path, lab_devices):
     """The control for the tests above: a valid sequence (its hydraulics steps) with the same kind of
-    configuration plans and runs on the command's own path (given an operator: on real hardware the
-    command has none yet), and the served controller counts its writes."""
+    configuration plans and runs on the command's own path, and the served controller counts its
+    writes."""
     server, pty = lab_devices
     sequence, config = tmp_path / "seq.toml", tmp_path / "bench.toml"
     sequence.write_text(HYDRAULICS_ONLY)
