@@ -251,11 +251,25 @@ def parse_bench_config(text: str, source: str, base_dir: Path | None = None) -> 
         reason = _AT_LINE.sub("", str(exc))
         if reason.startswith(("Cannot overwrite", "Cannot declare", "Duplicate")):
             reason = f"duplicate key: it is already defined above in the same table ({reason})"
-        where = f"line {at[1]}: " if at else ""
+        key = _key_on_line(text.splitlines(), int(at[1])) if at else ""
+        where = "".join(f"{part}: " for part in (key, f"line {at[1]}" if at else "") if part)
         raise ConfigError([f"{source}: {where}{reason}"]) from None
     if not data:
         raise ConfigError([f"{source}: empty file: a bench configuration needs at least kind"])
     return _Reader(source, base_dir or Path.cwd()).config(data)
+
+
+def _key_on_line(lines: list[str], line: int) -> str:
+    """The dotted key that ``line`` (1-based) defines, prefixed by the table it is in ("" if none)."""
+    table = ""
+    for text in lines[: line - 1]:
+        if text.strip().startswith("["):
+            table = text.strip().strip("[]").strip()
+    current = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+    if current.startswith("["):
+        return current.strip("[]").strip()
+    name = current.split("=", 1)[0].strip() if "=" in current else ""
+    return ".".join(part for part in (table, name) if part)
 
 
 class _Reader:

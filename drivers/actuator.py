@@ -429,7 +429,9 @@ class ActuatorClient:
         loop = asyncio.get_running_loop()
         counter = 1
         confirmed_at = loop.time()
-        while True:
+        # stop_heartbeat clears the task before cancelling it: a cancellation lost inside a write
+        # (Python 3.11's wait_for drops one that arrives with the reply) still ends the loop
+        while self._heartbeat_task is asyncio.current_task():
             await asyncio.sleep(period_s)
             counter = counter % 0xFFFF + 1
             try:
@@ -446,6 +448,11 @@ class ActuatorClient:
                         f"no heartbeat acknowledged for {unconfirmed_s:.2f} s "
                         f"(watchdog {watchdog_s:g} s): {exc}"
                     )
+                if self._heartbeat_lost.is_set():
+                    # fail safe: a link that comes back must not revive a lost heartbeat, or it
+                    # would keep alive an excitation nobody can stop; the controller's watchdog
+                    # stops it, and start_heartbeat beats again
+                    return
 
     def _lose_heartbeat(self, reason: str) -> None:
         if self._heartbeat_lost.is_set():

@@ -156,8 +156,8 @@ def test_empty_file_is_refused(text):
         parse_bench_config(text, "lab.toml")
 
 
-def test_duplicate_key_is_refused_with_the_line():
-    with pytest.raises(ConfigError, match=r"^lab.toml: line 3: duplicate key"):
+def test_duplicate_key_is_refused_with_the_key_and_the_line():
+    with pytest.raises(ConfigError, match=r"^lab.toml: limits.stroke_mm: line 3: duplicate key"):
         parse_bench_config("[limits]\nstroke_mm = 20\nstroke_mm = 30\n", "lab.toml")
 
 

@@ -15,7 +15,7 @@ from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from drivers.actuator import ActuatorClient, ActuatorStatus
+from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
 from drivers.errors import ConnectionLostError, LinkTimeoutError
 from drivers.register_map import ControllerState, InterlockFlag
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
@@ -73,10 +73,14 @@ class ThreadedActuator:
 
     # -- life cycle ---------------------------------------------------------------------------
 
-    def connect(self) -> ActuatorStatus:
+    def connect(
+        self, heartbeat_period_s: float = DEFAULT_HEARTBEAT_PERIOD_S, watchdog_ms: int = DEFAULT_WATCHDOG_MS
+    ) -> ActuatorStatus:
+        """Connect; with the heartbeat on, beat every ``heartbeat_period_s`` and arm the
+        controller's watchdog with ``watchdog_ms``."""
         status = self._call(self._client.connect())
         if self._heartbeat:
-            self._call(self._client.start_heartbeat())
+            self._call(self._client.start_heartbeat(heartbeat_period_s, watchdog_ms))
         return status
 
     def close(self) -> None:

@@ -131,7 +131,7 @@ def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterato
         operator = operator or TerminalOperator()
         actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
-        actuator.connect()
+        actuator.connect(config.actuator.heartbeat_period_s, config.actuator.watchdog_ms)
         reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
         stack.enter_context(reader)
         if not reader.wait_connected(5.0):

@@ -671,6 +671,9 @@ class _RunRecording:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
             if tracker.started and self.samples > tracker.start + overrun:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
+        # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
+        # excitation early: its status, read now, tells that from the planned end
+        self._guard({}, read_status=True)
         if stopping == "abort":
             e._abort_now()
         if stopping == "pause":
@@ -687,12 +690,14 @@ class _RunRecording:
         self._last_frame_s = e._clock()
         return self._record(block)
 
-    def _guard(self, columns: Mapping[str, np.ndarray]) -> None:
-        """Check every interlock; the first that trips stops the actuator and ends the run."""
+    def _guard(self, columns: Mapping[str, np.ndarray], *, read_status: bool = False) -> None:
+        """Check every interlock; the first that trips stops the actuator and ends the run.
+
+        The controller's status is read every ``status_period_s``, or now when ``read_status``."""
         e = self.engine
         now = e._clock()
         controller = None
-        if now - self._last_status_s >= e.timing.status_period_s:
+        if read_status or now - self._last_status_s >= e.timing.status_period_s:
             self._last_status_s = now
             try:
                 controller = e.actuator.read_status()
