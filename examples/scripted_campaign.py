@@ -12,10 +12,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench.config import default_bench_config
-
 from bench.app.campaign import plan_sequence, run_campaign
 from bench.app.run_log import RunLog
+from bench.config import default_bench_config
 from sequences import DwellGrid, FreeRun, Hydraulics, Prompt, Sequence
 
 TIMING = {"settle_cycles": 3, "settle_min_s": 0.2, "measure_cycles": 4, "measure_min_s": 0.5}
