@@ -80,8 +80,8 @@ class SweepFrf:
     median ``N/(S - N)`` of reference and response over the excited band (what ``"auto"`` compares;
     NaN when the choice was given). ``flank``: coherent in-band bins swept within half a segment of
     the record's ends (left out of ``frf.reliable``: over ``Z`` they are biased, and their Welch
-    power is low, the last segment's window falling over them; in a ratio of two FRFs of the same
-    sweep the bias cancels, see :attr:`ratio_usable`)."""
+    power is low, the last segment's window falling over them; a ratio of two responses estimated
+    by :func:`sweep_ratio` has no such bias, see :attr:`ratio_usable`)."""
 
     frf: Frf
     h1: np.ndarray
@@ -96,11 +96,12 @@ class SweepFrf:
 
     @property
     def ratio_usable(self) -> np.ndarray:
-        """Bins usable in a ratio with another FRF of the same sweep and reference: reliable, or
-        reliable but for the sweep's flank. The flank bias (one segment's window seeing the
-        excitation's rise) is common to all responses over the same reference and cancels in their
-        ratio: measured on the four-post plant, F_WFS/F_contact from 0.49 Hz is within 0.5 %
-        with ideal sensors, where each FRF over Z is off by up to 240 %."""
+        """Bins usable in a ratio with another response of the same sweep estimated by
+        :func:`sweep_ratio` (whole record, no segment windows): reliable, or reliable but for the
+        sweep's flank, whose bias is the Welch segments'. Measured on the four-post plant,
+        F_WFS/F_contact by :func:`sweep_ratio` from 0.49 Hz is within 0.6 % with noise averaged
+        out, where each Welch FRF over Z is off by up to 240 % (and their ratio by up to 12 % at
+        the sweep's top, where F_WFS/F_contact changes with frequency)."""
         return self.frf.reliable | self.flank
 
 
