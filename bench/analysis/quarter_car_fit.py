@@ -61,7 +61,7 @@ from bench.analysis.lsq import (
 )
 from bench.analysis.plate_mass import PlateMass
 from bench.analysis.shaker_models import LINEAR, RubberTerms, hub_driven_response, shaker_response
-from bench.analysis.sweep import SweepFrf, sweep_frfs
+from bench.analysis.sweep import SweepFrf, sweep_frfs, sweep_ratio
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel, quarter_car
 from bench.models.parameters import Suspension, Tyre, WfsSensor
@@ -112,12 +112,17 @@ def quarter_car_response(
 class FourPostFrfs:
     """Sweep FRFs of a four-post run over the post displacement: ``wfs_per_z`` (N/m),
     ``contact_per_z`` (N/m, plate-mass corrected) and ``accel_per_z`` (1/s^2), each with its
-    :class:`~bench.analysis.sweep.SweepFrf` details (estimator, coherence, averages)."""
+    :class:`~bench.analysis.sweep.SweepFrf` details (estimator, coherence, averages).
+    ``per_contact``: every force response (``f_wfs`` and the extra responses) over the contact
+    force at the same bins, by :func:`~bench.analysis.sweep.sweep_ratio` (not the ratio of two
+    Welch FRFs), with m_comp's uncertainty propagated; usable where both FRFs over ``Z`` are
+    reliable or reliable but for the sweep's flank (:attr:`SweepFrf.ratio_usable`)."""
 
     wfs_per_z: Frf
     contact_per_z: Frf
     accel_per_z: Frf
     sweeps: dict[str, SweepFrf]
+    per_contact: dict[str, Frf]
 
     def apparent_mass_above(self) -> Frf:
         """The hub-acceleration relation ``F_wfs / a_hub`` (kg), reliable where both FRFs are."""
@@ -174,7 +179,41 @@ def four_post_frfs(
         "f_contact",
         "z_base",
     )
-    return FourPostFrfs(res["f_wfs"].frf, contact, res["a_hub"].frf, res)
+    forces = {"f_wfs": record[wfs], **(extra_responses or {})}
+    ratios = _per_contact(
+        record[displacement], record[post_force], forces, fs_hz=fs_hz, plate=plate, sweeps=res
+    )
+    return FourPostFrfs(res["f_wfs"].frf, contact, res["a_hub"].frf, res, ratios)
+
+
+def _per_contact(
+    z: np.ndarray,
+    f_plate: np.ndarray,
+    forces: Mapping[str, np.ndarray],
+    *,
+    fs_hz: float,
+    plate: PlateMass,
+    sweeps: Mapping[str, SweepFrf],
+) -> dict[str, Frf]:
+    """Each force over ``F_contact = F_plate + m_comp z''`` (see :attr:`FourPostFrfs.per_contact`).
+    m_comp's error moves the ratio by ``H w^2 sigma_m / (F_contact / Z)``."""
+    plate_frf = sweeps["f_plate"]
+    f = plate_frf.frf.freq_hz
+    w2 = (2 * np.pi * f) ** 2
+    bins = {"freq_hz": f, "resolution_hz": plate_frf.resolution_hz}
+    plate_per_z, _ = sweep_ratio(z, f_plate, z, fs_hz, **bins)
+
+    def plate_term(freq_hz: np.ndarray) -> np.ndarray:
+        return plate.mass_kg * (2 * np.pi * freq_hz) ** 2
+
+    contact_per_z = plate_per_z + plate.mass_kg * w2
+    out = {}
+    for name, force in forces.items():
+        h, noise = sweep_ratio(z, force, f_plate, fs_hz, **bins, denominator_per_reference=plate_term)
+        sigma = np.hypot(noise, np.abs(h) * w2 * plate.sigma_kg / np.abs(contact_per_z))
+        usable = sweeps[name].ratio_usable & plate_frf.ratio_usable
+        out[name] = Frf(f, h, sigma, usable, name, "f_contact")
+    return out
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -354,12 +354,9 @@ def _ratio_band(ratio: Frf, max_gap_points: int = 0) -> ValidBand:
 
 
 def _sweep_ratio(frfs: FourPostFrfs, response: str, name: str) -> Frf:
-    """``response / F_contact`` from the sweep FRFs over Z, usable wherever both are (the sweep's
-    flank bias is common to both and cancels, see :attr:`SweepFrf.ratio_usable`)."""
-    num, den = frfs.sweeps[response], frfs.contact_per_z
-    h, sigma = phasor_ratio(num.frf.value, num.frf.sigma, den.value, den.sigma)
-    usable = num.ratio_usable & frfs.sweeps["f_plate"].ratio_usable
-    return Frf(den.freq_hz, h, sigma, usable, name, "f_contact")
+    """``response / F_contact`` of the sweep as ``name`` (see :attr:`FourPostFrfs.per_contact`:
+    estimated from the whole record, so the sweep's flanks count with their full excitation)."""
+    return replace(frfs.per_contact[response], output=name)
 
 
 def _design_band(highest_hz: float, given_hz: float | None) -> float:
