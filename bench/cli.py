@@ -45,6 +45,24 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
 
 
+def _check(args: argparse.Namespace) -> int:
+    from bench.app.check import check_lines
+    from bench.config import ConfigError, load_bench_config
+    from bench.dry_run import dry_run
+    from sequences import SequenceError, load_sequence
+
+    try:
+        config = load_bench_config(Path(args.bench) if args.bench else None)
+        sequence = load_sequence(Path(args.sequence), config.limits)
+    except (SequenceError, ConfigError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    dry = dry_run(sequence, config)
+    for line in check_lines(sequence, config, dry):
+        print(line)
+    return EXIT_REFUSED if dry.refusals else EXIT_COMPLETE
+
+
 def _demo(args: argparse.Namespace) -> int:
     from bench.demo import run_demo
 
@@ -121,6 +139,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     run.add_argument("--resume", action="store_true", help="continue an interrupted campaign file")
     run.set_defaults(run=_run)
+    check = sub.add_parser("check", help="validate and dry-run a sequence on the bench; nothing moves")
+    check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
+    check.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
+    check.set_defaults(run=_check)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
     serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")

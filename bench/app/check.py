@@ -1,0 +1,70 @@
+"""``wfsbench check``: a sequence validated and dry-run on a bench, without opening any device.
+
+Lists the steps with their points and estimated durations, the sequence's totals, the largest
+predicted loads of the bench model with the point where each occurs, and every refusal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from bench.config import BenchConfig
+from bench.dry_run import DryRun
+from sequences import DwellGrid, FreeRun, HammerTest, Prompt, Sequence, SineDwell, Sweep
+
+
+def step_line(index: int, step: object) -> str:
+    """One line that says what a step does."""
+    match step:
+        case DwellGrid() | FreeRun():
+            dwells = step.dwells()
+            freqs = sorted({d.freq_hz for d in dwells})
+            amplitudes = sorted({d.requested_amplitude_mm or d.amplitude_mm for d in dwells})
+            lowered = sum(d.amplitude_limited_by is not None for d in dwells)
+            limited = f", {lowered} lowered by a bench limit" if lowered else ""
+            what = (
+                f"{len(dwells)} dwells {freqs[0]:g}-{freqs[-1]:g} Hz at"
+                f" {' / '.join(f'{a:g}' for a in amplitudes)} mm{limited}"
+            )
+        case SineDwell():
+            what = f"dwell {step.freq_hz:g} Hz at {step.amplitude_mm:g} mm"
+        case Sweep():
+            what = (
+                f"{step.law} sweep {step.start_hz:g}-{step.end_hz:g} Hz in {step.duration_s:g} s"
+                f" at {step.amplitude_mm:g} mm"
+            )
+        case HammerTest():
+            what = f"{step.blows} blows, trigger {step.trigger_level_n:g} N, {step.capture_s:g} s captures"
+        case Prompt():
+            what = f"ask: {step.text}"
+        case _:
+            what = ", ".join(f"{f.name}={getattr(step, f.name)}" for f in dataclasses.fields(step)) or "-"
+    return f"steps[{index}] {step.kind}: {what} (~{step.estimated_duration_s:.0f} s)"
+
+
+def check_lines(sequence: Sequence, config: BenchConfig, dry: DryRun) -> list[str]:
+    """The check's report, refusals last."""
+    lines = [f"sequence {sequence.name} ({sequence.source}) on the {config.kind} bench ({config.source})"]
+    lines += [f"  {step_line(i, step)}" for i, step in enumerate(sequence.steps)]
+    lines.append(
+        f"{sequence.points()} points; about {sequence.estimated_duration_s / 60:.1f} min of bench time,"
+        f" {sequence.estimated_duration_with_operator_s / 60:.1f} min with the operator's answers"
+    )
+    if dry.points:
+        for quantity, unit, limit in (
+            ("actuator_force_n", "N", config.limits.force_n),
+            ("wfs_load_n", "N", config.limits.wfs_force_n),
+            ("acceleration_m_s2", "m/s^2", config.limits.acceleration_m_s2),
+            ("velocity_mm_s", "mm/s", config.limits.velocity_mm_s),
+        ):
+            worst = max(dry.points, key=lambda p, q=quantity: getattr(p, q))
+            lines.append(
+                f"largest {quantity}: {getattr(worst, quantity):.5g} {unit} at {worst.label}"
+                f" (limit {limit:g} {unit})"
+            )
+    if dry.refusals:
+        lines.append(f"REFUSED: {len(dry.refusals)} points beyond the bench's limits:")
+        lines += [f"  {refusal}" for refusal in dry.refusals]
+    else:
+        lines.append("every point within the bench's limits: nothing refused")
+    return lines

@@ -1,0 +1,49 @@
+"""``wfsbench check``: validation and dry run without opening a device, through the command line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from sequences import shipped_file
+
+
+def check(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "bench.cli", "check", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def test_a_valid_sequence_lists_its_steps_totals_and_largest_loads():
+    result = check(str(shipped_file("smoke.toml")))
+    assert result.returncode == 0, result.stderr
+    out = result.stdout.splitlines()
+    assert sum(line.startswith("  steps[") for line in out) == 12
+    assert "steps[3] free_run: 3 dwells 10-60 Hz at 2 mm" in result.stdout
+    assert any(line.startswith("8 points; about 0.5 min of bench time") for line in out)
+    assert "largest wfs_load_n:" in result.stdout and "(limit 24000 N)" in result.stdout
+    assert out[-1] == "every point within the bench's limits: nothing refused"
+
+
+def test_refused_points_are_each_named_with_the_limit_and_exit_4(tmp_path):
+    bench = tmp_path / "weak.toml"
+    bench.write_text("[limits]\nwfs_force_n = 700\n")
+    result = check(str(shipped_file("smoke.toml")), "--bench", str(bench))
+    assert result.returncode == 4
+    assert "REFUSED: 4 points beyond the bench's limits:" in result.stdout
+    assert result.stdout.count("is beyond the limit wfs_force_n = 700 N") == 4
+
+
+def test_an_invalid_file_is_named_with_its_key_and_exit_3(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        shipped_file("smoke.toml").read_text().replace("freqs_hz = [10, 30, 60]", "freqs_hz = [10, 30, 600]")
+    )
+    result = check(str(bad))
+    assert result.returncode == 3
+    assert f"{bad}: steps[3].freqs_hz[2]: 600 Hz is beyond the bench's frequency range" in result.stderr
+    assert result.stdout == ""
