@@ -59,6 +59,7 @@ class ThreadedActuator:
         self._thread.start()
         self._client: ActuatorClient = self._call(self._create(make_client))
         self._heartbeat = heartbeat
+        self._beat = (DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS)
 
     async def _create(self, make_client: Callable[[], ActuatorClient]) -> ActuatorClient:
         return make_client()
@@ -78,9 +79,10 @@ class ThreadedActuator:
     ) -> ActuatorStatus:
         """Connect; with the heartbeat on, beat every ``heartbeat_period_s`` and arm the
         controller's watchdog with ``watchdog_ms``."""
+        self._beat = (heartbeat_period_s, watchdog_ms)
         status = self._call(self._client.connect())
         if self._heartbeat:
-            self._call(self._client.start_heartbeat(heartbeat_period_s, watchdog_ms))
+            self._call(self._client.start_heartbeat(*self._beat))
         return status
 
     def close(self) -> None:
@@ -121,11 +123,19 @@ class ThreadedActuator:
         self._call(operation())
 
     def reset_interlock(self) -> None:
+        """Reset the controller; after a lost link, reconnect and beat again first (the lost
+        heartbeat stays stopped until then, so that the controller's watchdog keeps its word)."""
+        if self.link_fault() is not None:
+            self._call(self._client.connect())
+            if self._heartbeat:
+                self._call(self._client.start_heartbeat(*self._beat))
         self._call(self._client.reset_interlock())
 
     def link_fault(self) -> str | None:
+        """Set from the moment the connection dropped or the heartbeat could no longer be confirmed
+        (a single slow reply is not a fault) until :meth:`reset_interlock` restores the link."""
         if not self._client.connected:
             return str(ConnectionLostError("the Modbus connection to the controller is down"))
-        if self._client.heartbeat_failures:
-            return f"{self._client.heartbeat_failures} heartbeat writes failed"
+        if self._heartbeat and self._client.heartbeat_lost.is_set():
+            return f"the heartbeat could not be confirmed ({self._client.heartbeat_failures} writes failed)"
         return None
