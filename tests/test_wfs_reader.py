@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import threading
 import time
@@ -17,25 +18,36 @@ from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
 
 
-@pytest.fixture
-def pty_rig():
-    """A simulated WFS on a real pseudo-terminal, the bench unpaced, a reader on the pty's path."""
-    link = PtyLink()
+@contextlib.contextmanager
+def wfs_rig(link, open_reader):
+    """A simulated WFS on ``link``, the bench unpaced, a started reader from ``open_reader(link)``."""
     bench = SimulatedBench.paper_shaker(seed=2)
     device = WfsDevice(link, bench, seed=3)
     runner = BenchRunner(bench, paced=False)
     runner.sinks.append(device)
     device.start()
     runner.start()
-    reader = WfsReader.serial(link.path)
+    reader = open_reader(link)
     reader.start()
-    assert reader.wait_connected(5)
-    yield device, reader
-    reader.close()
-    runner.stop()
-    device.stop()
-    link.close()
+    try:
+        yield device, reader
+    finally:
+        reader.close()
+        runner.stop()
+        device.stop()
     assert runner.error is None
+
+
+@pytest.fixture
+def pty_rig():
+    """The rig on a real pseudo-terminal, the reader on the pty's path."""
+    link = PtyLink()
+    try:
+        with wfs_rig(link, lambda link: WfsReader.serial(link.path)) as (device, reader):
+            assert reader.wait_connected(5)
+            yield device, reader
+    finally:
+        link.close()
 
 
 def test_command_replies_on_a_pty_come_back_within_milliseconds(pty_rig):
@@ -81,16 +93,7 @@ def test_commands_of_two_threads_never_take_each_others_replies(pty_rig):
 def test_a_lossy_view_never_slows_a_lossless_consumer():
     """The lossless consumer gets every frame, paced by its own reading; a live view that is never
     read keeps only its newest blocks and counts what it dropped."""
-    link = MemoryLink()
-    bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(link, bench, seed=3)
-    runner = BenchRunner(bench, paced=False)
-    runner.sinks.append(device)
-    device.start()
-    runner.start()
-    reader = WfsReader(link.open_host)
-    reader.start()
-    try:
+    with wfs_rig(MemoryLink(), lambda link: WfsReader(link.open_host)) as (device, reader):
         engine = reader.subscribe(lossless=True, max_blocks=8)
         view = reader.subscribe(lossless=False, max_blocks=3)
         reader.start_stream()
@@ -101,10 +104,6 @@ def test_a_lossy_view_never_slows_a_lossless_consumer():
         kept = [view.get(0) for _ in range(4)]
         view.close()
         assert view.get(0) is None and view.closed
-    finally:
-        reader.close()
-        runner.stop()
-        device.stop()
     seq = block.frames["seq"].astype(np.int64)
     assert np.all(np.diff(seq) == 1) and not block.gaps
     assert reader.counters.frames_missing == 0 and device.frames_dropped == 0
@@ -118,16 +117,7 @@ def test_a_lossy_view_never_slows_a_lossless_consumer():
 
 def test_a_lossless_subscription_paces_an_unpaced_bench():
     """A consumer that drains slowly slows the bench down instead of losing frames."""
-    link = MemoryLink(capacity=4096)
-    bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(link, bench, seed=3)
-    runner = BenchRunner(bench, paced=False)
-    runner.sinks.append(device)
-    device.start()
-    runner.start()
-    reader = WfsReader(link.open_host)
-    reader.start()
-    try:
+    with wfs_rig(MemoryLink(capacity=4096), lambda link: WfsReader(link.open_host)) as (device, reader):
         engine = reader.subscribe(lossless=True, max_blocks=2)
         reader.start_stream()
         frames = []
@@ -138,10 +128,6 @@ def test_a_lossless_subscription_paces_an_unpaced_bench():
             time.sleep(0.002)  # a slow consumer: the reader waits for room, the device for the reader
         engine.close()
         reader.stop_stream()
-    finally:
-        reader.close()
-        runner.stop()
-        device.stop()
     seq = np.concatenate(frames)["seq"].astype(np.int64)
     assert np.all(np.diff(seq) == 1)
     assert device.frames_dropped == 0 and device.frames_sent >= 3000
