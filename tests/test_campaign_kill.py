@@ -21,6 +21,7 @@ import h5py
 import numpy as np
 import pytest
 
+from bench.engine.amplitude import achieved_amplitude_mm
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench
 from tests.test_store_h5dump import parse_h5dump
@@ -136,4 +137,11 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
         assert sorted(p.index for p in run.points if p.status == "done") == [0, 1]  # each once
         assert run.n_samples > n
         assert [e.kind for e in run.events].count("resumed") == 1
-        assert len(run.dwell_records()) == 2
+        records = run.dwell_records()
+        assert [r.freq_hz for r in records] == [10.0, 20.0]
+        for record in records:  # each done point's slice holds its own dwell, recorded after the resume too
+            start, stop = (round(t * record.sample_rate_hz) for t in record.hold_s)
+            z = record.channels["z_base_m"][start:stop]
+            assert achieved_amplitude_mm(z, record.sample_rate_hz, record.freq_hz) == pytest.approx(
+                1.0, rel=0.05
+            )

@@ -189,13 +189,19 @@ class _ResumeFromFile:
 
     def __init__(self, path: Path) -> None:
         with open_campaign(path) as campaign:
-            self._runs = {run.run_id: (run.status, run.completed_point_indices()) for run in campaign.runs}
+            self._runs = {
+                run.run_id: (run.status, run.completed_point_indices(), run.n_samples)
+                for run in campaign.runs
+            }
 
     def run_complete(self, run_id: str) -> bool:
-        return self._runs.get(run_id, ("", set()))[0] == "complete"
+        return run_id in self._runs and self._runs[run_id][0] == "complete"
 
     def completed_points(self, run_id: str) -> set[int]:
-        return set(self._runs.get(run_id, ("", set()))[1])
+        return set(self._runs[run_id][1]) if run_id in self._runs else set()
+
+    def recorded_samples(self, run_id: str) -> int:
+        return self._runs[run_id][2] if run_id in self._runs else 0
 
 
 def run_campaign(

@@ -64,6 +64,10 @@ class Recorder:
 
     def _samples(self, event: ev.SamplesRecorded) -> None:
         run = self._open_run(event.run_id)
+        if event.first_sample != run.samples:  # the points' sample indices would miss their samples
+            raise RuntimeError(
+                f"run {event.run_id}: samples from {event.first_sample} on, but the file holds {run.samples}"
+            )
         if event.gaps:
             run.add_event("gap", f"{event.gaps} frames lost on the WFS link", missing=event.gaps)
         run.append(event.columns)

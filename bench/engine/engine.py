@@ -99,6 +99,15 @@ class RunOutcome:
     reason: str = ""
 
 
+@dataclass(frozen=True)
+class RecordedRun:
+    """What the campaign file holds of a run already (resume): its done points and its samples,
+    which the run's new samples follow."""
+
+    done_points: frozenset[int] = frozenset()
+    samples: int = 0
+
+
 class RunStoppedError(Exception):
     """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
 
@@ -288,24 +297,25 @@ class Engine:
             self.acquisition.tare()
         elif isinstance(step, MeanPosition):
             self.conditions["mean_mm"] = step.mean_mm
-        elif isinstance(step, SineDwell | DwellGrid | FreeRun):
+        elif is_measurement(step):
             run_id = self.run_id(sequence, index)
-            if resume is None or not resume.run_complete(run_id):
-                done = resume.completed_points(run_id) if resume else set()
-                self._dwell_run(run_id, step, done)
-        elif isinstance(step, Sweep):
-            run_id = self.run_id(sequence, index)
-            if resume is None or not resume.run_complete(run_id):
-                self._sweep_run(run_id, step)
-        elif isinstance(step, HammerTest):
-            run_id = self.run_id(sequence, index)
-            if resume is None or not resume.run_complete(run_id):
-                done = resume.completed_points(run_id) if resume else set()
-                self._hammer_run(run_id, step, done)
+            if resume is None:
+                self._measure(run_id, step, RecordedRun())
+            elif not resume.run_complete(run_id):
+                held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
+                self._measure(run_id, step, held)
         else:
             raise RunStoppedError(
                 RunState.INTERLOCKED, f"step {index}: {type(step).__name__} is not supported"
             )
+
+    def _measure(self, run_id: str, step: object, held: RecordedRun) -> None:
+        if isinstance(step, Sweep):
+            self._sweep_run(run_id, step, held)
+        elif isinstance(step, HammerTest):
+            self._hammer_run(run_id, step, held)
+        else:
+            self._dwell_run(run_id, step, held)
 
     def _ask(self, prompt: Prompt) -> None:
         """Ask the operator; a refused confirmation, or no answer at all, aborts the sequence."""
@@ -325,14 +335,14 @@ class Engine:
 
     # -- runs ---------------------------------------------------------------------------------
 
-    def _dwell_run(self, run_id: str, step: SineDwell | DwellGrid | FreeRun, done: set[int]) -> None:
+    def _dwell_run(self, run_id: str, step: SineDwell | DwellGrid | FreeRun, held: RecordedRun) -> None:
         dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
-        with self._recording(run_id, step) as run:
+        with _RunRecording(self, run_id, step, held.samples) as run:
             for index, dwell in enumerate(dwells):
-                if index not in done:
+                if index not in held.done_points:
                     self._point(run, index, dwell)
 
-    def _sweep_run(self, run_id: str, step: Sweep) -> None:
+    def _sweep_run(self, run_id: str, step: Sweep, held: RecordedRun) -> None:
         setpoint = SweepSetpoint(
             step.start_hz,
             step.end_hz,
@@ -343,7 +353,7 @@ class Engine:
             taper_out_s=step.taper_out_s,
             mean_mm=self._mean(step.mean_mm),
         )
-        with self._recording(run_id, step) as run:
+        with _RunRecording(self, run_id, step, held.samples) as run:
             span = run.excite(setpoint, planned_s=step.duration_s)
             self.bus.publish(
                 ev.PointDone(
@@ -363,17 +373,17 @@ class Engine:
                 )
             )
 
-    def _hammer_run(self, run_id: str, step: HammerTest, done: set[int]) -> None:
+    def _hammer_run(self, run_id: str, step: HammerTest, held: RecordedRun) -> None:
         """Per blow: arm the triggered capture, ask for the blow, record the captured block.
 
         The blocks are recorded one after the other in the run's single Fz channel at the
         converter's rate; each blow is a point spanning its block, its hold from the trigger on."""
-        samples = 0
+        samples = held.samples
         started = False
         status, reason = "complete", ""
         try:
             for blow in range(step.blows):
-                if blow in done:
+                if blow in held.done_points:
                     continue
                 self._checkpoint()
                 self.acquisition.arm_capture(step.trigger_level_n, step.pre_trigger_s, step.capture_s)
@@ -512,9 +522,6 @@ class Engine:
     def _mean(self, step_mean_mm: float) -> float:
         return step_mean_mm or float(self.conditions.get("mean_mm", 0.0))
 
-    def _recording(self, run_id: str, step: object) -> _RunRecording:
-        return _RunRecording(self, run_id, step)
-
     # -- checkpoints, stops -------------------------------------------------------------------
 
     def _checkpoint(self) -> None:
@@ -566,11 +573,12 @@ def is_measurement(step: object) -> bool:
 class _RunRecording:
     """One run's stream: started on entry, every frame published as samples until the exit."""
 
-    def __init__(self, engine: Engine, run_id: str, step: object) -> None:
+    def __init__(self, engine: Engine, run_id: str, step: object, first_sample: int = 0) -> None:
+        """``first_sample``: how many samples the run held already (a resumed run goes on after them)."""
         self.engine = engine
         self.run_id = run_id
         self.step = step
-        self.samples = 0  # frames recorded so far in this run
+        self.samples = first_sample  # the run's samples so far: the index of the next one
         self.displacement: list[np.ndarray] = []
         self.interrupted_span = ExcitationSpan(0, 0, 0, 0)
         self._subscription = None

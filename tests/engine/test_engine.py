@@ -192,6 +192,9 @@ class Done:
     def completed_points(self, run_id: str) -> set[int]:
         return {0} if run_id == "test-s003-dwell_grid" else set()
 
+    def recorded_samples(self, run_id: str) -> int:
+        return 4321 if run_id == "test-s003-dwell_grid" else 0
+
 
 def test_resume_skips_complete_runs_their_prompts_and_done_points():
     bench = FakeBench()
@@ -215,6 +218,8 @@ def test_resume_skips_complete_runs_their_prompts_and_done_points():
         ("test-s003-dwell_grid", 2),
     ]
     assert of(seen, ev.RunStarted)[0].conditions["tyre_pressure_bar"] == 2.5
+    assert of(seen, ev.SamplesRecorded)[0].first_sample == 4321  # the new samples follow the file's
+    assert all(p.start_sample >= 4321 for p in of(seen, ev.PointDone))
 
 
 def test_a_sweep_is_one_point_spanning_its_tapers():
