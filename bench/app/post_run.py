@@ -38,7 +38,7 @@ from bench.analysis.runs import (
 from bench.analysis.validation import AnalysisInputError
 from bench.engine import events as ev
 from bench.models.parameters import WfsSensor
-from bench.store import open_campaign
+from bench.store import CampaignFile, RunView, open_campaign
 
 log = logging.getLogger(__name__)
 
@@ -75,13 +75,14 @@ class PostRunAnalysis:
         self.publish = publish
         self.knowledge = knowledge
         self._pending_grid: tuple[str, object] | None = None  # (run id, tyre pressure) not analysed yet
+        self._started: tuple[str, str, object] = ("", "", None)  # the run being recorded: id, kind, pressure
         with open_campaign(campaign_path) as campaign:
             complete = [run for run in campaign.runs if run.status == "complete"]
             for i, run in enumerate(complete):
                 if run.kind == "dwell_grid" and not self._grids_end(run, complete[i + 1 : i + 2]):
                     continue  # the pressure's grids are analysed together, after the last of them
                 try:
-                    self._analyse(run)
+                    self._analyse(run, campaign)
                 except (AnalysisInputError, ValueError) as exc:
                     log.warning("earlier run %s not analysed: %s", run.run_id, exc)
 
@@ -99,21 +100,20 @@ class PostRunAnalysis:
         """Dwell grids wait until the next run shows that their pressure's grids are done (another
         kind of run, another pressure, or the end of the sequence); every other run is analysed as
         soon as it is complete."""
-        if isinstance(event, ev.RunStarted) and self._pending_grid is not None:
-            if (
-                event.kind != "dwell_grid"
-                or event.conditions.get("tyre_pressure_bar") != self._pending_grid[1]
-            ):
+        if isinstance(event, ev.RunStarted):
+            pressure = event.conditions.get("tyre_pressure_bar")
+            pending = self._pending_grid
+            if pending is not None and (event.kind != "dwell_grid" or pressure != pending[1]):
                 self._analyse_pending_grid()
+            self._started = (event.run_id, event.kind, pressure)
         elif isinstance(event, ev.SequenceFinished) and self._pending_grid is not None:
             self._analyse_pending_grid()
         elif isinstance(event, ev.RunFinished) and event.status == "complete":
-            with open_campaign(self.campaign_path) as campaign:
-                run = campaign.run(event.run_id)
-                if run.kind == "dwell_grid":
-                    self._pending_grid = (event.run_id, run.conditions.get("tyre_pressure_bar"))
-                    return
-            self._report(event.run_id)
+            run_id, kind, pressure = self._started
+            if kind == "dwell_grid":
+                self._pending_grid = (run_id, pressure)
+            else:
+                self._report(run_id)
 
     def _analyse_pending_grid(self) -> None:
         run_id, _ = self._pending_grid
@@ -125,13 +125,13 @@ class PostRunAnalysis:
         with open_campaign(self.campaign_path) as campaign:
             run = campaign.run(run_id)
             try:
-                name, lines, results = self._analyse(run)
+                name, lines, results = self._analyse(run, campaign)
             except (AnalysisInputError, ValueError) as exc:
                 log.warning("analysis of %s failed: %s", run_id, exc)
                 name, lines, results = "analysis", (f"FLAG analysis failed: {exc}",), {"error": str(exc)}
         self.publish(ev.AnalysisDone(run_id, name, tuple(lines), {"summary": "\n".join(lines), **results}))
 
-    def _analyse(self, run) -> tuple[str, list[str], dict[str, Any]]:
+    def _analyse(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if run.kind == "hammer":
             result = analyse_hammer(run.hammer_record(), sensor_mass_kg=k.sensor.mass_kg)
@@ -165,37 +165,33 @@ class PostRunAnalysis:
                 },
             )
         if run.kind == "dwell_grid":
-            return self._shaker(run)
+            return self._shaker(run, campaign)
         if run.kind == "sweep":
             return self._four_post(run)
         raise ValueError(f"no analysis for a {run.kind} run")
 
-    def _shaker(self, run) -> tuple[str, list[str], dict[str, Any]]:
+    def _shaker(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if not k.shaker_free_run:
             raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
         if pressure is None:
             raise ValueError("no tyre pressure was answered before this grid")
-        records = self._complete_dwells_at(pressure)
+        records = [
+            record
+            for other in campaign.runs
+            if other.kind == "dwell_grid"
+            and other.status == "complete"
+            and other.conditions.get("tyre_pressure_bar") == pressure
+            for record in other.dwell_records()
+        ]
         result = analyse_shaker_campaign(
             records, k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.shaker[float(pressure)] = result
         return "shaker", result.summary_lines(), {"tyre_pressure_bar": float(pressure)}
 
-    def _complete_dwells_at(self, pressure: float) -> list[DwellRecord]:
-        with open_campaign(self.campaign_path) as campaign:
-            return [
-                record
-                for other in campaign.runs
-                if other.kind == "dwell_grid"
-                and other.status == "complete"
-                and other.conditions.get("tyre_pressure_bar") == pressure
-                for record in other.dwell_records()
-            ]
-
-    def _four_post(self, run) -> tuple[str, list[str], dict[str, Any]]:
+    def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if run.conditions.get("bench") != "four_post":
             note = (

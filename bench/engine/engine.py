@@ -118,7 +118,11 @@ class RunStoppedError(Exception):
 
 
 class _PointInterruptedError(Exception):
-    """A pause request interrupted the present point: repeat it after the pause."""
+    """A pause request interrupted the present point at ``span``: repeat it after the pause."""
+
+    def __init__(self, span: ExcitationSpan) -> None:
+        super().__init__("point interrupted by a pause")
+        self.span = span
 
 
 class Engine:
@@ -380,7 +384,7 @@ class Engine:
         converter's rate; each blow is a point spanning its block, its hold from the trigger on."""
         samples = held.samples
         started = False
-        status, reason = "complete", ""
+        outcome = RunOutcome("complete")
         try:
             for blow in range(step.blows):
                 if blow in held.done_points:
@@ -423,15 +427,13 @@ class Engine:
                     )
                 )
                 samples += n
-        except RunStoppedError as stop:
-            status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
-            raise
-        except Exception as exc:
-            status, reason = "failed", f"{type(exc).__name__}: {exc}"
+        except BaseException as exc:
+            outcome = run_outcome(exc)
             raise
         finally:
             if started:
-                self.bus.publish(ev.RunFinished(run_id, status, reason, self.acquisition.link_counters()))
+                counters = self.acquisition.link_counters()
+                self.bus.publish(ev.RunFinished(run_id, outcome.status, outcome.reason, counters))
 
     def _point(self, run: _RunRecording, index: int, dwell: SineDwell) -> None:
         """One dwell, repeated with a corrected command while the achieved amplitude is off."""
@@ -453,8 +455,8 @@ class Engine:
             )
             try:
                 span = run.excite(setpoint, planned_s=dwell.duration_s)
-            except _PointInterruptedError:
-                span = run.interrupted_span
+            except _PointInterruptedError as interrupted:
+                span = interrupted.span
                 self._publish_point(
                     run,
                     index=index,
@@ -566,6 +568,15 @@ class Engine:
         self.bus.publish(ev.StateChanged(old, new, trigger))
 
 
+def run_outcome(exc: BaseException | None) -> RunOutcome:
+    """How a run ended, from what ended it: nothing, a stop (its state and reason), or an error."""
+    if exc is None:
+        return RunOutcome("complete")
+    if isinstance(exc, RunStoppedError):
+        return RunOutcome(RUN_STATUS.get(exc.state, "failed"), exc.reason)
+    return RunOutcome("failed", f"{type(exc).__name__}: {exc}")
+
+
 def is_measurement(step: object) -> bool:
     return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | HammerTest)
 
@@ -580,7 +591,6 @@ class _RunRecording:
         self.step = step
         self.samples = first_sample  # the run's samples so far: the index of the next one
         self.displacement: list[np.ndarray] = []
-        self.interrupted_span = ExcitationSpan(0, 0, 0, 0)
         self._subscription = None
         self._last_status_s = -np.inf
         self._last_frame_s = 0.0
@@ -606,11 +616,7 @@ class _RunRecording:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         e = self.engine
-        status, reason = "complete", ""
-        if isinstance(exc, RunStoppedError):
-            status, reason = RUN_STATUS.get(exc.state, "failed"), exc.reason
-        elif exc is not None:
-            status, reason = "failed", f"{type(exc).__name__}: {exc}"
+        outcome = run_outcome(exc)
         try:
             e.acquisition.stop_stream()
             self._drain()
@@ -618,7 +624,8 @@ class _RunRecording:
             log.warning("stopping the WFS stream failed: %s", stop_error)
         finally:
             self._subscription.close()
-            e.bus.publish(ev.RunFinished(self.run_id, status, reason, e.acquisition.link_counters()))
+            counters = e.acquisition.link_counters()
+            e.bus.publish(ev.RunFinished(self.run_id, outcome.status, outcome.reason, counters))
 
     def _drain(self) -> None:
         """Record the frames still in flight after the stream stopped."""
@@ -685,8 +692,7 @@ class _RunRecording:
         if stopping == "abort":
             e._abort_now()
         if stopping == "pause":
-            self.interrupted_span = tracker.span
-            raise _PointInterruptedError
+            raise _PointInterruptedError(tracker.span)
         return tracker.span
 
     def _next_columns(self) -> Mapping[str, np.ndarray]:
