@@ -17,6 +17,9 @@ from bench.analysis.validation import AnalysisInputError
 #: Default valid-band tolerances: | |H| - 1 | <= 10 % and |phase H| <= 10 degrees.
 AMPLITUDE_TOLERANCE = 0.10
 PHASE_TOLERANCE_DEG = 10.0
+#: A point fails a tolerance only when it misses it by more than this many standard uncertainties;
+#: a closer miss is too uncertain to judge (like a point whose uncertainty is above half the tolerance).
+FAIL_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -115,12 +118,19 @@ def valid_band(
     if f.size == 0 or f.shape != h.shape or f.shape != ok_points.shape:
         raise AnalysisInputError("valid band needs equal-length, non-empty frequency and ratio arrays")
     given = ok_points
+    amp_excess = np.abs(np.abs(h) - 1.0) - amplitude_tolerance
+    phase_excess = np.abs(np.degrees(np.angle(h))) - phase_tolerance_deg
+    amp_bad, phase_bad = ~(amp_excess <= 0), ~(phase_excess <= 0)
     if sigma is not None:
         relative = np.asarray(sigma, dtype=float) / np.abs(h)
         determined = (relative <= 0.5 * amplitude_tolerance) & (
             np.degrees(relative) <= 0.5 * phase_tolerance_deg
         )
-        ok_points = ok_points & determined
+        # a point that misses a tolerance by less than FAIL_SIGMAS of its uncertainty is no verdict
+        unsure = (amp_bad & (amp_excess < FAIL_SIGMAS * relative)) | (
+            phase_bad & (phase_excess < FAIL_SIGMAS * np.degrees(relative))
+        )
+        ok_points = ok_points & determined & ~unsure
     if np.any(np.diff(f) <= 0):
         raise AnalysisInputError("valid band needs strictly ascending frequencies")
     if not ok_points.any():
@@ -129,12 +139,11 @@ def valid_band(
     if start == 0:
         starts_at = "start of data"
     elif given[start - 1]:  # reliable data whose uncertainty is too large to judge it
-        starts_at = f"uncertainty above half the tolerances at the {start} points below"
+        starts_at = f"the {start} points below too uncertain to judge"
     else:
         starts_at = f"{start} unreliable points below"
     f, h, ok_points = f[start:], h[start:], ok_points[start:]
-    amp_bad = ~(np.abs(np.abs(h) - 1.0) <= amplitude_tolerance)
-    phase_bad = ~(np.abs(np.degrees(np.angle(h))) <= phase_tolerance_deg)
+    amp_bad, phase_bad = amp_bad[start:], phase_bad[start:]
     end, limited_by, gap, skipped = f.size, "end of data", 0, []
     for i in range(f.size):
         if not ok_points[i]:

@@ -24,7 +24,7 @@ def test_force_ratio_bands_reach_the_sweeps_ends(four_post_analysis):
     ):
         assert band.lowest_hz <= 0.62, band
         assert re.fullmatch(
-            r"uncertainty above half the tolerances at the \d+ points below|\d+ unreliable points below",
+            r"the \d+ points below too uncertain to judge|\d+ unreliable points below",
             band.starts_at,
         ), band
     model = result.valid_band_model_compensated
