@@ -618,8 +618,7 @@ class _RunRecording:
         e = self.engine
         outcome = run_outcome(exc)
         try:
-            e.acquisition.stop_stream()
-            self._drain()
+            self._stop_stream()
         except LinkError as stop_error:
             log.warning("stopping the WFS stream failed: %s", stop_error)
         finally:
@@ -627,9 +626,32 @@ class _RunRecording:
             counters = e.acquisition.link_counters()
             e.bus.publish(ev.RunFinished(self.run_id, outcome.status, outcome.reason, counters))
 
-    def _drain(self) -> None:
-        """Record the frames still in flight after the stream stopped."""
-        while (block := self._subscription.get(self.engine.timing.block_timeout_s)) is not None:
+    def _stop_stream(self) -> None:
+        """Stop the stream and record every frame sent before it stopped.
+
+        The frames are recorded while the STOP awaits its reply: the reply comes on the same line
+        behind the frames still in flight, and the reader hands those over to this run's lossless
+        subscription first; left undrained, a full subscription would hold the reader and the reply
+        with it."""
+        acquisition, timeout_s = self.engine.acquisition, self.engine.timing.block_timeout_s
+        stopped = threading.Event()
+        failure: list[LinkError] = []
+
+        def stop() -> None:
+            try:
+                acquisition.stop_stream()
+            except LinkError as exc:
+                failure.append(exc)
+            finally:
+                stopped.set()
+
+        threading.Thread(target=stop, name="wfs-stop", daemon=True).start()
+        while not stopped.is_set():
+            if (block := self._subscription.get(timeout_s)) is not None:
+                self._record(block)
+        if failure:
+            raise failure[0]
+        while (block := self._subscription.get(timeout_s)) is not None:
             self._record(block)
 
     def _record(self, block) -> Mapping[str, np.ndarray]:

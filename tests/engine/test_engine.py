@@ -4,6 +4,7 @@ interlocks and resume, each checked on the events the engine publishes."""
 from __future__ import annotations
 
 import itertools
+import threading
 
 import numpy as np
 import pytest
@@ -14,8 +15,9 @@ from bench.engine.channels import FrameChannels
 from bench.engine.engine import Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
+from drivers.errors import LinkTimeoutError
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
-from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench
+from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock
 
 RATE_HZ = 1000.0
 
@@ -252,3 +254,40 @@ def test_a_declined_or_unanswered_prompt_aborts_before_anything_moves(operator, 
     assert outcome.status == "aborted" and reason in outcome.reason
     assert not any(line.startswith(("configure", "start")) for line in bench.log)
     assert of(seen, ev.RunStarted) == []
+
+
+class ReplyBehindFrames(FakeBench):
+    """A serial line on which the STOP's reply comes behind the frames already in flight: the reader
+    hands those to the lossless subscription first, so the reply arrives only once they are taken
+    (a full subscription left undrained holds the reader, and the reply with it)."""
+
+    IN_FLIGHT_BLOCKS = 5
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.in_flight = 0
+        self.turn = threading.Condition()
+
+    def stop_stream(self) -> None:
+        with self.turn:
+            self.in_flight = self.IN_FLIGHT_BLOCKS
+            if not self.turn.wait_for(lambda: self.in_flight == 0, timeout=5.0):
+                raise LinkTimeoutError("no reply to 'STOP': the reader is held by a full subscription")
+        super().stop_stream()
+
+    def get(self, timeout_s: float) -> FakeBlock | None:
+        block = super().get(timeout_s)
+        with self.turn:
+            if self.in_flight and block is not None:
+                self.in_flight -= 1
+                self.turn.notify_all()
+        return block
+
+
+def test_the_stream_stops_while_its_frames_in_flight_are_recorded():
+    bench = ReplyBehindFrames()
+    engine, seen = make_engine(bench)
+    assert engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(10.0,)))).status == "complete"
+    assert "stream stop" in bench.log
+    recorded = sum(len(b.columns["status"]) for b in of(seen, ev.SamplesRecorded))
+    assert recorded == bench._seq  # every frame sent, those in flight at the STOP included
