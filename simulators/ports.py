@@ -142,6 +142,34 @@ class MemoryLink:
             self._connect()
 
 
+#: The directories that hold the pty symlinks are named after their process, so that those of a
+#: killed process (no cleanup ran) are recognised and removed by the next one.
+_LINK_DIR_PREFIX = "wfs-pty-"
+
+
+def _new_link_dir() -> Path:
+    """A fresh directory for pty symlinks, after removing those of processes that are gone."""
+    for stale in Path(tempfile.gettempdir()).glob(f"{_LINK_DIR_PREFIX}*-*"):
+        pid = stale.name[len(_LINK_DIR_PREFIX) :].split("-", 1)[0]
+        if pid.isdigit() and not _process_alive(int(pid)):
+            for entry in stale.iterdir():
+                if entry.is_symlink():  # only what a link dir holds; anything else keeps the dir
+                    entry.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                stale.rmdir()
+    return Path(tempfile.mkdtemp(prefix=f"{_LINK_DIR_PREFIX}{os.getpid()}-"))
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
 class PtyLink:
     """A pseudo-terminal: the device holds the master, the host opens ``path`` like a serial port.
 
@@ -150,7 +178,7 @@ class PtyLink:
     """
 
     def __init__(self, link_dir: str | None = None) -> None:
-        self._dir = Path(link_dir or tempfile.mkdtemp(prefix="wfs-pty-"))
+        self._dir = Path(link_dir) if link_dir else _new_link_dir()
         self.path = str(self._dir / "wfs")
         self.master_fd = -1
         self._slave_fd = -1
@@ -222,7 +250,7 @@ class PtyBridge:
     """
 
     def __init__(self, name: str, link_dir: str | None = None) -> None:
-        self._dir = Path(link_dir or tempfile.mkdtemp(prefix="wfs-pty-"))
+        self._dir = Path(link_dir) if link_dir else _new_link_dir()
         self.host_path = str(self._dir / name)
         self.device_path = str(self._dir / f"{name}-device")
         self._fds: list[int] = []

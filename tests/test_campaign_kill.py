@@ -14,6 +14,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -59,9 +60,9 @@ SCHEDULING_S = 0.5
 DEADLINE_S = 60.0  # wall clock, a timeout only
 
 
-def _kill_mid_point(sequence: Path, out: Path, config: Path) -> tuple[list[str], float]:
-    """Start the run, kill it ``KILL_AFTER_S`` after point 0 is logged done; return the log lines
-    and the wall time from that line to the kill."""
+def _kill_mid_point(sequence: Path, out: Path, config: Path) -> tuple[list[str], float, int]:
+    """Start the run, kill it ``KILL_AFTER_S`` after point 0 is logged done; return the log lines,
+    the wall time from that line to the kill, and the killed process's id."""
     command = [
         sys.executable,
         "-m",
@@ -95,7 +96,7 @@ def _kill_mid_point(sequence: Path, out: Path, config: Path) -> tuple[list[str],
         proc.kill()
         proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL
-    return lines, killed_s - logged_s
+    return lines, killed_s - logged_s, proc.pid
 
 
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
@@ -103,7 +104,9 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
     sequence, config, out = tmp_path / "killed.toml", tmp_path / "paced.toml", tmp_path / "campaign.h5"
     sequence.write_text(SEQUENCE)
     config.write_text('kind = "shaker"\n[simulation]\npaced = true\n')
-    lines, elapsed_s = _kill_mid_point(sequence, out, config)
+    lines, elapsed_s, killed_pid = _kill_mid_point(sequence, out, config)
+    left_behind = list(Path(tempfile.gettempdir()).glob(f"wfs-pty-{killed_pid}-*"))
+    assert len(left_behind) == 1  # the simulated WFS's pty link: the killed process could not remove it
     assert not any("point 1" in line for line in lines), lines  # killed inside point 1
 
     with h5py.File(out, "r") as f:  # a plain open, no h5clear
@@ -130,6 +133,7 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
     resumed = wfsbench("run", str(sequence), "--out", str(out), "--bench", str(config), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert "point 0" not in resumed.stdout and "point 1 at 20 Hz: done" in resumed.stdout
+    assert not left_behind[0].exists()  # the next process removed the killed one's link directory
     subprocess.run([H5DUMP, "-H", str(out)], capture_output=True, timeout=60, check=True)
     with open_campaign(out) as campaign:
         (run,) = campaign.runs
