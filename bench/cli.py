@@ -15,31 +15,49 @@ from simulators.serve import serve  # the CLI is a composition root: it may know
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
-EXIT_STOPPED = 1  # aborted, e-stopped, interlocked or failed: the file holds the data, marked
+EXIT_STOPPED = 1  # aborted (Ctrl-C too), e-stopped, interlocked or failed: the file holds the data, marked
 EXIT_LINK = 2  # a device could not be reached
-EXIT_INVALID = 3  # the sequence or the configuration is invalid: nothing was opened or moved
+EXIT_INVALID = 3  # the sequence, configuration, answers or CSV mapping is invalid: nothing opened or moved
 EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.app.answers import AnswersError, load_answers
     from bench.app.campaign import PlanRefusedError, plan_campaign, run_campaign
+    from bench.app.interrupts import RunInterrupts
+    from bench.app.progress import Progress
     from bench.app.run_log import RunLog
     from bench.config import ConfigError
     from sequences import SequenceError
 
     try:
-        plan = plan_campaign(Path(args.sequence), Path(args.bench) if args.bench else None)
-    except (SequenceError, ConfigError, OSError) as exc:
+        plan = plan_campaign(
+            Path(args.sequence), Path(args.bench) if args.bench else None, realtime=args.realtime
+        )
+        answers = load_answers(Path(args.answers), plan.sequence) if args.answers else None
+    except (SequenceError, ConfigError, AnswersError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
+    progress = Progress(sys.stdout)
     try:
-        outcome = run_campaign(plan, Path(args.out), resume=args.resume, subscribers=(RunLog(print),))
+        with RunInterrupts() as interrupts:
+            outcome = run_campaign(
+                plan,
+                Path(args.out),
+                resume=args.resume,
+                answers=answers,
+                subscribers=(RunLog(progress.line), progress, interrupts),
+                on_engine=interrupts.attach,
+            )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    except KeyboardInterrupt:
+        print("interrupted before the sequence started: nothing moved", file=sys.stderr)
+        return EXIT_STOPPED
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
@@ -138,6 +156,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", required=True, help="campaign file (HDF5, docs/hdf5.md)")
     run.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     run.add_argument("--resume", action="store_true", help="continue an interrupted campaign file")
+    run.add_argument(
+        "--answers", metavar="FILE", help="answers to the prompts by id (TOML, docs/cli.md): unattended run"
+    )
+    run.add_argument("--realtime", action="store_true", help="pace the simulated bench in real time")
     run.set_defaults(run=_run)
     check = sub.add_parser("check", help="validate and dry-run a sequence on the bench; nothing moves")
     check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
