@@ -81,6 +81,34 @@ def _check(args: argparse.Namespace) -> int:
     return EXIT_REFUSED if dry.refusals else EXIT_COMPLETE
 
 
+def _import_csv(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from bench.app.campaign import software_version
+    from bench.config import ConfigError, load_bench_config
+    from bench.store import StoreError
+    from bench.store.csv_import import CsvError, import_campaign
+    from bench.store.csv_mapping import MappingError, load_mapping
+
+    try:
+        mapping = load_mapping(Path(args.mapping))
+        config = load_bench_config(Path(args.bench) if args.bench else None)
+        if args.bench is None:
+            config = replace(config, kind=mapping.bench)
+        elif config.kind != mapping.bench:
+            raise ConfigError(
+                [f"{args.bench}: kind: a {config.kind} bench; the mapping's source.bench: {mapping.bench}"]
+            )
+        config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
+        import_campaign(mapping, Path(args.out), config_toml=config_text, software_version=software_version())
+    except (MappingError, CsvError, ConfigError, StoreError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    runs = ", ".join(f"{r.run_id} ({r.kind}, {len(r.files)} files)" for r in mapping.runs)
+    print(f"imported {runs}; file {args.out}")
+    return EXIT_COMPLETE
+
+
 def _demo(args: argparse.Namespace) -> int:
     from bench.demo import run_demo
 
@@ -165,6 +193,13 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
     check.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     check.set_defaults(run=_check)
+    imp = sub.add_parser("import-csv", help="bring CSV exports of another system into a campaign file")
+    imp.add_argument("mapping", help="mapping file (TOML, docs/import.md): columns, units, what each file is")
+    imp.add_argument("--out", required=True, help="new campaign file (HDF5, docs/hdf5.md)")
+    imp.add_argument(
+        "--bench", help="bench configuration recorded with the campaign (default: the default one)"
+    )
+    imp.set_defaults(run=_import_csv)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
     serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")
