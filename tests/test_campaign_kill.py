@@ -104,7 +104,7 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
     sequence.write_text(SEQUENCE)
     config.write_text('kind = "shaker"\n[simulation]\npaced = true\n')
     lines, elapsed_s = _kill_mid_point(sequence, out, config)
-    assert not any("point 1" in line for line in lines), lines  # killed inside point 1
+    assert not any(line.startswith("  point 1 at") for line in lines), lines  # killed inside point 1
 
     with h5py.File(out, "r") as f:  # a plain open, no h5clear
         assert f"/runs/{RUN_ID}/channels/z_base_m" in f
