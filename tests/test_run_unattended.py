@@ -254,12 +254,12 @@ def test_progress_in_a_pipe_is_plain_lines_with_the_eta_scaled_by_the_observed_r
     _feed(progress, clock)
     lines = out.getvalue().splitlines()
     assert lines == [
-        "progress: 0/4 points | seq-s002-dwell_grid point 0: 10 Hz, 2 mm, 2.5 bar, tapering in"
-        " | elapsed 0:00, ETA --:--",
+        "progress: 0/4 points | elapsed 0:00, ETA --:-- | seq-s002-dwell_grid point 0: 10 Hz, 2 mm,"
+        " 2.5 bar, tapering in",
         "  point 0 at 10 Hz: done",
         # 7.5 s of the estimate left at 1 wall second per 2.5 recorded seconds: 3 s
-        "progress: 1/4 points | seq-s002-dwell_grid point 1: 30 Hz, 1.5 mm, 2.5 bar, tapering in"
-        " | elapsed 0:01, ETA 0:03",
+        "progress: 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1: 30 Hz, 1.5 mm,"
+        " 2.5 bar, tapering in",
     ]
     assert math.isclose(progress.eta_s, 3.0)
 
@@ -272,7 +272,7 @@ def test_progress_on_a_terminal_redraws_one_line_and_writes_log_lines_above_it()
     log_at = text.index("  point 0 at 10 Hz: done")
     assert text[log_at - 4 : log_at] == "\r\x1b[K"  # the bar was cleared before the log line
     assert text.endswith("\x1b[K")
-    assert "[#####...............] 1/4 points | seq-s002-dwell_grid point 1: 30 Hz" in text
+    assert "\r[##........] 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1" in text
 
 
 def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
@@ -282,6 +282,8 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     assert run.returncode == EXIT_COMPLETE, run.stderr
     assert "\x1b" not in run.stdout and "\r" not in run.stdout
     progress = [line for line in run.stdout.splitlines() if line.startswith("progress: ")]
-    assert progress[0].startswith("progress: 0/8 points | smoke-s003-free_run point 0: 10 Hz, 2 mm")
-    sweep = "progress: 7/8 points | smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
-    assert any(line.startswith(sweep) for line in progress)
+    assert progress[0].startswith(
+        "progress: 0/8 points | elapsed 0:00, ETA --:-- | smoke-s003-free_run point 0"
+    )
+    sweep = "smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
+    assert any(line.startswith("progress: 7/8 points | ") and line.endswith(sweep) for line in progress)

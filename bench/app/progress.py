@@ -26,7 +26,7 @@ from drivers.wfs_frame import Status
 #: Shortest interval (s, wall clock) between two redraws of the live line.
 REDRAW_PERIOD_S = 0.2
 #: Characters of the live bar.
-BAR_WIDTH = 20
+BAR_WIDTH = 10
 
 
 def clock_text(seconds: float) -> str:
@@ -82,11 +82,13 @@ class Progress:
 
     def status(self) -> str:
         """The status line: points done of total, the point under way, elapsed and ETA."""
-        parts = [f"{self.points_done}/{self.total_points} points"]
-        if self.point is not None:
+        parts = [
+            f"{self.points_done}/{self.total_points} points",
+            f"elapsed {clock_text(self.elapsed_s)}, ETA {clock_text(self.eta_s)}",
+        ]
+        if self.point is not None:  # last: a narrow terminal cuts the line's end
             phase = {None: "", False: ", tapering in", True: ", at amplitude"}[self.at_amplitude]
             parts.append(self.point + phase)
-        parts.append(f"elapsed {clock_text(self.elapsed_s)}, ETA {clock_text(self.eta_s)}")
         return " | ".join(parts)
 
     # -- output -----------------------------------------------------------------------------
