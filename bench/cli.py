@@ -23,7 +23,7 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import PlanRefusedError, plan_campaign, run_campaign
+    from bench.app.campaign import PlanRefusedError, plan_campaign, points_done_in_file, run_campaign
     from bench.app.interrupts import RunInterrupts
     from bench.app.progress import Progress
     from bench.app.run_log import RunLog
@@ -41,8 +41,9 @@ def _run(args: argparse.Namespace) -> int:
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
-    progress = Progress(sys.stdout)
     try:
+        done_before = points_done_in_file(plan, Path(args.out)) if args.resume else 0
+        progress = Progress(sys.stdout, points_done_before=done_before)
         with RunInterrupts() as interrupts:
             outcome = run_campaign(
                 plan,

@@ -130,6 +130,7 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
     resumed = wfsbench("run", str(sequence), "--out", str(out), "--bench", str(config), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert "point 0" not in resumed.stdout and "point 1 at 20 Hz: done" in resumed.stdout
+    assert "progress: 1/2 points" in resumed.stdout  # point 0, done before the kill, counts as done
     subprocess.run([H5DUMP, "-H", str(out)], capture_output=True, timeout=60, check=True)
     with open_campaign(out) as campaign:
         (run,) = campaign.runs

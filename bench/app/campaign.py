@@ -281,6 +281,18 @@ def run_campaign(
     return CampaignOutcome(outcome.status, outcome.reason, analyses)
 
 
+def points_done_in_file(plan: CampaignPlan, out_path: Path) -> int:
+    """The points of ``plan``'s sequence that the campaign file ``out_path`` holds done already (what
+    a resume skips); 0 when there is no file."""
+    if not Path(out_path).exists():
+        return 0
+    planned = {
+        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
+    }
+    with open_campaign(out_path) as campaign:
+        return sum(len(run.completed_point_indices()) for run in campaign.runs if run.run_id in planned)
+
+
 def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:
     if exists:
         return CampaignWriter.open_append(out_path)

@@ -42,7 +42,8 @@ class Progress:
     """Subscriber: the progress of a sequence on ``stream``; :meth:`line` writes a log line.
 
     ``live``: redraw one line in place (default: when ``stream`` is a terminal); ``clock``: the wall
-    clock (seconds), injectable for tests."""
+    clock (seconds), injectable for tests; ``points_done_before``: the points a resumed campaign file
+    holds done already (the engine skips them)."""
 
     def __init__(
         self,
@@ -50,13 +51,14 @@ class Progress:
         *,
         live: bool | None = None,
         clock: Callable[[], float] = time.monotonic,
+        points_done_before: int = 0,
     ) -> None:
         self.stream = stream
         self.live = stream.isatty() if live is None else live
         self.clock = clock
         self.total_points = 0
         self.estimated_s = 0.0
-        self.points_done = 0
+        self.points_done = points_done_before
         self.recorded_s = 0.0
         self.point: str | None = None  # what is under way, for people
         self.at_amplitude: bool | None = None  # a dwell: tapering in (False), at amplitude (True)
