@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import io
 import math
+import os
+import pty
 import shutil
 import signal
 import subprocess
@@ -287,3 +289,42 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     )
     sweep = "smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
     assert any(line.startswith("progress: 7/8 points | ") and line.endswith(sweep) for line in progress)
+
+
+def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
+    """Standard output a pseudo-terminal: the status line is redrawn in place (carriage return,
+    erase to the end of the line), and the run log's lines still end with a newline."""
+    answers = tmp_path / "answers.toml"
+    answers.write_text(SMOKE_ANSWERS)
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [*command, "run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(answers)],
+        stdout=slave,
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+    )
+    os.close(slave)
+    chunks = []
+    try:
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the command closed the terminal's last writer
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        assert proc.wait(timeout=120) == EXIT_COMPLETE, proc.stderr.read()
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    text = b"".join(chunks).decode()
+    assert "\r[..........] 0/8 points | elapsed " in text
+    assert "\x1b[K\r[#########.] 7/8 points | elapsed " in text  # the sweep under way: 7 done
+    assert "\r\x1b[K  point 0 at 10 Hz: done" in text
+    assert "progress:" not in text
+    assert text.endswith(f"\r\x1b[Ksmoke: complete; file {tmp_path / 'c.h5'}\r\n")  # the bar cleared
