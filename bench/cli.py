@@ -27,6 +27,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.app.interrupts import RunInterrupts
     from bench.app.progress import Progress
     from bench.app.run_log import RunLog
+    from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
     from sequences import SequenceError
 
@@ -45,12 +46,15 @@ def _run(args: argparse.Namespace) -> int:
         done_before = points_done_in_file(plan, Path(args.out)) if args.resume else 0
         progress = Progress(sys.stdout, points_done_before=done_before)
         with RunInterrupts() as interrupts:
+            # at real devices without an answers file, the person at the terminal answers
+            asked = answers is None and not plan.config.simulated
             outcome = run_campaign(
                 plan,
                 Path(args.out),
                 resume=args.resume,
+                operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
                 answers=answers,
-                subscribers=(RunLog(progress.line), progress, interrupts),
+                subscribers=(RunLog(progress.line), progress),
                 on_engine=interrupts.attach,
             )
     except ValueError as exc:

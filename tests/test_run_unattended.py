@@ -328,3 +328,56 @@ def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
     assert "\r\x1b[K  point 0 at 10 Hz: done" in text
     assert "progress:" not in text
     assert text.endswith(f"\r\x1b[Ksmoke: complete; file {tmp_path / 'c.h5'}\r\n")  # the bar cleared
+
+
+PROMPT_FIRST = """\
+[sequence]
+name = "asks"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "prompt"
+id = "ready"
+text = "Is the bench clear"
+answer = "confirm"
+
+[[steps]]
+type = "hydraulics"
+level = "off"
+"""
+
+
+def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_path, lab_devices):  # noqa: F811
+    """Real devices (served on 127.0.0.1 and a pty) and no answers file: the prompt is read from
+    standard input, which stays open; Ctrl-C there is no answer, and the sequence ends aborted."""
+    server, pty_path = lab_devices
+    sequence, config = tmp_path / "asks.toml", tmp_path / "bench.toml"
+    sequence.write_text(PROMPT_FIRST)
+    config.write_text(_bench_toml(server, pty_path))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+    )
+    try:
+        shown = b""
+        while b"Is the bench clear [yes / no]: " not in shown:  # input() writes its question unended
+            chunk = proc.stdout.read1(4096)
+            assert chunk, f"the command ended before asking: {shown!r} {proc.stderr.read()!r}"
+            shown += chunk
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == EXIT_STOPPED, err
+    assert b"interrupted: stopping with a taper" in err
+    assert b"sequence aborted: no valid answer to prompt 'ready'" in shown + out

@@ -4,9 +4,10 @@ the run marked aborted), the second asks for an e-stop.
 The handler never raises into the engine's loop while it runs: it only sets the engine's requests,
 which the loop honours at once (an excitation under way is tapered out). Two exceptions: before the
 engine exists nothing moves yet, so the interrupt ends the command as Python's KeyboardInterrupt
-would; and while the engine waits for a prompt's answer (a terminal read blocks), the interrupt is
-taken as no answer, which aborts the sequence the same way. The e-stop is sent from a thread of its
-own, since the handler runs on the engine's thread, which may be inside a state change.
+would; and while a terminal read of a prompt's answer blocks (:meth:`RunInterrupts.interruptible`),
+the interrupt is taken as no answer, which aborts the sequence the same way. The e-stop is sent
+from a thread of its own, since the handler runs on the engine's thread, which may be inside a state
+change.
 """
 
 from __future__ import annotations
@@ -15,34 +16,40 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from types import FrameType
 
-from bench.engine import events as ev
 from bench.engine.engine import Engine
 from sequences import AnswerError
 
 
 class RunInterrupts:
-    """Context manager installing the SIGINT handler of a run; also an event subscriber (it follows
-    the prompts). ``attach(engine)`` once the engine is built. What the interrupt does is told on
-    standard error with a raw write: the handler may run while the engine's thread is inside a
-    buffered write to standard output, which must not be re-entered."""
+    """Context manager installing the SIGINT handler of a run; ``attach(engine)`` once the engine is
+    built. What the interrupt does is told on standard error with a raw write: the handler may run
+    while the engine's thread is inside a buffered write to standard output, which must not be
+    re-entered."""
 
     def __init__(self) -> None:
         self.engine: Engine | None = None
         self.count = 0
-        self._prompt_pending = False
+        self._reading = False
         self._estop_thread: threading.Thread | None = None
         self._previous: object = None
 
     def attach(self, engine: Engine) -> None:
         self.engine = engine
 
-    def __call__(self, event: ev.Event) -> None:
-        if isinstance(event, ev.PromptAsked):
-            self._prompt_pending = True
-        elif isinstance(event, ev.PromptAnswered | ev.SequenceFinished):
-            self._prompt_pending = False
+    def interruptible(self, read: Callable[[str], str]) -> Callable[[str], str]:
+        """``read`` (a terminal's ``input``) that an interrupt ends with :class:`AnswerError`."""
+
+        def reading(question: str) -> str:
+            self._reading = True
+            try:
+                return read(question)
+            finally:
+                self._reading = False
+
+        return reading
 
     def __enter__(self) -> RunInterrupts:
         self._previous = signal.signal(signal.SIGINT, self._on_sigint)
@@ -60,7 +67,7 @@ class RunInterrupts:
         if self.count == 1:
             tell("interrupted: stopping with a taper, the run marked aborted (Ctrl-C again: e-stop)")
             self.engine.request_abort()
-            if self._prompt_pending:
+            if self._reading:
                 raise AnswerError("interrupted (Ctrl-C) while waiting for the answer")
         elif self._estop_thread is None:
             tell("interrupted again: e-stop")
