@@ -16,7 +16,7 @@ from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
-from bench.store.csv_import import CsvError, import_campaign
+from bench.store.csv_import import CsvError, import_campaign, read_csv
 from bench.store.csv_mapping import MappingError, load_mapping
 from tests.test_campaign_cli import SMOKE, wfsbench
 
@@ -288,3 +288,17 @@ def test_a_bad_mapping_is_refused_naming_the_key(tmp_path, case):
     with pytest.raises(MappingError) as refused:
         load_mapping(tmp_path / "mapping.toml")
     assert str(refused.value).startswith(f"{tmp_path}/mapping.toml: {named}")
+
+
+def test_a_time_column_that_does_not_step_evenly_is_refused_at_its_line(tmp_path):
+    timed = MAPPING.replace("sample_rate_hz = 1000", 'column = "t [s]"')
+    (tmp_path / "mapping.toml").write_text(timed)
+    (tmp_path / "free.csv").write_text(
+        "t [s];Weg [mm];F_Platte [kN]\n0;1;1\n0,001;1;1\n0,003;1;1\n0,004;1;1\n"
+    )
+    with pytest.raises(CsvError, match=r"free\.csv: line 3, column 't \[s\]': time steps unevenly"):
+        read_csv(tmp_path / "free.csv", load_mapping(tmp_path / "mapping.toml"))
+    (tmp_path / "free.csv").write_text("t [s];Weg [mm];F_Platte [kN]\n0;1;1\n0,002;1;1\n0,004;1;1\n")
+    assert read_csv(
+        tmp_path / "free.csv", load_mapping(tmp_path / "mapping.toml")
+    ).sample_rate_hz == pytest.approx(500)
