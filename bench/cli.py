@@ -202,7 +202,8 @@ def build_parser() -> argparse.ArgumentParser:
     imp.add_argument("mapping", help="mapping file (TOML, docs/import.md): columns, units, what each file is")
     imp.add_argument("--out", required=True, help="new campaign file (HDF5, docs/hdf5.md)")
     imp.add_argument(
-        "--bench", help="bench configuration recorded with the campaign (default: the default one)"
+        "--bench",
+        help="bench configuration recorded with the campaign (default: the mapping's bench kind)",
     )
     imp.set_defaults(run=_import_csv)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)

@@ -6,6 +6,7 @@ refused naming the file, the line and the column, and leave no file behind."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from bench.store.csv_import import CsvError, import_campaign, read_csv
 from bench.store.csv_mapping import MappingError, load_mapping
 from tests.test_campaign_cli import SMOKE, wfsbench
 
+ROOT = Path(__file__).resolve().parents[1]
 G_M_S2 = 9.80665
 #: The other system's columns: header -> (schema channel, factor from SI to the column's unit).
 FOREIGN = {
@@ -302,3 +304,29 @@ def test_a_time_column_that_does_not_step_evenly_is_refused_at_its_line(tmp_path
     assert read_csv(
         tmp_path / "free.csv", load_mapping(tmp_path / "mapping.toml")
     ).sample_rate_hz == pytest.approx(500)
+
+
+def test_the_documented_example_mapping_loads_as_described(tmp_path):
+    text = (ROOT / "docs" / "import.md").read_text()
+    example = re.search(r"`mapping.toml`, beside the CSV files:\n\n```toml\n(.*?)```", text, re.S).group(1)
+    (tmp_path / "mapping.toml").write_text(example)
+    mapping = load_mapping(tmp_path / "mapping.toml")
+    assert (mapping.name, mapping.bench, mapping.dialect.delimiter, mapping.dialect.decimal) == (
+        "lab_b_2019",
+        "shaker",
+        ";",
+        ",",
+    )
+    assert (mapping.timing.column, mapping.timing.unit) == ("Zeit [ms]", "ms")
+    assert {c.channel: (c.column, c.unit, c.scale) for c in mapping.channels}["fz_wfs_n"] == (
+        "Fz [kN]",
+        "kN",
+        -1.0,
+    )
+    assert [(r.run_id, r.kind, r.tyre_pressure_bar, len(r.files)) for r in mapping.runs] == [
+        ("lab_b_2019-r000-free_run", "free_run", None, 2),
+        ("lab_b_2019-grid-2.5bar", "dwell_grid", 2.5, 2),
+        ("lab_b_2019-r002-sweep", "sweep", 2.5, 1),
+    ]
+    assert mapping.runs[1].files[1].requested_amplitude_mm == 2
+    assert mapping.runs[0].files[0].file == tmp_path / "free_10hz.csv"
