@@ -212,7 +212,7 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
     peaks = _cycle_peaks_mm(z_m, round(fs / 10))
     last_full = int(np.flatnonzero(peaks >= 0.9 * 2)[-1])
     decay = peaks[last_full:]
-    assert np.all(np.diff(decay) < 0), peaks
+    assert np.all(np.diff(decay[decay > 0.2]) < 0), peaks  # down to the noise of a bench at rest
     assert np.count_nonzero((decay > 0.2) & (decay < 1.8)) >= 3, peaks
     assert decay[-1] < 0.3, peaks
 
