@@ -15,31 +15,54 @@ from simulators.serve import serve  # the CLI is a composition root: it may know
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
-EXIT_STOPPED = 1  # aborted, e-stopped, interlocked or failed: the file holds the data, marked
+EXIT_STOPPED = 1  # aborted (Ctrl-C too), e-stopped, interlocked or failed: the file holds the data, marked
 EXIT_LINK = 2  # a device could not be reached
-EXIT_INVALID = 3  # the sequence or the configuration is invalid: nothing was opened or moved
+EXIT_INVALID = 3  # the sequence, configuration, answers or CSV mapping is invalid: nothing opened or moved
 EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.app.campaign import PlanRefusedError, plan_campaign, run_campaign
+    from bench.app.answers import AnswersError, load_answers
+    from bench.app.campaign import PlanRefusedError, plan_campaign, points_done_in_file, run_campaign
+    from bench.app.interrupts import RunInterrupts
+    from bench.app.progress import Progress
     from bench.app.run_log import RunLog
+    from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
     from sequences import SequenceError
 
     try:
-        plan = plan_campaign(Path(args.sequence), Path(args.bench) if args.bench else None)
-    except (SequenceError, ConfigError, OSError) as exc:
+        plan = plan_campaign(
+            Path(args.sequence), Path(args.bench) if args.bench else None, realtime=args.realtime
+        )
+        answers = load_answers(Path(args.answers), plan.sequence) if args.answers else None
+    except (SequenceError, ConfigError, AnswersError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
     try:
-        outcome = run_campaign(plan, Path(args.out), resume=args.resume, subscribers=(RunLog(print),))
+        done_before = points_done_in_file(plan, Path(args.out)) if args.resume else 0
+        progress = Progress(sys.stdout, points_done_before=done_before)
+        with RunInterrupts() as interrupts:
+            # at real devices without an answers file, the person at the terminal answers
+            asked = answers is None and not plan.config.simulated
+            outcome = run_campaign(
+                plan,
+                Path(args.out),
+                resume=args.resume,
+                operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
+                answers=answers,
+                subscribers=(RunLog(progress.line), progress),
+                on_engine=interrupts.attach,
+            )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    except KeyboardInterrupt:
+        print("interrupted before the sequence started: nothing moved", file=sys.stderr)
+        return EXIT_STOPPED
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
@@ -61,6 +84,34 @@ def _check(args: argparse.Namespace) -> int:
     for line in check_lines(sequence, config, dry):
         print(line)
     return EXIT_REFUSED if dry.refusals else EXIT_COMPLETE
+
+
+def _import_csv(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from bench.app.campaign import software_version
+    from bench.config import ConfigError, load_bench_config
+    from bench.store import StoreError
+    from bench.store.csv_import import CsvError, import_campaign
+    from bench.store.csv_mapping import MappingError, load_mapping
+
+    try:
+        mapping = load_mapping(Path(args.mapping))
+        config = load_bench_config(Path(args.bench) if args.bench else None)
+        if args.bench is None:
+            config = replace(config, kind=mapping.bench)
+        elif config.kind != mapping.bench:
+            raise ConfigError(
+                [f"{args.bench}: kind: a {config.kind} bench; the mapping's source.bench: {mapping.bench}"]
+            )
+        config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
+        import_campaign(mapping, Path(args.out), config_toml=config_text, software_version=software_version())
+    except (MappingError, CsvError, ConfigError, StoreError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    runs = ", ".join(f"{r.run_id} ({r.kind}, {len(r.files)} files)" for r in mapping.runs)
+    print(f"imported {runs}; file {args.out}")
+    return EXIT_COMPLETE
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -138,11 +189,23 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", required=True, help="campaign file (HDF5, docs/hdf5.md)")
     run.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     run.add_argument("--resume", action="store_true", help="continue an interrupted campaign file")
+    run.add_argument(
+        "--answers", metavar="FILE", help="answers to the prompts by id (TOML, docs/cli.md): unattended run"
+    )
+    run.add_argument("--realtime", action="store_true", help="pace the simulated bench in real time")
     run.set_defaults(run=_run)
     check = sub.add_parser("check", help="validate and dry-run a sequence on the bench; nothing moves")
     check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
     check.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     check.set_defaults(run=_check)
+    imp = sub.add_parser("import-csv", help="bring CSV exports of another system into a campaign file")
+    imp.add_argument("mapping", help="mapping file (TOML, docs/import.md): columns, units, what each file is")
+    imp.add_argument("--out", required=True, help="new campaign file (HDF5, docs/hdf5.md)")
+    imp.add_argument(
+        "--bench",
+        help="bench configuration recorded with the campaign (default: the mapping's bench kind)",
+    )
+    imp.set_defaults(run=_import_csv)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
     serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")

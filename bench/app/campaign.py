@@ -9,12 +9,13 @@ names none), builds the engine, subscribes the recorder and the post-run analysi
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, replace
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from bench.app.actuator_thread import ThreadedActuator
+from bench.app.answers import FileAnswers
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.recorder import Recorder
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
@@ -61,10 +62,15 @@ class CampaignPlan:
     sequence_text: str
 
 
-def plan_campaign(sequence_path: Path, config_path: Path | None = None) -> CampaignPlan:
+def plan_campaign(
+    sequence_path: Path, config_path: Path | None = None, *, realtime: bool = False
+) -> CampaignPlan:
     """Load and check everything before anything is opened: SequenceError / ConfigError name the
-    file and the key; PlanRefusedError lists every point the dry run refuses."""
+    file and the key; PlanRefusedError lists every point the dry run refuses. ``realtime`` paces the
+    simulated bench in real time (the configuration's ``simulation.paced``; no effect on hardware)."""
     config = load_bench_config(config_path)
+    if realtime:
+        config = replace(config, simulation=replace(config.simulation, paced=True))
     sequence = load_sequence(sequence_path, config.limits)
     config_text = Path(config_path).read_text() if config_path else config.to_toml()
     return plan_sequence(sequence, config, Path(sequence_path).read_text(), config_text)
@@ -99,11 +105,19 @@ class BenchDevices:
 
 
 @contextlib.contextmanager
-def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterator[BenchDevices]:
+def open_bench(
+    config: BenchConfig,
+    operator: Operator | None = None,
+    answers: Mapping[str, float | str | bool] | None = None,
+) -> Iterator[BenchDevices]:
     """Open the configured devices, or the simulated lab when the configuration names none.
 
     ``operator``: who answers prompts (default: the simulated operator on the simulated bench, the
-    terminal on real hardware; the front ends pass their own)."""
+    terminal on real hardware; the front ends pass their own). ``answers``: prompt answers checked
+    beforehand (:func:`bench.app.answers.load_answers`), given instead of an operator: on the
+    simulated bench they are applied to the simulated world."""
+    if operator is not None and answers is not None:
+        raise ValueError("give an operator or answers, not both")
     transports = {config.actuator.transport, config.wfs.transport}
     if "simulated" in transports and transports != {"simulated"}:
         raise ValueError(f"{config.source}: a simulated device cannot be mixed with real ones")
@@ -125,9 +139,13 @@ def open_bench(config: BenchConfig, operator: Operator | None = None) -> Iterato
             )
             host, port = lab.address
             wfs_url = lab.wfs_port
+            if answers is not None:
+                operator = FileAnswers(answers, lab.operator)
             operator = operator or TargetAnswers(lab.operator)
         else:
             host, port, wfs_url = config.actuator.host, config.actuator.port, config.wfs.device
+            if answers is not None:
+                operator = FileAnswers(answers)
         operator = operator or TerminalOperator()
         actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
@@ -210,6 +228,7 @@ def run_campaign(
     *,
     resume: bool = False,
     operator: Operator | None = None,
+    answers: Mapping[str, float | str | bool] | None = None,
     subscribers: tuple[Callable[[ev.Event], None], ...] = (),
     on_engine: Callable[[Engine], None] | None = None,
     knowledge: CampaignKnowledge | None = None,
@@ -219,7 +238,8 @@ def run_campaign(
     A new file is created; an existing campaign file takes the sequence's runs beside its own (the
     four-post sequence after the shaker's), unless it holds runs of this very sequence: then only
     ``resume`` continues it, skipping its complete runs and points. ``on_engine`` receives the
-    engine before it runs (a front end keeps it to request pause, abort and e-stop). ``knowledge``:
+    engine before it runs (a front end keeps it to request pause, abort and e-stop). ``answers``:
+    the prompts' answers of an unattended run (see :func:`open_bench`). ``knowledge``:
     what the campaign established so far (sensor, plate masses, tyres), carried from one sequence to
     the next; by default it starts from the configuration and the runs already in the file."""
     out_path = Path(out_path)
@@ -238,7 +258,7 @@ def run_campaign(
     config = plan.config
     analyses: list[ev.AnalysisDone] = []
     with (
-        open_bench(config, operator) as devices,
+        open_bench(config, operator, answers) as devices,
         _campaign_writer(plan, out_path, existing is not None) as campaign,
     ):
         engine = build_engine(config, devices)
@@ -259,6 +279,18 @@ def run_campaign(
             plan.sequence, sequence_text=plan.sequence_text, config_text=plan.config_text, resume=resume_plan
         )
     return CampaignOutcome(outcome.status, outcome.reason, analyses)
+
+
+def points_done_in_file(plan: CampaignPlan, out_path: Path) -> int:
+    """The points of ``plan``'s sequence that the campaign file ``out_path`` holds done already (what
+    a resume skips); 0 when there is no file."""
+    if not Path(out_path).exists():
+        return 0
+    planned = {
+        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
+    }
+    with open_campaign(out_path) as campaign:
+        return sum(len(run.completed_point_indices()) for run in campaign.runs if run.run_id in planned)
 
 
 def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:

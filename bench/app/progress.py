@@ -1,0 +1,174 @@
+"""The progress of a sequence for the command line: points done of the total, the point under way
+(frequency, amplitude, tyre pressure), elapsed time and an ETA.
+
+On a terminal it is one status line redrawn in place, with the run log's lines written above it; in
+a pipe or a log file it degrades to one plain line per point started, without control codes.
+
+The ETA scales the sequence's remaining estimated duration by the rate observed so far: the seconds
+of wall time per second of recorded samples. The simulated bench runs much faster than real time
+(or paced, at real time), a real bench at real time plus its prompts and pauses; the observed rate
+covers all of them without knowing which.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import time
+from collections.abc import Callable
+from typing import TextIO
+
+import numpy as np
+
+from bench.engine import events as ev
+from drivers.wfs_frame import Status
+
+#: Shortest interval (s, wall clock) between two redraws of the live line.
+REDRAW_PERIOD_S = 0.2
+#: Characters of the live bar.
+BAR_WIDTH = 10
+
+
+def clock_text(seconds: float) -> str:
+    """``h:mm:ss`` (or ``m:ss`` under an hour) of a duration; ``--:--`` when unknown."""
+    if not math.isfinite(seconds) or seconds < 0:
+        return "--:--"
+    minutes, secs = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+class Progress:
+    """Subscriber: the progress of a sequence on ``stream``; :meth:`line` writes a log line.
+
+    ``live``: redraw one line in place (default: when ``stream`` is a terminal); ``clock``: the wall
+    clock (seconds), injectable for tests; ``points_done_before``: the points a resumed campaign file
+    holds done already (the engine skips them)."""
+
+    def __init__(
+        self,
+        stream: TextIO,
+        *,
+        live: bool | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        points_done_before: int = 0,
+    ) -> None:
+        self.stream = stream
+        self.live = stream.isatty() if live is None else live
+        self.clock = clock
+        self.total_points = 0
+        self.estimated_s = 0.0
+        self.points_done = points_done_before
+        self.recorded_s = 0.0
+        self.point: str | None = None  # what is under way, for people
+        self.at_amplitude: bool | None = None  # a dwell: tapering in (False), at amplitude (True)
+        self._started_wall_s: float | None = None
+        self._sample_rate_hz = 0.0
+        self._pressure_bar: float | None = None
+        self._shown = False  # a live line is on the screen
+        self._last_draw_s = -math.inf
+
+    # -- figures ----------------------------------------------------------------------------
+
+    @property
+    def elapsed_s(self) -> float:
+        return 0.0 if self._started_wall_s is None else self.clock() - self._started_wall_s
+
+    @property
+    def eta_s(self) -> float:
+        """Remaining estimated duration times the observed wall seconds per recorded second; NaN
+        until samples were recorded."""
+        if self.recorded_s <= 0:
+            return math.nan
+        return max(self.estimated_s - self.recorded_s, 0.0) * self.elapsed_s / self.recorded_s
+
+    def status(self) -> str:
+        """The status line: points done of total, the point under way, elapsed and ETA."""
+        parts = [
+            f"{self.points_done}/{self.total_points} points",
+            f"elapsed {clock_text(self.elapsed_s)}, ETA {clock_text(self.eta_s)}",
+        ]
+        if self.point is not None:  # last: a narrow terminal cuts the line's end
+            phase = {None: "", False: ", tapering in", True: ", at amplitude"}[self.at_amplitude]
+            parts.append(self.point + phase)
+        return " | ".join(parts)
+
+    # -- output -----------------------------------------------------------------------------
+
+    def line(self, text: str) -> None:
+        """A log line: above the live line on a terminal, else as it is."""
+        if self.live and self._shown:
+            self.stream.write("\r\x1b[K")
+            self._shown = False
+        self.stream.write(text + "\n")
+        if self.live and self.point is not None:
+            self._draw()
+        self.stream.flush()
+
+    def _draw(self) -> None:
+        done = self.points_done / self.total_points if self.total_points else 0.0
+        filled = min(BAR_WIDTH, round(done * BAR_WIDTH))
+        text = f"[{'#' * filled}{'.' * (BAR_WIDTH - filled)}] {self.status()}"
+        width = shutil.get_terminal_size().columns
+        self.stream.write("\r" + text[: max(width - 1, 10)] + "\x1b[K")
+        self.stream.flush()
+        self._shown = True
+        self._last_draw_s = self.clock()
+
+    def _show(self, point: str, at_amplitude: bool | None = None) -> None:
+        """A new point (or a dwell's hold) under way: redrawn live, or one plain line."""
+        self.point, self.at_amplitude = point, at_amplitude
+        if self.live:
+            self._draw()
+        else:
+            self.line(f"progress: {self.status()}")
+
+    def _pressure_text(self) -> list[str]:
+        return [] if self._pressure_bar is None else [f"{self._pressure_bar:g} bar"]
+
+    def _run_text(self, event: ev.RunStarted) -> str:
+        step = event.step
+        if event.kind == "hammer":
+            return "hammer blows"
+        sweep = f"sweep {step.get('start_hz', math.nan):g}-{step.get('end_hz', math.nan):g} Hz"
+        return ", ".join([sweep, f"{step.get('amplitude_mm', math.nan):g} mm", *self._pressure_text()])
+
+    def _recorded(self, event: ev.SamplesRecorded) -> None:
+        if self._sample_rate_hz > 0:
+            self.recorded_s += len(event) / self._sample_rate_hz
+        if self.at_amplitude is False and "status" in event.columns:
+            hold = np.asarray(event.columns["status"]) & int(Status.AMPLITUDE_HOLD)
+            if hold.any():  # the controller's hold output: the taper in is over
+                self._show(self.point or "", at_amplitude=True)
+                return
+        due = self.clock() - self._last_draw_s >= REDRAW_PERIOD_S
+        if self.live and self.point is not None and due:
+            self._draw()
+
+    def __call__(self, event: ev.Event) -> None:
+        match event:
+            case ev.SequenceStarted():
+                self.total_points = event.total_points
+                self.estimated_s = event.estimated_duration_s
+                self._started_wall_s = self.clock()
+            case ev.RunStarted():
+                self._sample_rate_hz = event.sample_rate_hz
+                self._pressure_bar = event.conditions.get("tyre_pressure_bar")
+                if event.kind in ("sweep", "hammer"):  # one point, published at its end only
+                    self._show(f"{event.run_id}: {self._run_text(event)}")
+            case ev.SamplesRecorded():
+                self._recorded(event)
+            case ev.PointStarted():
+                what = [f"{event.freq_hz:g} Hz", f"{event.amplitude_mm:.3g} mm", *self._pressure_text()]
+                self._show(f"{event.run_id} point {event.index}: {', '.join(what)}", at_amplitude=False)
+            case ev.PointDone():
+                if event.status == "done":
+                    self.points_done += 1
+                if self.live:
+                    self._draw()
+            case ev.SequenceFinished():
+                self.point = None
+                if self.live and self._shown:
+                    self.stream.write("\r\x1b[K")
+                    self._shown = False
+                    self.stream.flush()

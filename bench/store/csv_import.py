@@ -1,0 +1,286 @@
+"""CSV exports of another acquisition system brought into a campaign file (docs/import.md).
+
+Every CSV file the mapping names is read and checked first, into SI channels; only then is the
+campaign written, through :class:`bench.store.CampaignWriter`, to a temporary file beside the
+output that is renamed into place once complete. So a bad CSV file (a missing column, text in a
+number, a ragged row, an unknown unit, an empty file) is refused with its file, line and column,
+and nothing half-written is left behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import math
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bench.store.csv_mapping import (
+    UNITS,
+    ChannelColumn,
+    Dialect,
+    DwellFile,
+    ImportMapping,
+    RunMapping,
+    SweepFile,
+)
+from bench.store.schema import ChannelSpec, PointRow
+from bench.store.writer import CampaignWriter
+
+#: Largest deviation of one time step from the mean step, relative, before a time column is refused.
+TIME_STEP_TOLERANCE = 0.01
+_HEADER_UNIT = re.compile(r"\[([^\]]*)\]\s*$")
+
+
+class CsvError(ValueError):
+    """A CSV file that cannot be imported: the message names the file, the line and the column."""
+
+    def __init__(self, path: Path, line: int | None, column: str | None, message: str) -> None:
+        where = "".join(
+            [f": line {line}" if line is not None else "", f", column {column!r}" if column else ""]
+        )
+        super().__init__(f"{path}{where}: {message}")
+        self.path, self.line, self.column = path, line, column
+
+
+@dataclass(frozen=True)
+class CsvTable:
+    """One CSV file read into SI channels: ``columns`` by channel name, ``sample_rate_hz``."""
+
+    path: Path
+    columns: dict[str, np.ndarray]
+    sample_rate_hz: float
+
+    def __len__(self) -> int:
+        return len(next(iter(self.columns.values())))
+
+
+def read_csv(path: Path, mapping: ImportMapping) -> CsvTable:
+    """The mapped columns of the CSV file at ``path`` in SI units (float64), with its sample rate."""
+    d = mapping.dialect
+    try:
+        with path.open(newline="", encoding=d.encoding) as f:
+            lines = f.read().splitlines()
+    except OSError as exc:
+        raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CsvError(path, None, None, f"not {d.encoding} text: {exc.reason}") from None
+    header_line = d.skip_lines + 1
+    rows = list(csv.reader(lines[d.skip_lines :], delimiter=d.delimiter))
+    if not rows or not any(field.strip() for field in rows[0]):
+        raise CsvError(path, header_line, None, "empty file: no header line")
+    header = [name.strip() for name in rows[0]]
+    wanted = [(c.channel, c.column, _factor(path, header_line, c)) for c in mapping.channels]
+    if mapping.timing.column is not None:
+        unit = mapping.timing.unit or _header_unit(path, header_line, mapping.timing.column)
+        wanted.append(("", mapping.timing.column, UNITS[unit][1]))
+    index = {}
+    for channel, column, _ in wanted:
+        if column not in header:
+            raise CsvError(path, header_line, column, f"missing (the header has: {', '.join(header)})")
+        index[channel] = header.index(column)
+    data = rows[1:]
+    if not data:
+        raise CsvError(path, header_line + 1, None, "no data rows after the header")
+    values = {channel: np.empty(len(data)) for channel in index}
+    for n, row in enumerate(data):
+        line = header_line + 1 + n
+        if len(row) != len(header):
+            raise CsvError(path, line, None, f"{len(row)} fields where the header has {len(header)}")
+        for channel, i in index.items():
+            values[channel][n] = _number(path, line, header[i], row[i], d)
+    for channel, _, factor in wanted:
+        values[channel] *= factor
+    rate = mapping.timing.sample_rate_hz or _rate_from_time(path, header_line, mapping.timing.column, values)
+    values.pop("", None)
+    return CsvTable(path, values, rate)
+
+
+def _number(path: Path, line: int, column: str, text: str, d: Dialect) -> float:
+    field = text.strip()
+    if d.decimal == ",":
+        if "." in field:
+            raise CsvError(path, line, column, f"{text!r}: a '.' where the decimal mark is ','")
+        field = field.replace(",", ".")
+    try:
+        value = float(field)
+    except ValueError:
+        raise CsvError(path, line, column, f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise CsvError(path, line, column, f"{text!r} is not a finite number")
+    return value
+
+
+def _header_unit(path: Path, line: int, column: str) -> str:
+    """The unit in brackets at the end of a column header (``Fz [kN]``), which must be known."""
+    found = _HEADER_UNIT.search(column)
+    if found is None:
+        raise CsvError(path, line, column, "no unit in the mapping and none in brackets in the header")
+    unit = found.group(1).strip()
+    if unit not in UNITS:
+        raise CsvError(path, line, column, f"unknown unit {unit!r} (known: {', '.join(UNITS)})")
+    return unit
+
+
+def _factor(path: Path, line: int, c: ChannelColumn) -> float:
+    """The factor from the column's numbers to the channel's SI unit, times the mapping's scale."""
+    unit = c.unit or _header_unit(path, line, c.column)
+    si_unit, factor = UNITS[unit]
+    if si_unit != c.si_unit:
+        raise CsvError(path, line, c.column, f"unit {unit} is not a unit of {c.si_unit} ({c.channel})")
+    return factor * c.scale
+
+
+def _rate_from_time(path: Path, header_line: int, column: str | None, values: dict[str, np.ndarray]) -> float:
+    """The sample rate of a time column (s), which must step evenly forward."""
+    t = values[""]
+    if len(t) < 2:
+        raise CsvError(path, header_line + 1, column, "a time column needs at least two rows")
+    step = (t[-1] - t[0]) / (len(t) - 1)
+    off = np.flatnonzero(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * abs(step))
+    if step <= 0 or len(off):
+        n = int(off[0]) + 1 if len(off) else 1
+        raise CsvError(
+            path,
+            header_line + 1 + n,
+            column,
+            f"time steps unevenly (mean step {step:g} s): not one sample rate",
+        )
+    return 1.0 / step
+
+
+@dataclass(frozen=True)
+class ImportedRun:
+    """A run's CSV files read, one table per point."""
+
+    mapping: RunMapping
+    tables: tuple[CsvTable, ...]
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return self.tables[0].sample_rate_hz
+
+
+def read_run(run: RunMapping, mapping: ImportMapping) -> ImportedRun:
+    """Every file of ``run``, read and checked: one sample rate, holds inside their files."""
+    tables = tuple(read_csv(f.file, mapping) for f in run.files)
+    rate = tables[0].sample_rate_hz
+    for f, table in zip(run.files, tables, strict=True):
+        if not math.isclose(table.sample_rate_hz, rate, rel_tol=1e-6):
+            raise CsvError(
+                f.file,
+                None,
+                None,
+                f"sample rate {table.sample_rate_hz:g} Hz differs from the run's {rate:g} Hz",
+            )
+        if isinstance(f, DwellFile):
+            duration_s = len(table) / rate
+            if f.hold_end_s is not None and f.hold_end_s > duration_s:
+                raise CsvError(
+                    f.file, None, None, f"hold_end_s {f.hold_end_s:g} s is beyond its {duration_s:g} s"
+                )
+    return ImportedRun(run, tables)
+
+
+def import_campaign(
+    mapping: ImportMapping, out_path: Path, *, config_toml: str, software_version: str
+) -> None:
+    """Read every CSV file of ``mapping``, then write the campaign file ``out_path`` (never over an
+    existing file). ``config_toml``: the bench configuration recorded with the campaign."""
+    out_path = Path(out_path)
+    if out_path.exists():
+        raise FileExistsError(f"{out_path} exists already: import into a new file")
+    runs = [read_run(run, mapping) for run in mapping.runs]
+    tmp = out_path.with_name(f".{out_path.name}.importing-{os.getpid()}")
+    with _removed_on_failure(tmp):
+        with CampaignWriter.create(
+            tmp,
+            software_version=software_version,
+            config_toml=config_toml,
+            sequence_toml=mapping.text,
+            sequence_name=mapping.name,
+            config_name=f"CSV import {mapping.path.name}",
+        ) as campaign:
+            campaign.add_event(
+                "import", f"imported from CSV with {mapping.path.name}", mapping=str(mapping.path)
+            )
+            for run in runs:
+                _write_run(campaign, run, mapping)
+        if out_path.exists():
+            raise FileExistsError(f"{out_path} appeared during the import: not replaced")
+        os.replace(tmp, out_path)
+
+
+@contextlib.contextmanager
+def _removed_on_failure(path: Path) -> Iterator[None]:
+    try:
+        yield
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+
+
+def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMapping) -> None:
+    m = run.mapping
+    rate = run.sample_rate_hz
+    conditions: dict[str, object] = {"bench": mapping.bench, "wheel_fitted": m.kind != "free_run"}
+    if m.tyre_pressure_bar is not None:
+        conditions["tyre_pressure_bar"] = m.tyre_pressure_bar
+    channels = [
+        ChannelSpec(c.channel, c.si_unit, description=f"CSV column {c.column!r} x {c.scale:g}")
+        for c in mapping.channels
+    ]
+    writer = campaign.begin_run(
+        m.run_id, kind=m.kind, step=_step(m), conditions=conditions, channels=channels, sample_rate_hz=rate
+    )
+    start = 0
+    for index, (f, table) in enumerate(zip(m.files, run.tables, strict=True)):
+        writer.append({name: values.astype(np.float32) for name, values in table.columns.items()})
+        writer.add_event("import", f"point {index} from {f.file.name}", file=str(f.file), rows=len(table))
+        writer.add_point(_point(index, f, start, len(table), rate))
+        start += len(table)
+    writer.finish("complete")
+
+
+def _point(index: int, f: DwellFile | SweepFile, start: int, n: int, rate_hz: float) -> PointRow:
+    if isinstance(f, SweepFile):
+        return PointRow(0, f.start_hz, f.amplitude_mm, start, start, start + n, start + n)
+    hold_start = start + round(f.hold_start_s * rate_hz)
+    hold_end = start + (n if f.hold_end_s is None else round(f.hold_end_s * rate_hz))
+    return PointRow(
+        index,
+        f.freq_hz,
+        f.amplitude_mm,
+        start,
+        hold_start,
+        hold_end,
+        start + n,
+        requested_amplitude_mm=f.requested_amplitude_mm,
+    )
+
+
+def _step(m: RunMapping) -> dict[str, object]:
+    """The run's step as the schema records it (docs/hdf5.md): what the CSV files were."""
+    if m.kind == "sweep":
+        (f,) = m.files
+        return {
+            "kind": "sweep",
+            "start_hz": f.start_hz,
+            "end_hz": f.end_hz,
+            "duration_s": f.duration_s,
+            "amplitude_mm": f.amplitude_mm,
+            "law": f.law,
+            "source": "csv import",
+        }
+    return {
+        "kind": m.kind,
+        "freqs_hz": [f.freq_hz for f in m.files],
+        "amplitudes_mm": sorted({f.amplitude_mm for f in m.files}),
+        "files": [f.file.name for f in m.files],
+        "source": "csv import",
+    }

@@ -1,0 +1,383 @@
+"""``wfsbench run`` for the lab: the answers file (checked whole before anything moves, applied to
+the simulated world), Ctrl-C (a tapered abort, a second one an e-stop; the file kept and marked),
+and the progress display (plain lines in a pipe, a redrawn line on a terminal)."""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import pty
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.app.answers import FileAnswers, load_answers
+from bench.app.progress import Progress
+from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
+from bench.config import load_bench_config
+from bench.engine import events as ev
+from bench.store import open_campaign
+from sequences import load_sequence
+from simulators.bench_sim import SimulatedBench
+from simulators.world import SimulatedOperator, SimulatedWorld
+from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+
+ROOT = Path(__file__).resolve().parents[1]
+H5DUMP = shutil.which("h5dump")
+SMOKE_ANSWERS = "remove_wheel = true\nfit_wheel = true\npressure = 2.4\n"
+
+
+def smoke_sequence():
+    return load_sequence(SMOKE, load_bench_config(None).limits)
+
+
+# -- the answers file -------------------------------------------------------------------------------
+
+
+def test_an_answers_file_gives_every_prompt_its_checked_answer(tmp_path):
+    path = tmp_path / "answers.toml"
+    path.write_text('fit_wheel = "yes"\nremove_wheel = true\npressure = 3\n')
+    assert load_answers(path, smoke_sequence()) == {"remove_wheel": True, "fit_wheel": True, "pressure": 3.0}
+
+
+BAD_ANSWERS = {
+    "missing answer": (
+        "remove_wheel = true\nfit_wheel = true\n",
+        "answers.toml: pressure: no answer for the prompt 'Set the tyre pressure to 2.5 bar and enter the"
+        " pressure read on the gauge'; allowed: [0.5..4.5 bar]",
+    ),
+    "out of range": (
+        "remove_wheel = true\nfit_wheel = true\npressure = 6.5\n",
+        "answers.toml: pressure: 6.5 is not a number within 0.5..4.5 bar; allowed: [0.5..4.5 bar]",
+    ),
+    "text for a number": (
+        'remove_wheel = true\nfit_wheel = true\npressure = "high"\n',
+        "answers.toml: pressure: 'high' is not a number within 0.5..4.5 bar; allowed: [0.5..4.5 bar]",
+    ),
+    "not a confirmation": (
+        'remove_wheel = "maybe"\nfit_wheel = true\npressure = 2.5\n',
+        "answers.toml: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+    ),
+    "unknown prompt id": (
+        SMOKE_ANSWERS + "presure = 2.5\n",
+        "answers.toml: presure: no prompt of sequence 'smoke' has this id"
+        " (its prompts: remove_wheel, fit_wheel, pressure)",
+    ),
+    "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: not valid TOML: "),
+}
+
+
+@pytest.mark.parametrize("case", BAD_ANSWERS.values(), ids=BAD_ANSWERS.keys())
+def test_a_bad_answers_file_is_refused_before_anything_moves(tmp_path, lab_devices, capsys, case):  # noqa: F811
+    """Against a served controller: exit code 3, the file, the prompt id and the allowed range named,
+    no write reached the controller and no campaign file was created."""
+    text, named = case
+    server, pty = lab_devices
+    answers, config, out = tmp_path / "answers.toml", tmp_path / "bench.toml", tmp_path / "c.h5"
+    answers.write_text(text)
+    config.write_text(_bench_toml(server, pty))
+    code = main(["run", str(SMOKE), "--out", str(out), "--bench", str(config), "--answers", str(answers)])
+    assert code == EXIT_INVALID
+    assert f"error: {tmp_path}/{named}" in capsys.readouterr().err
+    assert server.writes_received == 0
+    assert not out.exists()
+
+
+def test_a_missing_answers_file_is_refused_by_the_command(tmp_path):
+    run = wfsbench("run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(tmp_path / "no.toml"))
+    assert run.returncode == EXIT_INVALID
+    assert f"error: {tmp_path}/no.toml: cannot read the answers file" in run.stderr
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_file_answers_are_applied_to_the_simulated_world():
+    world = SimulatedWorld(SimulatedBench.paper_shaker(seed=1), kind="shaker", pressure_bar=2.5)
+    operator = FileAnswers({"remove_wheel": True, "pressure": 1.8}, SimulatedOperator(world))
+    prompts = {step.id: step for step in smoke_sequence().steps if getattr(step, "kind", "") == "prompt"}
+    assert operator.answer(prompts["pressure"]) == 1.8
+    assert world.pressure_bar == 1.8
+    assert operator.answer(prompts["remove_wheel"]) is True
+    assert not world.specimen_mounted
+
+
+def test_an_unattended_run_records_the_file_answers(tmp_path):
+    """The smoke sequence with its prompts answered from the file, through the command: the
+    pressure answered (2.4 bar, not the prompt's 2.5 target) is the grid's recorded condition."""
+    answers, out = tmp_path / "answers.toml", tmp_path / "smoke.h5"
+    answers.write_text(SMOKE_ANSWERS)
+    run = wfsbench("run", str(SMOKE), "--out", str(out), "--answers", str(answers))
+    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert "enter the pressure read on the gauge -> 2.4 bar" in run.stdout
+    with open_campaign(out) as campaign:
+        grid = campaign.run("smoke-s009-dwell_grid")
+        assert grid.conditions["tyre_pressure_bar"] == 2.4
+        assert grid.results("shaker")["tyre_pressure_bar"] == 2.4
+        answered = {e.fields["prompt_id"]: e.fields["answer"] for e in campaign.events if e.kind == "prompt"}
+    assert answered == {"remove_wheel": True, "fit_wheel": True, "pressure": 2.4}
+
+
+# -- Ctrl-C -----------------------------------------------------------------------------------------
+
+LONG_DWELL = """\
+[sequence]
+name = "long_dwell"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "hydraulics"
+level = "high"
+
+[[steps]]
+type = "sine_dwell"
+freq_hz = {freq_hz}
+amplitude_mm = {amplitude_mm}
+measure_min_s = 60
+taper_out_s = {taper_out_s}
+"""
+RUN_ID = "long_dwell-s002-sine_dwell"
+
+
+def _interrupted_run(tmp_path: Path, taper_out_s: float, signals: int) -> tuple[int, str, Path]:
+    """``wfsbench run --realtime`` of a 60 s dwell, sent ``signals`` SIGINTs once the progress shows
+    the dwell at full amplitude (the next one once the command has told the previous was taken):
+    its exit code, standard error and campaign file."""
+    sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
+    sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=taper_out_s))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(out), "--realtime"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        seen = []
+        for line in proc.stdout:
+            seen.append(line)
+            if line.startswith("progress:") and "at amplitude" in line:
+                break
+        assert "at amplitude" in seen[-1], seen
+        told = []
+        for _ in range(signals):
+            proc.send_signal(signal.SIGINT)
+            told.append(proc.stderr.readline())  # the handler's word: the interrupt was taken
+            assert told[-1].startswith("interrupted"), told
+        proc.stdout.read()
+        code = proc.wait(timeout=60)
+        return code, "".join(told) + proc.stderr.read(), out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _h5dump_status(path: Path) -> str:
+    dump = subprocess.run(
+        [H5DUMP, "-a", f"/runs/{RUN_ID}/status", str(path)], capture_output=True, text=True, check=True
+    )
+    return dump.stdout
+
+
+def _cycle_peaks_mm(z_m: np.ndarray, samples_per_cycle: int) -> np.ndarray:
+    n = len(z_m) // samples_per_cycle
+    return np.abs(z_m[: n * samples_per_cycle].reshape(n, samples_per_cycle)).max(axis=1) * 1e3
+
+
+@pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
+def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tmp_path):
+    code, stderr, out = _interrupted_run(tmp_path, taper_out_s=0.5, signals=1)
+    assert code == EXIT_STOPPED, stderr
+    assert '"aborted"' in _h5dump_status(out)
+    with open_campaign(out) as campaign:
+        run = campaign.run(RUN_ID)
+        assert run.status == "aborted"
+        z_m = np.asarray(run.channels["z_base_m"], dtype=float)
+        fs = run.sample_rate_hz
+    # no jump: a 2 mm sine at 10 Hz moves at most 2 pi f A / fs per sample; a cut to rest would
+    # move up to 2 mm in one
+    assert np.abs(np.diff(z_m)).max() <= 1.15 * 2 * math.pi * 10 * 2e-3 / fs
+    # the decay: after the last full-amplitude cycle the peaks fall cycle by cycle through the taper
+    # (0.5 s: five cycles at 10 Hz; a cut would leave none between 90 % and 10 %) to rest
+    peaks = _cycle_peaks_mm(z_m, round(fs / 10))
+    last_full = int(np.flatnonzero(peaks >= 0.9 * 2)[-1])
+    decay = peaks[last_full:]
+    assert np.all(np.diff(decay[decay > 0.2]) < 0), peaks  # down to the noise of a bench at rest
+    assert np.count_nonzero((decay > 0.2) & (decay < 1.8)) >= 3, peaks
+    assert decay[-1] < 0.3, peaks
+
+
+@pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
+def test_a_second_ctrl_c_during_the_taper_e_stops(tmp_path):
+    """A 5 s taper out: the second SIGINT, sent once the first was taken, lands inside it."""
+    code, stderr, out = _interrupted_run(tmp_path, taper_out_s=5.0, signals=2)
+    assert code == EXIT_STOPPED, stderr
+    assert "interrupted again: e-stop" in stderr
+    assert '"e-stopped"' in _h5dump_status(out)
+
+
+# -- progress ---------------------------------------------------------------------------------------
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now_s = 100.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+def _feed(progress: Progress, clock: FakeClock) -> None:
+    """A 4-point sequence estimated at 10 s; point 1 started after 2.5 s recorded in 1 s wall time."""
+    progress(ev.SequenceStarted("seq", "", "", 4, 10.0))
+    progress(ev.RunStarted("seq-s002-dwell_grid", "dwell_grid", {}, {"tyre_pressure_bar": 2.5}, (), 100.0))
+    progress(ev.PointStarted("seq-s002-dwell_grid", 0, 1, 10.0, 2.0, {"tyre_pressure_bar": 2.5}))
+    clock.now_s += 1.0
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
+    done = ev.PointDone("seq-s002-dwell_grid", 0, 1, "done", 10.0, 2.0, 2.0, 2.0, 2.0, 0, 10, 200, 250)
+    progress(done)
+    progress.line("  point 0 at 10 Hz: done")
+    progress(ev.PointStarted("seq-s002-dwell_grid", 1, 1, 30.0, 1.5, {"tyre_pressure_bar": 2.5}))
+
+
+def test_progress_in_a_pipe_is_plain_lines_with_the_eta_scaled_by_the_observed_rate():
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=False, clock=clock)
+    _feed(progress, clock)
+    lines = out.getvalue().splitlines()
+    assert lines == [
+        "progress: 0/4 points | elapsed 0:00, ETA --:-- | seq-s002-dwell_grid point 0: 10 Hz, 2 mm,"
+        " 2.5 bar, tapering in",
+        "  point 0 at 10 Hz: done",
+        # 7.5 s of the estimate left at 1 wall second per 2.5 recorded seconds: 3 s
+        "progress: 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1: 30 Hz, 1.5 mm,"
+        " 2.5 bar, tapering in",
+    ]
+    assert math.isclose(progress.eta_s, 3.0)
+
+
+def test_progress_on_a_terminal_redraws_one_line_and_writes_log_lines_above_it():
+    clock, out = FakeClock(), io.StringIO()
+    _feed(Progress(out, live=True, clock=clock), clock)
+    text = out.getvalue()
+    assert "\n" not in text.split("  point 0 at 10 Hz: done\n")[1]  # after the log line: the bar only
+    log_at = text.index("  point 0 at 10 Hz: done")
+    assert text[log_at - 4 : log_at] == "\r\x1b[K"  # the bar was cleared before the log line
+    assert text.endswith("\x1b[K")
+    assert "\r[##........] 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1" in text
+
+
+def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
+    answers = tmp_path / "answers.toml"
+    answers.write_text(SMOKE_ANSWERS)
+    run = wfsbench("run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(answers))
+    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert "\x1b" not in run.stdout and "\r" not in run.stdout
+    progress = [line for line in run.stdout.splitlines() if line.startswith("progress: ")]
+    assert progress[0].startswith(
+        "progress: 0/8 points | elapsed 0:00, ETA --:-- | smoke-s003-free_run point 0"
+    )
+    sweep = "smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
+    assert any(line.startswith("progress: 7/8 points | ") and line.endswith(sweep) for line in progress)
+
+
+def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
+    """Standard output a pseudo-terminal: the status line is redrawn in place (carriage return,
+    erase to the end of the line), and the run log's lines still end with a newline."""
+    answers = tmp_path / "answers.toml"
+    answers.write_text(SMOKE_ANSWERS)
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [*command, "run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(answers)],
+        stdout=slave,
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+    )
+    os.close(slave)
+    chunks = []
+    try:
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the command closed the terminal's last writer
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        assert proc.wait(timeout=120) == EXIT_COMPLETE, proc.stderr.read()
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    text = b"".join(chunks).decode()
+    assert "\r[..........] 0/8 points | elapsed " in text
+    assert "\x1b[K\r[#########.] 7/8 points | elapsed " in text  # the sweep under way: 7 done
+    assert "\r\x1b[K  point 0 at 10 Hz: done" in text
+    assert "progress:" not in text
+    assert text.endswith(f"\r\x1b[Ksmoke: complete; file {tmp_path / 'c.h5'}\r\n")  # the bar cleared
+
+
+PROMPT_FIRST = """\
+[sequence]
+name = "asks"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "prompt"
+id = "ready"
+text = "Is the bench clear"
+answer = "confirm"
+
+[[steps]]
+type = "hydraulics"
+level = "off"
+"""
+
+
+def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_path, lab_devices):  # noqa: F811
+    """Real devices (served on 127.0.0.1 and a pty) and no answers file: the prompt is read from
+    standard input, which stays open; Ctrl-C there is no answer, and the sequence ends aborted."""
+    server, pty_path = lab_devices
+    sequence, config = tmp_path / "asks.toml", tmp_path / "bench.toml"
+    sequence.write_text(PROMPT_FIRST)
+    config.write_text(_bench_toml(server, pty_path))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+    )
+    try:
+        shown = b""
+        while b"Is the bench clear [yes / no]: " not in shown:  # input() writes its question unended
+            chunk = proc.stdout.read1(4096)
+            assert chunk, f"the command ended before asking: {shown!r} {proc.stderr.read()!r}"
+            shown += chunk
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == EXIT_STOPPED, err
+    assert b"interrupted: stopping with a taper" in err
+    assert b"sequence aborted: no valid answer to prompt 'ready'" in shown + out
