@@ -28,6 +28,7 @@ from bench.app.post_run import CampaignKnowledge
 from bench.config import default_bench_config
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre, WfsSensor
+from bench.report.text import summary_lines
 from bench.store import open_campaign
 from sequences import load_sequence, shipped_file
 
@@ -86,7 +87,7 @@ def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:
         "",
     ]
     if k.hammer is not None:
-        lines += [*k.hammer.summary_lines(), ""]
+        lines += [*summary_lines(k.hammer), ""]
     lines += [
         "shaker bench, Model 2 per amplitude (k at its reference frequency, 10 Hz; max over the dwells):",
         f"{'pressure':>8} {'amplitude':>9} {'k kN/m':>8} {'m_T kg':>7} {'d Ns/m':>7}"
@@ -106,7 +107,7 @@ def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:
     )
     lines.append(f"(simulator's nominal tyres: {truth}; m_T 6 kg; viscous d 80 Ns/m plus rubber friction)")
     if 2.5 in k.shaker:
-        lines += ["", "2.5 bar in full:", *k.shaker[2.5].summary_lines()]
+        lines += ["", "2.5 bar in full:", *summary_lines(k.shaker[2.5])]
     if k.four_post is not None:
-        lines += ["", *k.four_post.summary_lines()]
+        lines += ["", *summary_lines(k.four_post)]
     return lines

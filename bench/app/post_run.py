@@ -38,6 +38,7 @@ from bench.analysis.runs import (
 from bench.analysis.validation import AnalysisInputError
 from bench.engine import events as ev
 from bench.models.parameters import WfsSensor
+from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView, open_campaign
 
 log = logging.getLogger(__name__)
@@ -73,28 +74,17 @@ class PostRunAnalysis:
         without publishing, so that what they established holds for the runs to come."""
         self.campaign_path = campaign_path
         self.publish = publish
-        self.knowledge = knowledge
+        self.analyser = RunAnalyser(knowledge)
         self._pending_grid: tuple[str, object] | None = None  # (run id, tyre pressure) not analysed yet
         self._started: tuple[str, str, object] = ("", "", None)  # the run being recorded: id, kind, pressure
         with open_campaign(campaign_path) as campaign:
-            complete = [run for run in campaign.runs if run.status == "complete"]
-            for i, run in enumerate(complete):
-                if run.kind == "dwell_grid" and not self._grids_end(run, complete[i + 1 : i + 2]):
-                    continue  # the pressure's grids are analysed together, after the last of them
-                try:
-                    self._analyse(run, campaign)
-                except (AnalysisInputError, ValueError) as exc:
-                    log.warning("earlier run %s not analysed: %s", run.run_id, exc)
+            for outcome in replay_campaign(campaign, self.analyser):
+                if outcome.error:
+                    log.warning("earlier run %s not analysed: %s", outcome.run_id, outcome.error)
 
-    @staticmethod
-    def _grids_end(run, following) -> bool:
-        """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
-        pressure = run.conditions.get("tyre_pressure_bar")
-        return (
-            not following
-            or following[0].kind != "dwell_grid"
-            or (following[0].conditions.get("tyre_pressure_bar") != pressure)
-        )
+    @property
+    def knowledge(self) -> CampaignKnowledge:
+        return self.analyser.knowledge
 
     def __call__(self, event: ev.Event) -> None:
         """Dwell grids wait until the next run shows that their pressure's grids are done (another
@@ -123,15 +113,58 @@ class PostRunAnalysis:
     def _report(self, run_id: str) -> None:
         """Analyse run ``run_id`` from the file and publish the result (a failure as a flag)."""
         with open_campaign(self.campaign_path) as campaign:
-            run = campaign.run(run_id)
-            try:
-                name, lines, results = self._analyse(run, campaign)
-            except (AnalysisInputError, ValueError) as exc:
-                log.warning("analysis of %s failed: %s", run_id, exc)
-                name, lines, results = "analysis", (f"FLAG analysis failed: {exc}",), {"error": str(exc)}
-        self.publish(ev.AnalysisDone(run_id, name, tuple(lines), {"summary": "\n".join(lines), **results}))
+            outcome = self.analyser.analyse(campaign.run(run_id), campaign)
+        if outcome.error:
+            log.warning("analysis of %s failed: %s", run_id, outcome.error)
+        self.publish(
+            ev.AnalysisDone(
+                run_id, outcome.name, outcome.lines, {"summary": "\n".join(outcome.lines), **outcome.results}
+            )
+        )
 
-    def _analyse(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
+
+@dataclass(frozen=True)
+class RunAnalysis:
+    """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
+    ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
+    scalar ``results`` stored beside the run, the ``result`` object (None for a recorded-only
+    sweep or a failure) and ``error`` (empty when the analysis succeeded)."""
+
+    run_id: str
+    kind: str
+    name: str
+    lines: tuple[str, ...]
+    results: dict[str, Any]
+    result: object | None = None
+    error: str = ""
+
+
+class RunAnalyser:
+    """Analyses runs one after another, each with what the runs before it established
+    (``knowledge``: the sensor from the hammer test, the free runs' records, the shaker
+    identification per tyre pressure)."""
+
+    def __init__(self, knowledge: CampaignKnowledge) -> None:
+        self.knowledge = knowledge
+
+    def analyse(self, run: RunView, campaign: CampaignFile) -> RunAnalysis:
+        """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis."""
+        try:
+            name, lines, results, result = self._analyse(run, campaign)
+        except (AnalysisInputError, ValueError) as exc:
+            return RunAnalysis(
+                run.run_id,
+                run.kind,
+                "analysis",
+                (f"FLAG analysis failed: {exc}",),
+                {"error": str(exc)},
+                error=str(exc),
+            )
+        return RunAnalysis(run.run_id, run.kind, name, tuple(lines), results, result)
+
+    def _analyse(
+        self, run: RunView, campaign: CampaignFile
+    ) -> tuple[str, list[str], dict[str, Any], object | None]:
         k = self.knowledge
         if run.kind == "hammer":
             result = analyse_hammer(run.hammer_record(), sensor_mass_kg=k.sensor.mass_kg)
@@ -143,11 +176,12 @@ class PostRunAnalysis:
             )
             return (
                 "hammer",
-                result.summary_lines(),
+                summary_lines(result),
                 {
                     "eigenfrequency_hz": result.eigenfrequency_hz,
                     "damping_ratio": result.damping_ratio_log_decrement,
                 },
+                result,
             )
         if run.kind == "free_run":
             records = run.dwell_records()
@@ -158,11 +192,12 @@ class PostRunAnalysis:
                 k.shaker_free_run = records
             return (
                 "plate_mass",
-                result.summary_lines(),
+                summary_lines(result),
                 {
                     "m_comp_kg": result.plate.mass_kg,
                     "m_comp_sigma_kg": result.plate.sigma_kg,
                 },
+                result,
             )
         if run.kind == "dwell_grid":
             return self._shaker(run, campaign)
@@ -170,7 +205,9 @@ class PostRunAnalysis:
             return self._four_post(run)
         raise ValueError(f"no analysis for a {run.kind} run")
 
-    def _shaker(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
+    def _shaker(
+        self, run: RunView, campaign: CampaignFile
+    ) -> tuple[str, list[str], dict[str, Any], object | None]:
         k = self.knowledge
         if not k.shaker_free_run:
             raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
@@ -189,16 +226,16 @@ class PostRunAnalysis:
             records, k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.shaker[float(pressure)] = result
-        return "shaker", result.summary_lines(), {"tyre_pressure_bar": float(pressure)}
+        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}, result
 
-    def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any]]:
+    def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any], object | None]:
         k = self.knowledge
         if run.conditions.get("bench") != "four_post":
             note = (
                 "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
                 " from its dwell grids; the sweep analysis is the four-post bench's)"
             )
-            return "sweep", [note], {}
+            return "sweep", [note], {}, None
         if not k.post_free_run:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
@@ -218,14 +255,38 @@ class PostRunAnalysis:
             run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.four_post = result
+        lines = summary_lines(result)
         return (
             "four_post",
-            [*result.summary_lines()[:1], *notes, *result.summary_lines()[1:]],
+            [lines[0], *notes, *lines[1:]],
             {
                 "m_wheel_kg": result.wheel_mass.mass_kg,
                 **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
+            result,
         )
+
+
+def _grids_end(run: RunView, following: list[RunView]) -> bool:
+    """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
+    pressure = run.conditions.get("tyre_pressure_bar")
+    return (
+        not following
+        or following[0].kind != "dwell_grid"
+        or (following[0].conditions.get("tyre_pressure_bar") != pressure)
+    )
+
+
+def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
+    """Analyse the complete runs of ``campaign`` in the order they began, as they would have been
+    analysed while the campaign ran: each dwell grid together with the grids of its tyre pressure
+    that follow it directly, after the last of them. Runs that did not complete are not analysed."""
+    complete = [run for run in campaign.runs if run.status == "complete"]
+    return [
+        analyser.analyse(run, campaign)
+        for i, run in enumerate(complete)
+        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
+    ]
 
 
 def shaker_result_at(
