@@ -35,3 +35,12 @@ def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     )
     raw, accel, model = (float(x) for x in bands.groups())
     assert raw <= 6.0 and accel >= 12.0 and model >= 25.0
+    # the report of the whole file, beside it: every figure as a PNG, embedded in the page
+    page = tmp_path / "report" / "report.html"
+    assert out.rstrip().splitlines()[-1] == f"report (9 figures): {page}"
+    html = page.read_text()
+    shaker = [f"shaker{kind}_{p}bar" for kind in ("", "_compensated") for p in ("1p5", "2p5", "3p5")]
+    for name in ["hammer", *shaker, "four_post_ratios", "four_post_hub"]:
+        assert (tmp_path / "report" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert f'<figure id="{name}"><img' in html, name
+    assert "http" not in html and 'src="data:image/png;base64,' in html

@@ -24,6 +24,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter, ScalarFormatter
 
 from bench.analysis.frf import Frf, ValidBand
 from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
@@ -54,10 +55,20 @@ class FigureFile:
 
 def _new_figure(rows: int, *, sharex: bool = True) -> tuple[Figure, list[Axes]]:
     """A 9 x 6.5 in figure on an Agg canvas with ``rows`` axes above each other."""
-    fig = Figure(figsize=(9, 6.5), dpi=DPI, layout="constrained")
+    fig = Figure(figsize=(9, 6.5), dpi=DPI)  # fixed margins: a layout engine doubles the drawing time
     FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.95, bottom=0.08, hspace=0.12 if sharex else 0.3)
     axes = fig.subplots(rows, 1, sharex=sharex, squeeze=False)[:, 0]
     return fig, list(axes)
+
+
+def _frequency_axes(*axes: Axes) -> None:
+    """Log frequency axes with plain numbers (0.5, 1, 10 Hz) and a light grid."""
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.grid(True, which="both", alpha=0.3)
 
 
 def _pressure_tag(pressure_bar: float) -> str:
@@ -86,10 +97,12 @@ def hammer_figure(analysis: CampaignAnalysis) -> Figure:
     )
     decay.set(xlabel="time (ms)", ylabel="force (N)", title="Hammer blow on the bare sensor")
     decay.legend(loc="upper right")
-    start = int(result.decay_start_s * fs)
-    tail = force[start:] - np.mean(force[start:])
-    n_fft = 1 << int(np.ceil(np.log2(max(8 * tail.size, 4096))))
-    amplitude = np.abs(np.fft.rfft(tail * np.hanning(tail.size), n_fft))
+    start, stop = int(result.decay_start_s * fs), int(result.decay_stop_s * fs) + 1
+    span_ms = 1e3 * (result.decay_stop_s - result.decay_start_s)
+    decay.set_xlim(1e3 * result.decay_start_s - 0.5 * span_ms, 1e3 * result.decay_stop_s + span_ms)
+    tail = force[start:stop] - np.mean(force[stop:]) if stop < force.size else force[start:stop]
+    n_fft = 1 << int(np.ceil(np.log2(max(16 * tail.size, 4096))))
+    amplitude = np.abs(np.fft.rfft(tail, n_fft))  # the decay windows itself: no taper
     freq = np.fft.rfftfreq(n_fft, 1 / fs)
     spectrum.semilogy(freq, amplitude / amplitude.max(), lw=0.8, color="tab:blue")
     spectrum.axvline(
@@ -176,15 +189,13 @@ def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
             )
             phase.plot(grid, np.degrees(np.angle(h)), ls=_MODEL_STYLES[int(model)], color=colour, lw=1.1)
     mag.set(
-        xscale="log",
         ylabel="|F_WFS / F_contact|",
         title=f"Shaker, tyre at {pressure_bar:g} bar: measured (95 % bars) and Models 1 (dotted),"
         " 2 (solid), 3 (dashed)",
     )
-    phase.set(xscale="log", xlabel="frequency (Hz)", ylabel="phase (deg)")
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=7, ncol=3, loc="upper left")
-    for ax in (mag, phase):
-        ax.grid(True, which="both", alpha=0.3)
+    _frequency_axes(mag, phase)
     return fig
 
 
@@ -208,15 +219,14 @@ def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult)
     first = next(iter(result.amplitudes.values()))
     _tolerance(mag, phase, first.valid_band_raw)
     mag.set(
-        xscale="log",
+        yscale="log",
         ylabel="|F / F_contact|",
-        title=f"Shaker, tyre at {pressure_bar:g} bar: raw (circles) and model-compensated (squares);"
-        " dashed: tolerance of the valid band",
+        title=f"Shaker at {pressure_bar:g} bar: raw (circles), model-compensated (squares),"
+        " tolerance (dashed)",
     )
-    phase.set(xscale="log", xlabel="frequency (Hz)", ylabel="phase (deg)")
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=7, ncol=3, loc="upper left")
-    for ax in (mag, phase):
-        ax.grid(True, which="both", alpha=0.3)
+    _frequency_axes(mag, phase)
     return fig
 
 
@@ -259,44 +269,46 @@ def four_post_ratios_figure(result: FourPostResult) -> Figure:
             )
     _tolerance(mag, phase, result.valid_band_raw)
     mag.set(
-        xscale="log",
         ylabel="|F / F_contact|",
         title="Four-post: measured over true contact force; shaded: valid bands; dashed: tolerance",
     )
-    phase.set(xscale="log", xlabel="frequency (Hz)", ylabel="phase (deg)")
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=8, loc="upper left")
-    for ax in (mag, phase):
-        ax.grid(True, which="both", alpha=0.3)
+    _frequency_axes(mag, phase)
     return fig
 
 
 def four_post_hub_figure(result: FourPostResult) -> Figure:
-    """|(F_WFS - F_contact)/Z| against m_wheel |a_hub/Z| over frequency (reliable bins)."""
-    frfs = result.frfs
+    """F_contact - F_WFS against m_wheel a_hub, both over Z (reliable bins): the hub-acceleration
+    compensation ``F_contact = F_WFS + m_wheel a_hub`` holds where they agree. The hub acceleration
+    is advanced by the accelerometer's lag, as the compensation advances it."""
+    frfs, m = result.frfs, result.wheel_mass
     keep = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     f = frfs.wfs_per_z.freq_hz[keep]
-    difference = (frfs.wfs_per_z.value - frfs.contact_per_z.value)[keep]
-    inertial = result.wheel_mass.mass_kg * frfs.accel_per_z.value[keep]
+    difference = (frfs.contact_per_z.value - frfs.wfs_per_z.value)[keep]
+    advance = np.exp(2j * np.pi * f * m.accelerometer_delay_s)
+    inertial = m.mass_kg * frfs.accel_per_z.value[keep] * advance
     fig, (mag, phase) = _new_figure(2)
-    mag.loglog(f, np.abs(difference), color="tab:red", lw=1.1, label="|F_WFS - F_contact| / |Z|")
-    mag.loglog(
+    mag.plot(f, np.abs(difference), color="tab:red", lw=1.1, label="F_contact - F_WFS")
+    mag.plot(
         f,
         np.abs(inertial),
         color="tab:blue",
         lw=1.1,
         ls="--",
-        label=f"m_wheel |a_hub| / |Z| (m_wheel {result.wheel_mass.mass_kg:.2f} kg from the run)",
+        label=f"m_wheel a_hub (m_wheel {m.mass_kg:.2f} kg from the run;"
+        f" a_hub advanced by its {1e3 * m.accelerometer_delay_s:.3f} ms lag)",
     )
-    phase.semilogx(f, np.degrees(np.angle(difference)), color="tab:red", lw=1.1)
-    phase.semilogx(f, np.degrees(np.angle(inertial)), color="tab:blue", lw=1.1, ls="--")
+    phase.plot(f, np.degrees(np.angle(difference)), color="tab:red", lw=1.1)
+    phase.plot(f, np.degrees(np.angle(inertial)), color="tab:blue", lw=1.1, ls="--")
     mag.set(
-        ylabel="N/m",
+        yscale="log",
+        ylabel="magnitude over Z (N/m)",
         title="Four-post: force difference against the mass below the sensor times the hub acceleration",
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=8)
-    for ax in (mag, phase):
-        ax.grid(True, which="both", alpha=0.3)
+    _frequency_axes(mag, phase)
     return fig
 
 
