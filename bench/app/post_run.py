@@ -15,6 +15,11 @@ What is analysed after which run (the paper's procedure):
 The records are read back from the campaign file with the store's reader, exactly as any other file
 that follows the schema would be analysed. An analysis that fails is reported as a flagged result;
 it never stops the campaign.
+
+:class:`RunAnalyser` analyses one run with what the runs before it established;
+:func:`replay_campaign` takes a file's complete runs through it in order. The subscriber
+:class:`PostRunAnalysis` replays the runs a file holds already when it starts, then analyses each
+run as it completes; ``wfsbench analyze`` (:mod:`bench.app.analyze`) replays a whole file.
 """
 
 from __future__ import annotations
