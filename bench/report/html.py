@@ -102,7 +102,7 @@ def _plate_masses(analysis: CampaignAnalysis) -> str:
     rows = [
         (
             f"shaker plate ({p:g} bar campaign)",
-            _g(r.free_run.plate.mass_kg, 5),
+            _g(r.free_run.plate.mass_kg, 6),
             _g(r.free_run.plate.sigma_kg, 2),
             f"{r.free_run.plate.n_points} of {len(r.free_run.fits)}",
         )
@@ -113,7 +113,7 @@ def _plate_masses(analysis: CampaignAnalysis) -> str:
         rows.append(
             (
                 "four-post post",
-                _g(post.mass_kg, 5),
+                _g(post.mass_kg, 6),
                 _g(post.sigma_kg, 2),
                 f"{post.n_points} of {len(k.four_post.post_free_run.fits)}",
             )
