@@ -19,7 +19,7 @@ import pytest
 from bench.cli_analysis import EXIT_NOT_CAMPAIGN, EXIT_OK
 from bench.config import default_bench_config
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
-from bench.store import open_campaign
+from bench.store import StoreError, add_results, open_campaign
 from tests.test_campaign_cli import SMOKE, wfsbench
 
 H5DUMP = shutil.which("h5dump")
@@ -176,3 +176,19 @@ def test_files_that_are_no_campaign_are_refused_with_exit_3(kind, tmp_path, smok
         assert "Traceback" not in run.stderr
     assert not (tmp_path / "out" / "report.html").exists()
     assert (path.read_bytes() if path.exists() else None) == before  # nothing written into it
+
+
+def test_a_reanalysis_never_overwrites_and_writes_nothing_when_one_name_is_taken(smoke_file, tmp_path):
+    path = tmp_path / "copy.h5"
+    path.write_bytes(smoke_file.read_bytes())
+    with open_campaign(path) as campaign:
+        runs = {run.kind: run.run_id for run in campaign.runs}
+        names_before = {run.run_id: run.result_names for run in campaign.runs}
+    taken = names_before[runs["free_run"]][0]
+    with pytest.raises(StoreError, match=f"{re.escape(str(path))}.*{taken}: exists already"):
+        add_results(path, {(runs["sweep"], "new"): {"x": 1.0}, (runs["free_run"], taken): {"x": 2.0}})
+    with open_campaign(path) as campaign:
+        assert {run.run_id: run.result_names for run in campaign.runs} == names_before
+    add_results(path, {(runs["sweep"], "new"): {"x": 1.0}})
+    with open_campaign(path) as campaign:
+        assert campaign.run(runs["sweep"]).results("new") == {"x": 1.0}

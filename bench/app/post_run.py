@@ -87,10 +87,6 @@ class PostRunAnalysis:
                 if outcome.error:
                     log.warning("earlier run %s not analysed: %s", outcome.run_id, outcome.error)
 
-    @property
-    def knowledge(self) -> CampaignKnowledge:
-        return self.analyser.knowledge
-
     def __call__(self, event: ev.Event) -> None:
         """Dwell grids wait until the next run shows that their pressure's grids are done (another
         kind of run, another pressure, or the end of the sequence); every other run is analysed as
@@ -132,15 +128,14 @@ class PostRunAnalysis:
 class RunAnalysis:
     """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
     ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
-    scalar ``results`` stored beside the run, the ``result`` object (None for a recorded-only
-    sweep or a failure) and ``error`` (empty when the analysis succeeded)."""
+    scalar ``results`` stored beside the run and ``error`` (empty when the analysis succeeded).
+    The result objects go into the analyser's knowledge."""
 
     run_id: str
     kind: str
     name: str
     lines: tuple[str, ...]
     results: dict[str, Any]
-    result: object | None = None
     error: str = ""
 
 
@@ -155,7 +150,7 @@ class RunAnalyser:
     def analyse(self, run: RunView, campaign: CampaignFile) -> RunAnalysis:
         """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis."""
         try:
-            name, lines, results, result = self._analyse(run, campaign)
+            name, lines, results = self._analyse(run, campaign)
         except (AnalysisInputError, ValueError) as exc:
             return RunAnalysis(
                 run.run_id,
@@ -165,11 +160,9 @@ class RunAnalyser:
                 {"error": str(exc)},
                 error=str(exc),
             )
-        return RunAnalysis(run.run_id, run.kind, name, tuple(lines), results, result)
+        return RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
 
-    def _analyse(
-        self, run: RunView, campaign: CampaignFile
-    ) -> tuple[str, list[str], dict[str, Any], object | None]:
+    def _analyse(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if run.kind == "hammer":
             result = analyse_hammer(run.hammer_record(), sensor_mass_kg=k.sensor.mass_kg)
@@ -186,7 +179,6 @@ class RunAnalyser:
                     "eigenfrequency_hz": result.eigenfrequency_hz,
                     "damping_ratio": result.damping_ratio_log_decrement,
                 },
-                result,
             )
         if run.kind == "free_run":
             records = run.dwell_records()
@@ -202,7 +194,6 @@ class RunAnalyser:
                     "m_comp_kg": result.plate.mass_kg,
                     "m_comp_sigma_kg": result.plate.sigma_kg,
                 },
-                result,
             )
         if run.kind == "dwell_grid":
             return self._shaker(run, campaign)
@@ -210,9 +201,7 @@ class RunAnalyser:
             return self._four_post(run)
         raise ValueError(f"no analysis for a {run.kind} run")
 
-    def _shaker(
-        self, run: RunView, campaign: CampaignFile
-    ) -> tuple[str, list[str], dict[str, Any], object | None]:
+    def _shaker(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if not k.shaker_free_run:
             raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
@@ -231,16 +220,16 @@ class RunAnalyser:
             records, k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.shaker[float(pressure)] = result
-        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}, result
+        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
 
-    def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any], object | None]:
+    def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
         if run.conditions.get("bench") != "four_post":
             note = (
                 "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
                 " from its dwell grids; the sweep analysis is the four-post bench's)"
             )
-            return "sweep", [note], {}, None
+            return "sweep", [note], {}
         if not k.post_free_run:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
@@ -268,7 +257,6 @@ class RunAnalyser:
                 "m_wheel_kg": result.wheel_mass.mass_kg,
                 **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
-            result,
         )
 
 
