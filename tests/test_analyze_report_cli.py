@@ -192,3 +192,30 @@ def test_a_reanalysis_never_overwrites_and_writes_nothing_when_one_name_is_taken
     add_results(path, {(runs["sweep"], "new"): {"x": 1.0}})
     with open_campaign(path) as campaign:
         assert campaign.run(runs["sweep"]).results("new") == {"x": 1.0}
+
+
+def _with_config(smoke_file: Path, path: Path, config_toml: str) -> Path:
+    """A copy of the smoke file whose stored bench configuration is ``config_toml``."""
+    path.write_bytes(smoke_file.read_bytes())
+    with h5py.File(path, "r+") as f:
+        f.attrs["config_toml"] = config_toml
+    return path
+
+
+def test_the_masses_come_from_the_configuration_stored_in_the_file(smoke_file, tmp_path):
+    text = default_bench_config("shaker").to_toml()
+    changed = text.replace("sensor_kg = 3.82", "sensor_kg = 4.1")
+    assert changed != text
+    path = _with_config(smoke_file, tmp_path / "heavier_sensor.h5", changed)
+    run = wfsbench("analyze", str(path), "--json")
+    assert run.returncode == EXIT_OK, run.stderr
+    doc = json.loads(run.stdout)
+    assert doc["given"]["sensor_mass_kg"] == 4.1 == doc["sensor"]["mass_kg"]
+
+    broken = _with_config(
+        smoke_file, tmp_path / "broken_config.h5", text.replace("sensor_kg = 3.82", "sensor_kg = -1")
+    )
+    run = wfsbench("analyze", str(broken))
+    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.stderr.startswith(f"error: {broken}: the stored bench configuration is invalid")
+    assert "sensor_kg" in run.stderr
