@@ -8,6 +8,7 @@ script or a notebook. The top-level API turns whole recorded runs into typed res
 
 - :mod:`~bench.analysis.records`: the recorded runs the analysis takes, checked by record.
 - :mod:`~bench.analysis.runs`: the top-level API and its result types.
+- :mod:`~bench.analysis.campaign`: a campaign's analysis as data (what its runs established).
 - :mod:`~bench.analysis.validation`: input checks shared by all estimators (clear errors).
 - :mod:`~bench.analysis.frf`: the FRF type, point ratios with uncertainty, the valid band.
 - :mod:`~bench.analysis.dwell`: sine-dwell fit of every channel.

@@ -15,40 +15,17 @@ and every earlier result stay as they were.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
-from bench.analysis.records import HammerRecord
+from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
 from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ
-from bench.app.post_run import CampaignKnowledge, RunAnalyser, RunAnalysis, replay_campaign
+from bench.app.post_run import RunAnalyser, replay_campaign
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
 from bench.models.parameters import WfsSensor
 from bench.store import add_results, open_campaign
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
-
-
-@dataclass(frozen=True)
-class CampaignAnalysis:
-    """A campaign file analysed: where it came from (``path``, ``software_version``,
-    ``sequence_name``, ``config_source``: the stored configuration's name, or ``"defaults"``),
-    the masses taken as given, what the runs established (``knowledge``: sensor, plate masses'
-    records, shaker results per pressure, hammer and four-post results), each analysed run in
-    order (``runs``), the runs not analysed because they did not complete (``skipped``: run id
-    and status) and the hammer blow's record (``hammer_record``, for its figure; None without a
-    hammer run)."""
-
-    path: Path
-    software_version: str
-    sequence_name: str
-    config_source: str
-    sensor_mass_kg: float
-    wheel_mass_kg: float
-    knowledge: CampaignKnowledge
-    runs: tuple[RunAnalysis, ...]
-    skipped: tuple[tuple[str, str], ...]
-    hammer_record: HammerRecord | None
 
 
 class CampaignFileError(ValueError):
@@ -125,4 +102,3 @@ def store_reanalysis(analysis: CampaignAnalysis) -> dict[str, str]:
         },
     )
     return names
-

@@ -26,14 +26,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.records import DwellRecord
+from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.analysis.runs import (
-    FourPostResult,
-    HammerResult,
     ShakerCampaignResult,
     analyse_four_post,
     analyse_free_run,
@@ -50,19 +47,6 @@ log = logging.getLogger(__name__)
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
-
-
-@dataclass
-class CampaignKnowledge:
-    """What the campaign has established so far, for the analyses that follow."""
-
-    sensor: WfsSensor
-    wheel_mass_kg: float
-    shaker_free_run: list[DwellRecord] = field(default_factory=list)
-    post_free_run: list[DwellRecord] = field(default_factory=list)
-    shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
-    hammer: HammerResult | None = None
-    four_post: FourPostResult | None = None
 
 
 class PostRunAnalysis:
@@ -122,21 +106,6 @@ class PostRunAnalysis:
                 run_id, outcome.name, outcome.lines, {"summary": "\n".join(outcome.lines), **outcome.results}
             )
         )
-
-
-@dataclass(frozen=True)
-class RunAnalysis:
-    """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
-    ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
-    scalar ``results`` stored beside the run and ``error`` (empty when the analysis succeeded).
-    The result objects go into the analyser's knowledge."""
-
-    run_id: str
-    kind: str
-    name: str
-    lines: tuple[str, ...]
-    results: dict[str, Any]
-    error: str = ""
 
 
 class RunAnalyser:

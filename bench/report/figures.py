@@ -26,11 +26,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import Frf, ValidBand
 from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
 from bench.analysis.runs import FourPostResult, ShakerAmplitudeResult, ShakerCampaignResult
 from bench.analysis.shaker_models import shaker_response
-from bench.app.analyze import CampaignAnalysis
 from bench.models.parameters import WfsSensor
 
 #: Pixels per inch of the PNGs (a 9 x 6.5 in figure is 900 x 650 px).

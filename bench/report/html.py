@@ -12,8 +12,8 @@ import base64
 from collections.abc import Iterable, Sequence
 from html import escape
 
+from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import ValidBand
-from bench.app.analyze import CampaignAnalysis
 from bench.report.figures import FigureFile
 
 _STYLE = """

@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.runs import FourPostResult, FreeRunResult, ShakerAmplitudeResult, ShakerCampaignResult
-from bench.app.analyze import CampaignAnalysis
 from bench.report.text import free_run_lines
 
 SCHEMA = "wfs-bench-analysis"
