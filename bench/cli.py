@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from bench.cli_analysis import add_analysis_commands
 from drivers.actuator import ActuatorClient
 from drivers.errors import LinkError
 from drivers.wfs_reader import WfsReader
@@ -228,6 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     status.add_argument("--host", default="127.0.0.1")
     status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
     status.set_defaults(run=lambda a: asyncio.run(_actuator_status(a)))
+    add_analysis_commands(sub)
     return parser
 
 

@@ -12,6 +12,7 @@ applies each answer to the simulated world; the analysis after each run.
    valid band of the raw and the compensated WFS force.
 3. Four-post sweep of one corner at 2.5 bar, with the post's own free run: m_wheel, the quarter car,
    and the valid band raw / hub-acceleration compensated / model compensated.
+4. The report of the whole file (``wfsbench report``): figures and one HTML page in ``DIR/report/``.
 
 The simulated plant has sensor noise, quantisation, a servo-hydraulic actuator and the non-linear
 tyre; the analysis sees only what the bench recorded.
@@ -25,9 +26,11 @@ from pathlib import Path
 
 from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, plan_sequence, run_campaign
 from bench.app.post_run import CampaignKnowledge
+from bench.app.report import write_report
 from bench.config import default_bench_config
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre, WfsSensor
+from bench.report.text import summary_lines
 from bench.store import open_campaign
 from sequences import load_sequence, shipped_file
 
@@ -44,8 +47,9 @@ def _band(band) -> str:
 
 
 def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
-    """Run the campaign into ``out_dir/campaign.h5`` (a previous demo file there is replaced);
-    return the report's lines."""
+    """Run the campaign into ``out_dir/campaign.h5`` (a previous demo file there is replaced),
+    write its report (figures and ``report.html``) to ``out_dir/report/``; return the summary's
+    lines, the last of which names the report page."""
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / "campaign.h5"
     out.unlink(missing_ok=True)
@@ -67,7 +71,9 @@ def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
         if outcome.status != "complete":
             raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")
     wall_s = time.perf_counter() - start
-    return _report(knowledge, out, wall_s)
+    lines = _report(knowledge, out, wall_s)
+    written = write_report(out, out_dir / "report")
+    return [*lines, "", f"report ({len(written.figures)} figures): {written.page}"]
 
 
 def _recorded_s(path: Path) -> float:
@@ -86,7 +92,7 @@ def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:
         "",
     ]
     if k.hammer is not None:
-        lines += [*k.hammer.summary_lines(), ""]
+        lines += [*summary_lines(k.hammer), ""]
     lines += [
         "shaker bench, Model 2 per amplitude (k at its reference frequency, 10 Hz; max over the dwells):",
         f"{'pressure':>8} {'amplitude':>9} {'k kN/m':>8} {'m_T kg':>7} {'d Ns/m':>7}"
@@ -106,7 +112,7 @@ def _report(k: CampaignKnowledge, out: Path, wall_s: float) -> list[str]:
     )
     lines.append(f"(simulator's nominal tyres: {truth}; m_T 6 kg; viscous d 80 Ns/m plus rubber friction)")
     if 2.5 in k.shaker:
-        lines += ["", "2.5 bar in full:", *k.shaker[2.5].summary_lines()]
+        lines += ["", "2.5 bar in full:", *summary_lines(k.shaker[2.5])]
     if k.four_post is not None:
-        lines += ["", *k.four_post.summary_lines()]
+        lines += ["", *summary_lines(k.four_post)]
     return lines

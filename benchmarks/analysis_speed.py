@@ -21,6 +21,7 @@ import numpy as np
 
 from bench.analysis.runs import analyse_four_post, analyse_hammer, analyse_shaker_campaign
 from bench.models.setup import BenchSetup
+from bench.report.text import summary_lines
 from bench.simulated_campaign import simulate_paper_campaign
 
 
@@ -66,8 +67,8 @@ def main() -> None:
         p: c.nearest(2e-3).identification.best_fit.tyre.stiffness_n_per_m / 1e3 for p, c in campaigns.items()
     }
     print("k at 10 Hz, 2 mm [kN/m]: " + ", ".join(f"{p} bar {v:.1f}" for p, v in k.items()))
-    print("\n".join(["", "2.5 bar shaker campaign:", *campaigns[2.5].summary_lines()]))
-    print("\n".join(["", *car.summary_lines(), "", *hammer.summary_lines()]))
+    print("\n".join(["", "2.5 bar shaker campaign:", *summary_lines(campaigns[2.5])]))
+    print("\n".join(["", *summary_lines(car), "", *summary_lines(hammer)]))
 
 
 if __name__ == "__main__":

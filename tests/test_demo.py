@@ -2,12 +2,15 @@
 into one campaign file, with results that match the simulator's truth (the tolerances are the
 analysis tests': k 2 %, tread mass 3 %, eigenfrequency 1 %)."""
 
+import json
 import re
 
 import pytest
 
 from bench.cli import main
-from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
+from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Suspension
+from bench.store import open_campaign
+from simulators.world import DAMPER_SETTINGS_NS_PER_M
 
 ROW = re.compile(
     r"^\s*(?P<p>\d\.\d) bar\s+(?P<a>\d) mm\s+(?P<k>[\d.]+)\s+(?P<mt>[\d.]+)\s+(?P<d>[\d.]+)\s+"
@@ -35,3 +38,34 @@ def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     )
     raw, accel, model = (float(x) for x in bands.groups())
     assert raw <= 6.0 and accel >= 12.0 and model >= 25.0
+    # the report of the whole file, beside it: every figure as a PNG, embedded in the page
+    page = tmp_path / "report" / "report.html"
+    assert out.rstrip().splitlines()[-1] == f"report (9 figures): {page}"
+    html = page.read_text()
+    shaker = [f"shaker{kind}_{p}bar" for kind in ("", "_compensated") for p in ("1p5", "2p5", "3p5")]
+    for name in ["hammer", *shaker, "four_post_ratios", "four_post_hub"]:
+        assert (tmp_path / "report" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert f'<figure id="{name}"><img' in html, name
+    assert "http" not in html and 'src="data:image/png;base64,' in html
+
+    # the whole file analysed again (any writer's file takes this path) finds what the campaign found
+    assert main(["analyze", str(tmp_path / "campaign.h5"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["hammer"]["eigenfrequency_hz"] == pytest.approx(eigen, abs=0.05)
+    assert [s["tyre_pressure_bar"] for s in doc["shaker"]] == [1.5, 2.5, 3.5]
+    for shaker in doc["shaker"]:
+        k_true = PAPER_TYRE_STIFFNESS_N_PER_M[shaker["tyre_pressure_bar"]]
+        for amp in shaker["amplitudes"]:
+            model2 = next(m for m in amp["models"] if m["model"] == 2)
+            assert model2["values"]["stiffness_n_per_m"] == pytest.approx(k_true, rel=0.02)
+    car = doc["four_post"]
+    assert car["m_wheel_kg"] == pytest.approx(29.0, rel=0.01)  # the simulated wheel below the sensor
+    assert car["valid_band_model_compensated"]["upper_hz"] == pytest.approx(model, abs=0.01)
+    assert not car["quarter_car"]["undetermined"]
+    truth = Suspension(damping_ns_per_m=DAMPER_SETTINGS_NS_PER_M["medium"])
+    assert car["quarter_car"]["values"]["body_mass_kg"] == pytest.approx(truth.body_mass_kg, rel=0.02)
+    four_post_run = next(r for r in doc["runs"] if r["analysis"] == "four_post")
+    assert four_post_run["results_name"] == "four_post-reanalysis-1"
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        run = campaign.run(four_post_run["run_id"])
+        assert run.results("four_post")["m_wheel_kg"] == car["m_wheel_kg"]  # same data, same analysis

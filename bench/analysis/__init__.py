@@ -1,13 +1,14 @@
 """Post-run analysis: FRF estimation, identification, compensation and valid frequency bands.
 
 Pure functions on arrays and parameter objects (no device, engine or UI imports), usable from a
-script or a notebook. The top-level API turns whole recorded runs into typed results with a short
-report (``summary_lines()``): :func:`analyse_shaker_campaign`, :func:`analyse_four_post`,
-:func:`analyse_hammer` and :func:`analyse_free_run` on :class:`DwellRecord`, :class:`SweepRecord`
-and :class:`HammerRecord`. Every module has one job:
+script or a notebook. The top-level API turns whole recorded runs into typed results, data only
+(:mod:`bench.report` renders them as text, JSON, figures and HTML): :func:`analyse_shaker_campaign`,
+:func:`analyse_four_post`, :func:`analyse_hammer` and :func:`analyse_free_run` on
+:class:`DwellRecord`, :class:`SweepRecord` and :class:`HammerRecord`. Every module has one job:
 
 - :mod:`~bench.analysis.records`: the recorded runs the analysis takes, checked by record.
 - :mod:`~bench.analysis.runs`: the top-level API and its result types.
+- :mod:`~bench.analysis.campaign`: a campaign's analysis as data (what its runs established).
 - :mod:`~bench.analysis.validation`: input checks shared by all estimators (clear errors).
 - :mod:`~bench.analysis.frf`: the FRF type, point ratios with uncertainty, the valid band.
 - :mod:`~bench.analysis.dwell`: sine-dwell fit of every channel.

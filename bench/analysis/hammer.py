@@ -77,25 +77,6 @@ class HammerResult:
         """Relative difference of the two damping ratios, ``|zeta_hp / zeta_ld - 1|``."""
         return abs(self.damping_ratio_half_power / self.damping_ratio_log_decrement - 1)
 
-    def summary_lines(self) -> list[str]:
-        """A short report with units; the two damping estimates are flagged when they disagree by
-        more than ``DAMPING_AGREEMENT`` (they are independent: one of them is then not to be trusted)."""
-        lines = [
-            f"hammer: eigenfrequency {self.eigenfrequency_hz:.1f} Hz"
-            f" (damped {self.damped_frequency_hz:.1f} Hz), free decay"
-            f" {1e3 * self.decay_start_s:.1f}-{1e3 * self.decay_stop_s:.1f} ms, {self.n_peaks} peaks",
-            f"damping ratio: half-power {self.damping_ratio_half_power:.4f},"
-            f" logarithmic decrement {self.damping_ratio_log_decrement:.4f}",
-            f"from the sensor mass: stiffness {self.stiffness_n_per_m:.4g} N/m,"
-            f" damping {self.damping_ns_per_m:.4g} Ns/m",
-        ]
-        if self.damping_ratio_disagreement > DAMPING_AGREEMENT:
-            lines.append(
-                f"FLAG: the damping ratios disagree by {100 * self.damping_ratio_disagreement:.0f} %"
-                f" (more than {100 * DAMPING_AGREEMENT:.0f} %): check the decay (noise, a second mode)"
-            )
-        return lines
-
 
 def _half_power(x: np.ndarray, fs: float) -> tuple[float, float]:
     n_fft = 1 << int(np.ceil(np.log2(max(64 * x.size, 1 << 16))))

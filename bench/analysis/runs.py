@@ -11,9 +11,8 @@
   the quarter car above the sensor and its body and wheel modes.
 - :func:`analyse_hammer`: the sensor's eigenfrequency, damping and stiffness from a hammer blow.
 
-Every result has ``summary_lines()``: a short report with units, the valid bands, and an explicit
-line for whatever is not determined or flagged (an unsettled dwell, unreliable bins). Every error
-names the record or the amplitude it comes from.
+The results are data: their text, JSON, figures and HTML are rendered by :mod:`bench.report`.
+Every error names the record or the amplitude it comes from.
 
 The model compensator is designed over ``DESIGN_BAND_MARGIN`` times the highest analysed frequency
 (the FIR rolls off above its band, so the band must cover the data with some room).
@@ -155,38 +154,6 @@ def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellR
     return dict(sorted(groups.items()))
 
 
-def _band_text(band: ValidBand) -> str:
-    if band.n_points == 0:
-        return f"none (fails at {band.lowest_hz:.4g} Hz: {band.limited_by})"
-    if not band.determined:
-        return f"not determined (only {band.lowest_hz:.4g} Hz passes, then {band.limited_by})"
-    skipped = f"; skips unreliable {_ranges_text(np.array(band.skipped_hz))}" if band.skipped_hz else ""
-    return (
-        f"{band.lowest_hz:.4g}-{band.upper_hz:.4g} Hz (starts: {band.starts_at};"
-        f" ends: {band.limited_by}{skipped})"
-    )
-
-
-def _ranges_text(freq_hz: np.ndarray, step_hz: float | None = None) -> str:
-    """Frequencies as ranges of neighbouring points (``step_hz`` apart; default: the smallest
-    spacing): ``0.122-2.2 Hz, 29.9 Hz``."""
-    f = np.sort(np.asarray(freq_hz, dtype=float))
-    if f.size == 0:
-        return "none"
-    step = step_hz or (float(np.min(np.diff(f))) if f.size > 1 else 1.0)
-    breaks = np.flatnonzero(np.diff(f) > 1.5 * step) + 1
-    runs = np.split(f, breaks)
-    return ", ".join(f"{r[0]:.4g} Hz" if r.size == 1 else f"{r[0]:.4g}-{r[-1]:.4g} Hz" for r in runs)
-
-
-def _tolerance_text(band: ValidBand) -> str:
-    return f"| |H|-1 | <= {100 * band.amplitude_tolerance:g} %, |phase| <= {band.phase_tolerance_deg:g} deg"
-
-
-def _values_text(values: dict[str, float], ci95: dict[str, float]) -> str:
-    return ", ".join(f"{name} {v:.6g} +/- {ci95[name]:.2g}" for name, v in values.items())
-
-
 # ---------------------------------------------------------------------------------------- free run
 
 
@@ -200,17 +167,6 @@ class FreeRunResult:
     fits: tuple[DwellFit, ...]
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
-
-    def summary_lines(self) -> list[str]:
-        p = self.plate
-        lines = [
-            f"m_comp {p.mass_kg:.4f} +/- {p.sigma_kg:.1g} kg from {p.n_points} of {len(self.fits)} free-run"
-            f" dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz"
-            f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
-        ]
-        lines += [f"FLAG free run not settled: {u}" for u in self.unsettled]
-        lines += [f"FLAG free run rejected: {r}" for r in self.rejected]
-        return lines
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
@@ -253,48 +209,12 @@ class ShakerAmplitudeResult:
     def label(self) -> str:
         return amplitude_label(self.amplitude_m)
 
-    def summary_lines(self) -> list[str]:
-        ident = self.identification
-        best = ident.best_fit
-        bics = ", ".join(f"Model {int(m)} {f.bic:.1f}" for m, f in ident.fits.items())
-        rise = "fitted" if ident.frequency_dependent_stiffness else "not needed"
-        hysteretic = "fitted" if ident.hysteretic_damping else "not needed"
-        rubber = f"stiffness rise with frequency {rise}, hysteretic damping {hysteretic}"
-        lines = [
-            f"{self.label}: {len(self.fits)} dwells {self.fits[0].freq_hz:g}-{self.fits[-1].freq_hz:g} Hz;"
-            f" Model {int(ident.best)} selected (lowest BIC with every parameter determined; BIC {bics});"
-            f" {rubber}",
-            f"{self.label} Model {int(ident.best)} (95 %): {_values_text(best.values, best.ci95)};"
-            f" F_wfs/F_contact rms error {100 * best.ratio_relative_rms:.2f} %",
-        ]
-        missing = "; ".join(
-            f"Model {int(model)}: {', '.join(fit.undetermined)}"
-            for model, fit in ident.fits.items()
-            if fit.undetermined
-        )
-        lines.append(f"{self.label} not determined: {missing or 'none'}")
-        for model, fit in ident.fits.items():
-            if not fit.converged:
-                lines.append(f"FLAG {self.label} Model {int(model)}: the fit did not converge")
-        lines += [f"FLAG {self.label}: {finding}" for finding in ident.findings]
+    @property
+    def largest_measured_ratio(self) -> tuple[float, float]:
+        """The largest reliable measured ``|F_wfs/F_contact|`` as (frequency in Hz, magnitude)."""
         raw = self.frfs.wfs_per_contact
         top = int(np.argmax(np.where(raw.reliable, np.abs(raw.value), -np.inf)))
-        if self.model_peak is not None:
-            p = self.model_peak
-            lines.append(
-                f"{self.label} |F_wfs/F_contact| peak of Model {int(ident.best)}: {p.height:.3g} +/-"
-                f" {p.height_ci95:.2g} at {p.freq_hz:.4g} +/- {p.freq_ci95_hz:.2g} Hz (95 %); largest"
-                f" measured {np.abs(raw.value[top]):.3g} at {raw.freq_hz[top]:g} Hz"
-            )
-        lines.append(
-            f"{self.label} valid band ({_tolerance_text(self.valid_band_raw)}):"
-            f" raw {_band_text(self.valid_band_raw)},"
-            f" model-compensated {_band_text(self.valid_band_compensated)}"
-            f" (compensator design error {100 * self.compensator.design_error:.2f} %)"
-        )
-        lines += [f"FLAG not settled: {u}" for u in self.unsettled]
-        lines += [f"FLAG rejected: {r}" for r in self.rejected]
-        return lines
+        return float(raw.freq_hz[top]), float(np.abs(raw.value[top]))
 
 
 @dataclass(frozen=True)
@@ -313,37 +233,6 @@ class ShakerCampaignResult:
     def nearest(self, amplitude_m: float) -> ShakerAmplitudeResult:
         """The amplitude's result closest to ``amplitude_m``."""
         return self.amplitudes[min(self.amplitudes, key=lambda a: abs(a - amplitude_m))]
-
-    def summary_lines(self) -> list[str]:
-        amps = ", ".join(r.label for r in self.amplitudes.values())
-        lines = [
-            f"shaker campaign: amplitudes {amps}; wheel mass {self.wheel_mass_kg:g} kg (given),"
-            f" sensor {self.sensor.mass_kg:g} kg at {self.sensor.eigenfrequency_hz:g} Hz (given)",
-            *self.free_run.summary_lines(),
-        ]
-        for result in self.amplitudes.values():
-            lines += result.summary_lines()
-        dep = self.amplitude_dependence
-        if dep is None:
-            lines.append("amplitude dependence: not determined (one amplitude only)")
-        else:
-            per = "; ".join(
-                f"{1e3 * a:g} mm k {k / 1e3:.2f} +/- {ci / 1e3:.2f} kN/m ({100 * dk:+.2f} %),"
-                f" d {d:.1f} Ns/m ({100 * dd:+.1f} %)"
-                for a, k, ci, dk, d, dd in zip(
-                    dep.amplitude_m,
-                    dep.stiffness_n_per_m,
-                    dep.stiffness_ci95_n_per_m,
-                    dep.stiffness_change,
-                    dep.equivalent_damping_ns_per_m,
-                    dep.damping_change,
-                    strict=True,
-                )
-            )
-            lines.append(
-                f"amplitude dependence (Model 2, d at the tread resonance; change vs smallest): {per}"
-            )
-        return lines
 
 
 def _ratio_band(ratio: Frf, max_gap_points: int = 0) -> ValidBand:
@@ -513,44 +402,17 @@ class FourPostResult:
     quarter_car: QuarterCarFit
     unreliable_bins: int
 
-    def summary_lines(self) -> list[str]:
-        m, car, s = self.wheel_mass, self.quarter_car, self.quarter_car.suspension
+    @property
+    def unreliable_bins_hz(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bins not reliable in all three FRFs over Z (Hz), split into those on the sweep's
+        flanks (biased over Z, usable in the force ratios) and those with low excitation or
+        coherence."""
         f = self.frfs.wfs_per_z.freq_hz
-        lines = [
-            f"four-post {self.label}; tyre: Model {int(self.tyre_model)} from {self.tyre_source}",
-            *(f"post {line}" for line in self.post_free_run.summary_lines()),
-            f"m_wheel {m.mass_kg:.3f} +/- {m.sigma_kg:.2g} kg from the run"
-            f" ({m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz; weighed {self.wheel_mass_given_kg:g} kg,"
-            f" {100 * (m.mass_kg / self.wheel_mass_given_kg - 1):+.1f} %),"
-            f" accelerometer lag {1e3 * m.accelerometer_delay_s:.3f} ms",
-            f"valid band ({_tolerance_text(self.valid_band_raw)}): raw {_band_text(self.valid_band_raw)},"
-            f" hub-acceleration compensated {_band_text(self.valid_band_hub_compensated)},"
-            f" model-compensated {_band_text(self.valid_band_model_compensated)}",
-            f"quarter car (95 %): {_values_text(car.values, car.ci95)}; reduced chi^2 {car.reduced_chi2:.1f}"
-            f" over {car.band_hz[0]:.4g}-{car.band_hz[1]:.4g} Hz",
-            f"modes: body {car.body_frequency_hz:.3f} +/- {car.body_frequency_ci95_hz:.3f} Hz"
-            f" (damping ratio {car.body_damping_ratio:.3f}), wheel {car.wheel_frequency_hz:.2f}"
-            f" +/- {car.wheel_frequency_ci95_hz:.2f} Hz (damping ratio {car.wheel_damping_ratio:.3f});"
-            f" unsprung mass above the sensor {s.unsprung_mass_above_kg:.2f} kg",
-            f"quarter car not determined: {', '.join(car.undetermined) or 'none'}",
-            f"quarter car taken as given: {'; '.join(car.taken_as_given)}",
-        ]
-        if self.unreliable_bins:
-            sweeps = self.frfs.sweeps
-            frfs = (self.frfs.wfs_per_z, self.frfs.contact_per_z, self.frfs.accel_per_z)
-            bad = ~np.logical_and.reduce([frf.reliable for frf in frfs])
-            flank = bad & (sweeps["f_wfs"].flank | sweeps["f_plate"].flank | sweeps["a_hub"].flank)
-            step = float(f[1] - f[0]) if f.size > 1 else None
-            lines.append(
-                f"FLAG {self.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
-                f" over Z and not used by the quarter car: on the sweep's flanks"
-                f" {_ranges_text(f[flank], step)}"
-                f" (biased over Z, usable in the force ratios); low excitation or coherence"
-                f" {_ranges_text(f[bad & ~flank], step)}"
-            )
-        if not car.converged:
-            lines.append("FLAG the quarter-car fit did not converge")
-        return lines
+        sweeps = self.frfs.sweeps
+        frfs = (self.frfs.wfs_per_z, self.frfs.contact_per_z, self.frfs.accel_per_z)
+        bad = ~np.logical_and.reduce([frf.reliable for frf in frfs])
+        flank = bad & (sweeps["f_wfs"].flank | sweeps["f_plate"].flank | sweeps["a_hub"].flank)
+        return f[flank], f[bad & ~flank]
 
 
 def _tyre_below(

@@ -15,20 +15,22 @@ What is analysed after which run (the paper's procedure):
 The records are read back from the campaign file with the store's reader, exactly as any other file
 that follows the schema would be analysed. An analysis that fails is reported as a flagged result;
 it never stops the campaign.
+
+:class:`RunAnalyser` analyses one run with what the runs before it established;
+:func:`replay_campaign` takes a file's complete runs through it in order. The subscriber
+:class:`PostRunAnalysis` replays the runs a file holds already when it starts, then analyses each
+run as it completes; ``wfsbench analyze`` (:mod:`bench.app.analyze`) replays a whole file.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.records import DwellRecord
+from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.analysis.runs import (
-    FourPostResult,
-    HammerResult,
     ShakerCampaignResult,
     analyse_four_post,
     analyse_free_run,
@@ -38,25 +40,13 @@ from bench.analysis.runs import (
 from bench.analysis.validation import AnalysisInputError
 from bench.engine import events as ev
 from bench.models.parameters import WfsSensor
+from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView, open_campaign
 
 log = logging.getLogger(__name__)
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
-
-
-@dataclass
-class CampaignKnowledge:
-    """What the campaign has established so far, for the analyses that follow."""
-
-    sensor: WfsSensor
-    wheel_mass_kg: float
-    shaker_free_run: list[DwellRecord] = field(default_factory=list)
-    post_free_run: list[DwellRecord] = field(default_factory=list)
-    shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
-    hammer: HammerResult | None = None
-    four_post: FourPostResult | None = None
 
 
 class PostRunAnalysis:
@@ -73,28 +63,13 @@ class PostRunAnalysis:
         without publishing, so that what they established holds for the runs to come."""
         self.campaign_path = campaign_path
         self.publish = publish
-        self.knowledge = knowledge
+        self.analyser = RunAnalyser(knowledge)
         self._pending_grid: tuple[str, object] | None = None  # (run id, tyre pressure) not analysed yet
         self._started: tuple[str, str, object] = ("", "", None)  # the run being recorded: id, kind, pressure
         with open_campaign(campaign_path) as campaign:
-            complete = [run for run in campaign.runs if run.status == "complete"]
-            for i, run in enumerate(complete):
-                if run.kind == "dwell_grid" and not self._grids_end(run, complete[i + 1 : i + 2]):
-                    continue  # the pressure's grids are analysed together, after the last of them
-                try:
-                    self._analyse(run, campaign)
-                except (AnalysisInputError, ValueError) as exc:
-                    log.warning("earlier run %s not analysed: %s", run.run_id, exc)
-
-    @staticmethod
-    def _grids_end(run, following) -> bool:
-        """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
-        pressure = run.conditions.get("tyre_pressure_bar")
-        return (
-            not following
-            or following[0].kind != "dwell_grid"
-            or (following[0].conditions.get("tyre_pressure_bar") != pressure)
-        )
+            for outcome in replay_campaign(campaign, self.analyser):
+                if outcome.error:
+                    log.warning("earlier run %s not analysed: %s", outcome.run_id, outcome.error)
 
     def __call__(self, event: ev.Event) -> None:
         """Dwell grids wait until the next run shows that their pressure's grids are done (another
@@ -123,13 +98,38 @@ class PostRunAnalysis:
     def _report(self, run_id: str) -> None:
         """Analyse run ``run_id`` from the file and publish the result (a failure as a flag)."""
         with open_campaign(self.campaign_path) as campaign:
-            run = campaign.run(run_id)
-            try:
-                name, lines, results = self._analyse(run, campaign)
-            except (AnalysisInputError, ValueError) as exc:
-                log.warning("analysis of %s failed: %s", run_id, exc)
-                name, lines, results = "analysis", (f"FLAG analysis failed: {exc}",), {"error": str(exc)}
-        self.publish(ev.AnalysisDone(run_id, name, tuple(lines), {"summary": "\n".join(lines), **results}))
+            outcome = self.analyser.analyse(campaign.run(run_id), campaign)
+        if outcome.error:
+            log.warning("analysis of %s failed: %s", run_id, outcome.error)
+        self.publish(
+            ev.AnalysisDone(
+                run_id, outcome.name, outcome.lines, {"summary": "\n".join(outcome.lines), **outcome.results}
+            )
+        )
+
+
+class RunAnalyser:
+    """Analyses runs one after another, each with what the runs before it established
+    (``knowledge``: the sensor from the hammer test, the free runs' records, the shaker
+    identification per tyre pressure)."""
+
+    def __init__(self, knowledge: CampaignKnowledge) -> None:
+        self.knowledge = knowledge
+
+    def analyse(self, run: RunView, campaign: CampaignFile) -> RunAnalysis:
+        """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis."""
+        try:
+            name, lines, results = self._analyse(run, campaign)
+        except (AnalysisInputError, ValueError) as exc:
+            return RunAnalysis(
+                run.run_id,
+                run.kind,
+                "analysis",
+                (f"FLAG analysis failed: {exc}",),
+                {"error": str(exc)},
+                error=str(exc),
+            )
+        return RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
 
     def _analyse(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
@@ -143,7 +143,7 @@ class PostRunAnalysis:
             )
             return (
                 "hammer",
-                result.summary_lines(),
+                summary_lines(result),
                 {
                     "eigenfrequency_hz": result.eigenfrequency_hz,
                     "damping_ratio": result.damping_ratio_log_decrement,
@@ -158,7 +158,7 @@ class PostRunAnalysis:
                 k.shaker_free_run = records
             return (
                 "plate_mass",
-                result.summary_lines(),
+                summary_lines(result),
                 {
                     "m_comp_kg": result.plate.mass_kg,
                     "m_comp_sigma_kg": result.plate.sigma_kg,
@@ -189,7 +189,7 @@ class PostRunAnalysis:
             records, k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.shaker[float(pressure)] = result
-        return "shaker", result.summary_lines(), {"tyre_pressure_bar": float(pressure)}
+        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
 
     def _four_post(self, run: RunView) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
@@ -218,14 +218,37 @@ class PostRunAnalysis:
             run.sweep_record(), k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
         )
         k.four_post = result
+        lines = summary_lines(result)
         return (
             "four_post",
-            [*result.summary_lines()[:1], *notes, *result.summary_lines()[1:]],
+            [lines[0], *notes, *lines[1:]],
             {
                 "m_wheel_kg": result.wheel_mass.mass_kg,
                 **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
         )
+
+
+def _grids_end(run: RunView, following: list[RunView]) -> bool:
+    """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
+    pressure = run.conditions.get("tyre_pressure_bar")
+    return (
+        not following
+        or following[0].kind != "dwell_grid"
+        or (following[0].conditions.get("tyre_pressure_bar") != pressure)
+    )
+
+
+def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
+    """Analyse the complete runs of ``campaign`` in the order they began, as they would have been
+    analysed while the campaign ran: each dwell grid together with the grids of its tyre pressure
+    that follow it directly, after the last of them. Runs that did not complete are not analysed."""
+    complete = [run for run in campaign.runs if run.status == "complete"]
+    return [
+        analyser.analyse(run, campaign)
+        for i, run in enumerate(complete)
+        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
+    ]
 
 
 def shaker_result_at(

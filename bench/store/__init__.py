@@ -7,7 +7,7 @@ records. Names, versions and dtypes live in :mod:`bench.store.schema`.
 
 from bench.store.reader import CampaignFile, Event, RunView, open_campaign
 from bench.store.schema import SCHEMA_NAME, SCHEMA_VERSION, ChannelSpec, PointRow, StoreError
-from bench.store.writer import CampaignWriter, RunWriter
+from bench.store.writer import CampaignWriter, RunWriter, add_results
 
 __all__ = [
     "SCHEMA_NAME",
@@ -20,5 +20,6 @@ __all__ = [
     "RunView",
     "RunWriter",
     "StoreError",
+    "add_results",
     "open_campaign",
 ]

@@ -426,18 +426,7 @@ class RunWriter:
         """Store an analysis result (a nested mapping or a dataclass instance) under
         ``results/<name>``; a name is written once (a re-analysis writes a new name). Results may
         be written after :meth:`finish` (the analysis runs after the run)."""
-        where = f"{self._group.name}/{s.RESULTS}/{name}"
-        tree = as_mapping(result)
-        if tree is None:
-            raise StoreError(
-                self._campaign.path, where, f"a result must be a mapping, got {type(result).__name__}"
-            )
-        results = self._group[s.RESULTS]
-        if not name or "/" in name or name == ".":
-            raise StoreError(self._campaign.path, where, f"name {name!r} cannot name an HDF5 group")
-        if name in results:
-            raise StoreError(self._campaign.path, where, "exists already: results are never overwritten")
-        write_tree(results.create_group(name), tree, path=self._campaign.path)
+        _write_results(self._campaign.path, self._group, name, result)
         self._campaign.flush()
 
     def flush(self) -> None:
@@ -478,6 +467,44 @@ class RunWriter:
     def _check_open(self, where: str) -> None:
         if not self.is_open and not where.startswith(f"{self._group.name}/{s.RESULTS}"):
             raise StoreError(self._campaign.path, where, f"run {self.run_id!r} is finished")
+
+
+def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, Any] | object) -> None:
+    """``result`` under ``run/results/<name>``, refused if the name is taken (never overwritten)."""
+    where = f"{run.name}/{s.RESULTS}/{name}"
+    tree = as_mapping(result)
+    if tree is None:
+        raise StoreError(path, where, f"a result must be a mapping, got {type(result).__name__}")
+    results = run[s.RESULTS]
+    if not name or "/" in name or name == ".":
+        raise StoreError(path, where, f"name {name!r} cannot name an HDF5 group")
+    if name in results:
+        raise StoreError(path, where, "exists already: results are never overwritten")
+    write_tree(results.create_group(name), tree, path=path)
+
+
+def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
+    """Store the results of a re-analysis beside the runs of the campaign file at ``path``:
+    ``results`` maps (run id, result name) to a result. The file is checked by the reader first;
+    every name must be new (checked for all before anything is written: a refused re-analysis
+    leaves the file as it was). No file may be open for writing by a run at the same time."""
+    path = Path(path)
+    open_campaign(path).close()
+    try:
+        file = h5py.File(path, "r+")
+    except OSError as err:
+        raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
+    with file:
+        runs = file[s.RUNS]
+        for run_id, name in results:
+            where = f"/{s.RUNS}/{run_id}/{s.RESULTS}/{name}"
+            if run_id not in runs:
+                raise StoreError(path, f"/{s.RUNS}/{run_id}", "no such run")
+            if name in runs[run_id][s.RESULTS]:
+                raise StoreError(path, where, "exists already: results are never overwritten")
+        for (run_id, name), result in results.items():
+            _write_results(path, runs[run_id], name, result)
+        file.flush()
 
 
 def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bench.analysis import AnalysisInputError, analyse_shaker_campaign
+from bench.report.text import summary_lines
 
 
 def test_broken_and_mislabelled_dwells_are_rejected_by_name(shaker_linear, free_run):
@@ -45,7 +46,7 @@ def test_broken_and_mislabelled_dwells_are_rejected_by_name(shaker_linear, free_
     assert fit.stiffness_n_per_m == pytest.approx(setup.tyre.stiffness_n_per_m, rel=0.02)
     assert fit.tread_mass_kg == pytest.approx(setup.tyre.tread_mass_kg, rel=0.03)
     assert amp.valid_band_compensated.upper_hz == 70.0
-    flags = [line for line in result.summary_lines() if line.startswith("FLAG rejected: ")]
+    flags = [line for line in summary_lines(result) if line.startswith("FLAG rejected: ")]
     assert len(flags) == 4
 
 

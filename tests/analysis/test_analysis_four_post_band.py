@@ -7,6 +7,7 @@ import re
 import numpy as np
 
 from bench.analysis.frf import valid_band
+from bench.report.text import summary_lines
 
 
 def test_force_ratio_bands_reach_the_sweeps_ends(four_post_analysis):
@@ -29,7 +30,7 @@ def test_force_ratio_bands_reach_the_sweeps_ends(four_post_analysis):
         ), band
     model = result.valid_band_model_compensated
     assert model.upper_hz >= 29.0 or model.limited_by in ("amplitude", "phase"), model
-    text = "\n".join(result.summary_lines())
+    text = "\n".join(summary_lines(result))
     raw = result.valid_band_raw
     assert f"raw {raw.lowest_hz:.4g}-" in text and f"(starts: {raw.starts_at}" in text
     assert "on the sweep's flanks 0.4883-2.197 Hz" in text and "low excitation or coherence 0.1221-" in text

@@ -9,6 +9,7 @@ from bench.analysis import analyse_shaker_campaign
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
+from bench.report.text import summary_lines
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from tests.analysis.conftest import analyse_runs, run_dwells
 
@@ -33,7 +34,7 @@ def test_wrong_sensor_gives_a_determined_model_and_a_finding(true_eigenfrequency
     assert fit.tyre.tread_mass_kg == pytest.approx(truth.tread_mass_kg, rel=0.02)
     assert fit.tyre.damping_ns_per_m == pytest.approx(truth.damping_ns_per_m, rel=0.10)
     assert fit.outside_noise
-    text = "\n".join(result.summary_lines())
+    text = "\n".join(summary_lines(result))
     assert "FLAG 2 mm: Model" in text and "far outside its noise" in text
 
 

@@ -19,6 +19,7 @@ from bench.analysis.frf import valid_band
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
+from bench.report.text import summary_lines
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from tests.analysis.conftest import same_tyre_campaign
@@ -54,7 +55,7 @@ def test_shaker_campaign_recovers_other_tyre(shaker_other_tyre, free_run):
     assert amp.valid_band_raw.upper_hz < 15.0
     assert result.amplitude_dependence is None
 
-    text = "\n".join(result.summary_lines())
+    text = "\n".join(summary_lines(result))
     assert "m_comp" in text and "kg" in text
     assert f"raw {amp.valid_band_raw.lowest_hz:.4g}-{amp.valid_band_raw.upper_hz:.4g} Hz" in text
     assert "model-compensated 0.5-70 Hz" in text
@@ -76,7 +77,7 @@ def test_amplitude_dependence_from_the_campaign(shaker_nonlinear_campaign, shake
         f_res = np.sqrt(fit.tyre.stiffness_n_per_m / fit.tyre.tread_mass_kg) / (2 * np.pi)
         truth = shaker_nonlinear[amp].plant.setup.linear_tyre(f_res, amp)
         assert d == pytest.approx(truth.damping_ns_per_m, rel=0.15)
-    text = "\n".join(shaker_nonlinear_campaign.summary_lines())
+    text = "\n".join(summary_lines(shaker_nonlinear_campaign))
     assert "amplitude dependence (Model 2" in text
     assert all(f"{mm} mm valid band" in text for mm in (1, 2, 5))
 
@@ -95,7 +96,7 @@ def test_four_post_result_and_summary(four_post_analysis):
     high = m.reliable & (m.freq_hz > 20.0)
     assert np.abs(m.value[high]).max() < 2 * truth.unsprung_mass_above_kg
     assert result.unreliable_bins > 0  # the flanks of a 0.1-30 Hz sweep over 60 s
-    text = "\n".join(result.summary_lines())
+    text = "\n".join(summary_lines(result))
     for band, name in (
         (result.valid_band_raw, "raw"),
         (result.valid_band_hub_compensated, "hub-acceleration compensated"),
@@ -145,11 +146,11 @@ def test_hammer_through_the_api():
     assert res.eigenfrequency_hz == pytest.approx(sensor.eigenfrequency_hz, rel=0.01)
     assert res.damping_ratio_half_power == pytest.approx(sensor.damping_ratio, rel=0.10)
     assert res.damping_ratio_log_decrement == pytest.approx(sensor.damping_ratio, rel=0.10)
-    text = "\n".join(res.summary_lines())
+    text = "\n".join(summary_lines(res))
     assert "Hz" in text and "half-power" in text and "logarithmic decrement" in text
     assert "FLAG" not in text
     flagged = replace(res, damping_ratio_half_power=2 * res.damping_ratio_log_decrement)
-    assert any(line.startswith("FLAG") for line in flagged.summary_lines())
+    assert any(line.startswith("FLAG") for line in summary_lines(flagged))
     with pytest.raises(AnalysisInputError, match="hammer blow at 10000 Hz sampling: no channel 'fz_wfs_n'"):
         analyse_hammer(
             HammerRecord(record.sample_rate_hz, {"f_hammer_n": record.channels["f_hammer_n"]}),
@@ -201,7 +202,7 @@ def test_unsettled_dwell_is_flagged_and_left_out(shaker_linear, free_run):
     result = _campaign(records, free_run, setup).nearest(2e-3)
     assert not result.frfs.wfs_per_z.reliable[i] and result.frfs.wfs_per_z.reliable.sum() == len(records) - 1
     assert len(result.unsettled) == 1 and result.unsettled[0].startswith("dwell 2 mm at 10 Hz")
-    flags = [line for line in result.summary_lines() if line.startswith("FLAG")]
+    flags = [line for line in summary_lines(result) if line.startswith("FLAG")]
     assert len(flags) == 1 and "not settled: dwell 2 mm at 10 Hz" in flags[0]
     # the other 21 dwells still identify the tyre (issue tolerance on k)
     k = result.identification.best_fit.tyre.stiffness_n_per_m
@@ -247,7 +248,7 @@ def test_one_point_band_is_reported_not_determined(shaker_other_tyre, free_run):
     reliable[1] = False
     band = valid_band(raw.freq_hz, raw.value, reliable, sigma=raw.sigma)
     assert band.n_points == 1 and not band.determined and band.upper_hz == 0.0
-    text = "\n".join(replace(amp, valid_band_raw=band).summary_lines())
+    text = "\n".join(summary_lines(replace(amp, valid_band_raw=band)))
     f0 = f"{raw.freq_hz[0]:.4g}"
     assert f"raw not determined (only {f0} Hz passes, then unreliable point)" in text
     assert f"raw {f0}-{f0} Hz" not in text

@@ -1,0 +1,64 @@
+"""A campaign's analysis as data: what the runs established so far, what each run's analysis gave,
+and a whole file analysed. Plain containers of analysis results (no device, store or rendering):
+the post-run analysis and ``wfsbench analyze`` fill them, :mod:`bench.report` renders them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.analysis.records import DwellRecord, HammerRecord
+from bench.analysis.runs import FourPostResult, HammerResult, ShakerCampaignResult
+from bench.models.parameters import WfsSensor
+
+
+@dataclass
+class CampaignKnowledge:
+    """What the campaign has established so far, for the analyses that follow."""
+
+    sensor: WfsSensor
+    wheel_mass_kg: float
+    shaker_free_run: list[DwellRecord] = field(default_factory=list)
+    post_free_run: list[DwellRecord] = field(default_factory=list)
+    shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
+    hammer: HammerResult | None = None
+    four_post: FourPostResult | None = None
+
+
+@dataclass(frozen=True)
+class RunAnalysis:
+    """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
+    ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
+    scalar ``results`` stored beside the run and ``error`` (empty when the analysis succeeded).
+    The result objects go into the analyser's knowledge."""
+
+    run_id: str
+    kind: str
+    name: str
+    lines: tuple[str, ...]
+    results: dict[str, Any]
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class CampaignAnalysis:
+    """A campaign file analysed: where it came from (``path``, ``software_version``,
+    ``sequence_name``, ``config_source``: the stored configuration's name, or ``"defaults"``),
+    the masses taken as given, what the runs established (``knowledge``: sensor, plate masses'
+    records, shaker results per pressure, hammer and four-post results), each analysed run in
+    order (``runs``), the runs not analysed because they did not complete (``skipped``: run id
+    and status) and the hammer blow's record (``hammer_record``, for its figure; None without a
+    hammer run)."""
+
+    path: Path
+    software_version: str
+    sequence_name: str
+    config_source: str
+    sensor_mass_kg: float
+    wheel_mass_kg: float
+    knowledge: CampaignKnowledge
+    runs: tuple[RunAnalysis, ...]
+    skipped: tuple[tuple[str, str], ...]
+    hammer_record: HammerRecord | None

@@ -1,0 +1,104 @@
+"""Analysis of a whole campaign file, whatever wrote it, and its results stored beside the runs.
+
+:func:`analyze_campaign` replays the complete runs of any file that follows the HDF5 schema
+(docs/hdf5.md) in the order they began, through the same :class:`~bench.app.post_run.RunAnalyser`
+the post-run analysis uses while a campaign runs: the hammer test gives the sensor, the free runs
+the plate masses, each tyre pressure's dwell grids the tyre, the four-post sweep the car. The
+sensor and wheel masses come from the bench configuration stored in the file (``config_toml``),
+or the defaults when the file holds none.
+
+:func:`store_reanalysis` writes what the analysis found beside the raw data under new result names
+(``<name>-reanalysis-<n>``, ``n`` one more than any earlier re-analysis of the file): the raw data
+and every earlier result stay as they were.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
+from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ
+from bench.app.post_run import RunAnalyser, replay_campaign
+from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
+from bench.models.parameters import WfsSensor
+from bench.store import add_results, open_campaign
+
+#: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
+REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
+
+
+class CampaignFileError(ValueError):
+    """The file is no campaign file, or its contents cannot be analysed; the message names the
+    file and what is wrong."""
+
+
+def _stored_config(path: Path, config_toml: str, name: str) -> tuple[BenchConfig, str]:
+    if not config_toml.strip():
+        return default_bench_config(), "defaults"
+    try:
+        return parse_bench_config(config_toml, f"{path}@config_toml", base_dir=path.parent), name or "stored"
+    except ConfigError as err:
+        raise CampaignFileError(f"{path}: the stored bench configuration is invalid: {err}") from err
+
+
+def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> CampaignAnalysis:
+    """Analyse every complete run of the campaign file at ``path`` in order; ``config`` replaces
+    the configuration stored in the file (its masses). A file that does not follow the schema
+    raises :class:`~bench.store.StoreError` (which names the file and the place); an analysis that
+    fails for one run is a flagged :class:`RunAnalysis`, not an error."""
+    path = Path(path)
+    with open_campaign(path) as campaign:
+        if config is None:
+            config, source = _stored_config(path, campaign.config_toml, campaign.config_name)
+        else:
+            source = config.source
+        masses = config.masses
+        knowledge = CampaignKnowledge(
+            sensor=WfsSensor(mass_kg=masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+            wheel_mass_kg=masses.wheel_below_sensor_kg,
+        )
+        runs = tuple(replay_campaign(campaign, RunAnalyser(knowledge)))
+        hammer = next(
+            (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None
+        )
+        return CampaignAnalysis(
+            path=path,
+            software_version=campaign.software_version,
+            sequence_name=campaign.sequence_name,
+            config_source=source,
+            sensor_mass_kg=masses.sensor_kg,
+            wheel_mass_kg=masses.wheel_below_sensor_kg,
+            knowledge=knowledge,
+            runs=runs,
+            skipped=tuple((run.run_id, run.status) for run in campaign.runs if run.status != "complete"),
+            hammer_record=hammer.hammer_record() if hammer is not None else None,
+        )
+
+
+def next_reanalysis(path: str | Path) -> int:
+    """The number of the next re-analysis of the campaign file at ``path`` (1 for the first)."""
+    with open_campaign(path) as campaign:
+        numbers = [
+            int(match["n"])
+            for run in campaign.runs
+            for name in run.result_names
+            if (match := REANALYSIS_NAME.match(name))
+        ]
+    return max(numbers, default=0) + 1
+
+
+def store_reanalysis(analysis: CampaignAnalysis) -> dict[str, str]:
+    """Write each analysed run's results beside it under a new name; returns run id -> the name.
+    The stored result is the one the post-run analysis stores: the text summary and the scalar
+    results."""
+    n = next_reanalysis(analysis.path)
+    names = {run.run_id: f"{run.name}-reanalysis-{n}" for run in analysis.runs}
+    add_results(
+        analysis.path,
+        {
+            (run.run_id, names[run.run_id]): {"summary": "\n".join(run.lines), **run.results}
+            for run in analysis.runs
+        },
+    )
+    return names

@@ -1,0 +1,80 @@
+"""``wfsbench analyze`` and ``wfsbench report``: a campaign file analysed, as text, JSON or a report.
+
+Exit codes (both commands):
+
+- 0: analysed (runs whose analysis failed are flagged in the output, not an error);
+- 3: the file is no campaign file (missing, not HDF5, another layout, truncated, a schema
+  violation or an invalid stored configuration): nothing was written;
+- 4 (``analyze`` only): analysed and printed, but the results could not be stored in the file
+  (read-only file or directory).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_OK = 0
+EXIT_NOT_CAMPAIGN = 3
+EXIT_NOT_STORED = 4
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from bench.app.analyze import CampaignFileError, analyze_campaign, store_reanalysis
+    from bench.report.json_out import analysis_json_text
+    from bench.store import StoreError
+
+    path = Path(args.file)
+    try:
+        analysis = analyze_campaign(path)
+    except (StoreError, CampaignFileError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_NOT_CAMPAIGN
+    code, names = EXIT_OK, {}
+    try:
+        names = store_reanalysis(analysis)
+    except StoreError as exc:
+        print(f"error: results not stored: {exc}", file=sys.stderr)
+        code = EXIT_NOT_STORED
+    if args.json:
+        print(analysis_json_text(analysis, names))
+        return code
+    for run in analysis.runs:
+        stored = f"; stored as results/{names[run.run_id]}" if run.run_id in names else ""
+        print(f"== {run.run_id} ({run.kind}: {run.name}{stored})")
+        for line in run.lines:
+            print(line)
+    for run_id, status in analysis.skipped:
+        print(f"== {run_id}: {status}, not analysed")
+    return code
+
+
+def _report(args: argparse.Namespace) -> int:
+    from bench.app.analyze import CampaignFileError
+    from bench.app.report import write_report
+    from bench.store import StoreError
+
+    try:
+        written = write_report(Path(args.file), Path(args.out))
+    except (StoreError, CampaignFileError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_NOT_CAMPAIGN
+    for figure in written.figures:
+        print(f"figure {figure.path}")
+    print(f"report {written.page}")
+    return EXIT_OK
+
+
+def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
+    """Add ``analyze`` and ``report`` to the ``wfsbench`` subcommands."""
+    analyze = sub.add_parser(
+        "analyze", help="analyse a campaign file (any writer); results are stored in it under new names"
+    )
+    analyze.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
+    analyze.add_argument("--json", action="store_true", help="JSON (docs/analysis-json.md) instead of text")
+    analyze.set_defaults(run=_analyze)
+    report = sub.add_parser("report", help="figures and a self-contained HTML page of a campaign file")
+    report.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
+    report.add_argument("--out", required=True, help="directory for the PNG figures and report.html")
+    report.set_defaults(run=_report)

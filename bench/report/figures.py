@@ -1,0 +1,384 @@
+"""The campaign's figures, drawn with matplotlib's Agg canvas (no display, no pyplot state): the
+paper's Figs. 3, 6, 7/9 and 8 from the analysis results.
+
+- ``hammer``: the blow's decay in time with the analysed free decay shaded, and its amplitude
+  spectrum with the identified eigenfrequency marked (Fig. 3).
+- ``shaker_<p>bar``: |F_WFS/F_contact| and its phase over frequency at one tyre pressure, one
+  colour per amplitude; measured dwells as dots with 95 % bars (1.96 sigma), Models 1 / 2 / 3 as
+  lines (Fig. 6).
+- ``shaker_compensated_<p>bar``: the same ratio raw against model-compensated, with the tolerance
+  of the valid band.
+- ``four_post_ratios``: raw, hub-acceleration compensated and model-compensated ratios over the
+  true contact force, each valid band shaded (Figs. 7 and 9).
+- ``four_post_hub``: |F_WFS - F_contact| / |Z| against m_wheel |a_hub| / |Z| over frequency: the
+  force difference the mass below the sensor makes (Fig. 8, in the frequency domain).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.frf import Frf, ValidBand
+from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
+from bench.analysis.runs import FourPostResult, ShakerAmplitudeResult, ShakerCampaignResult
+from bench.analysis.shaker_models import shaker_response
+from bench.models.parameters import WfsSensor
+
+#: Pixels per inch of the PNGs (a 9 x 6.5 in figure is 900 x 650 px).
+DPI = 100
+#: Points of a model curve over the measured band.
+MODEL_GRID_POINTS = 300
+#: Normal quantile of the drawn uncertainty bars (95 %).
+Z95 = 1.96
+_MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
+_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+
+
+@dataclass(frozen=True)
+class FigureFile:
+    """A written figure: ``name`` (file stem), ``title`` and ``caption`` for the page, ``path``."""
+
+    name: str
+    title: str
+    caption: str
+    path: Path
+
+
+def _new_figure(rows: int, *, sharex: bool = True) -> tuple[Figure, list[Axes]]:
+    """A 9 x 6.5 in figure on an Agg canvas with ``rows`` axes above each other."""
+    fig = Figure(figsize=(9, 6.5), dpi=DPI)  # fixed margins: a layout engine doubles the drawing time
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.95, bottom=0.08, hspace=0.12 if sharex else 0.3)
+    axes = fig.subplots(rows, 1, sharex=sharex, squeeze=False)[:, 0]
+    return fig, list(axes)
+
+
+def _frequency_axes(*axes: Axes) -> None:
+    """Log frequency axes labelled 1-2-5 with plain numbers (0.5, 1, 2, 5, 10 Hz), a light grid."""
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.grid(True, which="both", alpha=0.3)
+
+
+def _pressure_tag(pressure_bar: float) -> str:
+    return f"{pressure_bar:g}".replace(".", "p") + "bar"
+
+
+# ---------------------------------------------------------------------------------------- hammer
+
+
+def hammer_figure(analysis: CampaignAnalysis) -> Figure:
+    """Decay in time (analysed span shaded) and amplitude spectrum with the eigenfrequency marked."""
+    record, result = analysis.hammer_record, analysis.knowledge.hammer
+    fs = record.sample_rate_hz
+    force = np.asarray(record.channels[WFS_FORCE], dtype=float)
+    t_ms = 1e3 * np.arange(force.size) / fs
+    fig, (decay, spectrum) = _new_figure(2, sharex=False)
+    decay.plot(t_ms, force, lw=0.8, color="tab:blue", label="F_WFS")
+    if HAMMER_FORCE in record.channels:
+        decay.plot(t_ms, record.channels[HAMMER_FORCE], lw=0.8, color="tab:gray", label="hammer")
+    decay.axvspan(
+        1e3 * result.decay_start_s,
+        1e3 * result.decay_stop_s,
+        color="tab:green",
+        alpha=0.15,
+        label=f"free decay analysed ({result.n_peaks} peaks)",
+    )
+    decay.set(xlabel="time (ms)", ylabel="force (N)", title="Hammer blow on the bare sensor")
+    decay.legend(loc="upper right")
+    start, stop = int(result.decay_start_s * fs), int(result.decay_stop_s * fs) + 1
+    span_ms = 1e3 * (result.decay_stop_s - result.decay_start_s)
+    decay.set_xlim(1e3 * result.decay_start_s - 0.5 * span_ms, 1e3 * result.decay_stop_s + span_ms)
+    tail = force[start:stop] - np.mean(force[stop:]) if stop < force.size else force[start:stop]
+    n_fft = 1 << int(np.ceil(np.log2(max(16 * tail.size, 4096))))
+    amplitude = np.abs(np.fft.rfft(tail, n_fft))  # the decay windows itself: no taper
+    freq = np.fft.rfftfreq(n_fft, 1 / fs)
+    spectrum.semilogy(freq, amplitude / amplitude.max(), lw=0.8, color="tab:blue")
+    spectrum.axvline(
+        result.eigenfrequency_hz,
+        color="tab:red",
+        ls="--",
+        label=f"eigenfrequency {result.eigenfrequency_hz:.1f} Hz"
+        f" (damping ratio {result.damping_ratio_log_decrement:.4f})",
+    )
+    spectrum.set(
+        xlabel="frequency (Hz)",
+        ylabel="amplitude (normalised)",
+        xlim=(0, fs / 2),
+        title="Spectrum of the free decay",
+    )
+    spectrum.legend(loc="upper right")
+    return fig
+
+
+# ---------------------------------------------------------------------------------------- shaker
+
+
+def _model_ratio(
+    result: ShakerAmplitudeResult, model: int, sensor: WfsSensor, f_hz: np.ndarray
+) -> np.ndarray:
+    fit = result.identification.fits[model]
+    wfs, contact = shaker_response(fit.model, fit.tyre, sensor, f_hz, fit.rubber)
+    return wfs / contact
+
+
+def _dots(mag: Axes, phase: Axes, frf: Frf, colour: str, label: str, *, marker: str = "o") -> None:
+    """Measured points with 95 % bars; unreliable ones hollow."""
+    for keep, face in ((frf.reliable, colour), (~frf.reliable, "none")):
+        if not np.any(keep):
+            continue
+        f, h, sigma = frf.freq_hz[keep], frf.value[keep], frf.sigma[keep]
+        phase_sigma_deg = np.degrees(np.minimum(sigma / np.abs(h), np.pi))
+        mag.errorbar(
+            f,
+            np.abs(h),
+            yerr=Z95 * sigma,
+            fmt=marker,
+            ms=4,
+            mfc=face,
+            mec=colour,
+            ecolor=colour,
+            elinewidth=0.8,
+            capsize=2,
+            ls="none",
+            label=label if face != "none" else None,
+        )
+        phase.errorbar(
+            f,
+            np.degrees(np.angle(h)),
+            yerr=Z95 * phase_sigma_deg,
+            fmt=marker,
+            ms=4,
+            mfc=face,
+            mec=colour,
+            ecolor=colour,
+            elinewidth=0.8,
+            capsize=2,
+            ls="none",
+        )
+
+
+def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
+    """|F_WFS/F_contact| and phase per amplitude: measured dots, Models 1-3 as lines."""
+    fig, (mag, phase) = _new_figure(2)
+    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
+        ratio = amp.frfs.wfs_per_contact
+        grid = np.geomspace(ratio.freq_hz[0], ratio.freq_hz[-1], MODEL_GRID_POINTS)
+        _dots(mag, phase, ratio, colour, f"{amp.label} measured")
+        for model in amp.identification.fits:
+            h = _model_ratio(amp, int(model), result.sensor, grid)
+            chosen = " (selected)" if model == amp.identification.best else ""
+            mag.plot(
+                grid,
+                np.abs(h),
+                ls=_MODEL_STYLES[int(model)],
+                color=colour,
+                lw=1.1,
+                label=f"{amp.label} Model {int(model)}{chosen}",
+            )
+            phase.plot(grid, np.degrees(np.angle(h)), ls=_MODEL_STYLES[int(model)], color=colour, lw=1.1)
+    mag.set(
+        ylabel="|F_WFS / F_contact|",
+        title=f"Shaker, tyre at {pressure_bar:g} bar: measured (95 % bars) and Models 1 (dotted),"
+        " 2 (solid), 3 (dashed)",
+    )
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    mag.legend(fontsize=7, ncol=3, loc="upper left")
+    _frequency_axes(mag, phase)
+    return fig
+
+
+def _tolerance(mag: Axes, phase: Axes, band: ValidBand) -> None:
+    for sign in (-1, 1):
+        mag.axhline(1 + sign * band.amplitude_tolerance, color="gray", lw=0.8, ls="--")
+        phase.axhline(sign * band.phase_tolerance_deg, color="gray", lw=0.8, ls="--")
+
+
+def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
+    """Raw against model-compensated ratio per amplitude, with the valid band's tolerances."""
+    fig, (mag, phase) = _new_figure(2)
+    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
+        _dots(mag, phase, amp.frfs.wfs_per_contact, colour, f"{amp.label} raw", marker="o")
+        _dots(mag, phase, amp.compensated_per_contact, colour, f"{amp.label} model-compensated", marker="s")
+        for ax, values in (
+            (mag, amp.compensated_per_contact.magnitude),
+            (phase, amp.compensated_per_contact.phase_deg),
+        ):
+            ax.plot(amp.compensated_per_contact.freq_hz, values, color=colour, lw=0.8)
+    first = next(iter(result.amplitudes.values()))
+    _tolerance(mag, phase, first.valid_band_raw)
+    mag.set(
+        yscale="log",
+        ylabel="|F / F_contact|",
+        title=f"Shaker at {pressure_bar:g} bar: raw (circles), model-compensated (squares),"
+        " tolerance (dashed)",
+    )
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    mag.legend(fontsize=7, ncol=3, loc="upper left")
+    _frequency_axes(mag, phase)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------- four-post
+
+
+def four_post_ratios_figure(result: FourPostResult) -> Figure:
+    """Raw, hub-acceleration and model-compensated ratios with each valid band shaded."""
+    fig, (mag, phase) = _new_figure(2)
+    curves = (
+        ("raw", result.wfs_per_contact, result.valid_band_raw, "tab:red"),
+        (
+            "hub-acceleration compensated",
+            result.hub_compensated_per_contact,
+            result.valid_band_hub_compensated,
+            "tab:blue",
+        ),
+        (
+            "model-compensated",
+            result.model_compensated_per_contact,
+            result.valid_band_model_compensated,
+            "tab:green",
+        ),
+    )
+    for i, (name, frf, band, colour) in enumerate(curves):
+        f = frf.freq_hz
+        usable = np.where(frf.reliable, 1.0, np.nan)
+        mag.plot(f, frf.magnitude * usable, color=colour, lw=1.1, label=name)
+        phase.plot(f, frf.phase_deg * usable, color=colour, lw=1.1)
+        if band.determined:
+            y0, y1 = i / len(curves), (i + 1) / len(curves)
+            for ax in (mag, phase):
+                ax.axvspan(band.lowest_hz, band.upper_hz, ymin=y0, ymax=y1, color=colour, alpha=0.12)
+            mag.annotate(
+                f"{name} valid {band.lowest_hz:.3g}-{band.upper_hz:.3g} Hz",
+                xy=(0.01, y0 + 0.02),
+                xycoords="axes fraction",
+                fontsize=7,
+                color=colour,
+            )
+    _tolerance(mag, phase, result.valid_band_raw)
+    mag.set(
+        ylabel="|F / F_contact|",
+        title="Four-post: measured over true contact force; shaded: valid bands; dashed: tolerance",
+    )
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    mag.legend(fontsize=8, loc="upper left")
+    _frequency_axes(mag, phase)
+    return fig
+
+
+def four_post_hub_figure(result: FourPostResult) -> Figure:
+    """F_contact - F_WFS against m_wheel a_hub, both over Z (reliable bins): the hub-acceleration
+    compensation ``F_contact = F_WFS + m_wheel a_hub`` holds where they agree. The hub acceleration
+    is advanced by the accelerometer's lag, as the compensation advances it."""
+    frfs, m = result.frfs, result.wheel_mass
+    keep = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
+    f = frfs.wfs_per_z.freq_hz[keep]
+    difference = (frfs.contact_per_z.value - frfs.wfs_per_z.value)[keep]
+    advance = np.exp(2j * np.pi * f * m.accelerometer_delay_s)
+    inertial = m.mass_kg * frfs.accel_per_z.value[keep] * advance
+    fig, (mag, phase) = _new_figure(2)
+    mag.plot(f, np.abs(difference), color="tab:red", lw=1.1, label="F_contact - F_WFS")
+    mag.plot(
+        f,
+        np.abs(inertial),
+        color="tab:blue",
+        lw=1.1,
+        ls="--",
+        label=f"m_wheel a_hub (m_wheel {m.mass_kg:.2f} kg from the run;"
+        f" a_hub advanced by its {1e3 * m.accelerometer_delay_s:.3f} ms lag)",
+    )
+    phase.plot(f, np.degrees(np.angle(difference)), color="tab:red", lw=1.1)
+    phase.plot(f, np.degrees(np.angle(inertial)), color="tab:blue", lw=1.1, ls="--")
+    mag.set(
+        yscale="log",
+        ylabel="magnitude over Z (N/m)",
+        title="Four-post: force difference against the mass below the sensor times the hub acceleration",
+    )
+    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    mag.legend(fontsize=8)
+    _frequency_axes(mag, phase)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------- all
+
+
+def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[], Figure]]]:
+    """(name, title, caption, draw) of every figure the analysis supports."""
+    k = analysis.knowledge
+    out = []
+    if k.hammer is not None and analysis.hammer_record is not None:
+        out.append(
+            (
+                "hammer",
+                "Hammer test (Fig. 3)",
+                "Left to right in time: the blow and the sensor's free decay (shaded: the span the"
+                " logarithmic decrement uses); below, its spectrum with the identified eigenfrequency.",
+                lambda: hammer_figure(analysis),
+            )
+        )
+    for pressure, result in sorted(k.shaker.items()):
+        tag = _pressure_tag(pressure)
+        out.append(
+            (
+                f"shaker_{tag}",
+                f"Shaker at {pressure:g} bar (Fig. 6)",
+                "Measured F_WFS/F_contact per dwell with 95 % bars (hollow: not settled, unused) and"
+                " the three tyre models fitted to them, one colour per amplitude.",
+                lambda p=pressure, r=result: shaker_figure(p, r),
+            )
+        )
+        out.append(
+            (
+                f"shaker_compensated_{tag}",
+                f"Shaker at {pressure:g} bar: raw and compensated",
+                "The raw ratio against the model-compensated one; within the dashed tolerances the"
+                " WFS force is the contact force.",
+                lambda p=pressure, r=result: shaker_compensated_figure(p, r),
+            )
+        )
+    if k.four_post is not None:
+        car = k.four_post
+        out.append(
+            (
+                "four_post_ratios",
+                "Four-post: raw and compensated ratios (Figs. 7 and 9)",
+                "Measured over true contact force, raw, with the hub-acceleration compensation and"
+                " with the model compensator; each valid band shaded in its colour.",
+                lambda: four_post_ratios_figure(car),
+            )
+        )
+        out.append(
+            (
+                "four_post_hub",
+                "Four-post: force difference and hub acceleration (Fig. 8)",
+                "Where the two curves agree, the difference between WFS and contact force is the"
+                " inertia of the mass below the sensor.",
+                lambda: four_post_hub_figure(car),
+            )
+        )
+    return out
+
+
+def write_figures(analysis: CampaignAnalysis, out_dir: Path) -> list[FigureFile]:
+    """Draw every figure the analysis supports into ``out_dir/<name>.png``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, title, caption, draw in _figures(analysis):
+        path = out_dir / f"{name}.png"
+        draw().savefig(path, dpi=DPI)
+        written.append(FigureFile(name, title, caption, path))
+    return written

@@ -1,0 +1,236 @@
+"""A campaign's analysis as JSON: schema ``wfs-bench-analysis``, version 1 (docs/analysis-json.md
+lists every key with its unit). SI units throughout, named in the keys (``_hz``, ``_kg``, ``_m``,
+``_n_per_m``, ``_ns_per_m``, ``_s``); ratios and damping ratios are plain numbers. A value the data
+does not give is ``null``, never a guess. Version 1 only gains keys; renaming or removing one, or
+changing its unit, makes version 2.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+
+from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.frf import ValidBand
+from bench.analysis.hammer import HammerResult
+from bench.analysis.runs import FourPostResult, FreeRunResult, ShakerAmplitudeResult, ShakerCampaignResult
+from bench.report.text import free_run_lines
+
+SCHEMA = "wfs-bench-analysis"
+VERSION = 1
+
+
+def _number(value: float) -> float | None:
+    """A finite float, or None (JSON has no NaN or infinity)."""
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def _numbers(values: dict[str, float]) -> dict[str, float | None]:
+    return {name: _number(v) for name, v in values.items()}
+
+
+def band_json(band: ValidBand) -> dict[str, Any]:
+    """A valid band: where it starts and ends (Hz), why, and the unreliable points it skips."""
+    return {
+        "determined": band.determined,
+        "lowest_hz": _number(band.lowest_hz) if band.n_points else None,
+        "upper_hz": _number(band.upper_hz) if band.determined else None,
+        "n_points": band.n_points,
+        "starts_at": band.starts_at,
+        "limited_by": band.limited_by,
+        "skipped_hz": [float(f) for f in band.skipped_hz],
+        "amplitude_tolerance": band.amplitude_tolerance,
+        "phase_tolerance_deg": band.phase_tolerance_deg,
+    }
+
+
+def hammer_json(result: HammerResult) -> dict[str, Any]:
+    return {
+        "eigenfrequency_hz": result.eigenfrequency_hz,
+        "damped_frequency_hz": result.damped_frequency_hz,
+        "damping_ratio_half_power": result.damping_ratio_half_power,
+        "damping_ratio_log_decrement": result.damping_ratio_log_decrement,
+        "stiffness_n_per_m": result.stiffness_n_per_m,
+        "damping_ns_per_m": result.damping_ns_per_m,
+        "n_peaks": result.n_peaks,
+        "decay_start_s": result.decay_start_s,
+        "decay_stop_s": result.decay_stop_s,
+    }
+
+
+def free_run_json(result: FreeRunResult) -> dict[str, Any]:
+    p = result.plate
+    return {
+        "m_comp_kg": p.mass_kg,
+        "m_comp_sigma_kg": p.sigma_kg,
+        "residual_rms_n_per_m": p.residual_rms_n_per_m,
+        "n_points_used": p.n_points,
+        "n_dwells": len(result.fits),
+        "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
+        "flags": [line for line in free_run_lines(result) if line.startswith("FLAG")],
+    }
+
+
+def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
+    ident = result.identification
+    peak = result.model_peak
+    top_hz, top = result.largest_measured_ratio
+    return {
+        "amplitude_m": result.amplitude_m,
+        "n_dwells": len(result.fits),
+        "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
+        "selected_model": int(ident.best),
+        "frequency_dependent_stiffness": ident.frequency_dependent_stiffness,
+        "hysteretic_damping": ident.hysteretic_damping,
+        "models": [
+            {
+                "model": int(model),
+                "values": _numbers(fit.values),
+                "ci95": _numbers(fit.ci95),
+                "undetermined": list(fit.undetermined),
+                "converged": fit.converged,
+                "bic": fit.bic,
+                "aic": fit.aic,
+                "ratio_relative_rms": fit.ratio_relative_rms,
+            }
+            for model, fit in ident.fits.items()
+        ],
+        "findings": list(ident.findings),
+        "model_peak": None
+        if peak is None
+        else {
+            "freq_hz": peak.freq_hz,
+            "freq_ci95_hz": peak.freq_ci95_hz,
+            "ratio": peak.height,
+            "ratio_ci95": peak.height_ci95,
+        },
+        "largest_measured": {"freq_hz": top_hz, "ratio": top},
+        "valid_band_raw": band_json(result.valid_band_raw),
+        "valid_band_compensated": band_json(result.valid_band_compensated),
+        "compensator_design_error": result.compensator.design_error,
+        "compensator_band_hz": result.compensator.band_hz,
+        "unsettled": list(result.unsettled),
+        "rejected": list(result.rejected),
+    }
+
+
+def shaker_json(pressure_bar: float, result: ShakerCampaignResult) -> dict[str, Any]:
+    dep = result.amplitude_dependence
+    return {
+        "tyre_pressure_bar": pressure_bar,
+        "wheel_mass_kg": result.wheel_mass_kg,
+        "sensor_eigenfrequency_hz": result.sensor.eigenfrequency_hz,
+        "free_run": free_run_json(result.free_run),
+        "amplitudes": [amplitude_json(r) for r in result.amplitudes.values()],
+        "amplitude_dependence": None
+        if dep is None
+        else [
+            {
+                "amplitude_m": float(a),
+                "stiffness_n_per_m": float(k),
+                "stiffness_ci95_n_per_m": float(ci),
+                "stiffness_change": float(dk),
+                "equivalent_damping_ns_per_m": float(d),
+                "damping_change": float(dd),
+            }
+            for a, k, ci, dk, d, dd in zip(
+                dep.amplitude_m,
+                dep.stiffness_n_per_m,
+                dep.stiffness_ci95_n_per_m,
+                dep.stiffness_change,
+                dep.equivalent_damping_ns_per_m,
+                dep.damping_change,
+                strict=True,
+            )
+        ],
+    }
+
+
+def four_post_json(result: FourPostResult) -> dict[str, Any]:
+    m, car = result.wheel_mass, result.quarter_car
+    flank_hz, other_hz = result.unreliable_bins_hz
+    return {
+        "label": result.label,
+        "tyre_model": int(result.tyre_model),
+        "tyre_source": result.tyre_source,
+        "post_free_run": free_run_json(result.post_free_run),
+        "m_wheel_kg": m.mass_kg,
+        "m_wheel_sigma_kg": m.sigma_kg,
+        "m_wheel_band_hz": [float(f) for f in m.band_hz],
+        "m_wheel_given_kg": result.wheel_mass_given_kg,
+        "accelerometer_delay_s": m.accelerometer_delay_s,
+        "valid_band_raw": band_json(result.valid_band_raw),
+        "valid_band_hub_compensated": band_json(result.valid_band_hub_compensated),
+        "valid_band_model_compensated": band_json(result.valid_band_model_compensated),
+        "quarter_car": {
+            "values": _numbers(car.values),
+            "ci95": _numbers(car.ci95),
+            "undetermined": list(car.undetermined),
+            "taken_as_given": list(car.taken_as_given),
+            "reduced_chi2": car.reduced_chi2,
+            "converged": car.converged,
+            "band_hz": [float(f) for f in car.band_hz],
+            "body_frequency_hz": car.body_frequency_hz,
+            "body_frequency_ci95_hz": car.body_frequency_ci95_hz,
+            "body_damping_ratio": car.body_damping_ratio,
+            "wheel_frequency_hz": car.wheel_frequency_hz,
+            "wheel_frequency_ci95_hz": car.wheel_frequency_ci95_hz,
+            "wheel_damping_ratio": car.wheel_damping_ratio,
+            "unsprung_mass_above_kg": car.suspension.unsprung_mass_above_kg,
+        },
+        "n_bins": int(result.frfs.wfs_per_z.freq_hz.size),
+        "unreliable_bins": result.unreliable_bins,
+        "unreliable_flank_hz": [float(f) for f in flank_hz],
+        "unreliable_low_excitation_hz": [float(f) for f in other_hz],
+    }
+
+
+def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | None = None) -> dict[str, Any]:
+    """The whole analysis as a JSON-ready mapping; ``results_names``: run id -> the name its
+    results were stored under (from :func:`~bench.app.analyze.store_reanalysis`)."""
+    k = analysis.knowledge
+    names = results_names or {}
+    return {
+        "schema": SCHEMA,
+        "version": VERSION,
+        "file": str(analysis.path),
+        "software_version": analysis.software_version,
+        "sequence_name": analysis.sequence_name,
+        "config_source": analysis.config_source,
+        "given": {"sensor_mass_kg": analysis.sensor_mass_kg, "wheel_mass_kg": analysis.wheel_mass_kg},
+        "sensor": {
+            "mass_kg": k.sensor.mass_kg,
+            "eigenfrequency_hz": k.sensor.eigenfrequency_hz,
+            "damping_ratio": k.sensor.damping_ratio,
+            "from_hammer_test": k.hammer is not None,
+        },
+        "hammer": None if k.hammer is None else hammer_json(k.hammer),
+        "shaker": [shaker_json(p, r) for p, r in sorted(k.shaker.items())],
+        "four_post": None if k.four_post is None else four_post_json(k.four_post),
+        "runs": [
+            {
+                "run_id": run.run_id,
+                "kind": run.kind,
+                "analysis": run.name,
+                "results_name": names.get(run.run_id),
+                "error": run.error or None,
+                "summary": list(run.lines),
+            }
+            for run in analysis.runs
+        ],
+        "not_analysed": [{"run_id": run_id, "status": status} for run_id, status in analysis.skipped],
+        "flags": [
+            {"run_id": run.run_id, "flag": line}
+            for run in analysis.runs
+            for line in run.lines
+            if "FLAG" in line
+        ],
+    }
+
+
+def analysis_json_text(analysis: CampaignAnalysis, results_names: dict[str, str] | None = None) -> str:
+    """:func:`analysis_json` as indented JSON text (strict: no NaN)."""
+    return json.dumps(analysis_json(analysis, results_names), indent=2, allow_nan=False)
