@@ -17,10 +17,12 @@ and the tangential direction).
   and over ``[t - L, t)``, ``L = max(t / 4, one cycle)``, differ by at most ``settle_tolerance``
   of its magnitude plus three standard uncertainties of the difference. The window grows with the
   hold, so a slow transient (a lightly damped mode building up) shows as a change however short the
-  blocks are. The measured part begins at ``t - 2L``, where the estimate was already steady.
+  blocks are.
+  The measured part begins at ``t - 2L``, where the estimate was already steady, but not before
+  :data:`MEASURE_AFTER_S`.
 - **Measured** when, from there on, the uncertainty is within both targets, the measured part holds
-  a whole cycle and the hold reached its minimum length; or **max length** when the hold reached its
-  maximum first.
+  two whole cycles (:data:`MEASURE_CYCLES`) and the hold reached its minimum length; or **max
+  length** when the hold reached its maximum first.
 """
 
 from __future__ import annotations
@@ -36,6 +38,11 @@ from sequences import AdaptiveDwell
 
 #: Standard uncertainties of the difference that the settling test allows on top of its tolerance.
 SETTLE_SIGMAS = 3.0
+#: The measured part begins no earlier in the hold than the analysis's settling allowance
+#: (``bench.analysis.records.DEFAULT_SETTLE_S``), and holds at least the two whole cycles its
+#: settling check needs, so that the analysis of the file fits the part measured here.
+MEASURE_AFTER_S = 0.2
+MEASURE_CYCLES = 2
 
 
 @dataclass(frozen=True)
@@ -145,7 +152,8 @@ class OnlineDwell:
                 100 * fit.relative <= self.plan.magnitude_target_pct
                 and math.degrees(fit.relative) <= self.plan.phase_target_deg
             )
-            if targets and measured_s >= self.cycle and self.held >= self.min_hold:
+            enough = measured_s >= MEASURE_CYCLES * self.cycle - 0.5
+            if targets and enough and self.held >= self.min_hold:
                 self._result = ("target", fit)
                 return
         if self.held >= self.max_hold:

@@ -91,7 +91,7 @@ def next_point(freqs_hz: Sequence[float], frf: Sequence[complex], plan: Adaptive
     j = int(np.argmax(score))
     if score[j] <= 1.0:
         return None
-    mid = round(0.5 * (f[j] + f[j + 1]), 3)
+    mid = round(float(0.5 * (f[j] + f[j + 1])), 3)
     return AddedPoint(
         mid,
         f"steep: interpolating {f[j]:g}-{f[j + 1]:g} Hz errs about {err_db[j]:.2f} dB / {err_deg[j]:.1f} deg",
