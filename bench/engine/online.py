@@ -103,7 +103,7 @@ class OnlineDwell:
         self._s = [np.zeros(3)]
         self.held = 0  # hold samples seen
         self.settle_at: int | None = None  # hold samples when the settle verdict came
-        self._measure_from: int | None = None  # boundary index where the measured part begins
+        self._steady_from: float | None = None  # hold samples from which the estimate was steady
         self._result: tuple[str, _WindowFit | None] | None = None
 
     @property
@@ -142,17 +142,25 @@ class OnlineDwell:
         self._bounds.append(self.held)
         self._judge()
 
+    @property
+    def _measure_from(self) -> int | None:
+        """The boundary index where the measured part begins (None: not settled yet)."""
+        if self._steady_from is None:
+            return None
+        return bisect.bisect_left(self._bounds, max(self._steady_from, MEASURE_AFTER_S * self.fs) - 0.5)
+
     def _judge(self) -> None:
-        if self._measure_from is None:
+        if self._steady_from is None:
             self._settle_test()
-        if self._measure_from is not None:
-            fit = self._fit(self._measure_from, len(self._bounds) - 1)
-            measured_s = self.held - self._bounds[self._measure_from]
+        first = self._measure_from
+        if first is not None and first < len(self._bounds) - 1:
+            fit = self._fit(first, len(self._bounds) - 1)
+            measured = self.held - self._bounds[first]
             targets = fit is not None and (
                 100 * fit.relative <= self.plan.magnitude_target_pct
                 and math.degrees(fit.relative) <= self.plan.phase_target_deg
             )
-            enough = measured_s >= MEASURE_CYCLES * self.cycle - 0.5
+            enough = measured >= MEASURE_CYCLES * self.cycle - 0.5
             if targets and enough and self.held >= self.min_hold:
                 self._result = ("target", fit)
                 return
@@ -171,12 +179,10 @@ class OnlineDwell:
         a, b = self._fit(start, middle), self._fit(middle, last)
         if a is None or b is None:
             return
-        allowed = self.plan.settle_tolerance * abs(b.frf) + SETTLE_SIGMAS * math.hypot(
-            a.frf_sigma, b.frf_sigma
-        )
-        if abs(b.frf - a.frf) <= allowed:
+        noise = SETTLE_SIGMAS * math.hypot(a.frf_sigma, b.frf_sigma)
+        if abs(b.frf - a.frf) <= self.plan.settle_tolerance * abs(b.frf) + noise:
             self.settle_at = self.held
-            self._measure_from = start
+            self._steady_from = self._bounds[start]
 
     def _boundary(self, samples: float) -> int:
         """The index of the block boundary nearest ``samples`` of hold."""
@@ -212,8 +218,9 @@ class OnlineDwell:
         if self.done:
             return
         last = len(self._bounds) - 1
-        if self._measure_from is not None:
-            self._result = ("max length", self._fit(self._measure_from, last))
+        first = self._measure_from
+        if first is not None:
+            self._result = ("max length", self._fit(first, last) if first < last else None)
         else:
             self._result = ("not settled", self._fit(self._boundary(self.held / 2), last))
 
@@ -222,10 +229,11 @@ class OnlineDwell:
         self.finish()
         verdict, fit = self._result
         nan = float("nan")
-        start = nan if self._measure_from is None else self._bounds[self._measure_from] / self.fs
+        first = self._measure_from
+        start = nan if first is None else self._bounds[min(first, len(self._bounds) - 1)] / self.fs
         settle = nan if self.settle_at is None else self.settle_at / self.fs
         held_s = self.held / self.fs
-        measure_s = held_s - (start if self._measure_from is not None else held_s / 2)
+        measure_s = held_s - (start if first is not None else held_s / 2)
         if fit is None:
             missing = complex(nan, nan)
             return DwellVerdict(verdict, settle, start, measure_s, missing, nan, nan, missing)

@@ -102,3 +102,16 @@ def test_the_hold_may_start_inside_a_block_and_the_taper_after_it_is_ignored() -
 
 def test_the_measured_part_begins_at_the_analysis_settling_allowance() -> None:
     assert MEASURE_AFTER_S == DEFAULT_SETTLE_S
+
+
+def test_a_point_steady_before_the_settling_allowance_is_measured_after_it() -> None:
+    """A heavily damped point is steady within a few cycles; its measured part still begins at the
+    analysis's allowance and holds two cycles."""
+    channels, truth, tau_s = sdof_record(60.0, zeta=0.5, seconds=2.0)
+    assert tau_s < 0.01
+    verdict = run_dwell(channels, 60.0).verdict()
+    assert verdict.verdict == "target"
+    assert verdict.settle_s <= MEASURE_AFTER_S
+    assert verdict.measure_start_s == pytest.approx(MEASURE_AFTER_S)
+    assert verdict.measure_s >= 2 / 60.0
+    assert abs(verdict.frf / truth - 1) <= 0.005
