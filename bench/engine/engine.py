@@ -24,7 +24,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from bench.engine import events as ev
-from bench.engine.amplitude import AmplitudeControl, achieved_amplitude_mm
+from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
 from bench.engine.channels import FrameChannels
 from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan
 from bench.engine.interlocks import Interlock, Observation, first_trip
@@ -381,11 +381,13 @@ class Engine:
         coarse = len(grid.freqs_hz)
         added_index = max(coarse * len(grid.amplitudes_mm), max(held.done_points, default=-1) + 1)
         with _RunRecording(self, run_id, grid, held.samples) as run:
+            gains = ServoGains()
             for a, nominal_mm in enumerate(grid.amplitudes_mm):
                 measured: dict[float, complex] = {}
                 for k, freq_hz in enumerate(grid.freqs_hz):
                     if a * coarse + k not in held.done_points:
-                        verdict = self._point(run, a * coarse + k, grid.dwell_at(freq_hz, nominal_mm), plan)
+                        dwell = grid.dwell_at(freq_hz, nominal_mm)
+                        verdict = self._point(run, a * coarse + k, dwell, plan=plan, gains=gains)
                         measured[freq_hz] = verdict.frf
                 for _ in range(plan.max_added_points):
                     added = next_point(tuple(measured), tuple(measured.values()), plan)
@@ -393,7 +395,9 @@ class Engine:
                         break
                     self.bus.publish(ev.GridRefined(run_id, nominal_mm, ((added.freq_hz, added.reason),)))
                     dwell = grid.dwell_at(added.freq_hz, nominal_mm)
-                    verdict = self._point(run, added_index, dwell, plan, added.reason)
+                    verdict = self._point(
+                        run, added_index, dwell, plan=plan, added_reason=added.reason, gains=gains
+                    )
                     measured[added.freq_hz] = verdict.frf
                     added_index += 1
 
@@ -491,14 +495,22 @@ class Engine:
         run: _RunRecording,
         index: int,
         dwell: SineDwell,
+        *,
         plan: AdaptiveDwell | None = None,
         added_reason: str = "",
+        gains: ServoGains | None = None,
     ) -> DwellVerdict | None:
         """One dwell, repeated with a corrected command while the achieved amplitude is off.
 
         With ``plan`` the hold lasts until the dwell's online verdicts (at most ``max_hold_s``) and
-        the kept attempt's verdict is returned."""
+        the kept attempt's verdict is returned. With ``gains`` the first command is the one the
+        servo gains measured so far expect to reach the target (within the command limit), and
+        every attempt adds its gain."""
         command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
+        if gains is not None:
+            command_mm = min(
+                gains.command_mm(dwell.freq_hz, dwell.amplitude_mm), self.amplitude_control.max_command_mm
+            )
         requested = dwell.requested_amplitude_mm or dwell.amplitude_mm
         hold_s = dwell.hold_s if plan is None else plan.max_hold_s
         while True:
@@ -534,6 +546,8 @@ class Engine:
                 achieved = run.achieved_amplitude_mm(span, dwell)
             else:
                 achieved = 1e3 * abs(verdict.displacement_m)
+            if gains is not None:
+                gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
             status = "done" if decision.keep else "repeated"
             self._publish_point(
