@@ -46,7 +46,12 @@ def _with_limits(config, **limits):
 
 @pytest.mark.parametrize(
     ("name", "config", "points"),
-    [("paper_shaker.toml", SHAKER, 211), ("smoke.toml", SHAKER, 8), ("paper_four_post.toml", FOUR_POST, 11)],
+    [
+        ("paper_shaker.toml", SHAKER, 211),
+        ("paper_shaker_adaptive.toml", SHAKER, 94),
+        ("smoke.toml", SHAKER, 8),
+        ("paper_four_post.toml", FOUR_POST, 11),
+    ],
 )
 def test_shipped_sequences_pass_on_their_simulated_bench(name, config, points):
     result = dry_run(load_sequence(shipped_file(name), config.limits), config)
