@@ -63,6 +63,7 @@ def test_adaptive_grid_finds_the_peak_of_wfs_over_contact_force(tmp_path: Path, 
     with open_campaign(path) as campaign:
         run = campaign.runs[0]
         rows = [p for p in run.points if p.status == "done"]
+        logged = [(e.fields["freq_hz"], e.text) for e in run.events if e.kind == "refined"]
         fits = [fit_dwell_record(r, WHEEL_CHANNELS) for r in run.dwell_records()]
     frf = shaker_frfs(fits, PlateMass(PLATE_KG, 0.0, 0.0, 0)).wfs_per_contact
     band = np.linspace(COARSE_HZ[0], COARSE_HZ[-1], 6501)
@@ -75,6 +76,8 @@ def test_adaptive_grid_finds_the_peak_of_wfs_over_contact_force(tmp_path: Path, 
     added_rows = sorted((p for p in rows if p.index >= len(COARSE_HZ)), key=lambda p: p.index)
     assert refined and len(refined) <= PLAN.max_added_points
     assert [(p.freq_hz, p.added_reason) for p in added_rows] == refined
+    assert [f for f, _ in logged] == [f for f, _ in refined]  # the file's run events keep them too
+    assert all(reason in text for (_, reason), (_, text) in zip(refined, logged, strict=True))
     assert all(reason.startswith(("model peak", "steep")) for _, reason in refined)
     assert all(p.added_reason == "" for p in rows if p.index < len(COARSE_HZ))
     # every point ended by its verdicts, within the plan's lengths
