@@ -80,7 +80,9 @@ def test_adaptive_grid_finds_the_peak_of_wfs_over_contact_force(tmp_path: Path, 
     assert all(reason in text for (_, reason), (_, text) in zip(refined, logged, strict=True))
     assert all(reason.startswith(("model peak", "steep")) for _, reason in refined)
     assert all(p.added_reason == "" for p in rows if p.index < len(COARSE_HZ))
-    # every point ended by its verdicts, within the plan's lengths
+    # every point ended by its verdicts, within the plan's lengths, and well before the longest
+    holds_s = [(p.hold_end_sample - p.hold_start_sample) / run.sample_rate_hz for p in rows]
+    assert np.median(holds_s) < 0.2 * PLAN.max_hold_s
     for p in rows:
         hold_s = (p.hold_end_sample - p.hold_start_sample) / run.sample_rate_hz
         assert p.verdict in ("target", "max length"), p
