@@ -30,6 +30,8 @@ from sequences.steps import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Swe
 STANDARD_GRAVITY_M_S2 = 9.80665
 #: Frequencies a sweep is evaluated at (log-spaced over its band, plus the model's resonances in it).
 SWEEP_EVALUATION_POINTS = 120
+#: ... and the band where an adaptive grid may add points, at each of its amplitudes.
+REFINEMENT_EVALUATION_POINTS = 60
 
 #: (prediction attribute, BenchLimits attribute, what it is, unit)
 _CHECKS = (
@@ -43,14 +45,15 @@ _CHECKS = (
 
 @dataclass(frozen=True)
 class PointPrediction:
-    """The predicted peaks of one point: a dwell, or a sweep (then the largest over its band, each
-    found at ``at_hz[quantity]``). ``setup`` is what stands on the bench ("shaker", "quarter_car",
-    "free_run"); ``wfs_static_n`` is the part of ``wfs_load_n`` present at rest."""
+    """The predicted peaks of one point: a dwell, or a sweep or an adaptive grid's refinement band at
+    one amplitude (then the largest over the band, each found at ``at_hz[quantity]``). ``setup`` is
+    what stands on the bench ("shaker", "quarter_car", "free_run"); ``wfs_static_n`` is the part of
+    ``wfs_load_n`` present at rest."""
 
     step_index: int
     point_index: int
-    kind: str  # "dwell" | "sweep"
-    freq_hz: float  # the dwell's frequency; a sweep's highest
+    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points)
+    freq_hz: float  # the dwell's frequency; a sweep's (a refinement band's) highest
     amplitude_mm: float
     setup: str
     pressure_bar: float | None
@@ -64,7 +67,11 @@ class PointPrediction:
 
     @property
     def label(self) -> str:
-        what = f"{self.freq_hz:g} Hz" if self.kind == "dwell" else f"sweep to {self.freq_hz:g} Hz"
+        what = {
+            "dwell": f"{self.freq_hz:g} Hz",
+            "sweep": f"sweep to {self.freq_hz:g} Hz",
+            "refinement": f"points an adaptive grid may add up to {self.freq_hz:g} Hz",
+        }[self.kind]
         return f"steps[{self.step_index}] point {self.point_index} ({what}, {self.amplitude_mm:g} mm)"
 
 
@@ -128,6 +135,11 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
             setup = world.setup(free_run=isinstance(step, FreeRun))
             dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
             points += [world.predict_dwell(setup, index, j, dwell) for j, dwell in enumerate(dwells)]
+            if isinstance(step, DwellGrid) and step.adaptive is not None:
+                points += [
+                    world.predict_refinement(setup, index, len(dwells) + a, step, nominal_mm)
+                    for a, nominal_mm in enumerate(step.amplitudes_mm)
+                ]
         elif isinstance(step, Sweep):
             points.append(world.predict_sweep(world.setup(free_run=False), index, step))
     refusals = tuple(r for point in points for r in _refusals(point, config))
@@ -236,6 +248,52 @@ class _World:
             actuator_force_n=plate_n,
             wfs_load_n=wfs_n + static_n if setup.has_tyre else 0.0,
             wfs_static_n=static_n,
+        )
+
+    def predict_refinement(
+        self, setup: BenchSetup, index: int, j: int, grid: DwellGrid, nominal_mm: float
+    ) -> PointPrediction:
+        """The peaks of any point an adaptive grid may add at ``nominal_mm`` between its lowest and
+        highest frequency (each at the amplitude the grid's crossover gives it), evaluated
+        log-spaced and at the model's resonances: a refinement goes where the response is steep."""
+        lo, hi = min(grid.freqs_hz), max(grid.freqs_hz)
+        freqs = np.geomspace(lo, hi, REFINEMENT_EVALUATION_POINTS)
+        resonances = setup.network().eigenfrequencies_hz()
+        freqs = np.unique(np.r_[freqs, resonances[(resonances > lo) & (resonances < hi)]])
+        dwells = [grid.dwell_at(float(f), nominal_mm) for f in freqs]
+        forces = np.array([self._forces(setup, d.freq_hz, d.amplitude_m) for d in dwells])
+        kinematics = np.array(
+            [
+                (
+                    peak_velocity_mm_s(d.freq_hz, d.amplitude_mm),
+                    peak_acceleration_m_s2(d.freq_hz, d.amplitude_mm),
+                )
+                for d in dwells
+            ]
+        )
+        i_plate, i_wfs = int(np.argmax(forces[:, 0])), int(np.argmax(forces[:, 1]))
+        i_v, i_a = int(np.argmax(kinematics[:, 0])), int(np.argmax(kinematics[:, 1]))
+        static_n = self.static_wfs_load_n(setup)
+        return PointPrediction(
+            step_index=index,
+            point_index=j,
+            kind="refinement",
+            freq_hz=hi,
+            amplitude_mm=nominal_mm,
+            setup=setup.kind.value,
+            pressure_bar=self.pressure_bar if setup.has_tyre else None,
+            displacement_mm=abs(grid.mean_mm) + max(d.amplitude_mm for d in dwells),
+            velocity_mm_s=float(kinematics[i_v, 0]),
+            acceleration_m_s2=float(kinematics[i_a, 1]),
+            actuator_force_n=float(forces[i_plate, 0]),
+            wfs_load_n=float(forces[i_wfs, 1]) + static_n if setup.has_tyre else 0.0,
+            wfs_static_n=static_n,
+            at_hz={
+                "actuator_force_n": float(freqs[i_plate]),
+                "wfs_load_n": float(freqs[i_wfs]),
+                "velocity_mm_s": float(freqs[i_v]),
+                "acceleration_m_s2": float(freqs[i_a]),
+            },
         )
 
     def predict_sweep(self, setup: BenchSetup, index: int, sweep: Sweep) -> PointPrediction:

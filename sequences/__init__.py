@@ -11,6 +11,7 @@ from sequences.errors import AnswerError, Problem, SequenceError
 from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
 from sequences.loader import dump_sequence, load_sequence, parse_sequence
 from sequences.steps import (
+    AdaptiveDwell,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -34,6 +35,7 @@ def shipped_file(name: str) -> Path:
 
 
 __all__ = [
+    "AdaptiveDwell",
     "AnswerError",
     "BenchLimits",
     "DwellGrid",

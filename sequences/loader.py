@@ -16,7 +16,7 @@ from pathlib import Path
 
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
-from sequences.steps import STEP_TYPES, DwellGrid, FreeRun, Sequence, Step, step_fields
+from sequences.steps import STEP_TYPES, AdaptiveDwell, DwellGrid, FreeRun, Sequence, Step, step_fields
 from sequences.toml_text import toml_table
 from sequences.validation import check_sequence_header, check_steps
 
@@ -118,10 +118,31 @@ def _build_step(index: int, raw: object, source: str, problems: list[Problem]) -
     missing = [name for name, required in keys.items() if required and name not in raw]
     for name in missing:
         problems.append(Problem(source, f"{key}.{name}", f"missing: a {kind} step needs {name}"))
+    if "adaptive" in values:
+        values["adaptive"] = _build_adaptive(f"{key}.adaptive", kind, values["adaptive"], source, problems)
+        if values["adaptive"] is None:
+            return None
     if missing:
         return None
     built = target(**values)
     return FreeRun(built) if STEP_TYPES[kind] is FreeRun else built
+
+
+def _build_adaptive(
+    key: str, kind: str, raw: object, source: str, problems: list[Problem]
+) -> AdaptiveDwell | None:
+    """The ``adaptive`` table of a dwell grid, or None with its structural problems added."""
+    if kind != DwellGrid.kind:
+        problems.append(Problem(source, key, f"a {kind} step has no adaptive table; only a dwell_grid has"))
+        return None
+    if not isinstance(raw, dict):
+        problems.append(Problem(source, key, f"must be a table, got {raw!r}"))
+        return None
+    allowed = [f.name for f in dataclasses.fields(AdaptiveDwell)]
+    unknown = [name for name in raw if name not in allowed]
+    for name in unknown:
+        problems.append(Problem(source, f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}"))
+    return None if unknown else AdaptiveDwell(**raw)
 
 
 def _syntax_error(text: str, source: str, message: str) -> SequenceError:

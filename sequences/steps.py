@@ -122,13 +122,49 @@ def crossover_amplitude_mm(
 
 
 @dataclass(frozen=True, slots=True)
+class AdaptiveDwell:
+    """Adaptive stepped sine on a dwell grid: dwells that end when settled and measured, and a grid
+    refined where the response is steep (``adaptive`` table of a ``dwell_grid``; docs/sequences.md).
+
+    The measured FRF point is ``output / (input + plate_mass_kg w^2 z)``: the WFS force over the
+    contact force when ``input`` is the load cell under a plate of ``plate_mass_kg``. A dwell's hold
+    lasts at least ``max(min_hold_cycles / f, min_hold_s)`` and at most ``max_hold_s``: it ends once
+    the FRF point is steady within ``settle_tolerance`` (relative) and its standard uncertainty is at
+    most ``magnitude_target_pct`` and ``phase_target_deg``. After the grid's frequencies, points are
+    added (at most ``max_added_points`` per amplitude, none closer than ``min_spacing_hz`` to a
+    measured one) until interpolating between neighbours errs by less than ``interpolation_db`` and
+    ``interpolation_deg``.
+    """
+
+    output: str = "fz_wfs_n"
+    input: str = "f_plate_n"
+    plate_mass_kg: float = 0.0
+    settle_tolerance: float = 0.005
+    magnitude_target_pct: float = 0.5
+    phase_target_deg: float = 0.5
+    min_hold_cycles: float = 3.0
+    min_hold_s: float = 0.3
+    max_hold_s: float = 10.0
+    interpolation_db: float = 0.5
+    interpolation_deg: float = 5.0
+    max_added_points: int = 12
+    min_spacing_hz: float = 0.1
+
+    def min_hold_at_s(self, freq_hz: float) -> float:
+        """The shortest hold at ``freq_hz`` (s)."""
+        return min(max(self.min_hold_cycles / freq_hz, self.min_hold_s), self.max_hold_s)
+
+
+@dataclass(frozen=True, slots=True)
 class DwellGrid:
     """Sine dwells over frequencies x amplitudes, all with the same timing.
 
     ``order`` "amplitude-major" runs every frequency at the first amplitude, then the next
     amplitude; "frequency-major" runs every amplitude at one frequency before the next. With
     ``max_velocity_mm_s`` / ``max_acceleration_m_s2`` the amplitude of a point is lowered above the
-    crossover frequency (see :func:`crossover_amplitude_mm`) and each dwell records it.
+    crossover frequency (see :func:`crossover_amplitude_mm`) and each dwell records it. With
+    ``adaptive`` the grid's frequencies are the coarse grid of an adaptive stepped sine
+    (:class:`AdaptiveDwell`): its dwells end by their verdicts and the engine adds points.
     """
 
     kind: ClassVar[str] = "dwell_grid"
@@ -146,6 +182,7 @@ class DwellGrid:
     max_velocity_mm_s: float | None = None
     max_acceleration_m_s2: float | None = None
     label: str = ""
+    adaptive: AdaptiveDwell | None = None
 
     def _pairs(self) -> Iterator[tuple[float, float]]:
         if self.order == "frequency-major":
@@ -154,31 +191,38 @@ class DwellGrid:
 
     def dwells(self) -> tuple[SineDwell, ...]:
         """The grid's dwells in run order, with the amplitude actually used."""
-        out = []
-        for freq_hz, nominal_mm in self._pairs():
-            used_mm, limited_by = crossover_amplitude_mm(
-                freq_hz, nominal_mm, self.max_velocity_mm_s, self.max_acceleration_m_s2
-            )
-            out.append(
-                SineDwell(
-                    freq_hz,
-                    used_mm,
-                    self.settle_cycles,
-                    self.settle_min_s,
-                    self.measure_cycles,
-                    self.measure_min_s,
-                    self.taper_in_s,
-                    self.taper_out_s,
-                    self.mean_mm,
-                    requested_amplitude_mm=nominal_mm if limited_by else None,
-                    amplitude_limited_by=limited_by,
-                )
-            )
-        return tuple(out)
+        return tuple(self.dwell_at(freq_hz, nominal_mm) for freq_hz, nominal_mm in self._pairs())
+
+    def dwell_at(self, freq_hz: float, nominal_mm: float) -> SineDwell:
+        """The grid's dwell at any frequency and nominal amplitude (a refinement adds such points)."""
+        used_mm, limited_by = crossover_amplitude_mm(
+            freq_hz, nominal_mm, self.max_velocity_mm_s, self.max_acceleration_m_s2
+        )
+        return SineDwell(
+            freq_hz,
+            used_mm,
+            self.settle_cycles,
+            self.settle_min_s,
+            self.measure_cycles,
+            self.measure_min_s,
+            self.taper_in_s,
+            self.taper_out_s,
+            self.mean_mm,
+            requested_amplitude_mm=nominal_mm if limited_by else None,
+            amplitude_limited_by=limited_by,
+        )
 
     @property
     def estimated_duration_s(self) -> float:
-        return sum(d.duration_s for d in self.dwells())
+        """Fixed timing: every dwell's duration. Adaptive: the grid's dwells and the point budget
+        at their shortest hold (a lower estimate: a dwell lasts until its verdicts)."""
+        if self.adaptive is None:
+            return sum(d.duration_s for d in self.dwells())
+        a = self.adaptive
+        tapers_s = self.taper_in_s + self.taper_out_s
+        coarse_s = sum(tapers_s + a.min_hold_at_s(d.freq_hz) for d in self.dwells())
+        added_s = len(self.amplitudes_mm) * a.max_added_points * (tapers_s + a.min_hold_s)
+        return coarse_s + added_s
 
 
 @dataclass(frozen=True, slots=True)
@@ -368,6 +412,8 @@ def step_fields(step: Step) -> dict[str, object]:
     out: dict[str, object] = {"type": step.kind}
     for f in fields(inner):
         value = getattr(inner, f.name)
+        if isinstance(value, AdaptiveDwell):
+            value = {g.name: getattr(value, g.name) for g in fields(value)}
         if value is not None and value != () and not (f.name == "label" and value == ""):
             out[f.name] = list(value) if isinstance(value, tuple) else value
     return out

@@ -22,6 +22,7 @@ from sequences.steps import (
     HYDRAULIC_LEVELS,
     PROMPT_ACTIONS,
     SWEEP_LAWS,
+    AdaptiveDwell,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -81,7 +82,7 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
         elif isinstance(step, DwellGrid):
             check.grid(step)
         elif isinstance(step, FreeRun):
-            check.grid(step.grid)
+            check.free_run(step)
         elif isinstance(step, Sweep):
             check.sweep(step)
         elif isinstance(step, HammerTest):
@@ -285,6 +286,46 @@ class _Checker:
         )
         if freqs and amplitudes and maxima_ok:
             self._grid_points(grid, freqs, amplitudes, (v_max, a_max), timing_ok)
+        if grid.adaptive is not None:
+            self.adaptive(grid.adaptive)
+            if grid.order != "amplitude-major":
+                self.add("order", "an adaptive grid refines one amplitude at a time: use amplitude-major")
+
+    def free_run(self, step: FreeRun) -> None:
+        self.grid(step.grid)
+        if step.grid.adaptive is not None:
+            self.add("adaptive", "a free_run step has no adaptive table; only a dwell_grid has")
+
+    def adaptive(self, a: AdaptiveDwell) -> None:
+        """The ``adaptive`` table: channel names, targets, lengths and the point budget."""
+        if not isinstance(a, AdaptiveDwell):
+            self.add("adaptive", f"expected an adaptive table, got {a!r}")
+            return
+        self.text("adaptive.output", a.output)
+        self.text("adaptive.input", a.input)
+        self.number("adaptive.plate_mass_kg", a.plate_mass_kg, 0.0, unit="kg")
+        self.number("adaptive.settle_tolerance", a.settle_tolerance, 0.0, 0.5, lo_open=True)
+        self.number(
+            "adaptive.magnitude_target_pct", a.magnitude_target_pct, 0.0, 100.0, lo_open=True, unit="%"
+        )
+        self.number("adaptive.phase_target_deg", a.phase_target_deg, 0.0, 90.0, lo_open=True, unit="deg")
+        self.number(
+            "adaptive.min_hold_cycles", a.min_hold_cycles, 2.0, why="for the settling test's two windows"
+        )
+        low = self.number("adaptive.min_hold_s", a.min_hold_s, 0.0, unit="s")
+        self.number(
+            "adaptive.max_hold_s",
+            a.max_hold_s,
+            0.0 if low is None else low,
+            self.limits.max_step_s,
+            lo_open=low is None,
+            unit="s",
+            why="min_hold_s .. the controller's longest setpoint",
+        )
+        self.number("adaptive.interpolation_db", a.interpolation_db, 0.0, lo_open=True, unit="dB")
+        self.number("adaptive.interpolation_deg", a.interpolation_deg, 0.0, lo_open=True, unit="deg")
+        self.number("adaptive.max_added_points", a.max_added_points, 0, integer=True)
+        self.number("adaptive.min_spacing_hz", a.min_spacing_hz, 0.0, lo_open=True, unit="Hz")
 
     def _grid_points(
         self,

@@ -12,6 +12,7 @@ from bench.dry_run import STANDARD_GRAVITY_M_S2, DryRunError, dry_run
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from sequences import (
+    AdaptiveDwell,
     DwellGrid,
     FreeRun,
     Prompt,
@@ -46,7 +47,12 @@ def _with_limits(config, **limits):
 
 @pytest.mark.parametrize(
     ("name", "config", "points"),
-    [("paper_shaker.toml", SHAKER, 211), ("smoke.toml", SHAKER, 8), ("paper_four_post.toml", FOUR_POST, 11)],
+    [
+        ("paper_shaker.toml", SHAKER, 211),
+        ("paper_shaker_adaptive.toml", SHAKER, 94 + 9),  # + the refinement band of 9 amplitudes
+        ("smoke.toml", SHAKER, 8),
+        ("paper_four_post.toml", FOUR_POST, 11),
+    ],
 )
 def test_shipped_sequences_pass_on_their_simulated_bench(name, config, points):
     result = dry_run(load_sequence(shipped_file(name), config.limits), config)
@@ -173,3 +179,16 @@ def test_actuator_force_and_kinematic_limits_are_checked():
     expected = 12.0 * (2 * math.pi * 60.0) ** 2 * 2e-3
     assert result.refusals[1].predicted == pytest.approx(expected, rel=1e-12)
     assert not np.isnan([p.actuator_force_n for p in result.points]).any()
+
+
+def test_an_adaptive_grid_is_checked_where_its_refinement_may_add_points():
+    """On the four-post bench the wheel-hop resonance (about 15 Hz) lies between coarse points at 5
+    and 25 Hz: the coarse points pass a limit that a point added near the resonance would break."""
+    grid = DwellGrid(freqs_hz=(5.0, 25.0), amplitudes_mm=(2.0,), adaptive=AdaptiveDwell())
+    sequence = Sequence("adaptive", "", (grid,))
+    *coarse, band = dry_run(sequence, FOUR_POST).points
+    assert band.kind == "refinement" and 10.0 < band.at_hz["wfs_load_n"] < 20.0
+    limit = (max(p.wfs_load_n for p in coarse) + band.wfs_load_n) / 2
+    (refusal,) = dry_run(sequence, _with_limits(FOUR_POST, wfs_force_n=limit)).refusals
+    assert refusal.point is not None and refusal.point.kind == "refinement"
+    assert "points an adaptive grid may add up to 25 Hz" in str(refusal) and "wfs_force_n" in str(refusal)

@@ -121,7 +121,12 @@ def test_smoke_runs_in_seconds():
 
 @pytest.mark.parametrize(
     ("name", "kind"),
-    [("paper_shaker.toml", "shaker"), ("smoke.toml", "shaker"), ("paper_four_post.toml", "four_post")],
+    [
+        ("paper_shaker.toml", "shaker"),
+        ("paper_shaker_adaptive.toml", "shaker"),
+        ("smoke.toml", "shaker"),
+        ("paper_four_post.toml", "four_post"),
+    ],
 )
 def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
     """What the sequence validator accepts, the actuator client's own check accepts too."""
@@ -140,9 +145,11 @@ def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
                 step.mean_mm,
             ).registers(config.soft_limits)
             continue
+        adaptive = getattr(step, "adaptive", None)
         for d in step.dwells():
+            hold_s = d.hold_s if adaptive is None else adaptive.max_hold_s
             DwellSetpoint(
-                d.freq_hz, d.amplitude_mm, d.hold_s, d.taper_in_s, d.taper_out_s, d.mean_mm
+                d.freq_hz, d.amplitude_mm, hold_s, d.taper_in_s, d.taper_out_s, d.mean_mm
             ).registers(config.soft_limits)
 
 

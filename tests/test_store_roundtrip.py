@@ -70,6 +70,11 @@ def _write_grid(writer: CampaignWriter, run_id: str = "001-grid", *, block: int 
             corrected_amplitude_mm=a * 1.01,
             achieved_amplitude_mm=a * 0.99,
             note=f"dwell {index}",
+            verdict="target",
+            settle_s=0.25 + index,
+            magnitude_uncertainty_pct=0.4,
+            phase_uncertainty_deg=0.2,
+            added_reason=f"steep {index}",
         )
         run.add_point(row)
         written.append((row, columns))

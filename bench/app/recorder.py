@@ -31,6 +31,9 @@ class Recorder:
                 self._samples(event)
             case ev.PointDone():
                 self._point(event)
+            case ev.GridRefined():
+                for freq_hz, reason in event.added:
+                    self._event("refined", f"point added at {freq_hz:g} Hz: {reason}", freq_hz=freq_hz)
             case ev.PromptAnswered():
                 self._event(
                     "prompt", event.text, prompt_id=event.prompt_id, answer=event.answer, unit=event.unit
@@ -88,7 +91,14 @@ class Recorder:
                 requested_amplitude_mm=event.requested_amplitude_mm,
                 corrected_amplitude_mm=commanded if commanded != event.target_amplitude_mm else math.nan,
                 achieved_amplitude_mm=event.achieved_amplitude_mm,
+                settled=event.verdict != "not settled",
                 note=event.note,
+                verdict=event.verdict,
+                settle_s=event.settle_s,
+                measure_start_sample=event.measure_start_sample,
+                magnitude_uncertainty_pct=event.magnitude_uncertainty_pct,
+                phase_uncertainty_deg=event.phase_uncertainty_deg,
+                added_reason=event.added_reason,
             )
         )
 

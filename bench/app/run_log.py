@@ -36,10 +36,14 @@ class RunLog:
                     else ""
                 )
                 note = f" ({event.note})" if event.note else ""
+                u = f"{event.magnitude_uncertainty_pct:.2f} % / {event.phase_uncertainty_deg:.2f} deg"
+                verdict = f"; {event.verdict}, u {u}" if event.verdict else ""
                 return (
                     f"  point {event.index} at {event.freq_hz:g} Hz: {event.status},"
-                    f" commanded {event.commanded_amplitude_mm:.3f} mm{achieved}{note}"
+                    f" commanded {event.commanded_amplitude_mm:.3f} mm{achieved}{note}{verdict}"
                 )
+            case ev.GridRefined():
+                return "\n".join(f"  + point at {f:g} Hz ({reason})" for f, reason in event.added)
             case ev.PromptAnswered():
                 unit = f" {event.unit}" if event.unit else ""
                 return f"prompt {event.prompt_id}: {event.text} -> {event.answer}{unit}"

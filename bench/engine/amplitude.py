@@ -74,3 +74,28 @@ def achieved_amplitude_mm(displacement_m: np.ndarray, sample_rate_hz: float, fre
     design = np.column_stack([np.sin(phase), np.cos(phase), np.ones(n)])
     (a, b, _), *_ = np.linalg.lstsq(design, window, rcond=None)
     return 1e3 * float(np.hypot(a, b))
+
+
+class ServoGains:
+    """The actuator's gain (achieved over commanded amplitude) measured last at each frequency, to
+    start a new point with the command that reaches its target: the gain changes slowly with
+    frequency (and amplitude), so the gain interpolated from the points already run (the nearest
+    one's beyond them) saves most repeats when an adaptive grid adds points between its
+    frequencies or runs its next amplitude."""
+
+    def __init__(self) -> None:
+        self._gain: dict[float, float] = {}
+
+    def record(self, freq_hz: float, commanded_mm: float, achieved_mm: float) -> None:
+        if np.isfinite(achieved_mm) and achieved_mm > 0 and commanded_mm > 0:
+            self._gain[freq_hz] = achieved_mm / commanded_mm
+
+    def command_mm(self, freq_hz: float, target_mm: float) -> float:
+        """The command expected to achieve ``target_mm`` at ``freq_hz`` (the target when no gain is
+        known yet), never scaled by more than :data:`MAX_CORRECTION_FACTOR`."""
+        if not self._gain:
+            return target_mm
+        freqs = sorted(self._gain)
+        gain = float(np.interp(freq_hz, freqs, [self._gain[f] for f in freqs]))
+        factor = float(np.clip(1.0 / gain, 1 / MAX_CORRECTION_FACTOR, MAX_CORRECTION_FACTOR))
+        return target_mm * factor

@@ -24,15 +24,18 @@ from typing import Any, NoReturn
 import numpy as np
 
 from bench.engine import events as ev
-from bench.engine.amplitude import AmplitudeControl, achieved_amplitude_mm
+from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
 from bench.engine.channels import FrameChannels
 from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan
 from bench.engine.interlocks import Interlock, Observation, first_trip
+from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
+from bench.engine.refinement import next_point
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
 from drivers.errors import LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
+    AdaptiveDwell,
     AnswerError,
     DwellGrid,
     FreeRun,
@@ -115,6 +118,16 @@ class RunStoppedError(Exception):
         super().__init__(reason)
         self.state = state
         self.reason = reason
+
+
+@dataclass(frozen=True)
+class _PointPlan:
+    """What a point's attempts share: its index, dwell, nominal amplitude and why it was added."""
+
+    index: int
+    dwell: SineDwell
+    requested_mm: float
+    added_reason: str = ""
 
 
 class _PointInterruptedError(Exception):
@@ -340,11 +353,53 @@ class Engine:
     # -- runs ---------------------------------------------------------------------------------
 
     def _dwell_run(self, run_id: str, step: SineDwell | DwellGrid | FreeRun, held: RecordedRun) -> None:
+        if isinstance(step, DwellGrid) and step.adaptive is not None:
+            self._adaptive_run(run_id, step, held)
+            return
         dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
         with _RunRecording(self, run_id, step, held.samples) as run:
             for index, dwell in enumerate(dwells):
                 if index not in held.done_points:
                     self._point(run, index, dwell)
+
+    def _adaptive_run(self, run_id: str, grid: DwellGrid, held: RecordedRun) -> None:
+        """An adaptive grid, amplitude by amplitude: the grid's frequencies (points 0, 1, ... in grid
+        order), then the points the refinement adds (numbered on after the grid's), each announced
+        with a :class:`~bench.engine.events.GridRefined` event before it runs.
+
+        A resumed run skips the grid's done points; its refinement starts from the points measured
+        since the resume."""
+        plan = grid.adaptive
+        recorded = {spec.name for spec in self.channels.specs()}
+        missing = [name for name in (plan.output, plan.input, DISPLACEMENT) if name not in recorded]
+        if missing:
+            raise RunStoppedError(
+                RunState.INTERLOCKED,
+                f"adaptive grid: the bench records no channel {', '.join(missing)}"
+                f" (it has {sorted(recorded)})",
+            )
+        coarse = len(grid.freqs_hz)
+        added_index = max(coarse * len(grid.amplitudes_mm), max(held.done_points, default=-1) + 1)
+        with _RunRecording(self, run_id, grid, held.samples) as run:
+            gains = ServoGains()
+            for a, nominal_mm in enumerate(grid.amplitudes_mm):
+                measured: dict[float, complex] = {}
+                for k, freq_hz in enumerate(grid.freqs_hz):
+                    if a * coarse + k not in held.done_points:
+                        dwell = grid.dwell_at(freq_hz, nominal_mm)
+                        verdict = self._point(run, a * coarse + k, dwell, plan=plan, gains=gains)
+                        measured[freq_hz] = verdict.frf
+                for _ in range(plan.max_added_points):
+                    added = next_point(tuple(measured), tuple(measured.values()), plan)
+                    if added is None:
+                        break
+                    self.bus.publish(ev.GridRefined(run_id, nominal_mm, ((added.freq_hz, added.reason),)))
+                    dwell = grid.dwell_at(added.freq_hz, nominal_mm)
+                    verdict = self._point(
+                        run, added_index, dwell, plan=plan, added_reason=added.reason, gains=gains
+                    )
+                    measured[added.freq_hz] = verdict.frf
+                    added_index += 1
 
     def _sweep_run(self, run_id: str, step: Sweep, held: RecordedRun) -> None:
         setpoint = SweepSetpoint(
@@ -435,10 +490,29 @@ class Engine:
                 counters = self.acquisition.link_counters()
                 self.bus.publish(ev.RunFinished(run_id, outcome.status, outcome.reason, counters))
 
-    def _point(self, run: _RunRecording, index: int, dwell: SineDwell) -> None:
-        """One dwell, repeated with a corrected command while the achieved amplitude is off."""
+    def _point(
+        self,
+        run: _RunRecording,
+        index: int,
+        dwell: SineDwell,
+        *,
+        plan: AdaptiveDwell | None = None,
+        added_reason: str = "",
+        gains: ServoGains | None = None,
+    ) -> DwellVerdict | None:
+        """One dwell, repeated with a corrected command while the achieved amplitude is off.
+
+        With ``plan`` the hold lasts until the dwell's online verdicts (at most ``max_hold_s``) and
+        the kept attempt's verdict is returned. With ``gains`` the first command is the one the
+        servo gains measured so far expect to reach the target (within the command limit), and
+        every attempt adds its gain."""
         command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
+        if gains is not None:
+            command_mm = min(
+                gains.command_mm(dwell.freq_hz, dwell.amplitude_mm), self.amplitude_control.max_command_mm
+            )
         requested = dwell.requested_amplitude_mm or dwell.amplitude_mm
+        hold_s = dwell.hold_s if plan is None else plan.max_hold_s
         while True:
             self._checkpoint()
             attempt += 1
@@ -448,69 +522,83 @@ class Engine:
             setpoint = DwellSetpoint(
                 dwell.freq_hz,
                 command_mm,
-                dwell_s=dwell.hold_s,
+                dwell_s=hold_s,
                 taper_in_s=dwell.taper_in_s,
                 taper_out_s=dwell.taper_out_s,
                 mean_mm=self._mean(dwell.mean_mm),
             )
+            watch = (
+                None if plan is None else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, DISPLACEMENT)
+            )
+            point = _PointPlan(index, dwell, requested, added_reason)
             try:
-                span = run.excite(setpoint, planned_s=dwell.duration_s)
+                span = run.excite(
+                    setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch
+                )
             except _PointInterruptedError as interrupted:
-                span = interrupted.span
                 self._publish_point(
-                    run,
-                    index=index,
-                    attempt=attempt,
-                    status="interrupted",
-                    dwell=dwell,
-                    command_mm=command_mm,
-                    requested_mm=requested,
-                    span=span,
+                    run, point, attempt, "interrupted", command_mm=command_mm, span=interrupted.span
                 )
                 self._wait_paused()
                 continue
-            achieved = run.achieved_amplitude_mm(span, dwell)
+            verdict = None if watch is None else watch.verdict()
+            if verdict is None:
+                achieved = run.achieved_amplitude_mm(span, dwell)
+            else:
+                achieved = 1e3 * abs(verdict.displacement_m)
+            if gains is not None:
+                gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
             status = "done" if decision.keep else "repeated"
             self._publish_point(
                 run,
-                index=index,
-                attempt=attempt,
-                status=status,
-                dwell=dwell,
+                point,
+                attempt,
+                status,
                 command_mm=command_mm,
-                requested_mm=requested,
                 span=span,
                 achieved_mm=achieved,
                 note=decision.note,
+                verdict=verdict,
             )
             if decision.keep:
-                return
+                return verdict
             command_mm, corrections = decision.corrected_mm, corrections + 1
 
     def _publish_point(
         self,
         run: _RunRecording,
-        *,
-        index: int,
+        point: _PointPlan,
         attempt: int,
         status: str,
-        dwell: SineDwell,
+        *,
         command_mm: float,
-        requested_mm: float,
         span: ExcitationSpan,
         achieved_mm: float = float("nan"),
         note: str = "",
+        verdict: DwellVerdict | None = None,
     ) -> None:
+        adaptive = {}
+        if verdict is not None:
+            measure_start = -1
+            if np.isfinite(verdict.measure_start_s):
+                measure_start = span.hold_start + round(verdict.measure_start_s * self.sample_rate_hz)
+            adaptive = {
+                "verdict": verdict.verdict,
+                "settle_s": verdict.settle_s,
+                "measure_start_sample": min(measure_start, span.hold_end),
+                "magnitude_uncertainty_pct": verdict.magnitude_uncertainty_pct,
+                "phase_uncertainty_deg": verdict.phase_uncertainty_deg,
+            }
         self.bus.publish(
             ev.PointDone(
                 run.run_id,
-                index,
+                point.index,
                 attempt,
                 status,
-                dwell.freq_hz,
-                dwell.amplitude_mm,
-                requested_mm,
+                point.dwell.freq_hz,
+                point.dwell.amplitude_mm,
+                point.requested_mm,
                 command_mm,
                 achieved_mm,
                 span.start,
@@ -518,6 +606,8 @@ class Engine:
                 span.hold_end,
                 span.end,
                 note,
+                added_reason=point.added_reason,
+                **adaptive,
             )
         )
 
@@ -681,10 +771,14 @@ class _RunRecording:
             end = first
         return np.concatenate(parts[::-1]) if parts else np.zeros(0)
 
-    def excite(self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float) -> ExcitationSpan:
+    def excite(
+        self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float, watch: OnlineDwell | None = None
+    ) -> ExcitationSpan:
         """Configure, start and record one excitation until the controller's active output falls.
 
-        A pause request stops it with a taper and raises :class:`_PointInterruptedError` once it is at rest;
+        ``watch`` follows an adaptive dwell's hold block by block: once it is done the excitation is
+        stopped with its taper (the hold ends where the controller's hold output falls). A pause
+        request stops it with a taper and raises :class:`_PointInterruptedError` once it is at rest;
         an abort tapers it out and ends the run; an e-stop or a tripped interlock ends the run."""
         e = self.engine
         e.actuator.configure(setpoint)
@@ -695,9 +789,12 @@ class _RunRecording:
         stopping: str | None = None
         while not tracker.ended:
             columns = self._next_columns()
-            tracker.feed(
-                self.samples - len(columns.get("status", ())), columns.get("status", np.zeros(0, int))
-            )
+            first = self.samples - len(columns.get("status", ()))
+            tracker.feed(first, columns.get("status", np.zeros(0, int)))
+            if watch is not None and not watch.done:
+                watch.feed(first, columns, tracker.hold_start, tracker.hold_end)
+                if watch.done and stopping is None:
+                    e._defensive_stop()
             if e._estop.is_set():
                 raise RunStoppedError(RunState.ESTOPPED, "e-stop")
             self._guard(columns)

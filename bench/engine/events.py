@@ -88,7 +88,12 @@ class PointStarted:
 class PointDone:
     """One attempt at a point ended. ``status``: "done" (kept), "repeated" (amplitude off: tried
     again with a corrected command) or "interrupted" (a pause stopped it: repeated on resume).
-    Sample indices count this run's recorded frames (see :class:`bench.engine.points.ExcitationSpan`)."""
+    Sample indices count this run's recorded frames (see :class:`bench.engine.points.ExcitationSpan`).
+
+    An adaptive dwell (:mod:`bench.engine.online`) adds its ``verdict`` ("target", "max length" or
+    "not settled"; empty for fixed timing), the hold time when it settled (``settle_s``), the run
+    sample where its measured part begins (``measure_start_sample``, -1 when none), the FRF point's
+    standard uncertainties, and for a point the refinement added, why (``added_reason``)."""
 
     run_id: str
     index: int
@@ -104,6 +109,22 @@ class PointDone:
     hold_end_sample: int
     end_sample: int
     note: str = ""
+    verdict: str = ""
+    settle_s: float = float("nan")
+    measure_start_sample: int = -1
+    magnitude_uncertainty_pct: float = float("nan")
+    phase_uncertainty_deg: float = float("nan")
+    added_reason: str = ""
+
+
+@dataclass(frozen=True)
+class GridRefined:
+    """An adaptive grid adds points to run ``run_id`` at the nominal ``amplitude_mm``: each
+    ``(freq_hz, reason)`` in ``added``."""
+
+    run_id: str
+    amplitude_mm: float
+    added: tuple[tuple[float, str], ...]
 
 
 @dataclass(frozen=True)
@@ -158,6 +179,7 @@ Event = (
     | SamplesRecorded
     | PointStarted
     | PointDone
+    | GridRefined
     | PromptAsked
     | PromptAnswered
     | InterlockTripped

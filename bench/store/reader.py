@@ -21,6 +21,7 @@ import h5py
 import numpy as np
 
 from bench.analysis.records import (
+    DEFAULT_SETTLE_S,
     FREE_RUN_CHANNELS,
     WFS_FORCE,
     WHEEL_CHANNELS,
@@ -298,13 +299,18 @@ class RunView:
         """One record per done point of a dwell grid or free run (and of the runs it resumes), in
         point order: the run's channels from ``start_sample`` to ``end_sample``, ``hold_s`` from the
         hold samples, the amplitude as commanded (``amplitude_mm``) and the grid's nominal amplitude
-        when a bench limit lowered it (``requested_amplitude_mm``)."""
+        when a bench limit lowered it (``requested_amplitude_mm``). An adaptive dwell's hold begins
+        :data:`DEFAULT_SETTLE_S` before its measured part (not before the hold), so the analysis's
+        settling allowance falls on samples the engine found settled and it fits the measured part."""
         self._require(("dwell_grid", "free_run"), "dwell records")
         records = []
         for run, p in self._done_points():
             channels = run.channels.slice(p.start_sample, p.end_sample)
             fs = run.sample_rate_hz
-            hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
+            hold_start = p.hold_start_sample
+            if p.hold_start_sample <= p.measure_start_sample <= p.hold_end_sample:
+                hold_start = max(p.hold_start_sample, p.measure_start_sample - round(DEFAULT_SETTLE_S * fs))
+            hold_s = ((hold_start - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
             nominal_m = p.requested_amplitude_mm * 1e-3 if math.isfinite(p.requested_amplitude_mm) else None
             record = DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s, nominal_m)
             records.append(record)
@@ -344,8 +350,9 @@ class RunView:
 
 
 def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[PointRow, ...]:
+    names = () if table.dtype.names is None else table.dtype.names
     missing = [
-        name for name in s.POINT_DTYPE.names if table.dtype.names is None or name not in table.dtype.names
+        name for name in s.POINT_DTYPE.names if name not in names and name not in s.OPTIONAL_POINT_FIELDS
     ]
     if missing:
         raise StoreError(path, table.name, f"points table lacks field(s) {', '.join(missing)}")
@@ -354,6 +361,12 @@ def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[Point
     points = []
     for i, row in enumerate(rows):
         where = f"{table.name}[{i}]"
+        optional = {
+            name: (_text(row[name]) if isinstance(default, str) else type(default)(row[name]))
+            if name in names
+            else default
+            for name, default in s.OPTIONAL_POINT_FIELDS.items()
+        }
         p = PointRow(
             index=int(row["index"]),
             freq_hz=float(row["freq_hz"]),
@@ -369,6 +382,7 @@ def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[Point
             achieved_amplitude_mm=float(row["achieved_amplitude_mm"]),
             settled=bool(row["settled"]),
             note=_text(row["note"]),
+            **optional,
         )
         if p.status not in s.POINT_STATUSES:
             raise StoreError(path, f"{where}.status", f"{p.status!r} is not one of {s.POINT_STATUSES}")

@@ -71,8 +71,24 @@ POINT_DTYPE = np.dtype(
         ("status", _STR),
         ("settled", "u1"),
         ("note", _STR),
+        ("verdict", _STR),
+        ("settle_s", "<f8"),
+        ("measure_start_sample", "<i8"),
+        ("magnitude_uncertainty_pct", "<f8"),
+        ("phase_uncertainty_deg", "<f8"),
+        ("added_reason", _STR),
     ]
 )
+#: Points-table fields of adaptive dwells, added after the first files were written: a reader takes
+#: a table without them, with these values.
+OPTIONAL_POINT_FIELDS: dict[str, object] = {
+    "verdict": "",
+    "settle_s": math.nan,
+    "measure_start_sample": -1,
+    "magnitude_uncertainty_pct": math.nan,
+    "phase_uncertainty_deg": math.nan,
+    "added_reason": "",
+}
 
 EVENT_DTYPE = np.dtype(
     [("time_unix_s", "<f8"), ("sample", "<i8"), ("kind", _STR), ("text", _STR), ("fields", _STR)]
@@ -110,6 +126,9 @@ class PointRow:
     amplitude control sent instead, ``achieved_amplitude_mm`` what the displacement channel showed
     (NaN when not applicable). Sample positions index this run's recorded arrays:
     ``start_sample <= hold_start_sample <= hold_end_sample <= end_sample`` (end exclusive).
+    An adaptive dwell adds its ``verdict``, ``settle_s`` (hold time when it settled),
+    ``measure_start_sample`` (where its measured part begins, within the hold; -1 when none), the FRF
+    point's standard uncertainties and, for a point the refinement added, ``added_reason``.
     """
 
     index: int
@@ -126,6 +145,12 @@ class PointRow:
     achieved_amplitude_mm: float = math.nan
     settled: bool = True
     note: str = ""
+    verdict: str = ""
+    settle_s: float = math.nan
+    measure_start_sample: int = -1
+    magnitude_uncertainty_pct: float = math.nan
+    phase_uncertainty_deg: float = math.nan
+    added_reason: str = ""
 
 
 def to_json(value: Mapping[str, Any], *, path: str | Path, where: str) -> str:

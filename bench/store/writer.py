@@ -545,7 +545,17 @@ def _rebuild_table(parent: h5py.Group, name: str, dtype: np.dtype) -> None:
     del parent[name]
     _create_table(parent, name, dtype)
     if rows.shape[0]:
-        _append_rows(parent[name], rows)
+        _append_rows(parent[name], _as_dtype(rows, dtype))
+
+
+def _as_dtype(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """``rows`` of a table written before fields were added, with the added fields' defaults."""
+    if rows.dtype == dtype:
+        return rows
+    out = np.zeros(rows.shape, dtype=dtype)
+    for name in dtype.names:
+        out[name] = rows[name] if name in rows.dtype.names else s.OPTIONAL_POINT_FIELDS[name]
+    return out
 
 
 def _append_rows(table: h5py.Dataset, rows: np.ndarray) -> None:

@@ -1,0 +1,26 @@
+"""The command line's run log shows the refinement as it happens and each adaptive dwell's verdict."""
+
+from __future__ import annotations
+
+from bench.app.run_log import RunLog
+from bench.engine import events as ev
+
+
+def test_points_added_by_the_refinement_are_logged_with_their_reason() -> None:
+    lines: list[str] = []
+    log = RunLog(lines.append)
+    log(ev.GridRefined("run", 2.0, ((40.613, "model peak: a single-mode fit puts the peak at 40.61 Hz"),)))
+    assert lines == ["  + point at 40.613 Hz (model peak: a single-mode fit puts the peak at 40.61 Hz)"]
+
+
+def test_an_adaptive_point_shows_its_verdict_and_uncertainty_a_fixed_one_does_not() -> None:
+    fixed = ev.PointDone("run", 3, 1, "done", 40.0, 2.0, 2.0, 2.0, 1.99, 0, 300, 1500, 1800)
+    adaptive = ev.PointDone(
+        "run", 9, 1, "done", 40.6, 2.0, 2.0, 2.0, 1.99, 0, 300, 800, 1100,
+        verdict="target", settle_s=0.3, measure_start_sample=500,
+        magnitude_uncertainty_pct=0.41, phase_uncertainty_deg=0.24,
+    )  # fmt: skip
+    assert RunLog.line(fixed) == "  point 3 at 40 Hz: done, commanded 2.000 mm, achieved 1.990 mm"
+    assert RunLog.line(adaptive) == (
+        "  point 9 at 40.6 Hz: done, commanded 2.000 mm, achieved 1.990 mm; target, u 0.41 % / 0.24 deg"
+    )
