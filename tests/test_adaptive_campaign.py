@@ -22,6 +22,7 @@ from bench.engine import events as ev
 from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre, WfsSensor, paper_tyre
 from bench.models.setup import BenchKind, BenchSetup
+from bench.report.text import summary_lines
 from bench.store import open_campaign
 from sequences import AdaptiveDwell, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence
 from tests.campaign_lab import bench_config, lab_campaign
@@ -126,4 +127,4 @@ def test_adaptive_runs_are_ordinary_dwells_for_the_analysis(tmp_path: Path) -> N
     assert len(amplitude.unsettled) <= 1, amplitude.unsettled
     best = amplitude.identification.best_fit
     assert best.tyre.stiffness_n_per_m == pytest.approx(250e3, rel=0.03)
-    assert any("peak" in line for line in result.summary_lines())
+    assert any("peak" in line for line in summary_lines(result))

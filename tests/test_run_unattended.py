@@ -266,6 +266,15 @@ def test_progress_in_a_pipe_is_plain_lines_with_the_eta_scaled_by_the_observed_r
     assert math.isclose(progress.eta_s, 3.0)
 
 
+def test_points_an_adaptive_grid_adds_count_in_the_total():
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=False, clock=clock)
+    _feed(progress, clock)
+    progress(ev.GridRefined("seq-s002-dwell_grid", 2.0, ((35.0, "model peak"), (32.5, "steep"))))
+    progress(ev.PointStarted("seq-s002-dwell_grid", 4, 1, 35.0, 2.0, {"tyre_pressure_bar": 2.5}))
+    assert out.getvalue().splitlines()[-1].startswith("progress: 1/6 points")
+
+
 def test_progress_on_a_terminal_redraws_one_line_and_writes_log_lines_above_it():
     clock, out = FakeClock(), io.StringIO()
     _feed(Progress(out, live=True, clock=clock), clock)

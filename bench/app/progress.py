@@ -161,6 +161,8 @@ class Progress:
             case ev.PointStarted():
                 what = [f"{event.freq_hz:g} Hz", f"{event.amplitude_mm:.3g} mm", *self._pressure_text()]
                 self._show(f"{event.run_id} point {event.index}: {', '.join(what)}", at_amplitude=False)
+            case ev.GridRefined():  # an adaptive grid's added points: the sequence counts its coarse ones
+                self.total_points += len(event.added)
             case ev.PointDone():
                 if event.status == "done":
                     self.points_done += 1
