@@ -24,9 +24,9 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import PlanRefusedError, plan_campaign, points_done_in_file, run_campaign
+    from bench.app.campaign import PlanRefusedError, done_in_file, plan_campaign, run_campaign
     from bench.app.interrupts import RunInterrupts
-    from bench.app.progress import Progress
+    from bench.app.progress import DoneBefore, Progress
     from bench.app.run_log import RunLog
     from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
@@ -44,8 +44,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
     try:
-        done_before = points_done_in_file(plan, Path(args.out)) if args.resume else 0
-        progress = Progress(sys.stdout, points_done_before=done_before)
+        done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
+        progress = Progress(sys.stdout, done_before=done_before)
         with RunInterrupts() as interrupts:
             # at real devices without an answers file, the person at the terminal answers
             asked = answers is None and not plan.config.simulated

@@ -22,6 +22,8 @@ import h5py
 import numpy as np
 import pytest
 
+from bench.app.campaign import done_in_file, plan_campaign
+from bench.app.progress import DoneBefore
 from bench.engine.amplitude import achieved_amplitude_mm
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench
@@ -129,6 +131,10 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
         sample = run.channels["sample"]  # the WFS's own counter: nothing lost or garbled inside
         np.testing.assert_array_equal(sample, np.arange(sample[0], sample[0] + n))
         assert np.all(np.isfinite(run.channels["z_base_m"]))
+
+    plan = plan_campaign(sequence, config)
+    point_0 = plan.sequence.steps[2].dwells()[0]
+    assert done_in_file(plan, out) == DoneBefore(points=1, estimated_s=point_0.duration_s)  # resume skips it
 
     resumed = wfsbench("run", str(sequence), "--out", str(out), "--bench", str(config), "--resume")
     assert resumed.returncode == 0, resumed.stderr

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from bench.app.answers import FileAnswers, load_answers
-from bench.app.progress import Progress
+from bench.app.progress import DoneBefore, Progress
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
 from bench.config import load_bench_config
 from bench.engine import events as ev
@@ -264,6 +264,15 @@ def test_progress_in_a_pipe_is_plain_lines_with_the_eta_scaled_by_the_observed_r
         " 2.5 bar, tapering in",
     ]
     assert math.isclose(progress.eta_s, 3.0)
+
+
+def test_a_resumed_file_s_points_count_as_done_and_their_duration_is_not_ahead():
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=False, clock=clock, done_before=DoneBefore(points=2, estimated_s=5.0))
+    _feed(progress, clock)
+    # 10 s estimated, 5 s of it done before, 2.5 s recorded now at 1 wall second: 2.5 s ahead, 1 s
+    assert out.getvalue().splitlines()[-1].startswith("progress: 3/4 points | elapsed 0:01, ETA 0:01")
+    assert math.isclose(progress.eta_s, 1.0)
 
 
 def test_points_an_adaptive_grid_adds_count_in_the_total():

@@ -17,6 +17,7 @@ from pathlib import Path
 from bench.app.actuator_thread import ThreadedActuator
 from bench.app.answers import FileAnswers
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
+from bench.app.progress import DoneBefore
 from bench.app.recorder import Recorder
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
@@ -34,7 +35,7 @@ from drivers.actuator import ActuatorClient
 from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_transform import LoadProcessor
-from sequences import Sequence, dump_sequence, load_sequence, validate
+from sequences import DwellGrid, FreeRun, Sequence, SineDwell, dump_sequence, load_sequence, validate
 
 #: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
 #: sensor rings at about 2.2 kHz).
@@ -281,16 +282,32 @@ def run_campaign(
     return CampaignOutcome(outcome.status, outcome.reason, analyses)
 
 
-def points_done_in_file(plan: CampaignPlan, out_path: Path) -> int:
-    """The points of ``plan``'s sequence that the campaign file ``out_path`` holds done already (what
-    a resume skips); 0 when there is no file."""
+def done_in_file(plan: CampaignPlan, out_path: Path) -> DoneBefore:
+    """The points of ``plan``'s sequence that the campaign file ``out_path`` holds done already and
+    their estimated duration (a complete sweep or hammer run counts whole); nothing when there is no
+    file."""
     if not Path(out_path).exists():
-        return 0
-    planned = {
-        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
+        return DoneBefore()
+    steps = {
+        Engine.run_id(plan.sequence, i): step
+        for i, step in enumerate(plan.sequence.steps)
+        if is_measurement(step)
     }
+    points, estimated_s = 0, 0.0
     with open_campaign(out_path) as campaign:
-        return sum(len(run.completed_point_indices()) for run in campaign.runs if run.run_id in planned)
+        for run in campaign.runs:
+            step = steps.get(run.run_id)
+            if step is None:
+                continue
+            done = run.completed_point_indices()
+            points += len(done)
+            if isinstance(step, SineDwell | DwellGrid | FreeRun):
+                dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+                # an adaptive grid's added points are beyond its planned dwells and its estimate
+                estimated_s += sum(dwells[i].duration_s for i in done if i < len(dwells))
+            elif run.status == "complete":
+                estimated_s += step.estimated_duration_s
+    return DoneBefore(points, estimated_s)
 
 
 def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:

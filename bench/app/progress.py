@@ -16,6 +16,7 @@ import math
 import shutil
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
@@ -38,12 +39,21 @@ def clock_text(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
+@dataclass(frozen=True)
+class DoneBefore:
+    """What a resumed campaign file holds done already of a sequence (what the engine skips):
+    ``points`` and their share of the sequence's estimated duration (``estimated_s``)."""
+
+    points: int = 0
+    estimated_s: float = 0.0
+
+
 class Progress:
     """Subscriber: the progress of a sequence on ``stream``; :meth:`line` writes a log line.
 
     ``live``: redraw one line in place (default: when ``stream`` is a terminal); ``clock``: the wall
-    clock (seconds), injectable for tests; ``points_done_before``: the points a resumed campaign file
-    holds done already (the engine skips them)."""
+    clock (seconds), injectable for tests; ``done_before``: what a resumed campaign file holds done
+    already (the engine skips it): its points count as done, its estimated duration is not ahead."""
 
     def __init__(
         self,
@@ -51,14 +61,15 @@ class Progress:
         *,
         live: bool | None = None,
         clock: Callable[[], float] = time.monotonic,
-        points_done_before: int = 0,
+        done_before: DoneBefore = DoneBefore(),
     ) -> None:
         self.stream = stream
         self.live = stream.isatty() if live is None else live
         self.clock = clock
         self.total_points = 0
         self.estimated_s = 0.0
-        self.points_done = points_done_before
+        self.points_done = done_before.points
+        self._done_before_s = done_before.estimated_s
         self.recorded_s = 0.0
         self.point: str | None = None  # what is under way, for people
         self.at_amplitude: bool | None = None  # a dwell: tapering in (False), at amplitude (True)
@@ -80,7 +91,8 @@ class Progress:
         until samples were recorded."""
         if self.recorded_s <= 0:
             return math.nan
-        return max(self.estimated_s - self.recorded_s, 0.0) * self.elapsed_s / self.recorded_s
+        ahead_s = self.estimated_s - self._done_before_s - self.recorded_s
+        return max(ahead_s, 0.0) * self.elapsed_s / self.recorded_s
 
     def status(self) -> str:
         """The status line: points done of total, the point under way, elapsed and ETA."""
