@@ -216,6 +216,16 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
     assert np.count_nonzero((decay > 0.2) & (decay < 1.8)) >= 3, peaks
     assert decay[-1] < 0.3, peaks
 
+    # the interrupted dwell is repeated by --resume (unpaced: seconds), and the run completes
+    resumed = wfsbench("run", str(tmp_path / "long.toml"), "--out", str(out), "--resume")
+    assert resumed.returncode == EXIT_COMPLETE, resumed.stdout + resumed.stderr
+    with open_campaign(out) as campaign:
+        run = campaign.run(RUN_ID)
+        assert run.status == "complete"
+        assert [p.index for p in run.points if p.status == "done"] == [0]
+        (resumed_event,) = [e for e in run.events if e.kind == "resumed"]
+        assert resumed_event.fields["ended"] == "aborted"
+
 
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_a_second_ctrl_c_during_the_taper_e_stops(tmp_path):

@@ -218,6 +218,42 @@ def test_unfinished_run_reads_incomplete_and_continues_with_each_point_once(camp
         assert [r.freq_hz for r in view.dwell_records()] == [5.0, 12.5]
 
 
+def test_a_run_that_ended_early_continues_and_keeps_how_it_had_ended(campaign):
+    path, writer = campaign
+    run = writer.begin_run(
+        "001-grid", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ
+    )
+    run.append(_dwell_block(0, *DWELLS[0]))
+    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    run.finish("aborted", "aborted by the operator")  # Ctrl-C: a tapered stop, the run marked
+    writer.close()
+
+    writer = CampaignWriter.open_append(path)
+    run = writer.continue_run("001-grid")
+    with open_campaign(path) as f:  # open again until it finishes
+        assert (f.runs[0].status, f.runs[0].reason, f.runs[0].finished) == ("incomplete", "", "")
+    run.append(_dwell_block(3000, *DWELLS[1]))
+    run.add_point(PointRow(1, 12.5, 2.0, 3000, 3500, 5500, 6000))
+    run.finish("complete")
+    with pytest.raises(StoreError, match="is complete; only a run that did not complete can be resumed"):
+        writer.continue_run("001-grid")
+    writer.close()
+
+    with open_campaign(path) as f:
+        view = f.runs[0]
+        assert view.status == "complete"
+        assert [p.index for p in view.points] == [0, 1]
+        (resumed,) = view.events
+        assert resumed.text == (
+            "writing resumed after sample 3000; the run had ended aborted: aborted by the operator"
+        )
+        assert resumed.fields == {
+            "samples": 3000,
+            "ended": "aborted",
+            "ended_reason": "aborted by the operator",
+        }
+
+
 def test_a_new_run_resumes_an_incomplete_one_without_repeating_its_points(campaign):
     path, writer = campaign
     run = writer.begin_run(
@@ -281,8 +317,6 @@ def test_writer_refuses_bad_blocks_and_rows_naming_the_place(campaign):
     run.finish("aborted", "operator abort")
     with pytest.raises(StoreError, match="is finished"):
         run.append(block)
-    with pytest.raises(StoreError, match="only an incomplete run can be resumed"):
-        writer.continue_run("r1")
     with pytest.raises(StoreError, match="kind 'dwell'"):
         writer.begin_run("r2", kind="dwell", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ)
     with pytest.raises(StoreError, match="channel names repeat"):

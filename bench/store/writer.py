@@ -204,14 +204,18 @@ class CampaignWriter:
         return self._run
 
     def continue_run(self, run_id: str) -> RunWriter:
-        """Go on writing the incomplete run ``run_id`` after its last durable sample: new samples
-        are appended, new points and events added; an ``"resumed"`` event marks the place. The
-        samples of the point that was interrupted stay in the arrays, unreferenced by any done
+        """Go on writing the run ``run_id`` that did not complete (killed: ``incomplete``; or ended
+        ``aborted``, ``interlocked``, ``e-stopped``, ``failed``) after its last durable sample: new
+        samples are appended, new points and events added; a ``"resumed"`` event marks the place
+        and keeps how the run had ended, and the run reads ``incomplete`` until it finishes again.
+        The samples of the point that was interrupted stay in the arrays, unreferenced by any done
         point; the engine repeats that point."""
         where = f"/{s.RUNS}/{run_id}"
         self._check_no_open_run(where)
         done = self._resumable(run_id)
         group = self._file[s.RUNS][run_id]
+        ended = {"status": str(group.attrs["status"]), "reason": str(group.attrs["reason"])}
+        group.attrs.update({"status": s.INCOMPLETE, "reason": "", "finished": ""})
         lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
         usable = min(lengths.values(), default=0)
         for name, length in lengths.items():
@@ -220,7 +224,17 @@ class CampaignWriter:
         _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
         _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
         self._run = RunWriter(self, group, done_before=done)
-        self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
+        if ended["status"] == s.INCOMPLETE:
+            self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
+        else:
+            self._run.add_event(
+                "resumed",
+                f"writing resumed after sample {usable}; the run had ended {ended['status']}"
+                + (f": {ended['reason']}" if ended["reason"] else ""),
+                samples=usable,
+                ended=ended["status"],
+                ended_reason=ended["reason"],
+            )
         self.flush()
         return self._run
 
@@ -269,16 +283,15 @@ class CampaignWriter:
             )
 
     def _resumable(self, run_id: str) -> frozenset[int]:
-        """The done point indices of the incomplete run ``run_id`` (and the runs it resumes)."""
+        """The done point indices of the run ``run_id`` that did not complete (and the runs it
+        resumes)."""
         where = f"/{s.RUNS}/{run_id}"
         runs = self._file[s.RUNS]
         if run_id not in runs:
             raise StoreError(self.path, where, "no such run to resume")
         attrs = runs[run_id].attrs
-        if attrs["status"] != s.INCOMPLETE:
-            raise StoreError(
-                self.path, where, f"is {attrs['status']!r}; only an incomplete run can be resumed"
-            )
+        if attrs["status"] == "complete":
+            raise StoreError(self.path, where, "is complete; only a run that did not complete can be resumed")
         if attrs["resumed_by"]:
             raise StoreError(self.path, where, f"was resumed already by run {attrs['resumed_by']!r}")
         done = _done_indices(runs[run_id][s.POINTS])
