@@ -25,7 +25,7 @@ from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity, WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
-from sequences.steps import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+from sequences.steps import ACTION_BENCH_KIND, DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
 
 STANDARD_GRAVITY_M_S2 = 9.80665
 #: Frequencies a sweep is evaluated at (log-spaced over its band, plus the model's resonances in it).
@@ -95,10 +95,29 @@ class Refusal:
         )
 
 
+@dataclass(frozen=True)
+class ActionRefusal:
+    """A prompt whose action cannot be done on the configured bench at all (a car driven onto the
+    posts of a shaker): ``needs`` the bench kind it is done on, ``bench`` the configured one."""
+
+    step_index: int
+    prompt_id: str
+    action: str
+    needs: str
+    bench: str
+
+    def __str__(self) -> str:
+        return (
+            f"steps[{self.step_index}] prompt {self.prompt_id!r}: {self.action} is done on a {self.needs}"
+            f" bench, and the configured bench is a {self.bench} bench (give a {self.needs} bench"
+            " configuration with --bench)"
+        )
+
+
 class DryRunError(ValueError):
     """The dry run refused points; ``refusals`` lists them all, the first in the str."""
 
-    def __init__(self, source: str, refusals: tuple[Refusal, ...]) -> None:
+    def __init__(self, source: str, refusals: tuple[ActionRefusal | Refusal, ...]) -> None:
         self.refusals = refusals
         lines = [f"{source}: {refusal}" for refusal in refusals]
         if len(lines) > 1:
@@ -112,7 +131,7 @@ class DryRun:
 
     source: str
     points: tuple[PointPrediction, ...]
-    refusals: tuple[Refusal, ...]
+    refusals: tuple[ActionRefusal | Refusal, ...]
 
     @property
     def ok(self) -> bool:
@@ -128,8 +147,12 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
     """Predict every dwell and sweep of ``sequence`` on the bench of ``config`` and check its limits."""
     world = _World(config)
     points: list[PointPrediction] = []
+    impossible: list[ActionRefusal] = []
     for index, step in enumerate(sequence.steps):
         if isinstance(step, Prompt):
+            needs = ACTION_BENCH_KIND.get(step.action or "")
+            if needs is not None and needs != config.kind:
+                impossible.append(ActionRefusal(index, step.id, step.action, needs, config.kind))
             world.apply(step)
         elif isinstance(step, SineDwell | DwellGrid | FreeRun):
             setup = world.setup(free_run=isinstance(step, FreeRun))
@@ -143,7 +166,7 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
         elif isinstance(step, Sweep):
             points.append(world.predict_sweep(world.setup(free_run=False), index, step))
     refusals = tuple(r for point in points for r in _refusals(point, config))
-    return DryRun(sequence.source, tuple(points), refusals)
+    return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
 
 
 def _refusals(point: PointPrediction, config: BenchConfig) -> list[Refusal]:

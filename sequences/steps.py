@@ -44,6 +44,15 @@ PROMPT_ACTIONS = (
     "set_damper",
     "strike_hammer",
 )
+#: The bench on which a prompt action can be done at all (the others: on any bench): a wheel is
+#: fitted to the shaker, a car driven onto the four posts.
+ACTION_BENCH_KIND = {
+    "remove_wheel": "shaker",
+    "fit_wheel": "shaker",
+    "car_on_posts": "four_post",
+    "car_off_posts": "four_post",
+    "set_damper": "four_post",
+}
 _YES = ("yes", "y", "ok", "done", "true")
 _NO = ("no", "n", "false")
 

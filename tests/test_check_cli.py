@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 from sequences import shipped_file
+from tests.test_campaign_cli import wfsbench
 
 
 def check(*args: str) -> subprocess.CompletedProcess:
@@ -34,8 +35,22 @@ def test_refused_points_are_each_named_with_the_limit_and_exit_4(tmp_path):
     bench.write_text("[limits]\nwfs_force_n = 700\n")
     result = check(str(shipped_file("smoke.toml")), "--bench", str(bench))
     assert result.returncode == 4
-    assert "REFUSED: 4 points beyond the bench's limits:" in result.stdout
+    assert "REFUSED (4): steps this bench cannot do, points beyond its limits:" in result.stdout
     assert result.stdout.count("is beyond the limit wfs_force_n = 700 N") == 4
+
+
+def test_a_sequence_for_another_kind_of_bench_is_refused_by_check_and_by_run(tmp_path):
+    four_post = str(shipped_file("paper_four_post.toml"))
+    result = check(four_post)  # on the default configuration: the simulated shaker
+    assert result.returncode == 4
+    assert (
+        "  steps[5] prompt 'car_on_posts': car_on_posts is done on a four_post bench, and the configured"
+        " bench is a shaker bench (give a four_post bench configuration with --bench)"
+    ) in result.stdout.splitlines()
+    out = tmp_path / "c.h5"
+    run = wfsbench("run", four_post, "--out", str(out))
+    assert run.returncode == 4 and "car_on_posts is done on a four_post bench" in run.stderr
+    assert not out.exists()  # refused before anything was opened
 
 
 def test_an_invalid_file_is_named_with_its_key_and_exit_3(tmp_path):

@@ -63,7 +63,9 @@ def check_lines(sequence: Sequence, config: BenchConfig, dry: DryRun) -> list[st
                 f" (limit {limit:g} {unit})"
             )
     if dry.refusals:
-        lines.append(f"REFUSED: {len(dry.refusals)} points beyond the bench's limits:")
+        lines.append(
+            f"REFUSED ({len(dry.refusals)}): steps this bench cannot do, points beyond its limits:"
+        )
         lines += [f"  {refusal}" for refusal in dry.refusals]
     else:
         lines.append("every point within the bench's limits: nothing refused")
