@@ -4,16 +4,21 @@ envelope, not an alias); sparse data (a few dwells) is joined by straight lines.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from rich.text import Text
+from rich.segment import Segment
+from rich.style import Style
+from textual.strip import Strip
 from textual.widget import Widget
 
 #: Braille dot bits by (row, column) inside a cell (Unicode braille patterns, U+2800 on).
 _DOT_BITS = np.array([[0x01, 0x08], [0x02, 0x10], [0x04, 0x20], [0x40, 0x80]], dtype=np.int32)
 #: Width (cells) of the y-axis labels left of the plot.
 LABEL_CELLS = 9
+_DIM = Style(dim=True)
+_BOLD = Style(bold=True)
 
 
 @dataclass(frozen=True)
@@ -55,49 +60,54 @@ def column_ranges(
     return lo, hi
 
 
-def render_plot(series: list[Series], width: int, height: int, y_label: str = "") -> list[Text]:
-    """The plot as ``height`` lines of ``width`` cells (labels included)."""
+def render_plot(series: list[Series], width: int, height: int, y_label: str = "") -> list[list[Segment]]:
+    """The plot as ``height`` lines of ``width`` cells (labels included), each line a few segments:
+    consecutive cells of one curve share one segment, which keeps redrawing cheap."""
     plot_w = max(2, width - LABEL_CELLS)
     w_dots, h_dots = 2 * plot_w, 4 * height
-    xs = [s.x[np.isfinite(s.x)] for s in series if np.size(s.x)]
-    ys = [s.y[np.isfinite(s.y)] for s in series if np.size(s.y)]
-    xs, ys = [a for a in xs if a.size], [a for a in ys if a.size]
+    xs = [a for a in (s.x[np.isfinite(s.x)] for s in series) if a.size]
+    ys = [a for a in (s.y[np.isfinite(s.y)] for s in series) if a.size]
     if not xs or not ys:
-        return [Text(f"{y_label}: no data".ljust(width))] + [Text(" " * width) for _ in range(height - 1)]
+        blank = [[Segment(" " * width)] for _ in range(height)]
+        return [[Segment(f"{y_label}: no data".ljust(width), _DIM)], *blank[1:]]
     x_lim = (min(float(a.min()) for a in xs), max(float(a.max()) for a in xs))
     y_min, y_max = min(float(a.min()) for a in ys), max(float(a.max()) for a in ys)
     if y_max - y_min < 1e-12 * max(1.0, abs(y_max)):
         y_min, y_max = y_min - 1.0, y_max + 1.0
     owner = np.full((height, plot_w), -1)
     codes = np.zeros((height, plot_w), dtype=np.int32)
+    rows = np.arange(h_dots)[:, None]
     for index, s in enumerate(series):
         lo, hi = column_ranges(s.x, s.y, x_lim, w_dots)
-        grid = np.zeros((h_dots, w_dots), dtype=bool)
-        rows = np.arange(h_dots)[:, None]
         top = np.rint((y_max - hi) / (y_max - y_min) * (h_dots - 1))
         bottom = np.rint((y_max - lo) / (y_max - y_min) * (h_dots - 1))
         with np.errstate(invalid="ignore"):
-            grid[:] = (rows >= top[None, :]) & (rows <= bottom[None, :])
+            grid = (rows >= top[None, :]) & (rows <= bottom[None, :])
         cells = (grid.reshape(height, 4, plot_w, 2) * _DOT_BITS[None, :, None, :]).sum(axis=(1, 3))
         owner[cells > 0] = index
         codes |= cells
+    styles = [Style.parse(s.style) for s in series]
     lines = []
     for row in range(height):
-        label = (
-            f"{y_max:>8.4g} " if row == 0 else f"{y_min:>8.4g} " if row == height - 1 else " " * LABEL_CELLS
-        )
-        if row == height // 2 and y_label:
+        label = " " * LABEL_CELLS
+        if row == 0:
+            label = f"{y_max:>8.4g} "
+        elif row == height - 1:
+            label = f"{y_min:>8.4g} "
+        elif row == height // 2 and y_label:
             label = f"{y_label[: LABEL_CELLS - 1]:>8} "
-        line = Text(label[:LABEL_CELLS].ljust(LABEL_CELLS), style="dim")
-        for col in range(plot_w):
-            who = owner[row, col]
-            line.append(chr(0x2800 + int(codes[row, col])), style=series[who].style if who >= 0 else "")
-        lines.append(line)
+        segments = [Segment(label[:LABEL_CELLS].ljust(LABEL_CELLS), _DIM)]
+        chars = "".join(chr(0x2800 + int(c)) for c in codes[row])
+        who = owner[row]
+        cuts = [0, *(np.flatnonzero(np.diff(who)) + 1).tolist(), plot_w]
+        for a, b in itertools.pairwise(cuts):
+            segments.append(Segment(chars[a:b], styles[who[a]] if who[a] >= 0 else None))
+        lines.append(segments)
     return lines
 
 
 class BraillePlot(Widget):
-    """A plot widget: set :attr:`series` (and the labels) with :meth:`plot`; a legend under it."""
+    """A plot widget: :meth:`plot` sets its curves; title and legend above, x note below."""
 
     DEFAULT_CSS = """
     BraillePlot { height: 10; }
@@ -109,21 +119,28 @@ class BraillePlot(Widget):
         self.y_label = y_label
         self.x_note = ""
         self.series: list[Series] = []
+        self._lines: list[Strip] = []
+        self._drawn_for: tuple[int, int] = (0, 0)
 
     def plot(self, series: list[Series], x_note: str = "") -> None:
         self.series = series
         self.x_note = x_note
+        self._drawn_for = (0, 0)
         self.refresh()
 
-    def render(self) -> Text:
+    def _draw(self) -> None:
         width, height = self.size.width, self.size.height
-        if width < LABEL_CELLS + 4 or height < 4:
-            return Text(self.title)
-        legend = "  ".join(f"[{s.style}]■ {s.name}[/]" for s in self.series)
-        out = Text.from_markup(f"[bold]{self.title}[/]  {legend}")
-        for line in render_plot(self.series, width, height - 2, self.y_label):
-            out.append("\n")
-            out.append_text(line)
-        out.append("\n")
-        out.append(" " * LABEL_CELLS + self.x_note, style="dim")
-        return out
+        head = [Segment(self.title, _BOLD)]
+        for s in self.series:
+            head += [Segment("  ■ ", Style.parse(s.style)), Segment(s.name)]
+        lines = [head]
+        if width >= LABEL_CELLS + 4 and height >= 4:
+            lines += render_plot(self.series, width, height - 2, self.y_label)
+            lines.append([Segment(" " * LABEL_CELLS + self.x_note, _DIM)])
+        self._lines = [Strip(line).crop_extend(0, width, None) for line in lines]
+        self._drawn_for = (width, height)
+
+    def render_line(self, y: int) -> Strip:
+        if self._drawn_for != (self.size.width, self.size.height):
+            self._draw()
+        return self._lines[y] if y < len(self._lines) else Strip.blank(self.size.width)
