@@ -88,9 +88,9 @@ class WfsBenchApp(App):
         Binding("t", "tare", "Tare"),
         Binding("x", "reset", "Reset"),
         Binding("g", "start", "Start"),
-        Binding("p", "pause", "Pause"),
-        Binding("r", "resume", "Resume"),
-        Binding("a", "abort", "Abort"),
+        Binding("p", "pause", "Pause", priority=True),
+        Binding("r", "resume", "Resume", priority=True),
+        Binding("a", "abort", "Abort", priority=True),
         Binding("q", "quit", "Quit"),
     ]
 
@@ -123,9 +123,10 @@ class WfsBenchApp(App):
     def on_mount(self) -> None:
         self.session.start()
         self._show_tabs()
-        self.set_interval(REFRESH_S, self.refresh_live)
+        self._refresh_timer = self.set_interval(REFRESH_S, self.refresh_live)
 
     def on_unmount(self) -> None:
+        self._refresh_timer.stop()
         self.session.close()
 
     @property
@@ -160,11 +161,18 @@ class WfsBenchApp(App):
             return self.pane == "bench" and engine is not None and not running
         if action == "start":
             return self.pane == "sequence" and self.plan is not None and engine is not None and not running
-        if action in ("pause", "resume", "abort"):
-            return running and state in ACTIVE
+        if action in ("pause", "resume", "abort"):  # from dialogs too, but never while typing
+            return running and state in ACTIVE and not self._typing()
         if action == "quit":
             return not running
         return True
+
+    def _typing(self) -> bool:
+        """Whether the keys go into a visible text input (a prompt's answer, a sequence's path)."""
+        focused = self.focused
+        if not isinstance(focused, Input):
+            return False
+        return focused.screen is not self.screen_stack[0] or self.pane == "sequence"
 
     def action_estop(self) -> None:
         """E-stop from the key handler itself: the controller is told before this returns."""
@@ -181,6 +189,11 @@ class WfsBenchApp(App):
 
     def action_pane(self, pane: str) -> None:
         self.query_one(ContentSwitcher).current = pane
+        main = self.screen_stack[0]
+        if pane == "sequence":
+            main.set_focus(self.query_one("#seq-shipped"))
+        else:  # a hidden input keeps no keys
+            main.set_focus(None)
         self._show_tabs()
         self.refresh_bindings()
         self.refresh_live()
@@ -271,7 +284,7 @@ class WfsBenchApp(App):
             case ev.InterlockTripped():
                 self.tripped[p.name] = p.reason
                 self.show_banner(f"INTERLOCK {p.name}: {p.reason}")
-            case ev.RunFinished() if p.status in ("interlocked", "failed"):
+            case ev.RunFinished() if p.status == "failed" or (p.status == "interlocked" and not self.tripped):
                 self.show_banner(f"run {p.run_id} {p.status}: {p.reason}")
             case ev.StateChanged() if p.new.value == "hydraulics low" and p.old.value in (
                 "e-stopped",

@@ -22,7 +22,11 @@ class PromptDialog(ModalScreen[object]):
     and asked again); a confirmation is answered yes or no. Dismissed with the valid answer; Escape
     dismisses with an :class:`AnswerError` (no answer: the engine aborts the sequence)."""
 
-    BINDINGS: ClassVar[list[Binding]] = [Binding("escape", "no_answer", "No answer (abort)")]
+    BINDINGS: ClassVar[list[Binding]] = [
+        Binding("y", "confirm(True)", "Yes"),
+        Binding("n", "confirm(False)", "No"),
+        Binding("escape", "no_answer", "No answer (abort)"),
+    ]
 
     def __init__(self, prompt: Prompt) -> None:
         super().__init__(id="prompt-dialog")
@@ -43,10 +47,11 @@ class PromptDialog(ModalScreen[object]):
         if self.prompt.answer != "confirm":
             self.query_one("#prompt-input", Input).focus()
 
-    def on_key(self, event) -> None:
-        if self.prompt.answer == "confirm" and event.key in ("y", "n"):
-            event.stop()
-            self.dismiss(event.key == "y")
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        return action != "confirm" or self.prompt.answer == "confirm"
+
+    def action_confirm(self, yes: bool) -> None:
+        self.dismiss(yes)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         try:
