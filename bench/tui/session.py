@@ -36,6 +36,7 @@ from bench.app.post_run import CampaignKnowledge
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
 from bench.engine.engine import Engine
+from bench.engine.states import RunState
 from bench.store import open_campaign
 from sequences import AnswerError, Prompt
 
@@ -178,8 +179,12 @@ class UiOperator:
     technician's answer (already checked by the dialog). On the simulated bench the answer is also
     applied to the simulated world, as the person's hands would."""
 
-    def __init__(self, ask: Callable[[Prompt], None]) -> None:
+    def __init__(self, ask: Callable[[Prompt], None], stopped: Callable[[], bool]) -> None:
+        """``stopped()``: whether the bench is e-stopped; an answer given then changes nothing in
+        the simulated world (nobody handles the bench while it is stopped), and the engine ends
+        the sequence as e-stopped at its next checkpoint."""
         self._ask = ask
+        self.stopped = stopped
         self._replies: queue.Queue[object] = queue.Queue()
         self.world: Any = None  # the simulated operator, when the bench is simulated
         self.pending: Prompt | None = None
@@ -192,7 +197,7 @@ class UiOperator:
         if isinstance(reply, AnswerError):
             raise reply
         value = prompt.check_answer(reply)
-        if self.world is not None and prompt.action is not None:
+        if self.world is not None and prompt.action is not None and not self.stopped():
             self.world.apply(prompt.action, value)
         return value
 
@@ -214,7 +219,10 @@ class BenchSession:
         self.out_path = Path(out_path)
         self.post = post
         self.config: BenchConfig | None = None
-        self.operator = UiOperator(lambda prompt: post(PromptRequest(prompt)))
+        self.operator = UiOperator(
+            lambda prompt: post(PromptRequest(prompt)),
+            lambda: self.engine is not None and self.engine.state is RunState.ESTOPPED,
+        )
         self.engine: Engine | None = None
         self.devices: BenchDevices | None = None
         self.trace: LiveTrace | None = None

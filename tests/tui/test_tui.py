@@ -244,6 +244,28 @@ async def test_estop_from_a_dialog(app: WfsBenchApp) -> None:
         assert not isinstance(app.screen, ConfirmDialog)
 
 
+async def test_estop_while_a_prompt_waits(app: WfsBenchApp) -> None:
+    """F12 in a prompt's dialog stops the controller at once; the answer then given ends the
+    sequence as e-stopped (the simulated world is not touched while stopped)."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        dialog = await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("f12")
+        client = ActuatorClient.tcp(*app.session.devices.lab.address)
+        try:
+            status = await client.connect()
+        finally:
+            await client.close()
+        assert status.state is ControllerState.ESTOP
+        assert app.screen is dialog
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "e-stopped"
+        assert app.session.devices.lab.world.specimen_mounted
+
+
 async def test_bad_sequence_file_shows_key_and_range(app: WfsBenchApp, tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text(
