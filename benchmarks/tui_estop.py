@@ -71,11 +71,11 @@ def redraw_figures(app: TimedApp, since: float, until_s: float) -> str:
 async def run(presses: int, seconds: float, work: Path) -> None:  # noqa: PLR0915 - one measurement
     app = TimedApp(FILES / "paced.toml", work / "run-0.h5")
     plan = plan_campaign(FILES / "long_dwell.toml", FILES / "paced.toml")
-    points: list[ev.PointStarted] = []
+    points: list[ev.PointStarted | ev.SequenceFinished] = []
     async with app.run_test(size=(120, 40)) as pilot:
         await until(pilot, app.session.opened.is_set, "the bench")
         app.session.engine.bus.subscribe(
-            lambda e: points.append(e) if isinstance(e, ev.PointStarted) else None
+            lambda e: points.append(e) if isinstance(e, ev.PointStarted | ev.SequenceFinished) else None
         )
         controller = app.session.devices.lab.bench.controller
         trace = app.session.trace
@@ -90,6 +90,8 @@ async def run(presses: int, seconds: float, work: Path) -> None:  # noqa: PLR091
             before = len(points)
             app.action_start()
             await until(pilot, lambda: len(points) > before, "the dwell")
+            if isinstance(points[before], ev.SequenceFinished):
+                raise RuntimeError(f"the dwell did not start: {points[before]}")
 
         async def estop(by_key: bool) -> float:
             started, seen = threading.Event(), []

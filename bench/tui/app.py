@@ -39,7 +39,6 @@ from sequences import shipped_file
 #: How often the live values and plots are redrawn (s).
 REFRESH_S = 0.1
 PANES = {"bench": "Bench", "sequence": "Sequence", "run": "Run", "results": "Results"}
-HYDRAULICS_KEYS = {"low": "l", "high": "h", "off": "o"}
 
 
 class SessionMessage(Message):
@@ -102,7 +101,6 @@ class WfsBenchApp(App):
         self.interlock_names: tuple[str, ...] = ()
         self.controller: ControllerStatus | None = None
         self.tripped: dict[str, str] = {}
-        self.last_event: object = None
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
 
     # -- layout ---------------------------------------------------------------------------------
@@ -252,7 +250,6 @@ class WfsBenchApp(App):
 
     def on_session_message(self, message: SessionMessage) -> None:  # noqa: PLR0912 - one branch a kind
         p = message.payload
-        self.last_event = p
         match p:
             case BenchOpened():
                 self.bench_name, self.interlock_names = p.description, p.interlocks
