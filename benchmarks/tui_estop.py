@@ -85,6 +85,8 @@ async def run(presses: int, seconds: float, work: Path) -> None:  # noqa: PLR091
                 app.session.reset()
                 await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
                 await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+                # the controller tapers out of its e-stop before it takes commands again
+                await until(pilot, lambda: controller.state == ControllerState.HYDRAULICS_LOW, "the taper")
             app.session.out_path = work / f"run-{index}.h5"
             app.plan = plan
             before = len(points)

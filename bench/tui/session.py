@@ -280,8 +280,11 @@ class BenchSession:
     # -- commands (any thread; executed on the worker thread) -----------------------------------
 
     def check(self, sequence_path: Path) -> None:
-        """Validate and dry-run a sequence file; the answer comes as :class:`PlanChecked`."""
-        self._commands.put(lambda: self._check(Path(sequence_path)))
+        """Validate and dry-run a sequence file; the answer comes as :class:`PlanChecked`. It opens
+        no device, so it runs on a thread of its own (a sequence may be running meanwhile)."""
+        threading.Thread(
+            target=self._check, args=(Path(sequence_path),), name="tui-check", daemon=True
+        ).start()
 
     def start_sequence(self, plan: CampaignPlan) -> None:
         self.running.set()
@@ -315,7 +318,7 @@ class BenchSession:
     def answer(self, value: object) -> None:
         self.operator.reply(value)
 
-    # -- the worker thread ----------------------------------------------------------------------
+    # -- the worker threads ----------------------------------------------------------------------
 
     def _check(self, path: Path) -> None:
         try:
