@@ -20,11 +20,14 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import ClassVar
 
 from bench.app.campaign import plan_campaign
 from bench.engine import events as ev
 from bench.engine.states import RunState
+from bench.tui import panes
 from bench.tui.app import WfsBenchApp
+from bench.tui.plot import BraillePlot
 from drivers.register_map import ControllerState
 
 FILES = Path(__file__).resolve().parents[1] / "tests" / "tui" / "files"
@@ -44,6 +47,17 @@ class TimedApp(WfsBenchApp):
         self.redraws.append((start, time.perf_counter() - start))
 
 
+class TimedPlot(BraillePlot):
+    """Times each drawing of a plot (done when the screen is painted, after a redraw asked for it)."""
+
+    draws: ClassVar[list[tuple[float, float]]] = []
+
+    def _draw(self) -> None:
+        start = time.perf_counter()
+        super()._draw()
+        TimedPlot.draws.append((start, time.perf_counter() - start))
+
+
 def watch_estop(controller, started: threading.Event, seen: list[float]) -> None:
     """Poll the simulated controller until it is in e-stop; note when."""
     started.set()
@@ -61,11 +75,20 @@ async def until(pilot, condition, what: str, timeout_s: float = 60.0) -> None:
         await pilot.pause(0.01)
 
 
+def rate_and_cost(times: list[tuple[float, float]], since: float, until_s: float, what: str) -> str:
+    window = [d * 1e3 for t, d in times if since <= t < until_s]
+    costs = sorted(window)
+    return (
+        f"{len(window) / (until_s - since):.1f} {what}/s, {statistics.median(costs):.2f} ms median,"
+        f" {costs[-1]:.2f} ms worst each"
+    )
+
+
 def redraw_figures(app: TimedApp, since: float, until_s: float) -> str:
-    window = [(t, d) for t, d in app.redraws if since <= t < until_s]
-    rate = len(window) / (until_s - since)
-    costs = sorted(d * 1e3 for _, d in window)
-    return f"{rate:.1f} redraws/s, {statistics.median(costs):.1f} ms median, {costs[-1]:.1f} ms worst each"
+    return (
+        f"{rate_and_cost(app.redraws, since, until_s, 'redraws')};"
+        f" {rate_and_cost(TimedPlot.draws, since, until_s, 'plot drawings')}"
+    )
 
 
 async def run(presses: int, seconds: float, work: Path) -> None:  # noqa: PLR0915 - one measurement
@@ -139,6 +162,7 @@ async def run(presses: int, seconds: float, work: Path) -> None:  # noqa: PLR091
 
 
 def main() -> None:
+    panes.BraillePlot = TimedPlot  # the run screen's plots, timed
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--presses", type=int, default=20, help="e-stops by key (and as many baseline)")
     parser.add_argument("--seconds", type=float, default=5.0, help="length of each redraw measurement")
