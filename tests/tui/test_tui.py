@@ -208,7 +208,8 @@ async def test_abort_mid_run_keeps_the_data(paced_app: WfsBenchApp, tmp_path: Pa
 
 
 async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> None:
-    """F12 during a point: the simulated controller reads back e-stop over Modbus TCP at once."""
+    """F12 during a point: the simulated controller reads back e-stop over Modbus TCP at once; x
+    (confirmed) resets, and the sequence runs again."""
     app = paced_app
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await start_long_dwell(pilot, app)
@@ -222,6 +223,20 @@ async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> Non
         assert "E-STOP" in text_of(app, "#banner")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "e-stopped"
+
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+        await pilot.press("f2", "x")  # reset, confirmed
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
+        await pilot.press("y")
+        await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
+        assert not app.query_one("#banner").has_class("shown")
+        app.session.out_path = app.session.out_path.with_name("after-reset.h5")
+        points = len(recorded.of(ev.PointStarted))
+        await pilot.press("f3", "g")  # the checked dwell again: it starts once the controller is ready
+        await until(pilot, lambda: len(recorded.of(ev.PointStarted)) > points, "the dwell after the reset")
+        await pilot.press("a")
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
 
 
 async def test_estop_from_a_dialog(app: WfsBenchApp) -> None:
