@@ -295,7 +295,7 @@ class WfsBenchApp(App):
 
     def _sequence_finished(self, event: ev.SequenceFinished) -> None:
         if isinstance(self.screen, PromptDialog):  # an abort ended the sequence while it asked
-            self.screen.dismiss(None)
+            self.screen.close_unanswered()
         why = f": {event.reason}" if event.reason else ""
         if event.status == "complete":
             self.notify(f"sequence complete; file {self.session.out_path}")

@@ -31,6 +31,18 @@ class PromptDialog(ModalScreen[object]):
     def __init__(self, prompt: Prompt) -> None:
         super().__init__(id="prompt-dialog")
         self.prompt = prompt
+        self.closed = False  # answered, or closed unanswered: it closes once
+
+    def answer(self, value: object) -> None:
+        if not self.closed:
+            self.closed = True
+            self.dismiss(value)
+
+    def close_unanswered(self) -> None:
+        """The sequence ended while the dialog was open (an abort): close it, answering nothing."""
+        if not self.closed:
+            self.closed = True
+            self.app.pop_screen()
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
@@ -51,7 +63,7 @@ class PromptDialog(ModalScreen[object]):
         return action != "confirm" or self.prompt.answer == "confirm"
 
     def action_confirm(self, yes: bool) -> None:
-        self.dismiss(yes)
+        self.answer(yes)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         try:
@@ -60,10 +72,10 @@ class PromptDialog(ModalScreen[object]):
             self.query_one("#prompt-error", Static).update(f"[red]{exc}: try again[/red]")
             event.input.value = ""
             return
-        self.dismiss(value)
+        self.answer(value)
 
     def action_no_answer(self) -> None:
-        self.dismiss(AnswerError(f"{self.prompt.id}: no answer, the technician cancelled"))
+        self.answer(AnswerError(f"{self.prompt.id}: no answer, the technician cancelled"))
 
 
 class ConfirmDialog(ModalScreen[bool]):

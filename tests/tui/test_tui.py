@@ -207,6 +207,22 @@ async def test_abort_mid_run_keeps_the_data(paced_app: WfsBenchApp, tmp_path: Pa
         assert run.status == "aborted" and run.n_samples > 0
 
 
+async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
+    """a with a prompt's dialog open: no answer is given, the sequence ends as aborted and the
+    dialog closes."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "aborted"
+        assert "remove_wheel" in finished(recorded).reason
+        await until(pilot, lambda: not isinstance(app.screen, PromptDialog), "the dialog closed")
+        assert not recorded.of(ev.PromptAnswered)
+
+
 async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> None:
     """F12 during a point: the simulated controller reads back e-stop over Modbus TCP at once; x
     (confirmed) resets, and the sequence runs again."""
