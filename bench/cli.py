@@ -69,6 +69,18 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
 
 
+def _tui(args: argparse.Namespace) -> int:
+    """The technician's terminal UI; the log goes to a file beside the campaign file, not the screen."""
+    import logging
+
+    from bench.tui.app import WfsBenchApp
+
+    out = Path(args.out or time.strftime("campaign-%Y%m%d-%H%M%S.h5"))
+    logging.basicConfig(filename=f"{out}.log", level=logging.INFO, force=True)
+    WfsBenchApp(Path(args.bench) if args.bench else None, out).run()
+    return 0
+
+
 def _check(args: argparse.Namespace) -> int:
     from bench.app.check import check_lines
     from bench.config import ConfigError, load_bench_config
@@ -207,6 +219,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="bench configuration recorded with the campaign (default: the mapping's bench kind)",
     )
     imp.set_defaults(run=_import_csv)
+    tui = sub.add_parser("tui", help="the technician's terminal UI (docs/tui.md)")
+    tui.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
+    tui.add_argument("--out", help="campaign file (HDF5); default: campaign-<date>-<time>.h5 here")
+    tui.set_defaults(run=_tui)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
     serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
     serve.add_argument("--host", default="127.0.0.1")

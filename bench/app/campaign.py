@@ -244,6 +244,38 @@ def run_campaign(
     what the campaign established so far (sensor, plate masses, tyres), carried from one sequence to
     the next; by default it starts from the configuration and the runs already in the file."""
     out_path = Path(out_path)
+    resume_plan = _check_target(plan, out_path, resume)
+    with open_bench(plan.config, operator, answers) as devices:
+        engine = build_engine(plan.config, devices)
+        if on_engine is not None:
+            on_engine(engine)
+        return _run_on(
+            engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
+        )
+
+
+def run_on_engine(
+    engine: Engine,
+    plan: CampaignPlan,
+    out_path: Path,
+    *,
+    resume: bool = False,
+    subscribers: tuple[Callable[[ev.Event], None], ...] = (),
+    knowledge: CampaignKnowledge | None = None,
+) -> CampaignOutcome:
+    """Like :func:`run_campaign`, on an engine whose bench stays open between sequences (a front
+    end that shows and switches the bench between runs). The recorder, the analysis and
+    ``subscribers`` are unsubscribed when the sequence ends."""
+    out_path = Path(out_path)
+    resume_plan = _check_target(plan, out_path, resume)
+    return _run_on(
+        engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
+    )
+
+
+def _check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> _ResumeFromFile | None:
+    """Refuse a campaign file that cannot take the sequence (before anything is opened); the resume
+    plan when resuming."""
     existing = _run_ids(out_path)
     if existing is None and resume:
         raise ValueError(f"{out_path}: no campaign file to resume")
@@ -255,30 +287,39 @@ def run_campaign(
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
             " or write to another file"
         )
-    resume_plan = _ResumeFromFile(out_path) if resume else None
-    config = plan.config
+    return _ResumeFromFile(out_path) if resume else None
+
+
+def _run_on(
+    engine: Engine,
+    plan: CampaignPlan,
+    out_path: Path,
+    *,
+    resume_plan: _ResumeFromFile | None,
+    subscribers: tuple[Callable[[ev.Event], None], ...],
+    knowledge: CampaignKnowledge | None,
+) -> CampaignOutcome:
     analyses: list[ev.AnalysisDone] = []
-    with (
-        open_bench(config, operator, answers) as devices,
-        _campaign_writer(plan, out_path, existing is not None) as campaign,
-    ):
-        engine = build_engine(config, devices)
-        knowledge = knowledge or CampaignKnowledge(
-            sensor=WfsSensor(
-                mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ
-            ),
-            wheel_mass_kg=config.masses.wheel_below_sensor_kg,
-        )
-        engine.bus.subscribe(Recorder(campaign), critical=True)
-        engine.bus.subscribe(PostRunAnalysis(out_path, engine.bus.publish, knowledge))
-        engine.bus.subscribe(lambda e: analyses.append(e) if isinstance(e, ev.AnalysisDone) else None)
-        for subscriber in subscribers:
+    with _campaign_writer(plan, out_path, out_path.exists()) as campaign:
+        knowledge = knowledge or initial_knowledge(plan.config)
+        own = [
+            Recorder(campaign),
+            PostRunAnalysis(out_path, engine.bus.publish, knowledge),
+            lambda e: analyses.append(e) if isinstance(e, ev.AnalysisDone) else None,
+        ]
+        engine.bus.subscribe(own[0], critical=True)
+        for subscriber in (*own[1:], *subscribers):
             engine.bus.subscribe(subscriber)
-        if on_engine is not None:
-            on_engine(engine)
-        outcome = engine.run(
-            plan.sequence, sequence_text=plan.sequence_text, config_text=plan.config_text, resume=resume_plan
-        )
+        try:
+            outcome = engine.run(
+                plan.sequence,
+                sequence_text=plan.sequence_text,
+                config_text=plan.config_text,
+                resume=resume_plan,
+            )
+        finally:
+            for subscriber in (*own, *subscribers):
+                engine.bus.unsubscribe(subscriber)
     return CampaignOutcome(outcome.status, outcome.reason, analyses)
 
 
@@ -308,6 +349,15 @@ def done_in_file(plan: CampaignPlan, out_path: Path) -> DoneBefore:
             elif run.status == "complete":
                 estimated_s += step.estimated_duration_s
     return DoneBefore(points, estimated_s)
+
+
+def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
+    """What a campaign knows before its first run: the configuration's masses and the sensor's
+    assumed eigenfrequency."""
+    return CampaignKnowledge(
+        sensor=WfsSensor(mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+        wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+    )
 
 
 def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:

@@ -1,0 +1,335 @@
+"""The technician's terminal UI: one app, four panes (bench, sequence, run, results), prompts and
+confirmations as modal dialogs, a banner for link losses and interlocks, and the e-stop on F12 from
+every pane and dialog.
+
+The app draws and routes keys only. The bench lives in a :class:`BenchSession` (its worker thread
+does every device call and runs the sequences); the session's messages arrive through
+``post_message`` (thread-safe), and the live plots are redrawn from its trace by a timer, so the
+drawing rate never depends on the acquisition's rate.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import ClassVar
+
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.message import Message
+from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
+
+from bench.engine import events as ev
+from bench.engine.states import ACTIVE
+from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane
+from bench.tui.session import (
+    BenchFault,
+    BenchOpened,
+    BenchSession,
+    CommandFailed,
+    ControllerStatus,
+    PastRuns,
+    PlanChecked,
+    PromptRequest,
+    RunResult,
+)
+from sequences import shipped_file
+
+#: How often the live values and plots are redrawn (s).
+REFRESH_S = 0.1
+PANES = {"bench": "Bench", "sequence": "Sequence", "run": "Run", "results": "Results"}
+
+
+class SessionMessage(Message):
+    """Something the bench session reports, carried to the UI's thread."""
+
+    def __init__(self, payload: object) -> None:
+        super().__init__()
+        self.payload = payload
+
+
+class WfsBenchApp(App):
+    """``wfsbench tui``: the bench of ``config_path`` (None: the simulated shaker bench), runs
+    recorded into the campaign file ``out_path``."""
+
+    TITLE = "wfs-bench"
+    CSS = """
+    #topbar { height: 1; background: $panel; }
+    #state { width: 1fr; padding: 0 1; }
+    #estop { width: auto; background: red; color: white; text-style: bold; padding: 0 1; }
+    #tabs { width: auto; padding: 0 1; }
+    #banner { display: none; background: darkred; color: white; text-style: bold; padding: 0 1; }
+    #banner.shown { display: block; }
+    ContentSwitcher { height: 1fr; }
+    ContentSwitcher > * { padding: 0 1; }
+    #seq-shipped { height: 6; }
+    #run-plots { height: 12; }
+    #run-plots BraillePlot { width: 1fr; height: 12; }
+    #results-bode { height: 12; }
+    #results-bode BraillePlot { width: 1fr; height: 12; }
+    #results-runs { height: auto; max-height: 12; }
+    #run-points { height: 1fr; }
+    .dialog { width: 80; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
+    ModalScreen { align: center middle; }
+    #prompt-error { height: auto; }
+    """
+    BINDINGS: ClassVar[list[Binding]] = [
+        Binding("f12", "estop", "E-STOP", priority=True),
+        Binding("f2", "pane('bench')", "Bench"),
+        Binding("f3", "pane('sequence')", "Sequence"),
+        Binding("f4", "pane('run')", "Run"),
+        Binding("f5", "pane('results')", "Results"),
+        Binding("question_mark", "help", "Help"),
+        Binding("l", "hydraulics('low')", "Hyd. low"),
+        Binding("h", "hydraulics('high')", "Hyd. high"),
+        Binding("o", "hydraulics('off')", "Hyd. off"),
+        Binding("t", "tare", "Tare"),
+        Binding("x", "reset", "Reset"),
+        Binding("g", "start", "Start"),
+        Binding("p", "pause", "Pause", priority=True),
+        Binding("r", "resume", "Resume", priority=True),
+        Binding("a", "abort", "Abort", priority=True),
+        Binding("q", "quit", "Quit"),
+    ]
+
+    def __init__(self, config_path: Path | None = None, out_path: Path = Path("campaign.h5")) -> None:
+        super().__init__()
+        self.session = BenchSession(config_path, out_path, lambda p: self.post_message(SessionMessage(p)))
+        self.plan = None
+        self.bench_name = "bench"
+        self.interlock_names: tuple[str, ...] = ()
+        self.controller: ControllerStatus | None = None
+        self.tripped: dict[str, str] = {}
+        self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
+
+    # -- layout ---------------------------------------------------------------------------------
+
+    def compose(self) -> ComposeResult:
+        with Horizontal(id="topbar"):
+            yield Static("", id="tabs")
+            yield Static("", id="state")
+            yield Static("F12 E-STOP", id="estop")
+        yield Static("", id="banner")
+        with ContentSwitcher(initial="bench"):
+            yield BenchPane(id="bench")
+            yield SequencePane(id="sequence")
+            yield RunPane(id="run")
+            yield ResultsPane(id="results")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.session.start()
+        self._show_tabs()
+        self._refresh_timer = self.set_interval(REFRESH_S, self.refresh_live)
+
+    def on_unmount(self) -> None:
+        self._refresh_timer.stop()
+        self.session.close()
+
+    @property
+    def pane(self) -> str:
+        return self.query_one(ContentSwitcher).current or "bench"
+
+    def _show_tabs(self) -> None:
+        keys = dict(zip(PANES, ("F2", "F3", "F4", "F5"), strict=True))
+        self.query_one("#tabs", Static).update(
+            "  ".join(
+                f"[reverse] {keys[p]} {name} [/reverse]" if p == self.pane else f"{keys[p]} {name}"
+                for p, name in PANES.items()
+            )
+        )
+
+    def show_banner(self, text: str) -> None:
+        banner = self.query_one("#banner", Static)
+        banner.update(text)
+        banner.add_class("shown")
+
+    def clear_banner(self) -> None:
+        self.query_one("#banner", Static).remove_class("shown")
+
+    # -- keys -----------------------------------------------------------------------------------
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Show and allow a pane's keys on its pane only, and only when they can act."""
+        engine = self.session.engine
+        running = self.session.running.is_set()
+        state = engine.state if engine else None
+        if action in ("hydraulics", "tare", "reset"):
+            return self.pane == "bench" and engine is not None and not running
+        if action == "start":
+            return self.pane == "sequence" and self.plan is not None and engine is not None and not running
+        if action in ("pause", "resume", "abort"):  # from dialogs too, but never while typing
+            return running and state in ACTIVE and not self._typing()
+        if action == "quit":
+            return not running
+        return True
+
+    def _typing(self) -> bool:
+        """Whether the keys go into a visible text input (a prompt's answer, a sequence's path)."""
+        focused = self.focused
+        if not isinstance(focused, Input):
+            return False
+        return focused.screen is not self.screen_stack[0] or self.pane == "sequence"
+
+    def action_estop(self) -> None:
+        """E-stop from the key handler itself: the controller is told before this returns."""
+        if self.session.engine is None:
+            self.show_banner("E-STOP: no bench is open to stop")
+            return
+        try:
+            self.session.estop()
+        except Exception as exc:  # the stop could not be sent: say so, loudly
+            self.show_banner(f"E-STOP NOT CONFIRMED: {exc}; use the bench's own e-stop button")
+            return
+        self.show_banner("E-STOP: the actuator is stopped; x on the Bench screen (F2) resets")
+        self.refresh_bindings()
+
+    def action_pane(self, pane: str) -> None:
+        self.query_one(ContentSwitcher).current = pane
+        main = self.screen_stack[0]
+        if pane == "sequence":
+            main.set_focus(self.query_one("#seq-shipped"))
+        else:  # a hidden input keeps no keys
+            main.set_focus(None)
+        self._show_tabs()
+        self.refresh_bindings()
+        self.refresh_live()
+
+    def action_help(self) -> None:
+        self.push_screen(HelpDialog())
+
+    def action_hydraulics(self, level: str) -> None:
+        self._confirmed(f"Switch the hydraulics {level}?", lambda: self.session.hydraulics(level))
+
+    def action_tare(self) -> None:
+        self._confirmed("Tare the WFS now (the wheel unloaded and at rest)?", self.session.tare)
+
+    def action_reset(self) -> None:
+        self._confirmed("Reset the interlock / e-stop (the cause is cleared)?", self.session.reset)
+
+    def _confirmed(self, question: str, then) -> None:
+        def answered(yes: bool | None) -> None:
+            if yes:
+                then()
+
+        self.push_screen(ConfirmDialog(question), answered)
+
+    def action_start(self) -> None:
+        self.clear_banner()
+        self.tripped.clear()
+        self.query_one(ResultsPane).clear_results()
+        self.session.start_sequence(self.plan)
+        self.action_pane("run")
+
+    def action_pause(self) -> None:
+        self.session.pause()
+
+    def action_resume(self) -> None:
+        self.session.resume()
+
+    def action_abort(self) -> None:
+        self.session.abort()
+
+    # -- the sequence pane's inputs ---------------------------------------------------------------
+
+    def on_option_list_option_selected(self, event: OptionList.OptionSelected) -> None:
+        self._check(shipped_file(str(event.option.prompt)))
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id == "seq-path" and event.value.strip():
+            self._check(Path(event.value.strip()).expanduser())
+
+    def _check(self, path: Path) -> None:
+        self.plan = None
+        self.refresh_bindings()
+        self.query_one(SequencePane).show_checking(str(path))
+        self.session.check(path)
+
+    # -- what the session reports -----------------------------------------------------------------
+
+    def on_session_message(self, message: SessionMessage) -> None:  # noqa: PLR0912 - one branch a kind
+        p = message.payload
+        match p:
+            case BenchOpened():
+                self.bench_name, self.interlock_names = p.description, p.interlocks
+            case BenchFault():
+                self.show_banner(p.reason)
+            case CommandFailed():
+                self.notify(f"{p.what}: {p.reason}", severity="error")
+            case ControllerStatus():
+                self.controller = p
+            case PlanChecked():
+                pane = self.query_one(SequencePane)
+                if p.plan is None:
+                    pane.show_error(str(p.path), p.error)
+                else:
+                    self.plan = p.plan
+                    pane.show_plan(p.plan)
+            case PromptRequest():
+                self.push_screen(PromptDialog(p.prompt), self.session.answer)
+            case PastRuns():
+                self.query_one(ResultsPane).show_runs(p.runs)
+            case RunResult():
+                self.query_one(ResultsPane).add_result(p.run_id, p.lines, p.bode)
+            case ev.SequenceStarted():
+                self.query_one(RunPane).sequence_started(p)
+            case ev.PointStarted():
+                self.query_one(RunPane).point_started(p)
+            case ev.PointDone():
+                self.query_one(RunPane).point_done(p)
+            case ev.InterlockTripped():
+                self.tripped[p.name] = p.reason
+                self.show_banner(f"INTERLOCK {p.name}: {p.reason}")
+            case ev.RunFinished() if p.status == "failed" or (p.status == "interlocked" and not self.tripped):
+                self.show_banner(f"run {p.run_id} {p.status}: {p.reason}")
+            case ev.StateChanged() if p.new.value == "hydraulics low" and p.old.value in (
+                "e-stopped",
+                "interlocked",
+            ):
+                self.tripped.clear()
+                self.clear_banner()
+            case ev.SequenceFinished():
+                self._sequence_finished(p)
+        self.refresh_bindings()
+
+    def _sequence_finished(self, event: ev.SequenceFinished) -> None:
+        if isinstance(self.screen, PromptDialog):  # an abort ended the sequence while it asked
+            self.screen.close_unanswered()
+        why = f": {event.reason}" if event.reason else ""
+        if event.status == "complete":
+            self.notify(f"sequence complete; file {self.session.out_path}")
+            self.action_pane("results")
+        elif event.status == "failed":
+            self.show_banner(f"sequence failed{why}")
+        else:
+            self.notify(f"sequence {event.status}{why}", severity="warning")
+
+    # -- the live view ----------------------------------------------------------------------------
+
+    def refresh_live(self) -> None:
+        """Redraw what moves: the state line, and the visible pane's values or plots."""
+        engine = self.session.engine
+        state = engine.state.value if engine else "opening"
+        running = self.session.running.is_set()
+        self.query_one("#state", Static).update(f"{self.bench_name}   [b]{state}[/b]")
+        trace = self.session.trace
+        if self.pane == "run":
+            run = self.query_one(RunPane)
+            run.show_progress(state, running)
+            if trace is not None:
+                run.show_trace(trace)
+        elif self.pane == "bench" and engine is not None:
+            devices = self.session.devices
+            self.query_one(BenchPane).show(
+                bench=self.bench_name,
+                engine_state=state,
+                controller=self.controller,
+                actuator_fault=devices.actuator.link_fault(),
+                wfs_connected=devices.acquisition.wait_connected(0),
+                tripped=self.tripped,
+                interlocks=self.interlock_names,
+                values=trace.latest() if trace else {},
+                counters=devices.acquisition.link_counters(),
+            )
+        self.refreshes += 1

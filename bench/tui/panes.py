@@ -1,0 +1,241 @@
+"""The four screens of the UI as panes of one switcher: bench, sequence, run, results.
+
+Each pane only shows what it is given (``show_*`` methods called on the UI's thread); the app
+routes the session's messages to them and owns the keys."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical, VerticalScroll
+from textual.widgets import DataTable, Input, Label, OptionList, Static
+
+from bench.app.campaign import CampaignPlan
+from bench.app.check import step_line
+from bench.engine import events as ev
+from bench.tui.plot import BraillePlot, Series
+from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun
+
+#: Shipped sequence files offered on the sequence screen.
+SHIPPED = ("smoke.toml", "paper_shaker.toml", "paper_four_post.toml", "hammer.toml")
+
+
+def lamp(ok: bool | None, text: str) -> str:
+    colour = "green" if ok else "grey50" if ok is None else "red"
+    return f"[{colour}]●[/{colour}] {text}"
+
+
+class BenchPane(Vertical):
+    """Links, hydraulic state, interlock lamps, live values and link counters."""
+
+    def compose(self) -> ComposeResult:
+        yield Static("opening the bench…", id="bench-links")
+        yield Static("", id="bench-lamps")
+        yield Static("", id="bench-values")
+        yield Static("", id="bench-counters")
+        yield Label("l / h / o: hydraulics low / high / off    t: tare    x: reset   (each confirmed)")
+
+    def show(
+        self,
+        *,
+        bench: str,
+        engine_state: str,
+        controller: ControllerStatus | None,
+        actuator_fault: str | None,
+        wfs_connected: bool | None,
+        tripped: dict[str, str],
+        interlocks: tuple[str, ...],
+        values: dict[str, float],
+        counters: dict[str, int],
+    ) -> None:
+        state = controller.state if controller else "not read yet"
+        self.query_one("#bench-links", Static).update(
+            f"[b]{bench}[/b]   state [b]{engine_state}[/b]   controller {state}\n"
+            + lamp(actuator_fault is None, f"controller link {actuator_fault or 'up'}")
+            + "    "
+            + lamp(wfs_connected, "WFS link " + ("up" if wfs_connected else "down"))
+        )
+        lamps = [lamp(name not in tripped, name) for name in interlocks]
+        if controller is not None and controller.interlock:
+            lamps.append(lamp(False, controller.interlock))
+        self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))
+        v = values
+        self.query_one("#bench-values", Static).update(
+            "[b]live[/b]  "
+            + (
+                f"Fz {v['fz_wfs_n']:9.1f} N   plate force {v['f_plate_n']:9.1f} N   "
+                f"displacement {v['z_base_m'] * 1e3:7.3f} mm   hub acc. {v['a_hub_m_s2']:7.2f} m/s²"
+                if v
+                else "no samples yet (the WFS streams during runs)"
+            )
+        )
+        self.query_one("#bench-counters", Static).update(
+            "[b]WFS link[/b]  "
+            + "   ".join(f"{name.replace('_', ' ')} {value}" for name, value in counters.items())
+        )
+
+
+class SequencePane(Vertical):
+    """Pick a shipped sequence or type a path; the check's lines or its refusal."""
+
+    def compose(self) -> ComposeResult:
+        yield Label("shipped sequences (Enter checks one), or a sequence file's path:")
+        yield OptionList(*SHIPPED, id="seq-shipped")
+        yield Input(placeholder="path/to/sequence.toml, then Enter", id="seq-path")
+        with VerticalScroll(id="seq-report-box"):
+            yield Static("no sequence checked yet", id="seq-report")
+
+    def show_checking(self, path: str) -> None:
+        self.query_one("#seq-report", Static).update(f"checking {path}…")
+
+    def show_plan(self, plan: CampaignPlan) -> None:
+        s = plan.sequence
+        lines = [f"[b]{s.name}[/b] ({s.source}) on the {plan.config.kind} bench: [green]valid[/green]"]
+        lines += [f"  {step_line(i, step)}" for i, step in enumerate(s.steps)]
+        lines.append(
+            f"{s.points()} points; estimated {s.estimated_duration_s / 60:.1f} min of bench time,"
+            f" {s.estimated_duration_with_operator_s / 60:.1f} min with the operator's answers"
+        )
+        lines.append("[b]g[/b]: start this sequence")
+        self.query_one("#seq-report", Static).update("\n".join(lines))
+
+    def show_error(self, path: str, error: str) -> None:
+        self.query_one("#seq-report", Static).update(
+            f"[b red]{path}: cannot run[/b red] (nothing starts until it is valid)\n{error}"
+        )
+
+
+class RunPane(Vertical):
+    """Progress, the current step, live plots and commanded against achieved amplitudes."""
+
+    def compose(self) -> ComposeResult:
+        yield Static("no sequence running", id="run-progress")
+        yield Static("", id="run-step")
+        with Horizontal(id="run-plots"):
+            yield BraillePlot("forces", "N", id="plot-force")
+            yield BraillePlot("displacement", "mm", id="plot-disp")
+        yield DataTable(id="run-points", cursor_type="none", zebra_stripes=True)
+        yield Label("p: pause    r: resume    a: abort")
+
+    def on_mount(self) -> None:
+        table = self.query_one("#run-points", DataTable)
+        table.add_columns("run", "point", "f Hz", "status", "target mm", "commanded mm", "achieved mm")
+        self._started = 0.0
+        self._total = 0
+        self._done = 0
+        self._estimate_s = 0.0
+
+    def sequence_started(self, event: ev.SequenceStarted) -> None:
+        self._started = time.monotonic()
+        self._total, self._done, self._estimate_s = event.total_points, 0, event.estimated_duration_s
+        self.query_one("#run-points", DataTable).clear()
+        self.query_one("#run-step", Static).update(f"sequence {event.sequence_name}")
+
+    def point_started(self, event: ev.PointStarted) -> None:
+        pressure = event.conditions.get("tyre_pressure_bar")
+        shown = f"{pressure:g} bar" if isinstance(pressure, float | int) else "not set"
+        self.query_one("#run-step", Static).update(
+            f"[b]{event.run_id}[/b]  point {event.index} attempt {event.attempt}:"
+            f" {event.freq_hz:g} Hz at {event.amplitude_mm:.3f} mm, tyre pressure {shown}"
+        )
+
+    def point_done(self, event: ev.PointDone) -> None:
+        if event.status == "done":
+            self._done += 1
+        achieved = f"{event.achieved_amplitude_mm:.3f}" if math.isfinite(event.achieved_amplitude_mm) else "-"
+        table = self.query_one("#run-points", DataTable)
+        table.add_row(
+            event.run_id.rsplit("-", 2)[-2],
+            str(event.index),
+            f"{event.freq_hz:g}",
+            event.status,
+            f"{event.target_amplitude_mm:.3f}",
+            f"{event.commanded_amplitude_mm:.3f}",
+            achieved,
+        )
+        table.scroll_end(animate=False)
+
+    def show_progress(self, state: str, running: bool) -> None:
+        if not self._started:
+            text = f"state [b]{state}[/b]; no sequence started"
+        else:
+            elapsed = time.monotonic() - self._started
+            rest = elapsed / self._done * (self._total - self._done) if self._done else self._estimate_s
+            eta = f"ETA {rest:5.0f} s" if running else "ended"
+            text = (
+                f"state [b]{state}[/b]   points {self._done}/{self._total}   elapsed {elapsed:5.0f} s   {eta}"
+            )
+        self.query_one("#run-progress", Static).update(text)
+
+    def show_trace(self, trace: LiveTrace) -> None:
+        t_s, v = trace.snapshot()
+        if not t_s.size:
+            return
+        note = f"last {-t_s[0]:.1f} s"
+        self.query_one("#plot-force", BraillePlot).plot(
+            [
+                Series("Fz WFS", t_s, v["fz_wfs_n"], "cyan"),
+                Series("plate force", t_s, v["f_plate_n"], "yellow"),
+            ],
+            note,
+        )
+        self.query_one("#plot-disp", BraillePlot).plot([Series("z", t_s, v["z_base_m"] * 1e3, "green")], note)
+
+
+class ResultsPane(VerticalScroll):
+    """The analysis of each run, the Bode plot of the force ratio, the runs of the open file."""
+
+    def compose(self) -> ComposeResult:
+        yield Static("no results yet", id="results-lines")
+        with Horizontal(id="results-bode"):
+            yield BraillePlot("|F_wfs/F_contact|", "|H|", id="bode-mag")
+            yield BraillePlot("phase", "deg", id="bode-phase")
+        yield Static("", id="results-bands")
+        yield Label("[b]runs of the open file[/b]")
+        yield DataTable(id="results-runs", cursor_type="none", zebra_stripes=True)
+
+    def on_mount(self) -> None:
+        self.query_one("#results-runs", DataTable).add_columns("run", "kind", "status", "samples", "reason")
+        self._lines: list[str] = []
+
+    def clear_results(self) -> None:
+        self._lines = []
+        self.query_one("#results-lines", Static).update("no results yet")
+
+    def add_result(self, run_id: str, lines: tuple[str, ...], bode: tuple[BodeCurves, ...]) -> None:
+        self._lines += [f"[b]{run_id}[/b]", *(f"  {line}" for line in lines)]
+        self.query_one("#results-lines", Static).update("\n".join(self._lines))
+        if bode:
+            self._show_bode(bode)
+
+    def _show_bode(self, bode: tuple[BodeCurves, ...]) -> None:
+        mag, phase, bands = [], [], []
+        styles = (("cyan", "magenta"), ("yellow", "green"))
+        for i, curves in enumerate(bode):
+            raw_style, comp_style = styles[i % len(styles)]
+            x = np.log10(curves.freq_hz)
+            mag += [
+                Series(f"raw {curves.label}", x, np.abs(curves.raw), raw_style),
+                Series(f"compensated {curves.label}", x, np.abs(curves.compensated), comp_style),
+            ]
+            phase += [
+                Series(f"raw {curves.label}", x, np.degrees(np.angle(curves.raw)), raw_style),
+                Series(
+                    f"compensated {curves.label}", x, np.degrees(np.angle(curves.compensated)), comp_style
+                ),
+            ]
+            bands += [f"valid band {curves.label} {band}" for band in curves.bands]
+        f = bode[0].freq_hz
+        note = f"log frequency {f.min():g}-{f.max():g} Hz"
+        self.query_one("#bode-mag", BraillePlot).plot(mag, note)
+        self.query_one("#bode-phase", BraillePlot).plot(phase, note)
+        self.query_one("#results-bands", Static).update("\n".join(bands))
+
+    def show_runs(self, runs: tuple[PastRun, ...]) -> None:
+        table = self.query_one("#results-runs", DataTable)
+        table.clear()
+        for r in runs:
+            table.add_row(r.run_id, r.kind, r.status, str(r.n_samples), r.reason or "")

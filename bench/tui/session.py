@@ -1,0 +1,431 @@
+"""The bench behind the terminal UI: devices, engine and sequences on threads of their own.
+
+:class:`BenchSession` opens the configured bench (the simulated lab by default) on its worker
+thread, builds the engine once and keeps both open until the UI closes, so that the technician can
+switch the hydraulics and tare between sequences. Everything that talks to a device (opening the
+links, hydraulics, tare, reset, a sequence) runs on that worker thread, never on the UI's; the
+engine's events are handed to the UI through ``post`` (a thread-safe callback). Samples do not
+travel as messages: they go into a :class:`LiveTrace` the UI reads at its own refresh rate.
+
+The one exception is the e-stop: :meth:`BenchSession.estop` calls the engine's
+``request_estop`` on the caller's thread, which sends the stop to the controller at once.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.app.campaign import (
+    BenchDevices,
+    CampaignPlan,
+    build_engine,
+    initial_knowledge,
+    open_bench,
+    plan_campaign,
+    run_on_engine,
+)
+from bench.app.post_run import CampaignKnowledge
+from bench.config import BenchConfig, load_bench_config
+from bench.engine import events as ev
+from bench.engine.engine import Engine
+from bench.engine.states import RunState
+from bench.store import open_campaign
+from drivers.register_map import ControllerState
+from sequences import AnswerError, Prompt
+
+log = logging.getLogger(__name__)
+
+#: The live channels the UI plots and shows (wheel-frame Fz, plate force, displacement, hub
+#: acceleration), by recorded channel name.
+LIVE_CHANNELS = ("fz_wfs_n", "f_plate_n", "z_base_m", "a_hub_m_s2")
+#: How long the controller status may go unread while no sequence runs (s).
+STATUS_PERIOD_S = 0.5
+#: After a reset the controller tapers out before it takes commands: how long that may take (s),
+#: and how often its state is read meanwhile.
+RESET_TIMEOUT_S = 10.0
+RESET_POLL_S = 0.05
+_NOT_READY = (ControllerState.TAPERING, ControllerState.ESTOP, ControllerState.INTERLOCK)
+
+
+@dataclass(frozen=True)
+class BenchOpened:
+    """The bench is open: ``description`` says which (simulated or the configured devices)."""
+
+    description: str
+    interlocks: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class BenchFault:
+    """Something the technician must see as a banner: a link lost, an interlock, a device error."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class ControllerStatus:
+    """The controller's state as last read while no sequence ran; ``interlock``: its reason."""
+
+    state: str
+    interlock: str | None
+
+
+@dataclass(frozen=True)
+class PromptRequest:
+    """The engine waits for the technician's answer to ``prompt``."""
+
+    prompt: Prompt
+
+
+@dataclass(frozen=True)
+class BodeCurves:
+    """One amplitude's force ratio F_wfs/F_contact, raw and compensated, at the dwell frequencies."""
+
+    label: str
+    freq_hz: np.ndarray
+    raw: np.ndarray  # complex
+    compensated: np.ndarray  # complex
+    bands: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """The analysis after a run: its summary lines and, for a shaker grid, the Bode curves."""
+
+    run_id: str
+    name: str
+    lines: tuple[str, ...]
+    bode: tuple[BodeCurves, ...] = ()
+
+
+@dataclass(frozen=True)
+class PastRun:
+    """One run of the open campaign file."""
+
+    run_id: str
+    kind: str
+    status: str
+    reason: str
+    n_samples: int
+
+
+@dataclass(frozen=True)
+class PastRuns:
+    runs: tuple[PastRun, ...]
+
+
+@dataclass(frozen=True)
+class PlanChecked:
+    """A sequence file checked: ``plan`` when it may run, else ``error`` (file, key, allowed range)."""
+
+    path: Path
+    plan: CampaignPlan | None
+    error: str
+
+
+@dataclass(frozen=True)
+class CommandFailed:
+    """A command of the technician was refused or failed (the bench did not change)."""
+
+    what: str
+    reason: str
+
+
+class LiveTrace:
+    """The last ``window_s`` seconds of the live channels, written by the engine's thread and read
+    by the UI's; the UI decimates what it draws."""
+
+    def __init__(self, sample_rate_hz: float, window_s: float = 5.0) -> None:
+        self.sample_rate_hz = sample_rate_hz
+        self._n = max(1, int(sample_rate_hz * window_s))
+        self._lock = threading.Lock()
+        self._data = {name: np.zeros(self._n, dtype=np.float64) for name in LIVE_CHANNELS}
+        self._filled = 0
+        self.samples_seen = 0
+
+    def append(self, columns: dict[str, np.ndarray]) -> None:
+        present = [name for name in LIVE_CHANNELS if name in columns]
+        if not present:
+            return
+        n = len(columns[present[0]])
+        with self._lock:
+            for name in present:
+                block = np.asarray(columns[name], dtype=np.float64)[-self._n :]
+                buf = self._data[name]
+                buf[: self._n - len(block)] = buf[len(block) :]
+                buf[self._n - len(block) :] = block
+            self._filled = min(self._n, self._filled + n)
+            self.samples_seen += n
+
+    def snapshot(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """(time in s relative to the newest sample, values by channel) of what has been seen."""
+        with self._lock:
+            k = self._filled
+            values = {name: buf[self._n - k :].copy() for name, buf in self._data.items()}
+        t_s = (np.arange(k) - (k - 1)) / self.sample_rate_hz
+        return t_s, values
+
+    def latest(self) -> dict[str, float]:
+        with self._lock:
+            if not self._filled:
+                return {}
+            return {name: float(buf[-1]) for name, buf in self._data.items()}
+
+
+class UiOperator:
+    """The engine's operator: each prompt is handed to the UI, and the engine's thread waits for the
+    technician's answer (already checked by the dialog). On the simulated bench the answer is also
+    applied to the simulated world, as the person's hands would."""
+
+    def __init__(self, ask: Callable[[Prompt], None], stopped: Callable[[], bool]) -> None:
+        """``stopped()``: whether the bench is e-stopped; an answer given then changes nothing in
+        the simulated world (nobody handles the bench while it is stopped), and the engine ends
+        the sequence as e-stopped at its next checkpoint."""
+        self._ask = ask
+        self.stopped = stopped
+        self._replies: queue.Queue[object] = queue.Queue()
+        self.world: Any = None  # the simulated operator, when the bench is simulated
+        self.pending: Prompt | None = None
+
+    def answer(self, prompt: Prompt) -> object:
+        self.pending = prompt
+        self._ask(prompt)
+        reply = self._replies.get()
+        self.pending = None
+        if isinstance(reply, AnswerError):
+            raise reply
+        value = prompt.check_answer(reply)
+        if self.world is not None and prompt.action is not None and not self.stopped():
+            self.world.apply(prompt.action, value)
+        return value
+
+    def reply(self, value: object) -> None:
+        """The technician's (valid) answer to the pending prompt."""
+        self._replies.put(value)
+
+    def cancel(self, reason: str) -> None:
+        """No answer will come (the technician aborted): the engine aborts the sequence."""
+        if self.pending is not None:
+            self._replies.put(AnswerError(f"{self.pending.id}: {reason}"))
+
+
+class BenchSession:
+    """The open bench for the terminal UI. ``post(message)`` must be safe to call from any thread."""
+
+    def __init__(self, config_path: Path | None, out_path: Path, post: Callable[[object], None]) -> None:
+        self.config_path = config_path
+        self.out_path = Path(out_path)
+        self.post = post
+        self.config: BenchConfig | None = None
+        self.operator = UiOperator(
+            lambda prompt: post(PromptRequest(prompt)),
+            lambda: self.engine is not None and self.engine.state is RunState.ESTOPPED,
+        )
+        self.engine: Engine | None = None
+        self.devices: BenchDevices | None = None
+        self.trace: LiveTrace | None = None
+        self.knowledge: CampaignKnowledge | None = None
+        self.running = threading.Event()  # a sequence is under way
+        self._commands: queue.Queue[Callable[[], None] | None] = queue.Queue()
+        self._thread = threading.Thread(target=self._serve, name="tui-bench", daemon=True)
+        self.opened = threading.Event()
+
+    # -- lifetime -------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def close(self, timeout_s: float = 30.0) -> None:
+        """Stop after the command under way (a running sequence is aborted first)."""
+        if self.running.is_set() and self.engine is not None:
+            self.abort()
+        self._commands.put(None)
+        self._thread.join(timeout_s)
+
+    def _serve(self) -> None:
+        try:
+            self.config = load_bench_config(self.config_path)
+            with open_bench(self.config, self.operator) as devices:
+                self.devices = devices
+                if devices.lab is not None:
+                    self.operator.world = devices.lab.operator
+                self.engine = build_engine(self.config, devices)
+                self.trace = LiveTrace(float(self.config.wfs.rate_hz))
+                self.engine.bus.subscribe(self._on_event)
+                where = "simulated lab" if devices.lab is not None else self.config.source
+                self.post(BenchOpened(f"{self.config.kind} bench ({where})", self._interlock_names()))
+                self.opened.set()
+                self._post_past_runs()
+                self._loop()
+        except Exception as exc:  # a bench that cannot open is shown, not raised into the UI
+            log.exception("the bench failed")
+            self.post(BenchFault(f"the bench failed: {type(exc).__name__}: {exc}"))
+
+    def _loop(self) -> None:
+        while True:
+            try:
+                command = self._commands.get(timeout=STATUS_PERIOD_S)
+            except queue.Empty:
+                self._read_status()
+                continue
+            if command is None:
+                return
+            command()
+
+    def _interlock_names(self) -> tuple[str, ...]:
+        return tuple(interlock.name for interlock in self.engine.interlocks)
+
+    # -- commands (any thread; executed on the worker thread) -----------------------------------
+
+    def check(self, sequence_path: Path) -> None:
+        """Validate and dry-run a sequence file; the answer comes as :class:`PlanChecked`. It opens
+        no device, so it runs on a thread of its own (a sequence may be running meanwhile)."""
+        threading.Thread(
+            target=self._check, args=(Path(sequence_path),), name="tui-check", daemon=True
+        ).start()
+
+    def start_sequence(self, plan: CampaignPlan) -> None:
+        self.running.set()
+        self._commands.put(lambda: self._run(plan))
+
+    def hydraulics(self, level: str) -> None:
+        self._commands.put(lambda: self._guarded(f"hydraulics {level}", self.engine.set_hydraulics, level))
+
+    def tare(self) -> None:
+        self._commands.put(lambda: self._guarded("tare", self.devices.acquisition.tare))
+
+    def reset(self) -> None:
+        """Release an interlock or e-stop; the commands after it wait until the controller has
+        tapered out and takes commands again."""
+        self._commands.put(lambda: self._guarded("reset", self._reset))
+
+    # -- requests to the running sequence (any thread, at once) ---------------------------------
+
+    def pause(self) -> None:
+        self.engine.request_pause()
+
+    def resume(self) -> None:
+        self.engine.request_resume()
+
+    def abort(self) -> None:
+        self.engine.request_abort()
+        self.operator.cancel("aborted by the operator")
+
+    def estop(self) -> None:
+        """E-stop from the caller's thread: the controller is told before this returns."""
+        self.engine.request_estop()
+
+    def answer(self, value: object) -> None:
+        self.operator.reply(value)
+
+    # -- the worker threads ----------------------------------------------------------------------
+
+    def _check(self, path: Path) -> None:
+        try:
+            plan = plan_campaign(path, self.config_path)
+        except Exception as exc:  # SequenceError, ConfigError, PlanRefusedError, OSError: all shown
+            self.post(PlanChecked(path, None, str(exc)))
+        else:
+            self.post(PlanChecked(path, plan, ""))
+
+    def _run(self, plan: CampaignPlan) -> None:
+        self.knowledge = initial_knowledge(plan.config)
+        try:
+            run_on_engine(self.engine, plan, self.out_path, knowledge=self.knowledge)
+        except Exception as exc:
+            log.exception("the sequence failed")
+            self.post(BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}"))
+        finally:
+            self.running.clear()
+        self._post_past_runs()
+
+    def _reset(self) -> None:
+        self.engine.reset()
+        deadline = time.monotonic() + RESET_TIMEOUT_S
+        while self.devices.actuator.read_status().status.state in _NOT_READY:
+            if time.monotonic() > deadline:
+                raise RuntimeError(
+                    f"the controller did not return to hydraulics low in {RESET_TIMEOUT_S:g} s"
+                )
+            time.sleep(RESET_POLL_S)
+
+    def _guarded(self, what: str, action: Callable[..., None], *args: object) -> None:
+        try:
+            action(*args)
+        except Exception as exc:  # refused transitions and device errors are shown, not raised
+            self.post(CommandFailed(what, str(exc)))
+        self._read_status()
+
+    def _read_status(self) -> None:
+        try:
+            readback = self.devices.actuator.read_status()
+        except Exception as exc:
+            self.post(BenchFault(f"controller status unreadable: {exc}"))
+            return
+        self.post(ControllerStatus(readback.status.state.name.lower(), readback.interlock_reason))
+
+    def _post_past_runs(self) -> None:
+        if not self.out_path.exists():
+            self.post(PastRuns(()))
+            return
+        try:
+            with open_campaign(self.out_path) as campaign:
+                runs = tuple(
+                    PastRun(r.run_id, r.kind, r.status, r.reason, r.n_samples) for r in campaign.runs
+                )
+        except Exception as exc:
+            self.post(BenchFault(f"{self.out_path}: {exc}"))
+            return
+        self.post(PastRuns(runs))
+
+    # -- the engine's thread --------------------------------------------------------------------
+
+    def _on_event(self, event: ev.Event) -> None:
+        """Forward an event to the UI; samples go to the live trace; results get their curves."""
+        if isinstance(event, ev.SamplesRecorded):
+            self.trace.append(dict(event.columns))
+            return
+        self.post(event)
+        if isinstance(event, ev.AnalysisDone):
+            self.post(RunResult(event.run_id, event.name, tuple(event.summary), self._bode(event)))
+
+    def _bode(self, event: ev.AnalysisDone) -> tuple[BodeCurves, ...]:
+        pressure = event.results.get("tyre_pressure_bar")
+        if event.name != "shaker" or self.knowledge is None or pressure not in self.knowledge.shaker:
+            return ()
+        curves = []
+        for result in self.knowledge.shaker[pressure].amplitudes.values():
+            raw = result.frfs.wfs_per_contact
+            comp = result.compensated_per_contact
+            bands = tuple(
+                f"{name}: {_band_text(band)}"
+                for name, band in (
+                    ("raw", result.valid_band_raw),
+                    ("compensated", result.valid_band_compensated),
+                )
+            )
+            curves.append(
+                BodeCurves(
+                    result.label,
+                    np.asarray(raw.freq_hz),
+                    np.asarray(raw.value),
+                    np.asarray(comp.value),
+                    bands,
+                )
+            )
+        return tuple(curves)
+
+
+def _band_text(band: Any) -> str:
+    if not band.determined:
+        return f"not determined (limited by {band.limited_by})"
+    return f"{band.lowest_hz:g}-{band.upper_hz:g} Hz (ends: {band.limited_by})"

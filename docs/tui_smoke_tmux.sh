@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Runs the smoke sequence in `wfsbench tui` inside tmux the way a person would: keys in with
+# send-keys, the screen read back with capture-pane, each step waiting (with a deadline) for what
+# the technician would wait for. Ends on the results screen, prints it, and quits the UI.
+#
+#   docs/tui_smoke_tmux.sh [CAMPAIGN_FILE]      (WFSBENCH=path/to/wfsbench to use another binary)
+set -euo pipefail
+
+wfsbench=${WFSBENCH:-wfsbench}
+out=${1:-$(mktemp -d)/smoke.h5}
+session=wfsbench-tui-$$
+
+tmux new-session -d -s "$session" -x 120 -y 40 "$wfsbench tui --out '$out'"
+trap 'tmux kill-session -t "$session" 2>/dev/null || true' EXIT
+
+# wait_for SECONDS PATTERN...: until the screen shows every PATTERN (fixed strings)
+wait_for() {
+    local seconds=$1
+    shift
+    local deadline=$((SECONDS + seconds))
+    while :; do
+        local screen missing=0
+        screen=$(tmux capture-pane -p -t "$session" 2>/dev/null) || screen=""
+        for pattern in "$@"; do
+            grep -qF -- "$pattern" <<<"$screen" || missing=1
+        done
+        [ "$missing" = 0 ] && return 0
+        if [ "$SECONDS" -ge "$deadline" ]; then
+            echo "timed out after ${seconds} s waiting for: $*" >&2
+            echo "$screen" >&2
+            return 1
+        fi
+        sleep 0.2
+    done
+}
+
+wait_for 60 "controller link up"                  # Bench screen: the simulated lab is open
+tmux send-keys -t "$session" F3                     # Sequence screen
+wait_for 10 "shipped sequences"
+tmux send-keys -t "$session" Enter                  # smoke.toml, the first shipped sequence
+wait_for 60 "g: start this sequence"
+tmux send-keys -t "$session" g                      # start: the Run screen
+wait_for 60 "Remove the wheel" "y: done"
+tmux send-keys -t "$session" y
+wait_for 60 "Fit the wheel" "y: done"
+tmux send-keys -t "$session" y
+wait_for 60 "pressure read on the gauge" "then Enter"
+tmux send-keys -t "$session" 2.5 Enter              # the pressure read on the gauge
+wait_for 120 "runs of the open file" "finished" "smoke-s010-sweep"   # the Results screen
+tmux capture-pane -p -t "$session"
+tmux send-keys -t "$session" q

@@ -1,0 +1,330 @@
+"""The terminal UI driven by keys through ``App.run_test()`` on the simulated bench: the smoke
+sequence with its prompts (a bad answer refused), pause and resume, abort, an e-stop read back from
+the controller over Modbus TCP, a bad sequence file, a link lost mid-run; SVG screenshots of every
+screen and dialog."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+
+from bench.engine import events as ev
+from bench.engine.states import RunState
+from bench.store import open_campaign
+from bench.tui.app import WfsBenchApp
+from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from drivers.actuator import ActuatorClient
+from drivers.register_map import ControllerState
+from tests.waiting import async_wait_until
+
+FILES = Path(__file__).parent / "files"
+#: Bound of every wait (s): generous for a busy machine; the waits end on events, not on time.
+TIMEOUT_S = 60.0
+
+
+class Recorded:
+    """The engine's events, recorded from its thread."""
+
+    def __init__(self) -> None:
+        self.events: list[ev.Event] = []
+        self._lock = threading.Lock()
+
+    def __call__(self, event: ev.Event) -> None:
+        if not isinstance(event, ev.SamplesRecorded):
+            with self._lock:
+                self.events.append(event)
+
+    def of(self, kind: type) -> list:
+        with self._lock:
+            return [e for e in self.events if isinstance(e, kind)]
+
+
+async def until(pilot, condition, what: str) -> None:
+    async def check():
+        await pilot.pause(0.02)
+        return condition()
+
+    await async_wait_until(check, TIMEOUT_S, what)
+
+
+async def open_app(pilot, app: WfsBenchApp) -> Recorded:
+    await until(pilot, app.session.opened.is_set, "the bench to open")
+    recorded = Recorded()
+    app.session.engine.bus.subscribe(recorded)
+    return recorded
+
+
+async def check_smoke(pilot, app: WfsBenchApp) -> None:
+    await pilot.press("f3")
+    app.query_one("#seq-shipped").focus()
+    await pilot.press("enter")  # smoke.toml is the first shipped sequence
+    await until(pilot, lambda: app.plan is not None, "the smoke sequence checked")
+
+
+async def type_path(pilot, app: WfsBenchApp, path: Path) -> None:
+    """A sequence file's path into the path field, then Enter. The text is set at once: each
+    simulated key press waits for the app to look idle, which a live 10 Hz view never is."""
+    field = app.query_one("#seq-path")
+    field.focus()
+    field.value = str(path)
+    await pilot.press("enter")
+
+
+async def prompt_open(pilot, app: WfsBenchApp, prompt_id: str) -> PromptDialog:
+    await until(
+        pilot,
+        lambda: (
+            isinstance(app.screen, PromptDialog)
+            and app.screen.prompt.id == prompt_id
+            and bool(app.screen.query("#prompt-text"))  # composed: it takes keys
+        ),
+        f"prompt {prompt_id}",
+    )
+    return app.screen
+
+
+def finished(recorded: Recorded) -> ev.SequenceFinished | None:
+    done = recorded.of(ev.SequenceFinished)
+    return done[0] if done else None
+
+
+def text_of(node, selector: str) -> str:
+    """The text a widget under ``node`` (the app or a dialog) shows."""
+    return str(node.query_one(selector).render())
+
+
+@pytest.fixture
+def app(tmp_path: Path) -> WfsBenchApp:
+    """The UI on the default simulated bench (as fast as the engine drains it)."""
+    return WfsBenchApp(None, tmp_path / "campaign.h5")
+
+
+@pytest.fixture
+def paced_app(tmp_path: Path) -> WfsBenchApp:
+    """The UI on the simulated bench paced in real time: a 60 s dwell lasts 60 s."""
+    return WfsBenchApp(FILES / "paced.toml", tmp_path / "campaign.h5")
+
+
+async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -> None:
+    """Prompts answered in dialogs (a bad pressure refused and asked again), a pause and a resume,
+    the sequence to its end and its results; an SVG of every screen and dialog on the way."""
+    shots = tmp_path / "shots"
+    shots.mkdir()
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await until(pilot, lambda: app.controller is not None, "the controller status read")
+        await pilot.pause()
+        bench_svg = app.save_screenshot("bench.svg", str(shots))
+        await pilot.press("question_mark")
+        await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
+        help_svg = app.save_screenshot("help.svg", str(shots))
+        await pilot.press("escape")
+        await check_smoke(pilot, app)
+        sequence_svg = app.save_screenshot("sequence.svg", str(shots))
+        await pilot.press("g")
+
+        dialog = await prompt_open(pilot, app, "remove_wheel")
+        prompt_svg = app.save_screenshot("prompt.svg", str(shots))
+        await pilot.press("p")  # the pause is taken at the checkpoint after the answer
+        await pilot.press("y")
+        await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause")
+        assert "paused" in text_of(app, "#run-progress")
+        await pilot.press("r")
+        await until(pilot, lambda: app.session.engine.state is not RunState.PAUSED, "the resume")
+
+        dialog = await prompt_open(pilot, app, "fit_wheel")
+        run_svg = app.save_screenshot("run.svg", str(shots))
+        await pilot.press("y")
+        dialog = await prompt_open(pilot, app, "pressure")
+        await pilot.press(*"9.9", "enter")
+        await pilot.pause()
+        assert app.screen is dialog, "a pressure beyond 0.5..4.5 bar must not close the dialog"
+        assert "9.9" in text_of(dialog, "#prompt-error")
+        assert "0.5..4.5" in text_of(dialog, "#prompt-error")
+        await pilot.press(*"2.5", "enter")
+
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "complete"
+        await until(pilot, lambda: app.pane == "results", "the results screen")
+        await until(
+            pilot, lambda: app.query_one("#results-runs").row_count == 3, "the runs of the file listed"
+        )
+        results_svg = app.save_screenshot("results.svg", str(shots))
+        lines = text_of(app, "#results-lines")
+        assert "m_comp" in lines and "Model 2" in lines
+        assert app.query_one("#bode-mag").series, "the Bode plot of the grid is drawn"
+        assert "compensated" in text_of(app, "#results-bands")
+
+    asked = [e.prompt_id for e in recorded.of(ev.PromptAsked)]
+    assert asked == ["remove_wheel", "fit_wheel", "pressure"], "a refused answer never reaches the engine"
+    assert [e.answer for e in recorded.of(ev.PromptAnswered)] == [True, True, 2.5]
+    assert recorded.of(ev.StateChanged)[0].new is RunState.RUNNING
+    assert any(e.new is RunState.PAUSED for e in recorded.of(ev.StateChanged))
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        grid = campaign.run("smoke-s009-dwell_grid")
+        assert grid.status == "complete"
+        assert grid.conditions["tyre_pressure_bar"] == 2.5 and grid.conditions["pressure"] == 2.5
+    expected = {
+        bench_svg: ("interlocks", "controller", "hydraulics"),
+        help_svg: ("E-STOP", "Keys"),
+        sequence_svg: ("smoke", "valid", "points"),
+        prompt_svg: ("Remove", "E-STOP"),
+        run_svg: ("commanded", "displacement", "forces"),
+        results_svg: ("F_wfs/F_contact", "phase", "complete"),
+    }
+    for path, words in expected.items():
+        svg = Path(path).read_text()
+        assert svg.startswith("<svg"), path
+        for word in words:
+            assert word in svg, f"{Path(path).name} lacks {word!r}"
+
+
+async def start_long_dwell(pilot, app: WfsBenchApp) -> Recorded:
+    """The long dwell typed in as an own file, started; returns once its point runs."""
+    recorded = await open_app(pilot, app)
+    await pilot.press("f3")
+    await type_path(pilot, app, FILES / "long_dwell.toml")
+    await until(pilot, lambda: app.plan is not None, "the long dwell checked")
+    app.query_one("#seq-shipped").focus()
+    await pilot.press("g")
+    await until(pilot, lambda: recorded.of(ev.PointStarted), "the dwell started")
+    return recorded
+
+
+async def test_abort_mid_run_keeps_the_data(paced_app: WfsBenchApp, tmp_path: Path) -> None:
+    """a during the dwell tapers it out and ends the sequence as aborted; the samples stay."""
+    app = paced_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await start_long_dwell(pilot, app)
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "aborted"
+        assert "aborted" in text_of(app, "#run-progress") or app.session.engine.state.value == "aborted"
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        (run,) = campaign.runs
+        assert run.status == "aborted" and run.n_samples > 0
+
+
+async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
+    """a with a prompt's dialog open: no answer is given, the sequence ends as aborted and the
+    dialog closes."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "aborted"
+        assert "remove_wheel" in finished(recorded).reason
+        await until(pilot, lambda: not isinstance(app.screen, PromptDialog), "the dialog closed")
+        assert not recorded.of(ev.PromptAnswered)
+
+
+async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> None:
+    """F12 during a point: the simulated controller reads back e-stop over Modbus TCP at once; x
+    (confirmed) resets, and the sequence runs again."""
+    app = paced_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await start_long_dwell(pilot, app)
+        await pilot.press("f12")
+        client = ActuatorClient.tcp(*app.session.devices.lab.address)
+        try:
+            status = await client.connect()  # right after the key handler returned: no waiting
+        finally:
+            await client.close()
+        assert status.state is ControllerState.ESTOP
+        assert "E-STOP" in text_of(app, "#banner")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "e-stopped"
+
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+        await pilot.press("f2", "x")  # reset, confirmed
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
+        await pilot.press("y")
+        await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
+        assert not app.query_one("#banner").has_class("shown")
+        app.session.out_path = app.session.out_path.with_name("after-reset.h5")
+        points = len(recorded.of(ev.PointStarted))
+        await pilot.press("f3", "g")  # the checked dwell again: it starts once the controller is ready
+        await until(pilot, lambda: len(recorded.of(ev.PointStarted)) > points, "the dwell after the reset")
+        await pilot.press("a")
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
+
+
+async def test_estop_from_a_dialog(app: WfsBenchApp) -> None:
+    """F12 works while a confirmation dialog waits for y / n; the dialog's own question is not
+    answered by it."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await pilot.press("l")  # hydraulics low: asks first
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
+        await pilot.press("f12")
+        client = ActuatorClient.tcp(*app.session.devices.lab.address)
+        try:
+            status = await client.connect()
+        finally:
+            await client.close()
+        assert status.state is ControllerState.ESTOP
+        assert app.session.engine.state is RunState.ESTOPPED
+        assert isinstance(app.screen, ConfirmDialog)
+        await pilot.press("n")
+        assert not isinstance(app.screen, ConfirmDialog)
+
+
+async def test_estop_while_a_prompt_waits(app: WfsBenchApp) -> None:
+    """F12 in a prompt's dialog stops the controller at once; the answer then given ends the
+    sequence as e-stopped (the simulated world is not touched while stopped)."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        dialog = await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("f12")
+        client = ActuatorClient.tcp(*app.session.devices.lab.address)
+        try:
+            status = await client.connect()
+        finally:
+            await client.close()
+        assert status.state is ControllerState.ESTOP
+        assert app.screen is dialog
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "e-stopped"
+        assert app.session.devices.lab.world.specimen_mounted
+
+
+async def test_bad_sequence_file_shows_key_and_range(app: WfsBenchApp, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        '[sequence]\nname = "bad"\n\n[[steps]]\ntype = "sine_dwell"\nfreq_hz = 900\namplitude_mm = 2\n'
+    )
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await pilot.press("f3")
+        await type_path(pilot, app, bad)
+        await until(pilot, lambda: "cannot run" in text_of(app, "#seq-report"), "the refusal")
+        report = text_of(app, "#seq-report")
+        assert str(bad) in report
+        assert "steps[0].freq_hz" in report and "0.1 <= freq_hz <= 100 Hz" in report
+        app.query_one("#seq-shipped").focus()
+        await pilot.press("g")
+        await pilot.pause()
+        assert not app.session.running.is_set(), "nothing starts until the sequence is valid"
+
+
+async def test_link_lost_mid_run_shows_a_banner(paced_app: WfsBenchApp) -> None:
+    """The Modbus link dropped during the dwell: an interlock banner with the reason."""
+    app = paced_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await start_long_dwell(pilot, app)
+        app.session.devices.lab.drop_controller_link()
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "interlocked"
+        await until(pilot, lambda: app.query_one("#banner").has_class("shown"), "the banner")
+        banner = text_of(app, "#banner")
+        assert "INTERLOCK actuator link lost" in banner
+        assert "Traceback" not in banner
