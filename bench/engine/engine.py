@@ -638,6 +638,10 @@ class Engine:
         self.machine.fire(Trigger.RESUME)
 
     def _abort_now(self, reason: str = "aborted by the operator") -> NoReturn:
+        """End the sequence as aborted, with a taper; as e-stopped if an e-stop came first (an
+        e-stop pressed while a prompt waited, say, and the prompt then left unanswered)."""
+        if self._estop.is_set():
+            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
         self._force_state(Trigger.ABORT)
         self._defensive_stop()
         self.machine.fire(Trigger.STOPPED)

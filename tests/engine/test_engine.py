@@ -256,6 +256,29 @@ def test_a_declined_or_unanswered_prompt_aborts_before_anything_moves(operator, 
     assert of(seen, ev.RunStarted) == []
 
 
+class EstopThenSilent:
+    """The technician presses the e-stop while the prompt waits, then leaves it unanswered."""
+
+    def __init__(self) -> None:
+        self.engine: Engine | None = None
+
+    def answer(self, prompt: Prompt) -> object:
+        self.engine.request_estop()
+        raise AnswerError(f"{prompt.id}: no answer")
+
+
+def test_an_estop_while_a_prompt_waits_ends_the_sequence_e_stopped_even_unanswered():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    engine.operator = operator = EstopThenSilent()
+    operator.engine = engine
+    wheel = Prompt("wheel", "Remove the wheel", action="remove_wheel")
+    outcome = engine.run(sequence(wheel, FreeRun(grid())))
+    assert (outcome.status, outcome.reason) == ("e-stopped", "e-stop")
+    assert engine.state is RunState.ESTOPPED
+    assert bench.estopped and of(seen, ev.RunStarted) == []
+
+
 class ReplyBehindFrames(FakeBench):
     """A serial line on which the STOP's reply comes behind the frames already in flight: the reader
     hands those to the lossless subscription first, so the reply arrives only once they are taken
