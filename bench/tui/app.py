@@ -16,6 +16,7 @@ from typing import ClassVar
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
+from textual.css.query import NoMatches
 from textual.message import Message
 from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
 
@@ -276,6 +277,8 @@ class WfsBenchApp(App):
                 self.query_one(RunPane).sequence_started(p)
             case ev.PointStarted():
                 self.query_one(RunPane).point_started(p)
+            case ev.GridRefined():
+                self.notify(self.query_one(RunPane).grid_refined(p), title="adaptive grid")
             case ev.PointDone():
                 self.query_one(RunPane).point_done(p)
             case ev.InterlockTripped():
@@ -312,7 +315,11 @@ class WfsBenchApp(App):
         engine = self.session.engine
         state = engine.state.value if engine else "opening"
         running = self.session.running.is_set()
-        self.query_one("#state", Static).update(f"{self.bench_name}   [b]{state}[/b]")
+        try:
+            state_line = self.query_one("#state", Static)
+        except NoMatches:  # the app is closing: its widgets go before its timer stops
+            return
+        state_line.update(f"{self.bench_name}   [b]{state}[/b]")
         trace = self.session.trace
         if self.pane == "run":
             run = self.query_one(RunPane)

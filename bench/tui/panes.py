@@ -122,7 +122,9 @@ class RunPane(Vertical):
 
     def on_mount(self) -> None:
         table = self.query_one("#run-points", DataTable)
-        table.add_columns("run", "point", "f Hz", "status", "target mm", "commanded mm", "achieved mm")
+        table.add_columns(
+            "run", "point", "f Hz", "status", "target mm", "commanded mm", "achieved mm", "added because"
+        )
         self._started = 0.0
         self._total = 0
         self._done = 0
@@ -142,6 +144,12 @@ class RunPane(Vertical):
             f" {event.freq_hz:g} Hz at {event.amplitude_mm:.3f} mm, tyre pressure {shown}"
         )
 
+    def grid_refined(self, event: ev.GridRefined) -> str:
+        """Count the points an adaptive grid adds; return what to tell the technician."""
+        self._total += len(event.added)
+        added = "; ".join(f"{freq_hz:g} Hz ({reason})" for freq_hz, reason in event.added)
+        return f"{event.run_id}: point added at {event.amplitude_mm:g} mm: {added}"
+
     def point_done(self, event: ev.PointDone) -> None:
         if event.status == "done":
             self._done += 1
@@ -155,6 +163,7 @@ class RunPane(Vertical):
             f"{event.target_amplitude_mm:.3f}",
             f"{event.commanded_amplitude_mm:.3f}",
             achieved,
+            event.added_reason,
         )
         table.scroll_end(animate=False)
 

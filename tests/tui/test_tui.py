@@ -13,8 +13,9 @@ import pytest
 from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.store import open_campaign
-from bench.tui.app import WfsBenchApp
+from bench.tui.app import SessionMessage, WfsBenchApp
 from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from bench.tui.panes import RunPane
 from drivers.actuator import ActuatorClient
 from drivers.register_map import ControllerState
 from tests.waiting import async_wait_until
@@ -328,3 +329,24 @@ async def test_link_lost_mid_run_shows_a_banner(paced_app: WfsBenchApp) -> None:
         banner = text_of(app, "#banner")
         assert "INTERLOCK actuator link lost" in banner
         assert "Traceback" not in banner
+
+
+async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsBenchApp) -> None:
+    """GridRefined: the technician is told which point is added and why; the total grows and the
+    points table shows the reason beside the added point."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        run_id = "adaptive-s003-dwell_grid"
+        app.post_message(SessionMessage(ev.SequenceStarted("adaptive", "", "", 9, 60.0)))
+        app.post_message(SessionMessage(ev.GridRefined(run_id, 2.0, ((40.8, "model peak"),))))
+        done = ev.PointDone(
+            run_id, 9, 1, "done", 40.8, 2.0, 2.0, 2.0, 2.0, 0, 100, 900, 1000, added_reason="model peak"
+        )
+        app.post_message(SessionMessage(done))
+        await pilot.press("f4")
+        await until(pilot, lambda: app.query_one("#run-points").row_count == 1, "the added point's row")
+        notes = [n.message for n in app._notifications]
+        assert f"{run_id}: point added at 2 mm: 40.8 Hz (model peak)" in notes
+        row = app.query_one("#run-points").get_row_at(0)
+        assert row[1:4] == ["9", "40.8", "done"] and row[-1] == "model peak"
+        assert app.query_one(RunPane)._total == 10
