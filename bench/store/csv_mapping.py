@@ -202,7 +202,7 @@ def channel_si_unit(name: str) -> str | None:
     return None
 
 
-def allowed_above(lo: float, *, positive: bool) -> str:
+def _allowed_above(lo: float, *, positive: bool) -> str:
     """The allowed range of a number bounded below: ``> 0`` for a positive one, else ``>= lo``."""
     if positive and lo <= 0:
         return "> 0"
@@ -265,7 +265,7 @@ class _Reader:
             self.add(key, f"expected a number, got {value!r}")
             return default
         if value < lo or (positive and value <= 0):
-            self.add(key, f"{value:g} is out of range (allowed {allowed_above(lo, positive=positive)})")
+            self.add(key, f"{value:g} is out of range (allowed {_allowed_above(lo, positive=positive)})")
             return default
         return float(value)
 
