@@ -100,31 +100,51 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _import_csv(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
     from bench.app.campaign import software_version
-    from bench.config import ConfigError, load_bench_config
+    from bench.config import ConfigError, default_bench_config, load_bench_config
     from bench.store import StoreError
-    from bench.store.csv_import import CsvError, import_campaign
+    from bench.store.csv_import import CsvError, ImportLimits, import_campaign
     from bench.store.csv_mapping import MappingError, load_mapping
+    from sequences import SequenceError
 
     try:
         mapping = load_mapping(Path(args.mapping))
-        config = load_bench_config(Path(args.bench) if args.bench else None)
-        if args.bench is None:
-            config = replace(config, kind=mapping.bench)
-        elif config.kind != mapping.bench:
+        config = load_bench_config(Path(args.bench)) if args.bench else default_bench_config(mapping.bench)
+        if config.kind != mapping.bench:
             raise ConfigError(
                 [f"{args.bench}: kind: a {config.kind} bench; the mapping's source.bench: {mapping.bench}"]
             )
         config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
-        import_campaign(mapping, Path(args.out), config_toml=config_text, software_version=software_version())
-    except (MappingError, CsvError, ConfigError, StoreError, OSError) as exc:
+        min_bar, max_bar = _tyre_pressure_range_bar(mapping.bench)
+        limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, min_bar, max_bar)
+        out, version = Path(args.out), software_version()
+        import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
+    except (MappingError, CsvError, ConfigError, SequenceError, StoreError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    runs = ", ".join(f"{r.run_id} ({r.kind}, {len(r.files)} files)" for r in mapping.runs)
+    runs = ", ".join(
+        f"{r.run_id} ({r.kind}, {len(r.files)} file{'' if len(r.files) == 1 else 's'})" for r in mapping.runs
+    )
     print(f"imported {runs}; file {args.out}")
     return EXIT_COMPLETE
+
+
+def _tyre_pressure_range_bar(kind: str) -> tuple[float, float]:
+    """The tyre pressures (bar) the ``set_tyre_pressure`` prompts of the shipped campaign sequences
+    of bench ``kind`` accept: the lowest minimum to the highest maximum."""
+    from bench.config import default_bench_config
+    from bench.demo import DEMO_SEQUENCES
+    from sequences import Prompt, load_sequence, shipped_file
+
+    limits = default_bench_config(kind).limits
+    prompts = [
+        step
+        for name, sequence_kind in DEMO_SEQUENCES
+        if sequence_kind == kind
+        for step in load_sequence(shipped_file(name), limits).steps
+        if isinstance(step, Prompt) and step.action == "set_tyre_pressure"
+    ]
+    return min(p.minimum for p in prompts), max(p.maximum for p in prompts)
 
 
 def _demo(args: argparse.Namespace) -> int:

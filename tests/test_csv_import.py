@@ -17,12 +17,16 @@ from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
-from bench.store.csv_import import CsvError, import_campaign, read_csv
+from bench.store.csv_import import CsvError, ImportLimits, import_campaign, read_csv
 from bench.store.csv_mapping import MappingError, load_mapping
 from tests.test_campaign_cli import SMOKE, wfsbench
 
 ROOT = Path(__file__).resolve().parents[1]
 G_M_S2 = 9.80665
+#: The default shaker bench's frequency range and the shipped sequences' tyre pressure prompts' range.
+SHAKER_LIMITS = ImportLimits(
+    min_freq_hz=0.1, max_freq_hz=100.0, min_tyre_pressure_bar=0.5, max_tyre_pressure_bar=4.5
+)
 #: The other system's columns: header -> (schema channel, factor from SI to the column's unit).
 FOREIGN = {
     "Weg [mm]": ("z_base_m", 1e3),
@@ -241,16 +245,21 @@ def test_a_bad_file_late_in_the_campaign_leaves_nothing_either(tmp_path):
     (tmp_path / "bad.csv").write_text(GOOD_CSV + "1,25;x\n")
     with pytest.raises(CsvError, match=r"bad\.csv: line 5, column 'F_Platte \[kN\]': 'x' is not a number"):
         import_campaign(
-            load_mapping(tmp_path / "mapping.toml"), tmp_path / "out.h5", config_toml="", software_version="t"
+            load_mapping(tmp_path / "mapping.toml"),
+            tmp_path / "out.h5",
+            limits=SHAKER_LIMITS,
+            config_toml="",
+            software_version="t",
         )
     assert not any(p.suffix == ".h5" or p.name.startswith(".") for p in tmp_path.iterdir())
 
 
-def test_a_good_file_imports_with_its_units_converted(tmp_path):
+def test_a_good_file_imports_with_its_units_converted(tmp_path, capsys):
     (tmp_path / "mapping.toml").write_text(MAPPING)
     (tmp_path / "free.csv").write_text(GOOD_CSV)
     out = tmp_path / "imported.h5"
     assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    assert f"imported lab_b-r000-free_run (free_run, 1 file); file {out}" in capsys.readouterr().out
     with open_campaign(out) as campaign:
         (run,) = campaign.runs
         assert (run.run_id, run.kind, run.status) == ("lab_b-r000-free_run", "free_run", "complete")
@@ -279,6 +288,10 @@ BAD_MAPPINGS = {
     ),
     "unknown run kind": (('kind = "free_run"', 'kind = "hammer"'), "runs[0].kind: 'hammer' is not one of"),
     "unknown key": (('decimal = ","', 'decimal = ","\nquote = "x"'), "csv.quote: unknown key"),
+    "a negative frequency": (
+        ("freq_hz = 10", "freq_hz = -10"),
+        "runs[0].points[0].freq_hz: -10 is out of range (allowed > 0)",
+    ),
 }
 
 
@@ -330,3 +343,137 @@ def test_the_documented_example_mapping_loads_as_described(tmp_path):
     ]
     assert mapping.runs[1].files[1].requested_amplitude_mm == 2
     assert mapping.runs[0].files[0].file == tmp_path / "free_10hz.csv"
+
+
+def test_every_problem_of_a_mapping_is_reported_in_the_order_of_the_file(tmp_path):
+    """Three problems in three tables: one error, one line each, as the file orders them (the csv
+    table comes before the runs), though the reader checks the runs' kind before their points."""
+    text = MAPPING.replace('kind = "free_run"', 'kind = "swep"').replace("freq_hz = 10", 'freq_hz = "10"')
+    (tmp_path / "mapping.toml").write_text(text.replace('decimal = ","', 'decimal = ","\nfoo = 1'))
+    with pytest.raises(MappingError) as refused:
+        load_mapping(tmp_path / "mapping.toml")
+    path = tmp_path / "mapping.toml"
+    assert str(refused.value).splitlines() == [
+        f"{path}: csv.foo: unknown key (allowed: delimiter, decimal, skip_lines, encoding)",
+        "  and 2 more:",
+        f"  {path}: runs[0].kind: 'swep' is not one of free_run, dwell_grid, sweep",
+        f"  {path}: runs[0].points[0].freq_hz: expected a number, got '10'",
+    ]
+    keys = [key for key, _ in refused.value.problems]
+    assert keys == ["csv.foo", "runs[0].kind", "runs[0].points[0].freq_hz"]
+
+
+SWEEP_RUN = """
+[[runs]]
+kind = "sweep"
+tyre_pressure_bar = 2.5
+file = "sweep.csv"
+start_hz = 1
+end_hz = 30
+duration_s = 0.003
+amplitude_mm = 1
+"""
+
+#: A change to MAPPING + SWEEP_RUN (3 rows a file at 1000 Hz: 3 ms) -> the problem named after the file.
+IMPOSSIBLE = {
+    "a frequency above the bench's": (
+        ("freq_hz = 10", "freq_hz = 400"),
+        "runs[0].points[0].freq_hz: 400 Hz is above the bench's maximum (allowed 0.1 <= freq_hz <= 100 Hz)",
+    ),
+    "a frequency below the bench's": (
+        ("start_hz = 1", "start_hz = 0.05"),
+        "runs[1].start_hz: 0.05 Hz is below the bench's minimum (allowed 0.1 <= start_hz <= 100 Hz)",
+    ),
+    "a frequency above half the sample rate": (
+        ("sample_rate_hz = 1000", "sample_rate_hz = 50", "duration_s = 0.003", "duration_s = 0.06"),
+        "runs[1].end_hz: 30 Hz is not below half the sample rate of sweep.csv (50 Hz)"
+        " (allowed 0.1 <= end_hz < 25 Hz)",
+    ),
+    "a sweep's duration that is not its file's": (
+        ("duration_s = 0.003", "duration_s = 0.006"),
+        "runs[1].duration_s: 0.006 s does not match the 0.003 s of samples of sweep.csv"
+        " (allowed 0.003 s, within one sample: 0.001 s)",
+    ),
+    "a tyre pressure no prompt accepts": (
+        ("tyre_pressure_bar = 2.5", "tyre_pressure_bar = 25"),
+        "runs[1].tyre_pressure_bar: 25 bar is outside what a set_tyre_pressure prompt accepts"
+        " (allowed 0.5 <= tyre_pressure_bar <= 4.5 bar)",
+    ),
+    "a hold that ends beyond the file": (
+        ("amplitude_mm = 2", "amplitude_mm = 2\nhold_end_s = 5"),
+        "runs[0].points[0].hold_end_s: 5 s is beyond the 0.003 s of samples of free.csv"
+        " (allowed hold_start_s < hold_end_s <= 0.003 s)",
+    ),
+    "a hold that starts beyond the file": (
+        ("amplitude_mm = 2", "amplitude_mm = 2\nhold_start_s = 0.003"),
+        "runs[0].points[0].hold_start_s: 0.003 s is beyond the 0.003 s of samples of free.csv"
+        " (allowed 0 <= hold_start_s < 0.003 s)",
+    ),
+    "a four-post frequency, the four-post bench's default configuration": (
+        ('name = "lab_b"', 'name = "lab_b"\nbench = "four_post"', "freq_hz = 10", "freq_hz = 60"),
+        "runs[0].points[0].freq_hz: 60 Hz is above the bench's maximum (allowed 0.1 <= freq_hz <= 50 Hz)",
+    ),
+}
+
+
+def _write_campaign_files(folder: Path, changes: tuple[str, ...]) -> Path:
+    text = MAPPING + SWEEP_RUN
+    for old, new in zip(changes[::2], changes[1::2], strict=True):
+        assert old in text
+        text = text.replace(old, new, 1)
+    (folder / "mapping.toml").write_text(text)
+    (folder / "free.csv").write_text(GOOD_CSV)
+    (folder / "sweep.csv").write_text(GOOD_CSV)
+    return folder / "mapping.toml"
+
+
+def test_the_sweep_campaign_of_the_impossible_cases_imports_as_it_is(tmp_path):
+    """The base of the cases below is good: a sweep's duration within one sample of its file's."""
+    mapping = _write_campaign_files(tmp_path, ("duration_s = 0.003", "duration_s = 0.0039"))
+    out = tmp_path / "imported.h5"
+    assert main(["import-csv", str(mapping), "--out", str(out)]) == EXIT_COMPLETE
+    with open_campaign(out) as campaign:
+        assert [r.kind for r in campaign.runs] == ["free_run", "sweep"]
+
+
+@pytest.mark.parametrize("case", IMPOSSIBLE.values(), ids=IMPOSSIBLE.keys())
+def test_impossible_mapped_values_are_refused_naming_the_key_and_the_range(tmp_path, capsys, case):
+    changes, named = case
+    mapping = _write_campaign_files(tmp_path, changes)
+    out = tmp_path / "imported.h5"
+    assert main(["import-csv", str(mapping), "--out", str(out)]) == EXIT_INVALID
+    assert capsys.readouterr().err == f"error: {mapping}: {named}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["free.csv", "mapping.toml", "sweep.csv"]
+
+
+def test_a_time_column_in_the_wrong_unit_is_caught_by_the_sample_rate(tmp_path, capsys):
+    """A millisecond column declared in seconds: 1 Hz sampling, the 10 Hz dwell above its half; and
+    every impossible value of the file is in the one error, in the file's order."""
+    mapping = _write_campaign_files(
+        tmp_path,
+        ("sample_rate_hz = 1000", 'column = "Zeit"\nunit = "s"', "duration_s = 0.003", "duration_s = 3"),
+    )
+    for name in ("free.csv", "sweep.csv"):
+        (tmp_path / name).write_text("Zeit;Weg [mm];F_Platte [kN]\n0;0,5;1,25\n1;0,75;1,5\n2;1;1,75\n")
+    assert main(["import-csv", str(mapping), "--out", str(tmp_path / "out.h5")]) == EXIT_INVALID
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [
+        f"error: {mapping}: runs[0].points[0].freq_hz: 10 Hz is not below half the sample rate of free.csv"
+        " (1 Hz) (allowed 0.1 <= freq_hz < 0.5 Hz)",
+        "  and 2 more:",
+        f"  {mapping}: runs[1].start_hz: 1 Hz is not below half the sample rate of sweep.csv (1 Hz)"
+        " (allowed 0.1 <= start_hz < 0.5 Hz)",
+        f"  {mapping}: runs[1].end_hz: 30 Hz is not below half the sample rate of sweep.csv (1 Hz)"
+        " (allowed 0.1 <= end_hz < 0.5 Hz)",
+    ]
+
+
+@pytest.mark.parametrize("encoding", ["", 'encoding = "UTF-8"\n'])
+def test_a_csv_file_with_a_utf8_byte_order_mark_imports(tmp_path, encoding):
+    """Spreadsheet programs start a UTF-8 CSV with EF BB BF: not part of the first column's name."""
+    (tmp_path / "mapping.toml").write_text(MAPPING.replace("[time]", f"{encoding}[time]"))
+    (tmp_path / "free.csv").write_bytes(b"\xef\xbb\xbf" + GOOD_CSV.encode())
+    out = tmp_path / "imported.h5"
+    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    with open_campaign(out) as campaign:
+        np.testing.assert_allclose(campaign.runs[0].channels["z_base_m"], [0.5e-3, 0.75e-3, 1e-3], rtol=1e-7)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.app.answers import FileAnswers, load_answers
+from bench.app.answers import AnswersError, FileAnswers, load_answers
 from bench.app.progress import DoneBefore, Progress
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
 from bench.config import load_bench_config
@@ -70,6 +70,11 @@ BAD_ANSWERS = {
         " (its prompts: remove_wheel, fit_wheel, pressure)",
     ),
     "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: not valid TOML: "),
+    "no to a confirmation": (
+        'remove_wheel = true\nfit_wheel = "no"\npressure = 2.5\n',
+        "answers.toml: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"
+        " the wheel centre': the sequence would abort there; an unattended run needs yes",
+    ),
 }
 
 
@@ -87,6 +92,26 @@ def test_a_bad_answers_file_is_refused_before_anything_moves(tmp_path, lab_devic
     assert f"error: {tmp_path}/{named}" in capsys.readouterr().err
     assert server.writes_received == 0
     assert not out.exists()
+
+
+def test_every_problem_of_an_answers_file_is_reported_in_the_order_of_the_file(tmp_path):
+    """The file's keys in its order (not sorted), then the prompts it leaves unanswered."""
+    path = tmp_path / "answers.toml"
+    path.write_text('presure = 2.5\nremove_wheel = "maybe"\nfit_wheel = false\nfit = true\n')
+    with pytest.raises(AnswersError) as refused:
+        load_answers(path, smoke_sequence())
+    prompts = "(its prompts: remove_wheel, fit_wheel, pressure)"
+    assert str(refused.value).splitlines() == [
+        f"{path}: presure: no prompt of sequence 'smoke' has this id {prompts}",
+        "  and 4 more:",
+        f"  {path}: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+        f"  {path}: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"
+        " the wheel centre': the sequence would abort there; an unattended run needs yes",
+        f"  {path}: fit: no prompt of sequence 'smoke' has this id {prompts}",
+        f"  {path}: pressure: no answer for the prompt 'Set the tyre pressure to 2.5 bar and enter the"
+        " pressure read on the gauge'; allowed: [0.5..4.5 bar]",
+    ]
+    assert len(refused.value.problems) == 5
 
 
 def test_a_missing_answers_file_is_refused_by_the_command(tmp_path):

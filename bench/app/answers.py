@@ -1,10 +1,10 @@
 """Operator answers from a file, for unattended runs (docs/cli.md, "Answers file").
 
 The file is TOML: one key per prompt id of the sequence, its value the answer (a number for a
-"number" prompt, ``true``/``false`` for a confirmation, a string for a choice). The whole file is
-checked against the sequence's prompts before anything is opened: every prompt needs a valid answer,
-and a key that names no prompt is refused too, so a typo cannot leave a prompt unanswered halfway
-through a campaign.
+"number" prompt, ``true`` for a confirmation, a string for a choice). The whole file is checked
+against the sequence's prompts before anything is opened: every prompt needs a valid answer, and a
+key that names no prompt is refused too, so a typo cannot leave a prompt unanswered halfway through
+a campaign; a "no" to a confirmation is refused as well, since the sequence would abort there.
 """
 
 from __future__ import annotations
@@ -19,38 +19,60 @@ from simulators.world import SimulatedOperator
 
 
 class AnswersError(ValueError):
-    """The answers file does not answer the sequence's prompts; the message names the file, the
-    prompt id and what the prompt allows."""
+    """The answers file does not answer the sequence's prompts: ``problems`` lists every
+    ``file: prompt id: reason`` found (with what the prompt allows), one line each in the message, as
+    a sequence file's error does."""
+
+    def __init__(self, problems: list[str]) -> None:
+        self.problems = tuple(problems)
+        lines = list(problems)
+        if len(lines) > 1:
+            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
+        super().__init__("\n".join(lines))
 
 
 def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool]:
-    """Every prompt of ``sequence`` with its checked answer from the TOML file at ``path``."""
+    """Every prompt of ``sequence`` with its checked answer from the TOML file at ``path``.
+
+    :class:`AnswersError` lists every problem: the file's keys in its order (a key that names no
+    prompt, an answer the prompt refuses, a "no" to a confirmation, which would abort the sequence
+    at that prompt), then the prompts the file does not answer, in the sequence's order."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text())
     except OSError as exc:
-        raise AnswersError(f"{path}: cannot read the answers file: {exc.strerror or exc}") from None
+        raise AnswersError([f"{path}: cannot read the answers file: {exc.strerror or exc}"]) from None
     except tomllib.TOMLDecodeError as exc:
-        raise AnswersError(f"{path}: not valid TOML: {exc}") from None
+        raise AnswersError([f"{path}: not valid TOML: {exc}"]) from None
     prompts = {step.id: step for step in sequence.steps if isinstance(step, Prompt)}
-    unknown = sorted(set(data) - set(prompts))
-    if unknown:
-        known = ", ".join(prompts) or "none"
-        raise AnswersError(
-            f"{path}: {unknown[0]}: no prompt of sequence {sequence.name!r} has this id"
-            f" (its prompts: {known})"
-        )
     answers: dict[str, float | str | bool] = {}
-    for prompt_id, prompt in prompts.items():
-        if prompt_id not in data:
-            raise AnswersError(
-                f"{path}: {prompt_id}: no answer for the prompt {prompt.text!r};"
-                f" allowed:{prompt_hint(prompt)}"
+    problems = []
+    for prompt_id, value in data.items():
+        prompt = prompts.get(prompt_id)
+        if prompt is None:
+            known = ", ".join(prompts) or "none"
+            problems.append(
+                f"{path}: {prompt_id}: no prompt of sequence {sequence.name!r} has this id"
+                f" (its prompts: {known})"
             )
+            continue
         try:
-            answers[prompt_id] = prompt.check_answer(data[prompt_id])
+            answers[prompt_id] = prompt.check_answer(value)
         except AnswerError as exc:
-            raise AnswersError(f"{path}: {exc}; allowed:{prompt_hint(prompt)}") from None
+            problems.append(f"{path}: {exc}; allowed:{prompt_hint(prompt)}")
+            continue
+        if prompt.answer == "confirm" and answers[prompt_id] is False:
+            problems.append(
+                f"{path}: {prompt_id}: answered no to the confirmation {prompt.text!r}: the sequence"
+                " would abort there; an unattended run needs yes"
+            )
+    problems += [
+        f"{path}: {prompt_id}: no answer for the prompt {prompt.text!r}; allowed:{prompt_hint(prompt)}"
+        for prompt_id, prompt in prompts.items()
+        if prompt_id not in data
+    ]
+    if problems:
+        raise AnswersError(problems)
     return answers
 
 

@@ -4,16 +4,21 @@ Every CSV file the mapping names is read and checked first, into SI channels; on
 campaign written, through :class:`bench.store.CampaignWriter`, to a temporary file beside the
 output that is renamed into place once complete. So a bad CSV file (a missing column, text in a
 number, a ragged row, an unknown unit, an empty file) is refused with its file, line and column,
-and nothing half-written is left behind.
+and nothing half-written is left behind. The values the mapping gives are then checked against the
+files and the bench (:func:`check_mapped_values`): frequencies within the bench's range and below
+half the sample rate, a sweep's duration the length of its file, holds inside their files, tyre
+pressures that a pressure prompt accepts; every problem names the mapping file and the key.
 """
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import csv
 import math
 import os
 import re
+import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +33,7 @@ from bench.store.csv_mapping import (
     ImportMapping,
     RunMapping,
     SweepFile,
+    mapping_error,
 )
 from bench.store.schema import ChannelSpec, PointRow
 from bench.store.writer import CampaignWriter
@@ -63,8 +69,10 @@ class CsvTable:
 def read_csv(path: Path, mapping: ImportMapping) -> CsvTable:
     """The mapped columns of the CSV file at ``path`` in SI units (float64), with its sample rate."""
     d = mapping.dialect
+    # a UTF-8 file may start with a byte-order mark (spreadsheet programs write one): not a header
+    utf8 = codecs.lookup(d.encoding).name == "utf-8"
     try:
-        with path.open(newline="", encoding=d.encoding) as f:
+        with path.open(newline="", encoding="utf-8-sig" if utf8 else d.encoding) as f:
             lines = f.read().splitlines()
     except OSError as exc:
         raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
@@ -167,7 +175,7 @@ class ImportedRun:
 
 
 def read_run(run: RunMapping, mapping: ImportMapping) -> ImportedRun:
-    """Every file of ``run``, read and checked: one sample rate, holds inside their files."""
+    """Every file of ``run``, read and checked: one sample rate."""
     tables = tuple(read_csv(f.file, mapping) for f in run.files)
     rate = tables[0].sample_rate_hz
     for f, table in zip(run.files, tables, strict=True):
@@ -178,24 +186,123 @@ def read_run(run: RunMapping, mapping: ImportMapping) -> ImportedRun:
                 None,
                 f"sample rate {table.sample_rate_hz:g} Hz differs from the run's {rate:g} Hz",
             )
-        if isinstance(f, DwellFile):
-            duration_s = len(table) / rate
-            if f.hold_end_s is not None and f.hold_end_s > duration_s:
-                raise CsvError(
-                    f.file, None, None, f"hold_end_s {f.hold_end_s:g} s is beyond its {duration_s:g} s"
-                )
     return ImportedRun(run, tables)
 
 
+@dataclass(frozen=True)
+class ImportLimits:
+    """What the mapped values must lie within: the bench's excitation frequency range (its
+    configuration's limits) and the tyre pressures a ``set_tyre_pressure`` prompt accepts (bar)."""
+
+    min_freq_hz: float
+    max_freq_hz: float
+    min_tyre_pressure_bar: float
+    max_tyre_pressure_bar: float
+
+
+def check_mapped_values(mapping: ImportMapping, runs: list[ImportedRun], limits: ImportLimits) -> None:
+    """Refuse, with a :class:`~bench.store.csv_mapping.MappingError` listing every problem in the
+    mapping's order, what the files and the bench make impossible: a frequency outside the bench's
+    range or not below half its file's sample rate (a time column in the wrong unit shows here), a
+    sweep's ``duration_s`` more than one sample from its file's length, a hold beyond its file, a
+    tyre pressure no pressure prompt accepts."""
+    problems: list[tuple[str, str]] = []
+    lo_bar, hi_bar = limits.min_tyre_pressure_bar, limits.max_tyre_pressure_bar
+    for i, run in enumerate(runs):
+        m = run.mapping
+        pressure = m.tyre_pressure_bar
+        if pressure is not None and not lo_bar <= pressure <= hi_bar:
+            problems.append(
+                (
+                    f"runs[{i}].tyre_pressure_bar",
+                    f"{pressure:g} bar is outside what a set_tyre_pressure prompt accepts"
+                    f" (allowed {lo_bar:g} <= tyre_pressure_bar <= {hi_bar:g} bar)",
+                )
+            )
+        for j, (f, table) in enumerate(zip(m.files, run.tables, strict=True)):
+            if isinstance(f, SweepFile):
+                problems += _sweep_problems(f"runs[{i}]", f, table, limits)
+            else:
+                problems += _dwell_problems(f"runs[{i}].points[{j}]", f, table, limits)
+    if problems:
+        raise mapping_error(mapping.path, tomllib.loads(mapping.text), problems)
+
+
+def _frequency_problem(
+    key: str, freq_hz: float, table: CsvTable, limits: ImportLimits
+) -> tuple[str, str] | None:
+    """A frequency outside the bench's range, or not below half the file's sample rate."""
+    name = key.rsplit(".", 1)[-1]
+    nyquist_hz = table.sample_rate_hz / 2
+    below_nyquist = nyquist_hz <= limits.max_freq_hz
+    upper = f"< {nyquist_hz:g}" if below_nyquist else f"<= {limits.max_freq_hz:g}"
+    allowed = f"(allowed {limits.min_freq_hz:g} <= {name} {upper} Hz)"
+    if freq_hz < limits.min_freq_hz:
+        return key, f"{freq_hz:g} Hz is below the bench's minimum {allowed}"
+    if freq_hz > limits.max_freq_hz:
+        return key, f"{freq_hz:g} Hz is above the bench's maximum {allowed}"
+    if freq_hz >= nyquist_hz:
+        rate = f"{table.path.name} ({table.sample_rate_hz:g} Hz)"
+        return key, f"{freq_hz:g} Hz is not below half the sample rate of {rate} {allowed}"
+    return None
+
+
+def _dwell_problems(at: str, f: DwellFile, table: CsvTable, limits: ImportLimits) -> list[tuple[str, str]]:
+    problems = [_frequency_problem(f"{at}.freq_hz", f.freq_hz, table, limits)]
+    length_s = len(table) / table.sample_rate_hz
+    samples = f"the {length_s:g} s of samples of {table.path.name}"
+    if f.hold_start_s >= length_s:
+        problems.append(
+            (
+                f"{at}.hold_start_s",
+                f"{f.hold_start_s:g} s is beyond {samples} (allowed 0 <= hold_start_s < {length_s:g} s)",
+            )
+        )
+    elif f.hold_end_s is not None and f.hold_end_s > length_s:
+        problems.append(
+            (
+                f"{at}.hold_end_s",
+                f"{f.hold_end_s:g} s is beyond {samples}"
+                f" (allowed hold_start_s < hold_end_s <= {length_s:g} s)",
+            )
+        )
+    return [p for p in problems if p is not None]
+
+
+def _sweep_problems(at: str, f: SweepFile, table: CsvTable, limits: ImportLimits) -> list[tuple[str, str]]:
+    problems = [
+        _frequency_problem(f"{at}.start_hz", f.start_hz, table, limits),
+        _frequency_problem(f"{at}.end_hz", f.end_hz, table, limits),
+    ]
+    sample_s = 1 / table.sample_rate_hz
+    length_s = len(table) * sample_s
+    if abs(f.duration_s - length_s) > sample_s * (1 + 1e-9):
+        problems.append(
+            (
+                f"{at}.duration_s",
+                f"{f.duration_s:g} s does not match the {length_s:g} s of samples of {table.path.name}"
+                f" (allowed {length_s:g} s, within one sample: {sample_s:g} s)",
+            )
+        )
+    return [p for p in problems if p is not None]
+
+
 def import_campaign(
-    mapping: ImportMapping, out_path: Path, *, config_toml: str, software_version: str
+    mapping: ImportMapping,
+    out_path: Path,
+    *,
+    limits: ImportLimits,
+    config_toml: str,
+    software_version: str,
 ) -> None:
-    """Read every CSV file of ``mapping``, then write the campaign file ``out_path`` (never over an
-    existing file). ``config_toml``: the bench configuration recorded with the campaign."""
+    """Read every CSV file of ``mapping`` and check the mapped values against them and ``limits``,
+    then write the campaign file ``out_path`` (never over an existing file). ``config_toml``: the
+    bench configuration recorded with the campaign."""
     out_path = Path(out_path)
     if out_path.exists():
         raise FileExistsError(f"{out_path} exists already: import into a new file")
     runs = [read_run(run, mapping) for run in mapping.runs]
+    check_mapped_values(mapping, runs, limits)
     tmp = out_path.with_name(f".{out_path.name}.importing-{os.getpid()}")
     with _removed_on_failure(tmp):
         with CampaignWriter.create(
