@@ -106,6 +106,7 @@ def _import_csv(args: argparse.Namespace) -> int:
     from bench.store.csv_import import CsvError, ImportLimits, import_campaign
     from bench.store.csv_mapping import MappingError, load_mapping
     from sequences import SequenceError
+    from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 
     try:
         mapping = load_mapping(Path(args.mapping))
@@ -115,8 +116,7 @@ def _import_csv(args: argparse.Namespace) -> int:
                 [f"{args.bench}: kind: a {config.kind} bench; the mapping's source.bench: {mapping.bench}"]
             )
         config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
-        min_bar, max_bar = _tyre_pressure_range_bar(mapping.bench)
-        limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, min_bar, max_bar)
+        limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, *TYRE_PRESSURE_RANGE_BAR)
         out, version = Path(args.out), software_version()
         import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
     except (MappingError, CsvError, ConfigError, SequenceError, StoreError, OSError) as exc:
@@ -127,24 +127,6 @@ def _import_csv(args: argparse.Namespace) -> int:
     )
     print(f"imported {runs}; file {args.out}")
     return EXIT_COMPLETE
-
-
-def _tyre_pressure_range_bar(kind: str) -> tuple[float, float]:
-    """The tyre pressures (bar) the ``set_tyre_pressure`` prompts of the shipped campaign sequences
-    of bench ``kind`` accept: the lowest minimum to the highest maximum."""
-    from bench.config import default_bench_config
-    from bench.demo import DEMO_SEQUENCES
-    from sequences import Prompt, load_sequence, shipped_file
-
-    limits = default_bench_config(kind).limits
-    prompts = [
-        step
-        for name, sequence_kind in DEMO_SEQUENCES
-        if sequence_kind == kind
-        for step in load_sequence(shipped_file(name), limits).steps
-        if isinstance(step, Prompt) and step.action == "set_tyre_pressure"
-    ]
-    return min(p.minimum for p in prompts), max(p.maximum for p in prompts)
 
 
 def _demo(args: argparse.Namespace) -> int:

@@ -11,6 +11,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+#: Gauge pressures (bar) a car tyre on the bench plausibly has: the range the shipped sequences'
+#: pressure prompts accept, and what an imported campaign's stated pressure is checked against.
+TYRE_PRESSURE_RANGE_BAR = (0.5, 4.5)
+
 
 @dataclass(frozen=True, slots=True)
 class BenchLimits:

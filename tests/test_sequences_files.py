@@ -22,6 +22,7 @@ from sequences import (
     parse_sequence,
     shipped_file,
 )
+from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 from sequences.steps import STEP_TYPES
 
 LIMITS = BenchLimits()
@@ -151,6 +152,25 @@ def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
             DwellSetpoint(
                 d.freq_hz, d.amplitude_mm, hold_s, d.taper_in_s, d.taper_out_s, d.mean_mm
             ).registers(config.soft_limits)
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"),
+    [
+        ("paper_shaker.toml", "shaker"),
+        ("paper_shaker_adaptive.toml", "shaker"),
+        ("paper_four_post.toml", "four_post"),
+    ],
+)
+def test_shipped_pressure_prompts_accept_the_plausible_tyre_pressures(name, kind):
+    """The range an imported campaign's pressure is checked against is the one the prompts accept."""
+    prompts = [
+        step
+        for step in _load(name, kind).steps
+        if isinstance(step, Prompt) and step.action == "set_tyre_pressure"
+    ]
+    assert prompts
+    assert {(p.minimum, p.maximum) for p in prompts} == {TYRE_PRESSURE_RANGE_BAR}
 
 
 def test_every_example_in_the_format_document_is_a_valid_sequence():
