@@ -61,9 +61,6 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    except KeyboardInterrupt:
-        print("interrupted before the sequence started: nothing moved", file=sys.stderr)
-        return EXIT_STOPPED
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
@@ -258,6 +255,9 @@ def main(argv: list[str] | None = None) -> int:
     except LinkError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C before a command took it over (a run: before the devices opened)
+        print("interrupted: nothing moved", file=sys.stderr)
+        return EXIT_STOPPED
 
 
 if __name__ == "__main__":

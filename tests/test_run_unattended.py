@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from bench.app.answers import AnswersError, FileAnswers, load_answers
+from bench.app.interrupts import tell
 from bench.app.progress import DoneBefore, Progress
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
 from bench.config import load_bench_config
@@ -434,3 +435,35 @@ def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_p
     assert proc.returncode == EXIT_STOPPED, err
     assert b"interrupted: stopping with a taper" in err
     assert b"sequence aborted: no valid answer to prompt 'ready'" in shown + out
+
+
+def test_ctrl_c_before_the_devices_open_ends_the_command_without_a_traceback(tmp_path, monkeypatch, capsys):
+    """An interrupt during the validation and the dry run (the first second or so of a large
+    sequence): nothing moved, no file, exit code 1."""
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("bench.app.campaign.plan_campaign", interrupted)
+    out = tmp_path / "c.h5"
+    assert main(["run", str(SMOKE), "--out", str(out)]) == EXIT_STOPPED
+    assert capsys.readouterr().err == "interrupted: nothing moved\n"
+    assert not out.exists()
+
+
+def test_the_interrupt_s_word_clears_the_progress_line_on_a_terminal_only(monkeypatch):
+    master, slave = os.openpty()
+    try:
+        with os.fdopen(os.dup(slave), "w") as terminal:
+            monkeypatch.setattr(sys, "stderr", terminal)
+            tell("interrupted")
+        assert os.read(master, 100) == b"\r\x1b[Kinterrupted\r\n"  # the pty's line discipline adds \r
+    finally:
+        os.close(master)
+        os.close(slave)
+    read_end, write_end = os.pipe()
+    with os.fdopen(write_end, "w") as pipe:
+        monkeypatch.setattr(sys, "stderr", pipe)
+        tell("interrupted")
+    with os.fdopen(read_end, "rb") as pipe:
+        assert pipe.read() == b"interrupted\n"

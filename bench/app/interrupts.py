@@ -76,5 +76,8 @@ class RunInterrupts:
 
 
 def tell(text: str) -> None:
-    """``text`` on standard error, unbuffered (safe inside a signal handler)."""
-    os.write(sys.stderr.fileno(), f"{text}\n".encode())
+    """``text`` on its own line of standard error, unbuffered (safe inside a signal handler); on a
+    terminal the progress line it would land on is cleared first (the progress redraws below)."""
+    fd = sys.stderr.fileno()
+    clear = "\r\x1b[K" if os.isatty(fd) else ""
+    os.write(fd, f"{clear}{text}\n".encode())
