@@ -311,6 +311,18 @@ def test_a_resumed_file_s_points_count_as_done_and_their_duration_is_not_ahead()
     assert math.isclose(progress.eta_s, 1.0)
 
 
+def test_the_eta_goes_by_the_points_once_the_estimated_duration_is_spent():
+    """An adaptive grid's estimate holds each dwell at its shortest: recorded time overtakes it."""
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=False, clock=clock)
+    progress(ev.SequenceStarted("seq", "", "", 4, 1.0))
+    progress(ev.RunStarted("seq-s002-dwell_grid", "dwell_grid", {}, {}, (), 100.0))
+    clock.now_s += 1.0
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
+    progress(ev.PointDone("seq-s002-dwell_grid", 0, 1, "done", 10.0, 2.0, 2.0, 2.0, 2.0, 0, 10, 200, 250))
+    assert math.isclose(progress.eta_s, 3.0)  # 3 points to go at 1 wall second per point, not 0
+
+
 def test_points_an_adaptive_grid_adds_count_in_the_total():
     clock, out = FakeClock(), io.StringIO()
     progress = Progress(out, live=False, clock=clock)

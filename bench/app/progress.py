@@ -69,6 +69,7 @@ class Progress:
         self.total_points = 0
         self.estimated_s = 0.0
         self.points_done = done_before.points
+        self._done_before_points = done_before.points
         self._done_before_s = done_before.estimated_s
         self.recorded_s = 0.0
         self.point: str | None = None  # what is under way, for people
@@ -87,12 +88,19 @@ class Progress:
 
     @property
     def eta_s(self) -> float:
-        """Remaining estimated duration times the observed wall seconds per recorded second; NaN
-        until samples were recorded."""
+        """The larger of two estimates, NaN until samples were recorded: the remaining estimated
+        duration times the observed wall seconds per recorded second, and the points still to do
+        times the wall seconds per point done so far. The first alone runs out early when points
+        last longer than planned (an adaptive grid's estimate holds every dwell at its shortest)."""
         if self.recorded_s <= 0:
             return math.nan
         ahead_s = self.estimated_s - self._done_before_s - self.recorded_s
-        return max(ahead_s, 0.0) * self.elapsed_s / self.recorded_s
+        by_duration_s = max(ahead_s, 0.0) * self.elapsed_s / self.recorded_s
+        done_here = self.points_done - self._done_before_points
+        if done_here <= 0:
+            return by_duration_s
+        by_points_s = max(self.total_points - self.points_done, 0) * self.elapsed_s / done_here
+        return max(by_duration_s, by_points_s)
 
     def status(self) -> str:
         """The status line: points done of total, the point under way, elapsed and ETA."""
