@@ -34,6 +34,17 @@ def shipped_file(name: str) -> Path:
     return Path(str(resources.files("sequences") / "files" / name))
 
 
+def shipped_files() -> tuple[str, ...]:
+    """The names of the sequence files shipped with the package, sorted."""
+    return tuple(
+        sorted(
+            p.name
+            for p in resources.files("sequences").joinpath("files").iterdir()
+            if p.name.endswith(".toml")
+        )
+    )
+
+
 __all__ = [
     "AdaptiveDwell",
     "AnswerError",
@@ -58,6 +69,7 @@ __all__ = [
     "peak_acceleration_m_s2",
     "peak_velocity_mm_s",
     "shipped_file",
+    "shipped_files",
     "step_fields",
     "validate",
 ]

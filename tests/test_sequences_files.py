@@ -21,6 +21,7 @@ from sequences import (
     load_sequence,
     parse_sequence,
     shipped_file,
+    shipped_files,
 )
 from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 from sequences.steps import STEP_TYPES
@@ -184,3 +185,10 @@ def test_every_example_in_the_format_document_is_a_valid_sequence():
     assert kinds == set(STEP_TYPES)
     (example,) = re.findall(r"```python\n(.*?)```", text, re.S)
     exec(compile(example, "docs/sequences.md", "exec"), {})  # the Python API example runs
+
+
+def test_the_shipped_files_are_listed_from_the_package():
+    names = shipped_files()
+    assert names == tuple(sorted(p.name for p in shipped_file("smoke.toml").parent.glob("*.toml")))
+    expected = {"smoke.toml", "paper_shaker.toml", "paper_shaker_adaptive.toml", "paper_four_post.toml"}
+    assert expected <= set(names)

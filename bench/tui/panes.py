@@ -18,9 +18,11 @@ from bench.app.check import step_line
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
 from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun
+from sequences import shipped_files
 
 #: Shipped sequence files offered on the sequence screen.
-SHIPPED = ("smoke.toml", "paper_shaker.toml", "paper_four_post.toml", "hammer.toml")
+#: The shipped sequences as listed, the seconds-long smoke check first.
+SHIPPED = tuple(sorted(shipped_files(), key=lambda name: name != "smoke.toml"))
 
 
 def lamp(ok: bool | None, text: str) -> str:
