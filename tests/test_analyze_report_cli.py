@@ -219,3 +219,21 @@ def test_the_masses_come_from_the_configuration_stored_in_the_file(smoke_file, t
     assert run.returncode == EXIT_NOT_CAMPAIGN
     assert run.stderr.startswith(f"error: {broken}: the stored bench configuration is invalid")
     assert "sensor_kg" in run.stderr
+
+
+def test_report_into_a_file_or_under_one_is_refused_with_exit_3_before_the_analysis(smoke_file, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("keep me\n")
+    refusals = ((afile, "exists and is not a directory"), (afile / "sub", f"{afile} is not a directory"))
+    for out, why in refusals:
+        run = wfsbench("report", str(smoke_file), "--out", str(out))
+        assert run.returncode == EXIT_NOT_CAMPAIGN, (run.stdout, run.stderr)
+        assert run.stdout == ""
+        assert run.stderr.startswith(f"error: {out}: ") and why in run.stderr, run.stderr
+        assert "Traceback" not in run.stderr
+    assert afile.read_text() == "keep me\n"
+    # checked before the file is even opened: a file that is no campaign is not what is reported
+    garbage = _garbage("text", tmp_path, smoke_file)
+    run = wfsbench("report", str(garbage), "--out", str(afile))
+    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.stderr.startswith(f"error: {afile}: exists and is not a directory"), run.stderr
