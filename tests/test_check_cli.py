@@ -45,5 +45,5 @@ def test_an_invalid_file_is_named_with_its_key_and_exit_3(tmp_path):
     )
     result = check(str(bad))
     assert result.returncode == 3
-    assert f"{bad}: steps[3].freqs_hz[2]: 600 Hz is beyond the bench's frequency range" in result.stderr
+    assert f"{bad}: steps[3].freqs_hz[2]: 600 Hz is above the bench's highest frequency" in result.stderr
     assert result.stdout == ""
