@@ -4,7 +4,9 @@ Exit codes (both commands):
 
 - 0: analysed (runs whose analysis failed are flagged in the output, not an error);
 - 3: the file is no campaign file (missing, not HDF5, another layout, truncated, a schema
-  violation or an invalid stored configuration): nothing was written;
+  violation or an invalid stored configuration), or (``report`` only) the ``--out`` directory
+  cannot be used (a file, under a file, not writable; checked before the analysis): nothing was
+  written;
 - 4 (``analyze`` only): analysed and printed, but the results could not be stored in the file
   (read-only file or directory).
 """
@@ -52,12 +54,12 @@ def _analyze(args: argparse.Namespace) -> int:
 
 def _report(args: argparse.Namespace) -> int:
     from bench.app.analyze import CampaignFileError
-    from bench.app.report import write_report
+    from bench.app.report import ReportDirError, write_report
     from bench.store import StoreError
 
     try:
         written = write_report(Path(args.file), Path(args.out))
-    except (StoreError, CampaignFileError) as exc:
+    except (StoreError, CampaignFileError, ReportDirError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_NOT_CAMPAIGN
     for figure in written.figures:

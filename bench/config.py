@@ -24,6 +24,7 @@ from drivers.register_map import RegisterMap, load_register_map
 from drivers.setpoints import SoftLimits
 from drivers.wfs_frame import FRAME_SIZE
 from sequences.limits import BenchLimits
+from sequences.ranges import range_problem
 from sequences.toml_text import toml_table, toml_value
 
 BENCH_KINDS = ("shaker", "four_post")
@@ -334,10 +335,9 @@ class _Reader:
         if not math.isfinite(value):
             self.add(full, f"{value!r} is not a finite number")
             return default
-        if (lo is not None and (value <= lo if lo_open else value < lo)) or (hi is not None and value > hi):
-            left = "" if lo is None else f"{lo:g} {'<' if lo_open else '<='} "
-            right = "" if hi is None else f" <= {hi:g}"
-            self.add(full, f"{value!r} is out of range (allowed {left}{name}{right})")
+        problem = range_problem(value, name, lo, hi, lo_open=lo_open)
+        if problem is not None:
+            self.add(full, problem)
             return default
         return int(value) if integer else float(value)
 

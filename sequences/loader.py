@@ -54,16 +54,19 @@ def parse_sequence(text: str, source: str, limits: BenchLimits) -> Sequence:
         if key not in _TOP_KEYS
     ]
     header = data.get("sequence")
-    if not isinstance(header, dict):
+    name, description = "", ""
+    if isinstance(header, dict):
+        problems += [
+            Problem(source, f"sequence.{key}", f"unknown key; allowed: {', '.join(_HEADER_KEYS)}")
+            for key in header
+            if key not in _HEADER_KEYS
+        ]
+        name, description = header.get("name", ""), header.get("description", "")
+        problems += check_sequence_header(name, description, source)
+    elif header is not None or not problems:
+        # without a [sequence] table, its name and description are not checked one by one; a
+        # misspelt one ([sequenc]) is named by its unknown key already: nothing more to say
         problems.append(Problem(source, "sequence", "missing [sequence] table with name and description"))
-        header = {}
-    problems += [
-        Problem(source, f"sequence.{key}", f"unknown key; allowed: {', '.join(_HEADER_KEYS)}")
-        for key in header
-        if key not in _HEADER_KEYS
-    ]
-    name, description = header.get("name", ""), header.get("description", "")
-    problems += check_sequence_header(name, description, source)
     raw_steps = data.get("steps")
     steps: list[tuple[int, Step]] = []
     if not isinstance(raw_steps, list) or not raw_steps:

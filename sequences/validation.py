@@ -16,6 +16,8 @@ from collections.abc import Iterable
 
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.ranges import fmt_number as _fmt
+from sequences.ranges import range_problem
 from sequences.steps import (
     ANSWER_TYPES,
     GRID_ORDERS,
@@ -103,10 +105,6 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
     return problems
 
 
-def _fmt(value: float) -> str:
-    return f"{value:.6g}"
-
-
 class _Checker:
     """Collects the problems of one step; keys are relative to the step (``prefix``)."""
 
@@ -128,10 +126,12 @@ class _Checker:
         *,
         lo_open: bool = False,
         unit: str = "",
-        why: str = "",
+        lo_why: str = "",
+        hi_why: str = "",
         integer: bool = False,
     ) -> float | None:
-        """``value`` as a float if it is a finite number within the range, else None (problem added)."""
+        """``value`` as a float if it is a finite number within the range, else None (problem added,
+        worded by :func:`sequences.ranges.range_problem`; ``lo_why``/``hi_why`` name the bounds)."""
         kind = "an integer" if integer else "a number"
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             self.add(key, f"expected {kind}, got {value!r} ({type(value).__name__})")
@@ -143,16 +143,12 @@ class _Checker:
         if not math.isfinite(number):
             self.add(key, f"{value!r} is not a finite number")
             return None
-        below = lo is not None and (number <= lo if lo_open else number < lo)
-        above = hi is not None and number > hi
-        if below or above:
-            u = f" {unit}" if unit else ""
-            left = "" if lo is None else f"{_fmt(lo)} {'<' if lo_open else '<='} "
-            right = "" if hi is None else f" <= {_fmt(hi)}"
-            where = f" {why}" if why else ""
-            side = "beyond" if above else "below"
-            name = re.sub(r"\[\d+\]$", "", key.rsplit(".", maxsplit=1)[-1])
-            self.add(key, f"{_fmt(number)}{u} is {side}{where} (allowed {left}{name}{right}{u})")
+        name = re.sub(r"\[\d+\]$", "", key.rsplit(".", maxsplit=1)[-1])
+        problem = range_problem(
+            number, name, lo, hi, lo_open=lo_open, unit=unit, lo_why=lo_why, hi_why=hi_why
+        )
+        if problem is not None:
+            self.add(key, problem)
             return None
         return number
 
@@ -173,7 +169,7 @@ class _Checker:
     # ---------------------------------------------------------------- bench quantities
     def mean(self, mean_mm: object) -> float | None:
         stroke = self.limits.stroke_mm
-        value = self.number("mean_mm", mean_mm, -stroke, stroke, lo_open=True, unit="mm", why="the stroke")
+        value = self.number("mean_mm", mean_mm, -stroke, stroke, lo_open=True, unit="mm", hi_why="the stroke")
         if value is not None and abs(value) >= stroke:
             self.add("mean_mm", f"{_fmt(value)} mm leaves no stroke (allowed |mean_mm| < {_fmt(stroke)} mm)")
             return None
@@ -182,7 +178,13 @@ class _Checker:
     def frequency(self, key: str, freq_hz: object) -> float | None:
         lim = self.limits
         return self.number(
-            key, freq_hz, lim.min_freq_hz, lim.max_freq_hz, unit="Hz", why="the bench's frequency range"
+            key,
+            freq_hz,
+            lim.min_freq_hz,
+            lim.max_freq_hz,
+            unit="Hz",
+            lo_why="the bench's lowest frequency",
+            hi_why="the bench's highest frequency",
         )
 
     def amplitude(self, key: str, amplitude_mm: object, mean_mm: float | None) -> float | None:
@@ -190,7 +192,7 @@ class _Checker:
         why = f"the {_fmt(self.limits.stroke_mm)} mm stroke"
         if mean_mm:
             why += f" less |mean_mm| {_fmt(abs(mean_mm))}"
-        return self.number(key, amplitude_mm, 0.0, room, lo_open=True, unit="mm", why=why)
+        return self.number(key, amplitude_mm, 0.0, room, lo_open=True, unit="mm", hi_why=why)
 
     def kinematics(self, key: str, freq_hz: float, amplitude_mm: float, remedy: str) -> None:
         """Peak velocity and acceleration of a sine at the bench's limits."""
@@ -219,8 +221,8 @@ class _Checker:
         lo = self.limits.min_taper_s
         why = "the controller's shortest taper"
         return (
-            self.number("taper_in_s", taper_in_s, lo, unit="s", why=why),
-            self.number("taper_out_s", taper_out_s, lo, unit="s", why=why),
+            self.number("taper_in_s", taper_in_s, lo, unit="s", lo_why=why),
+            self.number("taper_out_s", taper_out_s, lo, unit="s", lo_why=why),
         )
 
     def dwell_timing(self, step: SineDwell | DwellGrid) -> bool:
@@ -310,7 +312,7 @@ class _Checker:
         )
         self.number("adaptive.phase_target_deg", a.phase_target_deg, 0.0, 90.0, lo_open=True, unit="deg")
         self.number(
-            "adaptive.min_hold_cycles", a.min_hold_cycles, 2.0, why="for the settling test's two windows"
+            "adaptive.min_hold_cycles", a.min_hold_cycles, 2.0, lo_why="the settling test's two windows"
         )
         low = self.number("adaptive.min_hold_s", a.min_hold_s, 0.0, unit="s")
         self.number(
@@ -320,7 +322,8 @@ class _Checker:
             self.limits.max_step_s,
             lo_open=low is None,
             unit="s",
-            why="min_hold_s .. the controller's longest setpoint",
+            lo_why="min_hold_s" if low is not None else "",
+            hi_why="the controller's longest setpoint",
         )
         self.number("adaptive.interpolation_db", a.interpolation_db, 0.0, lo_open=True, unit="dB")
         self.number("adaptive.interpolation_deg", a.interpolation_deg, 0.0, lo_open=True, unit="deg")
@@ -377,7 +380,7 @@ class _Checker:
             self.limits.max_step_s,
             lo_open=True,
             unit="s",
-            why="the controller's longest setpoint",
+            hi_why="the controller's longest setpoint",
         )
         if None not in (duration, taper_in, taper_out) and taper_in + taper_out >= duration:
             self.add(
@@ -399,7 +402,7 @@ class _Checker:
             lim.wfs_force_n,
             lo_open=True,
             unit="N",
-            why="the WFS range",
+            hi_why="the WFS range",
         )
         capture = self.number(
             "capture_s",
@@ -408,7 +411,7 @@ class _Checker:
             lim.max_capture_s,
             lo_open=True,
             unit="s",
-            why="the acquisition's capture buffer",
+            hi_why="the acquisition's capture buffer",
         )
         pre = self.number("pre_trigger_s", step.pre_trigger_s, 0.0, unit="s")
         if capture is not None and pre is not None and pre >= capture:
@@ -427,7 +430,11 @@ class _Checker:
         lo = self.optional_number("minimum", step.minimum)
         hi = self.optional_number("maximum", step.maximum)
         if lo is not None and hi is not None and lo >= hi:
-            self.add("maximum", f"{_fmt(hi)} is not above minimum {_fmt(lo)}")
+            self.add(
+                "minimum",
+                f"{_fmt(lo)} is not below maximum {_fmt(hi)} (allowed minimum < maximum)",
+            )
+            lo = hi = None
         choices = step.choices
         choices_ok = isinstance(choices, tuple | list) and all(isinstance(c, str) and c for c in choices)
         if not choices_ok:
@@ -456,9 +463,11 @@ class _Checker:
             self.number(
                 "target",
                 step.target,
-                -math.inf if lo is None else lo,
-                math.inf if hi is None else hi,
+                lo,
+                hi,
                 unit=step.unit or "",
+                lo_why="the prompt's minimum",
+                hi_why="the prompt's maximum",
             )
         elif step.answer == "choice":
             self.one_of("target", step.target, step.choices if choices_ok else ())

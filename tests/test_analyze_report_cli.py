@@ -219,3 +219,44 @@ def test_the_masses_come_from_the_configuration_stored_in_the_file(smoke_file, t
     assert run.returncode == EXIT_NOT_CAMPAIGN
     assert run.stderr.startswith(f"error: {broken}: the stored bench configuration is invalid")
     assert "sensor_kg" in run.stderr
+
+
+def test_report_into_a_file_or_under_one_is_refused_with_exit_3_before_the_analysis(smoke_file, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("keep me\n")
+    refusals = ((afile, "exists and is not a directory"), (afile / "sub", f"{afile} is not a directory"))
+    for out, why in refusals:
+        run = wfsbench("report", str(smoke_file), "--out", str(out))
+        assert run.returncode == EXIT_NOT_CAMPAIGN, (run.stdout, run.stderr)
+        assert run.stdout == ""
+        assert run.stderr.startswith(f"error: {out}: ") and why in run.stderr, run.stderr
+        assert "Traceback" not in run.stderr
+    assert afile.read_text() == "keep me\n"
+    # checked before the file is even opened: a file that is no campaign is not what is reported
+    garbage = _garbage("text", tmp_path, smoke_file)
+    run = wfsbench("report", str(garbage), "--out", str(afile))
+    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.stderr.startswith(f"error: {afile}: exists and is not a directory"), run.stderr
+
+
+def test_every_sequence_appended_to_a_file_is_listed_in_the_report_and_the_json(tmp_path):
+    """The file keeps the first sequence's name only; the later ones are found by their run ids."""
+    path = tmp_path / "two.h5"
+    for sequence in ("hammer.toml", "smoke.toml"):
+        run = wfsbench("run", str(SMOKE.with_name(sequence)), "--out", str(path))
+        assert run.returncode == 0, run.stderr
+    report = wfsbench("report", str(path), "--out", str(tmp_path / "report"))
+    assert report.returncode == EXIT_OK, report.stderr
+    html = (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
+    assert "<td>sequence that created the file</td><td>hammer</td>" in html
+    assert "<td>sequences run</td><td>hammer (1 run), smoke (3 runs)</td>" in html
+    doc = json.loads(wfsbench("analyze", str(path), "--json").stdout)
+    assert doc["sequence_name"] == "hammer"
+    assert doc["sequences"] == [{"name": "hammer", "runs": 1}, {"name": "smoke", "runs": 3}]
+
+
+def test_sequences_run_are_named_by_their_run_ids_in_order():
+    from bench.app.analyze import sequences_run
+
+    ids = ["paper-shaker-s001-free_run", "paper-shaker-s004-dwell_grid", "four_post-s001-sweep", "odd"]
+    assert sequences_run(ids) == (("paper-shaker", 2), ("four_post", 1), ("odd", 1))

@@ -184,12 +184,12 @@ INVALID = {
     "amplitude out of range": Invalid(
         _with_line(GOOD_SEQUENCE, "amplitude_mm = 2", "amplitude_mm = 60"),
         "",
-        "seq.toml: steps[2].amplitude_mm: 60 mm is beyond the 25 mm stroke",
+        "seq.toml: steps[2].amplitude_mm: 60 mm is above the 25 mm stroke",
     ),
     "frequency above the bench": Invalid(
         _with_line(GOOD_SEQUENCE, "freq_hz = 40", "freq_hz = 150"),
         "",
-        f"{SEQ_FREQ}: 150 Hz is beyond the bench's frequency range (allowed 0.1 <= freq_hz <= 100 Hz)",
+        f"{SEQ_FREQ}: 150 Hz is above the bench's highest frequency (allowed 0.1 <= freq_hz <= 100 Hz)",
     ),
     "unknown key": Invalid(
         GOOD_SEQUENCE + 'colour = "red"\n', "", "seq.toml: steps[2].colour: unknown key for a sine_dwell step"
@@ -202,7 +202,9 @@ INVALID = {
     "duplicate key": Invalid(GOOD_SEQUENCE + "freq_hz = 41\n", "", f"{SEQ_FREQ}: line 16: duplicate key"),
     "empty file": Invalid("", "", "seq.toml: empty file"),
     "config: value out of range": Invalid(
-        GOOD_SEQUENCE, "stroke_mm = -5\n", "bench.toml: limits.stroke_mm: -5 is out of range"
+        GOOD_SEQUENCE,
+        "stroke_mm = -5\n",
+        "bench.toml: limits.stroke_mm: -5 is not above 0 (allowed stroke_mm > 0)",
     ),
     "config: unknown key": Invalid(
         GOOD_SEQUENCE, "strokes_mm = 25\n", "bench.toml: limits.strokes_mm: unknown key"
@@ -218,7 +220,7 @@ INVALID = {
     "frequency above the configured range": Invalid(
         GOOD_SEQUENCE,
         "max_freq_hz = 30\n",
-        f"{SEQ_FREQ}: 40 Hz is beyond the bench's frequency range (allowed 0.1 <= freq_hz <= 30 Hz)",
+        f"{SEQ_FREQ}: 40 Hz is above the bench's highest frequency (allowed 0.1 <= freq_hz <= 30 Hz)",
     ),
 }
 

@@ -25,9 +25,15 @@ def test_a_valid_sequence_lists_its_steps_totals_and_largest_loads():
     out = result.stdout.splitlines()
     assert sum(line.startswith("  steps[") for line in out) == 12
     assert "steps[3] free_run: 3 dwells 10-60 Hz at 2 mm" in result.stdout
-    assert any(line.startswith("8 points; about 0.5 min of bench time") for line in out)
+    assert "8 points; about 29 s of bench time, about 3.5 min with the operator's answers" in out
     assert "largest wfs_load_n:" in result.stdout and "(limit 24000 N)" in result.stdout
     assert out[-1] == "every point within the bench's limits: nothing refused"
+
+
+def test_a_sequence_under_a_minute_gives_its_bench_time_in_seconds():
+    result = check(str(shipped_file("hammer.toml")))
+    assert result.returncode == 0, result.stderr
+    assert "3 points; about 3 s of bench time, about 4.0 min with the operator's answers" in result.stdout
 
 
 def test_refused_points_are_each_named_with_the_limit_and_exit_4(tmp_path):
@@ -60,5 +66,5 @@ def test_an_invalid_file_is_named_with_its_key_and_exit_3(tmp_path):
     )
     result = check(str(bad))
     assert result.returncode == 3
-    assert f"{bad}: steps[3].freqs_hz[2]: 600 Hz is beyond the bench's frequency range" in result.stderr
+    assert f"{bad}: steps[3].freqs_hz[2]: 600 Hz is above the bench's highest frequency" in result.stderr
     assert result.stdout == ""

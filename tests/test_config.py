@@ -96,7 +96,7 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ('kind = "bridge"\n', "kind", "'bridge' is not one of ['shaker', 'four_post']"),
         ("[actuator]\nspeed = 3\n", "actuator.speed", "unknown key; allowed: transport"),
         ('[actuator]\nport = "502"\n', "actuator.port", "expected an integer, got '502' (str)"),
-        ("[actuator]\nport = 70000\n", "actuator.port", "out of range (allowed 1 <= port <= 65535)"),
+        ("[actuator]\nport = 70000\n", "actuator.port", "70000 is above 65535 (allowed 1 <= port <= 65535)"),
         ("[actuator]\ntimeout_s = true\n", "actuator.timeout_s", "expected a number, got True (bool)"),
         ('[actuator]\ntransport = "rtu"\n', "actuator.device", "transport 'rtu' needs the serial device"),
         ('[actuator]\nregister_map = "missing.toml"\n', "actuator.register_map", "cannot read register map"),
@@ -106,10 +106,22 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ("[wfs]\nrate_hz = 1000\nbaudrate = 115200\n", "wfs.rate_hz", "allowed 100 <= rate_hz <= 180"),
         ("[limits]\nstroke_mm = nan\n", "limits.stroke_mm", "nan is not a finite number"),
         ("[limits]\nforce_n = inf\n", "limits.force_n", "inf is not a finite number"),
-        ("[limits]\nvelocity_mm_s = -5\n", "limits.velocity_mm_s", "out of range"),
+        (
+            "[limits]\nvelocity_mm_s = -5\n",
+            "limits.velocity_mm_s",
+            "-5 is not above 0 (allowed velocity_mm_s > 0)",
+        ),
         ("[limits]\nmin_freq_hz = 50\nmax_freq_hz = 20\n", "limits.max_freq_hz", "not above min_freq_hz"),
-        ("[limits]\ndisplacement_interlock_mm = 20\n", "limits.displacement_interlock_mm", "allowed 25 <"),
-        ("[limits]\nforce_interlock_n = 1000\n", "limits.force_interlock_n", "allowed 15000 <"),
+        (
+            "[limits]\ndisplacement_interlock_mm = 20\n",
+            "limits.displacement_interlock_mm",
+            "allowed displacement_interlock_mm > 25",
+        ),
+        (
+            "[limits]\nforce_interlock_n = 1000\n",
+            "limits.force_interlock_n",
+            "allowed force_interlock_n > 15000",
+        ),
         ("[calibration]\nmatrix = [[1, 0, 0, 0, 0, 0]]\n", "calibration.matrix", "must be 6x6"),
         ("[calibration]\nmatrix = 1\n", "calibration.matrix", "must be 6x6"),
         (
@@ -131,7 +143,7 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         (
             "[masses]\nwheel_below_sensor_kg = 0\n",
             "masses.wheel_below_sensor_kg",
-            "out of range (allowed 0 <",
+            "0 is not above 0 (allowed wheel_below_sensor_kg > 0)",
         ),
         ('[aux]\naux4 = { name = "x" }\n', "aux.aux4", "unknown key; allowed: aux0, aux1, aux2, aux3"),
         ('[aux]\naux1 = { name = "Plate Force" }\n', "aux.aux1.name", "lower case letters"),
@@ -139,6 +151,7 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ("[specimen]\ntyre_model = 4\n", "specimen.tyre_model", "allowed 1 <= tyre_model <= 3"),
         ('[specimen]\nnonlinear = "yes"\n', "specimen.nonlinear", "expected true or false"),
         ("[simulation]\nseed = 1.5\n", "simulation.seed", "expected an integer"),
+        ("[simulation]\nseed = -1\n", "simulation.seed", "-1 is below 0 (allowed 0 <= seed <= 4294967295)"),
         ('limits = "high"\n', "limits", "must be a table"),
     ],
 )

@@ -136,19 +136,27 @@ def test_sequence_counts_points_and_durations():
         (
             SineDwell(40.0, 30.0),
             "steps[0].amplitude_mm",
-            "30 mm is beyond the 25 mm stroke (allowed 0 < amplitude_mm <= 25 mm)",
+            "30 mm is above the 25 mm stroke (allowed 0 < amplitude_mm <= 25 mm)",
         ),
         (SineDwell(40.0, 20.0, mean_mm=10.0), "steps[0].amplitude_mm", "less |mean_mm| 10"),
         (
             SineDwell(150.0, 1.0),
             "steps[0].freq_hz",
-            "150 Hz is beyond the bench's frequency range (allowed 0.1 <= freq_hz <= 100 Hz)",
+            "150 Hz is above the bench's highest frequency (allowed 0.1 <= freq_hz <= 100 Hz)",
         ),
-        (SineDwell(10.0, 0.0), "steps[0].amplitude_mm", "0 mm is below"),
+        (
+            SineDwell(10.0, 0.0),
+            "steps[0].amplitude_mm",
+            "0 mm is not above 0 (allowed 0 < amplitude_mm <= 25 mm)",
+        ),
         (SineDwell(10.0, True), "steps[0].amplitude_mm", "expected a number, got True (bool)"),
         (SineDwell(10.0, "2"), "steps[0].amplitude_mm", "expected a number, got '2' (str)"),
         (SineDwell(math.nan, 2.0), "steps[0].freq_hz", "nan is not a finite number"),
-        (SineDwell(10.0, 2.0, taper_in_s=0.01), "steps[0].taper_in_s", "shortest taper"),
+        (
+            SineDwell(10.0, 2.0, taper_in_s=0.01),
+            "steps[0].taper_in_s",
+            "0.01 s is below the controller's shortest taper (allowed taper_in_s >= 0.1 s)",
+        ),
         (
             SineDwell(10.0, 2.0, measure_cycles=0, measure_min_s=0),
             "steps[0].measure_min_s",
@@ -159,13 +167,13 @@ def test_sequence_counts_points_and_durations():
         (DwellGrid((10.0, 10.0), (1.0,)), "steps[0].freqs_hz[1]", "already in the grid"),
         (DwellGrid((10.0, 70.0), (1.0, 5.0)), "steps[0].amplitudes_mm[1]", "at 70 Hz"),
         (DwellGrid((10.0,), (1.0,), order="random"), "steps[0].order", "not one of"),
-        (DwellGrid((10.0,), (1.0,), max_velocity_mm_s=-1.0), "steps[0].max_velocity_mm_s", "below"),
+        (DwellGrid((10.0,), (1.0,), max_velocity_mm_s=-1.0), "steps[0].max_velocity_mm_s", "not above 0"),
         (FreeRun(DwellGrid((10.0, math.inf), (2.0,))), "steps[0].freqs_hz[1]", "inf is not a finite number"),
         (Sweep(0.1, 30.0, 1.5, 2.0), "steps[0].duration_s", "leaves no sweep after the tapers"),
         (Sweep(5.0, 5.0, 10.0, 2.0), "steps[0].end_hz", "end_hz != start_hz"),
         (Sweep(1.0, 30.0, 10.0, 2.0, law="exp"), "steps[0].law", "'exp' is not one of ['linear', 'log']"),
         (Sweep(1.0, 100.0, 10.0, 5.0), "steps[0].amplitude_mm", "highest frequency"),
-        (HammerTest(30_000.0), "steps[0].trigger_level_n", "beyond the WFS range"),
+        (HammerTest(30_000.0), "steps[0].trigger_level_n", "above the WFS range"),
         (
             HammerTest(200.0, pre_trigger_s=0.5, capture_s=0.3),
             "steps[0].pre_trigger_s",
@@ -174,7 +182,7 @@ def test_sequence_counts_points_and_durations():
         (HammerTest(200.0, blows=2.0), "steps[0].blows", "expected an integer"),
         (HammerTest(200.0, capture_s=5.0), "steps[0].capture_s", "capture buffer"),
         (Hydraulics("max"), "steps[0].level", "not one of ['off', 'low', 'high']"),
-        (MeanPosition(40.0), "steps[0].mean_mm", "beyond the stroke"),
+        (MeanPosition(40.0), "steps[0].mean_mm", "above the stroke"),
         (
             Prompt("p", "Set", answer="number", action="set_tyre_pressure"),
             "steps[0].target",
@@ -186,9 +194,19 @@ def test_sequence_counts_points_and_durations():
             "needs answer = 'number'",
         ),
         (
-            Prompt("p", "Set", answer="number", minimum=0.5, maximum=4.5, target=6.0),
+            Prompt("p", "Set", answer="number", unit="bar", minimum=0.5, maximum=4.5, target=9.0),
             "steps[0].target",
-            "6 is beyond",
+            "9 bar is above the prompt's maximum (allowed 0.5 <= target <= 4.5 bar)",
+        ),
+        (
+            Prompt("p", "Set", answer="number", unit="bar", minimum=0.5, target=0.2),
+            "steps[0].target",
+            "0.2 bar is below the prompt's minimum (allowed target >= 0.5 bar)",
+        ),
+        (
+            Prompt("p", "Set", answer="number", unit="bar", minimum=5.0, maximum=4.5, target=2.5),
+            "steps[0].minimum",
+            "5 is not below maximum 4.5 (allowed minimum < maximum)",
         ),
         (
             Prompt("p", "Pick", answer="choice", choices=("a", "b"), target="c"),
@@ -207,6 +225,17 @@ def test_validate_names_the_key_and_the_range(step, key, text):
     assert info.value.key == key
     assert text in info.value.message
     assert str(info.value).startswith(f"<script>: {key}: ")
+
+
+def test_a_prompt_with_its_minimum_above_its_maximum_has_that_one_problem():
+    """The range itself is wrong: the target is not checked against it (it would read ``5 <= target
+    <= 4.5``)."""
+    prompt = Prompt("p", "Set", answer="number", unit="bar", minimum=5.0, maximum=4.5, target=2.5)
+    with pytest.raises(SequenceError) as info:
+        validate(Sequence("bad", "", (prompt,)), LIMITS)
+    assert [str(p) for p in info.value.problems] == [
+        "<script>: steps[0].minimum: 5 is not below maximum 4.5 (allowed minimum < maximum)"
+    ]
 
 
 def test_every_problem_is_reported_first_one_in_the_str():

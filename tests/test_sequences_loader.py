@@ -50,12 +50,12 @@ DWELL = '[[steps]]\ntype = "tare"\n\n[[steps]]\ntype = "sine_dwell"\nfreq_hz = 4
 @pytest.mark.parametrize(
     ("body", "key", "text"),
     [
-        (DWELL + "amplitude_mm = 60\n", "steps[1].amplitude_mm", "60 mm is beyond the 25 mm stroke"),
+        (DWELL + "amplitude_mm = 60\n", "steps[1].amplitude_mm", "60 mm is above the 25 mm stroke"),
         (DWELL + "amplitude_mm = -1\n", "steps[1].amplitude_mm", "(allowed 0 < amplitude_mm <= 25 mm)"),
         (
             DWELL.replace("40", "250") + "amplitude_mm = 1\n",
             "steps[1].freq_hz",
-            "250 Hz is beyond the bench's frequency range (allowed 0.1 <= freq_hz <= 100 Hz)",
+            "250 Hz is above the bench's highest frequency (allowed 0.1 <= freq_hz <= 100 Hz)",
         ),
         (
             DWELL + "amplitude_mm = 1\namplitude = 2\n",
@@ -118,6 +118,14 @@ def test_bad_values_are_refused_with_key_and_range(tmp_path, body, key, text):
 def test_bad_headers_are_refused(tmp_path, header, key, text):
     error = _refused(_file(tmp_path, '[[steps]]\ntype = "tare"\n', header=header))
     assert error.key == key and text in error.message
+
+
+def test_a_misspelt_sequence_table_is_one_unknown_key_and_nothing_more(tmp_path):
+    """``[sequenc]``: its unknown key names it and the allowed ``sequence``; neither a missing table
+    nor an empty ``sequence.name`` is reported on top."""
+    error = _refused(_file(tmp_path, '[[steps]]\ntype = "tare"\n', header='[sequenc]\nname = "x"\n'))
+    unknown = ("sequenc", "unknown key; allowed: sequence, steps")
+    assert [(p.key, p.message) for p in error.problems] == [unknown]
 
 
 @pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n"])

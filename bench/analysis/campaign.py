@@ -50,7 +50,9 @@ class CampaignAnalysis:
     records, shaker results per pressure, hammer and four-post results), each analysed run in
     order (``runs``), the runs not analysed because they did not complete (``skipped``: run id
     and status) and the hammer blow's record (``hammer_record``, for its figure; None without a
-    hammer run)."""
+    hammer run). ``sequences``: every sequence whose runs the file holds, as (name in its run ids,
+    number of runs) in the order they ran: the one that created the file (``sequence_name``) and
+    those appended to it later."""
 
     path: Path
     software_version: str
@@ -62,3 +64,4 @@ class CampaignAnalysis:
     runs: tuple[RunAnalysis, ...]
     skipped: tuple[tuple[str, str], ...]
     hammer_record: HammerRecord | None
+    sequences: tuple[tuple[str, int], ...] = ()

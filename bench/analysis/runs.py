@@ -161,20 +161,34 @@ def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellR
 class FreeRunResult:
     """m_comp of a bench's plate from its free run: ``plate`` (mass, sigma, residual), the dwell
     ``fits`` (ascending frequency) and ``unsettled``: the dwells that did not settle, with why
-    (their points are left out of m_comp)."""
+    (their points are left out of m_comp); ``findings``: what the user must know about m_comp
+    (a mass that is not positive is not physical)."""
 
     plate: PlateMass
     fits: tuple[DwellFit, ...]
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
+    findings: tuple[str, ...] = ()
+
+
+def plate_mass_findings(plate: PlateMass) -> tuple[str, ...]:
+    """A finding when m_comp is not a positive finite mass: a plate cannot weigh zero or less, so
+    the plate force or the displacement has the wrong sign (or unit) in the record."""
+    if np.isfinite(plate.mass_kg) and plate.mass_kg > 0:
+        return ()
+    return (
+        f"m_comp {plate.mass_kg:.4g} kg is not physical (a plate mass is positive):"
+        f" check the sign and units of the plate force {PLATE_FORCE} and the displacement {DISPLACEMENT}",
+    )
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
-    """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``)."""
+    """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``), flagged when it is
+    not a positive mass (:func:`plate_mass_findings`)."""
     ordered, fits, rejected = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
     with _named("free run"):
         plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
-    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits), rejected)
+    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits), rejected, plate_mass_findings(plate))
 
 
 # ---------------------------------------------------------------------------------------- shaker

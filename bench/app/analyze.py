@@ -15,6 +15,7 @@ and every earlier result stay as they were.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
@@ -26,6 +27,8 @@ from bench.store import add_results, open_campaign
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
+#: A run id as the engine gives it (``Engine.run_id``): ``<sequence>-s<step, 3 digits>-<kind>``.
+RUN_ID = re.compile(r"^(?P<sequence>.+)-s(?P<step>[0-9]{3,})-(?P<kind>[a-z_]+)$")
 
 
 class CampaignFileError(ValueError):
@@ -40,6 +43,19 @@ def _stored_config(path: Path, config_toml: str, name: str) -> tuple[BenchConfig
         return parse_bench_config(config_toml, f"{path}@config_toml", base_dir=path.parent), name or "stored"
     except ConfigError as err:
         raise CampaignFileError(f"{path}: the stored bench configuration is invalid: {err}") from err
+
+
+def sequences_run(run_ids: Iterable[str]) -> tuple[tuple[str, int], ...]:
+    """The sequences of a campaign file's runs, as (name, number of runs) in the order they first
+    ran. The file keeps only the first sequence's name and text (``/@sequence_name``); a sequence
+    appended later leaves its name in its run ids (``shaker-s002-free_run``). A run id of another
+    form counts as its own name."""
+    counts: dict[str, int] = {}
+    for run_id in run_ids:
+        match = RUN_ID.match(run_id)
+        name = match["sequence"] if match else run_id
+        counts[name] = counts.get(name, 0) + 1
+    return tuple(counts.items())
 
 
 def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> CampaignAnalysis:
@@ -73,6 +89,7 @@ def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> Cam
             runs=runs,
             skipped=tuple((run.run_id, run.status) for run in campaign.runs if run.status != "complete"),
             hammer_record=hammer.hammer_record() if hammer is not None else None,
+            sequences=sequences_run(run.run_id for run in campaign.runs),
         )
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from bench.app.durations import bench_time_text, duration_text
 from bench.config import BenchConfig
 from bench.dry_run import DryRun
 from sequences import DwellGrid, FreeRun, HammerTest, Prompt, Sequence, SineDwell, Sweep
@@ -47,8 +48,8 @@ def check_lines(sequence: Sequence, config: BenchConfig, dry: DryRun) -> list[st
     lines = [f"sequence {sequence.name} ({sequence.source}) on the {config.kind} bench ({config.source})"]
     lines += [f"  {step_line(i, step)}" for i, step in enumerate(sequence.steps)]
     lines.append(
-        f"{sequence.points()} points; about {sequence.estimated_duration_s / 60:.1f} min of bench time,"
-        f" {sequence.estimated_duration_with_operator_s / 60:.1f} min with the operator's answers"
+        f"{sequence.points()} points; {bench_time_text(sequence.estimated_duration_s)},"
+        f" about {duration_text(sequence.estimated_duration_with_operator_s)} with the operator's answers"
     )
     if dry.points:
         for quantity, unit, limit in (

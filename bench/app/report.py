@@ -1,11 +1,13 @@
 """``wfsbench report``: a campaign file's figures and its self-contained HTML page in a directory.
 
 The file is analysed in memory (:func:`~bench.app.analyze.analyze_campaign`; nothing is written
-into it), the figures are drawn to ``DIR/<name>.png`` and the page to ``DIR/report.html``.
+into it), the figures are drawn to ``DIR/<name>.png`` and the page to ``DIR/report.html``. A
+``DIR`` that cannot hold them (a file, under a file, not writable) is refused before the analysis.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +16,10 @@ from bench.report.figures import FigureFile, write_figures
 from bench.report.html import report_html
 
 REPORT_PAGE = "report.html"
+
+
+class ReportDirError(Exception):
+    """The report directory cannot be used; the message starts with its path."""
 
 
 @dataclass(frozen=True)
@@ -25,12 +31,36 @@ class WrittenReport:
     analysis: CampaignAnalysis
 
 
+def check_report_dir(out_dir: Path) -> None:
+    """Raise :class:`ReportDirError` unless ``out_dir`` is a writable directory or can be created
+    as one (its nearest existing ancestor is a writable directory). Nothing is created here."""
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise ReportDirError(f"{out_dir}: exists and is not a directory")
+        if not os.access(out_dir, os.W_OK | os.X_OK):
+            raise ReportDirError(f"{out_dir}: directory is not writable")
+        return
+    ancestor = out_dir.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ReportDirError(f"{out_dir}: cannot be created: {ancestor} is not a directory")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ReportDirError(f"{out_dir}: cannot be created: {ancestor} is not writable")
+
+
 def write_report(campaign_path: str | Path, out_dir: str | Path) -> WrittenReport:
     """Analyse the campaign file and write its figures and ``report.html`` into ``out_dir``
-    (created if needed; earlier figures of the same names are replaced)."""
+    (created if needed; earlier figures of the same names are replaced). ``out_dir`` is checked
+    first (:func:`check_report_dir`), so an unusable one costs no analysis; a write that fails
+    anyway raises :class:`ReportDirError` too."""
     out_dir = Path(out_dir)
+    check_report_dir(out_dir)
     analysis = analyze_campaign(campaign_path)
-    figures = tuple(write_figures(analysis, out_dir))
-    page = out_dir / REPORT_PAGE
-    page.write_text(report_html(analysis, figures), encoding="utf-8")
+    try:
+        figures = tuple(write_figures(analysis, out_dir))
+        page = out_dir / REPORT_PAGE
+        page.write_text(report_html(analysis, figures), encoding="utf-8")
+    except OSError as exc:
+        raise ReportDirError(f"{out_dir}: {exc.strerror or exc}") from exc
     return WrittenReport(page, figures, analysis)

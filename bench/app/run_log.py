@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from bench.app.durations import bench_time_text
 from bench.engine import events as ev
 
 
@@ -25,7 +26,7 @@ class RunLog:
             case ev.SequenceStarted():
                 return (
                     f"sequence {event.sequence_name}: {event.total_points} points,"
-                    f" about {event.estimated_duration_s / 60:.1f} min of excitation"
+                    f" {bench_time_text(event.estimated_duration_s)}"
                 )
             case ev.RunStarted():
                 return f"run {event.run_id} ({event.kind})"

@@ -24,7 +24,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+from matplotlib.ticker import FuncFormatter, Locator, MaxNLocator, NullFormatter
 
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import Frf, ValidBand
@@ -40,6 +40,10 @@ MODEL_GRID_POINTS = 300
 #: Normal quantile of the drawn uncertainty bars (95 %).
 Z95 = 1.96
 _MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
+#: Labelled frequencies per decade, coarse to fine; a log axis takes the first giving enough labels.
+FREQUENCY_TICK_SUBS = ((1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0, 7.0), tuple(float(k) for k in range(1, 10)))
+#: Labelled frequencies a log axis shows at least (when the finest subdivision gives them).
+MIN_FREQUENCY_LABELS = 5
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 
 
@@ -62,11 +66,37 @@ def _new_figure(rows: int, *, sharex: bool = True) -> tuple[Figure, list[Axes]]:
     return fig, list(axes)
 
 
+class FrequencyLocator(Locator):
+    """Major ticks of a log frequency axis: 1-2-5 per decade (0.5, 1, 2, 5, 10 Hz) where that
+    labels at least :data:`MIN_FREQUENCY_LABELS` frequencies in view, else the finer 1-2-3-5-7 or
+    every integer multiple (a band of about one decade, 2.3-28 Hz, gets 3, 5, 7, 10, 20 Hz, not
+    only 5, 10, 20 Hz); a band narrower still (12-38 Hz) gets evenly spaced round numbers."""
+
+    def __call__(self) -> list[float]:
+        low, high = self.axis.get_view_interval()
+        return self.tick_values(low, high)
+
+    def tick_values(self, vmin: float, vmax: float) -> list[float]:
+        low, high = sorted((vmin, vmax))
+        if not (np.isfinite(low) and np.isfinite(high)) or low <= 0:
+            return []
+        decades = np.arange(np.floor(np.log10(low)), np.ceil(np.log10(high)) + 1)
+        for subs in FREQUENCY_TICK_SUBS:
+            candidates = sorted(float(f"{sub * 10.0**d:.6g}") for d in decades for sub in subs)
+            ticks = [t for t in candidates if low <= t <= high]
+            if len(ticks) >= MIN_FREQUENCY_LABELS:
+                return ticks
+        even = MaxNLocator(nbins=8, steps=[1, 2, 2.5, 5, 10], min_n_ticks=MIN_FREQUENCY_LABELS)
+        even = even.tick_values(low, high)
+        return [float(t) for t in even if low <= t <= high]
+
+
 def _frequency_axes(*axes: Axes) -> None:
-    """Log frequency axes labelled 1-2-5 with plain numbers (0.5, 1, 2, 5, 10 Hz), a light grid."""
+    """Log frequency axes labelled with plain numbers, enough of them to read (:class:`FrequencyLocator`),
+    a light grid."""
     for ax in axes:
         ax.set_xscale("log")
-        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_locator(FrequencyLocator())
         ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.grid(True, which="both", alpha=0.3)

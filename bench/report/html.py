@@ -59,13 +59,20 @@ def _figure(fig: FigureFile) -> str:
     )
 
 
+def _sequences_run(analysis: CampaignAnalysis) -> str:
+    """``hammer (1 run), shaker (10 runs)``: every sequence the file holds, in the order they ran."""
+    runs = (f"{name} ({n} run{'' if n == 1 else 's'})" for name, n in analysis.sequences)
+    return ", ".join(runs) or "none"
+
+
 def _campaign(analysis: CampaignAnalysis) -> str:
     return _table(
         ("item", "value"),
         (
             ("file", analysis.path),
             ("written by", analysis.software_version),
-            ("sequence", analysis.sequence_name),
+            ("sequence that created the file", analysis.sequence_name),
+            ("sequences run", _sequences_run(analysis)),
             ("configuration", analysis.config_source),
             ("sensor mass (given)", f"{analysis.sensor_mass_kg:g} kg"),
             ("wheel mass below the sensor (weighed)", f"{analysis.wheel_mass_kg:g} kg"),

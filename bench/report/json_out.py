@@ -199,6 +199,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "file": str(analysis.path),
         "software_version": analysis.software_version,
         "sequence_name": analysis.sequence_name,
+        "sequences": [{"name": name, "runs": runs} for name, runs in analysis.sequences],
         "config_source": analysis.config_source,
         "given": {"sensor_mass_kg": analysis.sensor_mass_kg, "wheel_mass_kg": analysis.wheel_mass_kg},
         "sensor": {

@@ -85,6 +85,7 @@ def free_run_lines(result: FreeRunResult) -> list[str]:
     ]
     lines += [f"FLAG free run not settled: {u}" for u in result.unsettled]
     lines += [f"FLAG free run rejected: {r}" for r in result.rejected]
+    lines += [f"FLAG free run: {finding}" for finding in result.findings]
     return lines
 
 

@@ -280,3 +280,24 @@ def test_compensated_ratio_sigma_matches_scatter_between_runs(free_run):
         [np.abs(a.value - b.value) / np.hypot(a.sigma, b.sigma) for a, b in itertools.combinations(ratios, 2)]
     )
     assert 0.85 < np.sqrt(np.mean(z**2)) < 1.2
+
+
+def test_free_run_with_the_plate_force_sign_flipped_is_flagged(free_run):
+    """A plate force recorded with the wrong sign gives m_comp < 0: not physical, flagged with what to
+    check; the right sign gives no such finding."""
+    from bench.analysis.runs import analyse_free_run
+    from bench.report.text import free_run_lines
+
+    right = analyse_free_run(free_run.records)
+    assert right.plate.mass_kg > 0
+    assert right.findings == ()
+    assert not any("not physical" in line for line in free_run_lines(right))
+    flipped = [
+        replace(r, channels={**r.channels, "f_plate_n": -np.asarray(r.channels["f_plate_n"])})
+        for r in free_run.records
+    ]
+    wrong = analyse_free_run(flipped)
+    assert wrong.plate.mass_kg == pytest.approx(-right.plate.mass_kg, rel=1e-9)
+    flags = [line for line in free_run_lines(wrong) if line.startswith("FLAG")]
+    assert len(flags) == 1
+    assert "not physical" in flags[0] and "sign and units of the plate force f_plate_n" in flags[0]
