@@ -22,15 +22,13 @@ from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
 from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ
 from bench.app.post_run import RunAnalyser, replay_campaign
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
+from bench.engine.engine import RUN_ID
 from bench.models.parameters import WfsSensor
 from bench.store import add_results, open_campaign
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
 #: A run id as the engine gives it (``Engine.run_id``): ``<sequence>-s<step, 3 digits>-<kind>``.
-RUN_ID = re.compile(r"^(?P<sequence>.+)-s(?P<step>[0-9]{3,})-(?P<kind>[a-z_]+)$")
-
-
 class CampaignFileError(ValueError):
     """The file is no campaign file, or its contents cannot be analysed; the message names the
     file and what is wrong."""

@@ -71,6 +71,10 @@ CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
 }
 
 
+#: A run id as :meth:`Engine.run_id` writes it: ``<sequence>-s<step index>-<step kind>``.
+RUN_ID = re.compile(r"^(?P<sequence>.+)-s(?P<step>[0-9]{3,})-(?P<kind>[a-z_]+)$")
+
+
 @dataclass(frozen=True)
 class EngineTiming:
     """Bounds (s): how long to wait for a block of frames, how often to read the controller's status
@@ -298,7 +302,8 @@ class Engine:
     @staticmethod
     def run_id(sequence: Sequence, index: int) -> str:
         """The run id of a measurement step: the sequence's name, the step's position and kind, so
-        that runs of several sequences share a campaign file and a resume finds its runs again."""
+        that runs of several sequences share a campaign file and a resume finds its runs again
+        (:data:`RUN_ID` reads them back)."""
         name = re.sub(r"[^A-Za-z0-9_.-]+", "_", sequence.name) or "sequence"
         return f"{name}-s{index:03d}-{sequence.steps[index].kind}"
 

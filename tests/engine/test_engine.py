@@ -12,7 +12,7 @@ import pytest
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.engine import RUN_ID, Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
 from drivers.errors import LinkTimeoutError
@@ -314,3 +314,9 @@ def test_the_stream_stops_while_its_frames_in_flight_are_recorded():
     assert "stream stop" in bench.log
     recorded = sum(len(b.columns["status"]) for b in of(seen, ev.SamplesRecorded))
     assert recorded == bench._seq  # every frame sent, those in flight at the STOP included
+
+
+def test_run_ids_read_back_as_sequence_step_and_kind():
+    seq = Sequence(name="paper shaker", description="", steps=(Hydraulics("high"), grid()), source="<test>")
+    match = RUN_ID.match(Engine.run_id(seq, 1))
+    assert (match["sequence"], match["step"], match["kind"]) == ("paper_shaker", "001", "dwell_grid")
