@@ -31,9 +31,9 @@ is a finding for the user.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -460,6 +460,30 @@ class AmplitudeDependence:
     tread_mass_kg: np.ndarray
     stiffness_change: np.ndarray
     damping_change: np.ndarray
+
+    def rows(self) -> Iterator[AmplitudeRow]:
+        """One row per amplitude, ascending."""
+        for columns in zip(
+            self.amplitude_m,
+            self.stiffness_n_per_m,
+            self.stiffness_ci95_n_per_m,
+            self.stiffness_change,
+            self.equivalent_damping_ns_per_m,
+            self.damping_change,
+            strict=True,
+        ):
+            yield AmplitudeRow(*(float(c) for c in columns))
+
+
+class AmplitudeRow(NamedTuple):
+    """:class:`AmplitudeDependence` at one amplitude."""
+
+    amplitude_m: float
+    stiffness_n_per_m: float
+    stiffness_ci95_n_per_m: float
+    stiffness_change: float
+    equivalent_damping_ns_per_m: float
+    damping_change: float
 
 
 def tread_resonance_hz(fit: TyreFit) -> float:

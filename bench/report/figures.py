@@ -171,33 +171,18 @@ def _dots(mag: Axes, phase: Axes, frf: Frf, colour: str, label: str, *, marker: 
             continue
         f, h, sigma = frf.freq_hz[keep], frf.value[keep], frf.sigma[keep]
         phase_sigma_deg = np.degrees(np.minimum(sigma / np.abs(h), np.pi))
-        mag.errorbar(
-            f,
-            np.abs(h),
-            yerr=Z95 * sigma,
-            fmt=marker,
-            ms=4,
-            mfc=face,
-            mec=colour,
-            ecolor=colour,
-            elinewidth=0.8,
-            capsize=2,
-            ls="none",
-            label=label if face != "none" else None,
-        )
-        phase.errorbar(
-            f,
-            np.degrees(np.angle(h)),
-            yerr=Z95 * phase_sigma_deg,
-            fmt=marker,
-            ms=4,
-            mfc=face,
-            mec=colour,
-            ecolor=colour,
-            elinewidth=0.8,
-            capsize=2,
-            ls="none",
-        )
+        dots = {
+            "fmt": marker,
+            "ms": 4,
+            "mfc": face,
+            "mec": colour,
+            "ecolor": colour,
+            "elinewidth": 0.8,
+            "capsize": 2,
+            "ls": "none",
+        }
+        mag.errorbar(f, np.abs(h), yerr=Z95 * sigma, label=label if face != "none" else None, **dots)
+        phase.errorbar(f, np.degrees(np.angle(h)), yerr=Z95 * phase_sigma_deg, **dots)
 
 
 def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:

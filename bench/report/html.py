@@ -161,15 +161,7 @@ def _dependence(analysis: CampaignAnalysis) -> str:
         if dep is None:
             rows.append((f"{pressure:g} bar", "one amplitude only: not determined", "", "", "", ""))
             continue
-        for a, k, ci, dk, d, dd in zip(
-            dep.amplitude_m,
-            dep.stiffness_n_per_m,
-            dep.stiffness_ci95_n_per_m,
-            dep.stiffness_change,
-            dep.equivalent_damping_ns_per_m,
-            dep.damping_change,
-            strict=True,
-        ):
+        for a, k, ci, dk, d, dd in dep.rows():
             rows.append(
                 (
                     f"{pressure:g} bar",

@@ -127,25 +127,7 @@ def shaker_json(pressure_bar: float, result: ShakerCampaignResult) -> dict[str, 
         "amplitudes": [amplitude_json(r) for r in result.amplitudes.values()],
         "amplitude_dependence": None
         if dep is None
-        else [
-            {
-                "amplitude_m": float(a),
-                "stiffness_n_per_m": float(k),
-                "stiffness_ci95_n_per_m": float(ci),
-                "stiffness_change": float(dk),
-                "equivalent_damping_ns_per_m": float(d),
-                "damping_change": float(dd),
-            }
-            for a, k, ci, dk, d, dd in zip(
-                dep.amplitude_m,
-                dep.stiffness_n_per_m,
-                dep.stiffness_ci95_n_per_m,
-                dep.stiffness_change,
-                dep.equivalent_damping_ns_per_m,
-                dep.damping_change,
-                strict=True,
-            )
-        ],
+        else [row._asdict() for row in dep.rows()],
     }
 
 

@@ -152,15 +152,7 @@ def shaker_campaign_lines(result: ShakerCampaignResult) -> list[str]:
         per = "; ".join(
             f"{1e3 * a:g} mm k {k / 1e3:.2f} +/- {ci / 1e3:.2f} kN/m ({100 * dk:+.2f} %),"
             f" d {d:.1f} Ns/m ({100 * dd:+.1f} %)"
-            for a, k, ci, dk, d, dd in zip(
-                dep.amplitude_m,
-                dep.stiffness_n_per_m,
-                dep.stiffness_ci95_n_per_m,
-                dep.stiffness_change,
-                dep.equivalent_damping_ns_per_m,
-                dep.damping_change,
-                strict=True,
-            )
+            for a, k, ci, dk, d, dd in dep.rows()
         )
         lines.append(f"amplitude dependence (Model 2, d at the tread resonance; change vs smallest): {per}")
     return lines

@@ -91,6 +91,15 @@ def finished(recorded: Recorded) -> ev.SequenceFinished | None:
     return done[0] if done else None
 
 
+async def controller_state(app: WfsBenchApp) -> ControllerState:
+    """The simulated controller's state, read over Modbus TCP by a client of its own."""
+    client = ActuatorClient.tcp(*app.session.devices.lab.address)
+    try:
+        return (await client.connect()).state
+    finally:
+        await client.close()
+
+
 def text_of(node, selector: str) -> str:
     """The text a widget under ``node`` (the app or a dialog) shows."""
     return str(node.query_one(selector).render())
@@ -231,12 +240,7 @@ async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> Non
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await start_long_dwell(pilot, app)
         await pilot.press("f12")
-        client = ActuatorClient.tcp(*app.session.devices.lab.address)
-        try:
-            status = await client.connect()  # right after the key handler returned: no waiting
-        finally:
-            await client.close()
-        assert status.state is ControllerState.ESTOP
+        assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert "E-STOP" in text_of(app, "#banner")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "e-stopped"
@@ -264,12 +268,7 @@ async def test_estop_from_a_dialog(app: WfsBenchApp) -> None:
         await pilot.press("l")  # hydraulics low: asks first
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
         await pilot.press("f12")
-        client = ActuatorClient.tcp(*app.session.devices.lab.address)
-        try:
-            status = await client.connect()
-        finally:
-            await client.close()
-        assert status.state is ControllerState.ESTOP
+        assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert app.session.engine.state is RunState.ESTOPPED
         assert isinstance(app.screen, ConfirmDialog)
         await pilot.press("n")
@@ -285,12 +284,7 @@ async def test_estop_while_a_prompt_waits(app: WfsBenchApp) -> None:
         await pilot.press("g")
         dialog = await prompt_open(pilot, app, "remove_wheel")
         await pilot.press("f12")
-        client = ActuatorClient.tcp(*app.session.devices.lab.address)
-        try:
-            status = await client.connect()
-        finally:
-            await client.close()
-        assert status.state is ControllerState.ESTOP
+        assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert app.screen is dialog
         await pilot.press("y")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
