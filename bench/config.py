@@ -23,6 +23,7 @@ from drivers.errors import RegisterMapError
 from drivers.register_map import RegisterMap, load_register_map
 from drivers.setpoints import SoftLimits
 from drivers.wfs_frame import FRAME_SIZE
+from sequences.errors import problems_text
 from sequences.limits import BenchLimits
 from sequences.ranges import range_problem
 from sequences.toml_text import toml_table, toml_value
@@ -42,10 +43,7 @@ class ConfigError(ValueError):
 
     def __init__(self, problems: list[str]) -> None:
         self.problems = tuple(problems)
-        lines = list(problems)
-        if len(lines) > 1:
-            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
-        super().__init__("\n".join(lines))
+        super().__init__(problems_text(problems))
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from bench.config import BenchConfig
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity, WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
+from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
 from sequences.steps import ACTION_BENCH_KIND, DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
 
@@ -119,10 +120,7 @@ class DryRunError(ValueError):
 
     def __init__(self, source: str, refusals: tuple[ActionRefusal | Refusal, ...]) -> None:
         self.refusals = refusals
-        lines = [f"{source}: {refusal}" for refusal in refusals]
-        if len(lines) > 1:
-            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
-        super().__init__("\n".join(lines))
+        super().__init__(problems_text(f"{source}: {refusal}" for refusal in refusals))
 
 
 @dataclass(frozen=True)

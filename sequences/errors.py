@@ -23,16 +23,22 @@ class Problem:
         return f"{self.source}: {self.key}: {self.message}" if self.key else f"{self.source}: {self.message}"
 
 
+def problems_text(problems: Iterable[object]) -> str:
+    """Several problems as one error message: the first on the first line, the others indented
+    below it after how many there are."""
+    lines = [str(p) for p in problems]
+    if len(lines) > 1:
+        lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
+    return "\n".join(lines)
+
+
 class SequenceError(ValueError):
     """A sequence is refused; ``problems`` lists every problem found, the first one is in the str."""
 
     def __init__(self, source: str, key: str, message: str, more: Iterable[Problem] = ()) -> None:
         self.problems: tuple[Problem, ...] = (Problem(source, key, message), *more)
         self.source, self.key, self.message = source, key, message
-        lines = [str(p) for p in self.problems]
-        if len(lines) > 1:
-            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
-        super().__init__("\n".join(lines))
+        super().__init__(problems_text(self.problems))
 
     @classmethod
     def of(cls, problems: Iterable[Problem]) -> SequenceError:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt, Sequence
+from sequences.errors import problems_text
 from simulators.world import SimulatedOperator
 
 
@@ -25,10 +26,7 @@ class AnswersError(ValueError):
 
     def __init__(self, problems: list[str]) -> None:
         self.problems = tuple(problems)
-        lines = list(problems)
-        if len(lines) > 1:
-            lines[1:] = [f"  and {len(lines) - 1} more:", *(f"  {line}" for line in lines[1:])]
-        super().__init__("\n".join(lines))
+        super().__init__(problems_text(problems))
 
 
 def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool]:
