@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.records import DwellRecord, HammerRecord
+from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.runs import FourPostResult, HammerResult, ShakerCampaignResult
 from bench.models.parameters import WfsSensor
 
@@ -49,8 +49,9 @@ class CampaignAnalysis:
     the masses taken as given, what the runs established (``knowledge``: sensor, plate masses'
     records, shaker results per pressure, hammer and four-post results), each analysed run in
     order (``runs``), the runs not analysed because they did not complete (``skipped``: run id
-    and status) and the hammer blow's record (``hammer_record``, for its figure; None without a
-    hammer run). ``sequences``: every sequence whose runs the file holds, as (name in its run ids,
+    and status), the hammer blow's record (``hammer_record``, for its figure; None without a
+    hammer run) and the four-post sweep's (``sweep_record``, likewise). ``sequences``: every
+    sequence whose runs the file holds, as (name in its run ids,
     number of runs) in the order they ran: the one that created the file (``sequence_name``) and
     those appended to it later."""
 
@@ -65,3 +66,4 @@ class CampaignAnalysis:
     skipped: tuple[tuple[str, str], ...]
     hammer_record: HammerRecord | None
     sequences: tuple[tuple[str, int], ...] = ()
+    sweep_record: SweepRecord | None = None

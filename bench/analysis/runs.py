@@ -468,6 +468,63 @@ def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
     return rec
 
 
+def _contact_force(
+    rec: dict[str, np.ndarray], fs_hz: float, plate: PlateMass
+) -> tuple[np.ndarray, np.ndarray]:
+    """The post's acceleration ``z''`` and the contact force ``F_plate - m_comp z''`` (NaN where the
+    differentiator lacks history or future)."""
+    a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs_hz)
+    return a_contact, rec[PLATE_FORCE] - plate.mass_kg * a_contact
+
+
+@dataclass(frozen=True)
+class ForceDifferenceTrace:
+    """The paper's Fig. 8 in time: over ``t_s`` (s from the record's start) the force the WFS does
+    not see, ``F_contact - F_WFS`` (``difference_n``), and what the hub-acceleration compensation
+    adds, ``m_wheel a_hub`` (``inertial_n``, a_hub advanced by the accelerometer's lag), each less
+    its mean over the window (static load and tare are not dynamics), while the sweep passes
+    ``freq_hz``."""
+
+    t_s: np.ndarray
+    difference_n: np.ndarray
+    inertial_n: np.ndarray
+    freq_hz: float
+
+
+def force_difference_trace(
+    sweep: SweepRecord, result: FourPostResult, *, around_hz: float = 8.0, cycles: int = 8
+) -> ForceDifferenceTrace:
+    """``cycles`` periods of the sweep from where it first reaches ``around_hz``, with the post's
+    m_comp, m_wheel and the accelerometer's lag that ``result`` identified from the same sweep.
+    The periods are found from the displacement whatever the sweep's law: its rises through half
+    the amplitude above its median after a fall below half the amplitude under it (noise at rest
+    and in the tapers crosses neither)."""
+    rec = _checked_sweep(sweep)
+    fs = float(sweep.sample_rate_hz)
+    _, f_contact = _contact_force(rec, fs, result.post_free_run.plate)
+    z = rec[DISPLACEMENT] - np.median(rec[DISPLACEMENT])
+    level = np.where(z > sweep.amplitude_m / 2, 1, np.where(z < -sweep.amplitude_m / 2, -1, 0))
+    beyond = np.flatnonzero(level)
+    ups = beyond[1:][(level[beyond[:-1]] < 0) & (level[beyond[1:]] > 0)]
+    if len(ups) < cycles + 2:
+        raise AnalysisInputError(f"{sweep.label}: too few cycles in the record for a trace")
+    local_hz = fs / np.diff(ups)
+    at = np.flatnonzero(local_hz >= around_hz)
+    first = int(at[0]) if at.size else len(ups) - cycles - 1
+    first = min(first, len(ups) - cycles - 1)
+    span = slice(int(ups[first]), int(ups[first + cycles]))
+    mass = result.wheel_mass
+    inertial = mass.mass_kg * advance_acceleration(rec[HUB_ACCELERATION], fs, mass.accelerometer_delay_s)
+    difference = (f_contact - rec[WFS_FORCE])[span]
+    inertial = inertial[span]
+    return ForceDifferenceTrace(
+        t_s=np.arange(span.start, span.stop) / fs,
+        difference_n=difference - difference.mean(),
+        inertial_n=inertial - inertial.mean(),
+        freq_hz=float(np.median(local_hz[first : first + cycles])),
+    )
+
+
 def _compensate_sweep(
     sweep: SweepRecord, rec: dict[str, np.ndarray], plate: PlateMass, comp: ModelCompensator
 ) -> tuple[WheelMass, dict[str, np.ndarray], slice]:
@@ -475,8 +532,7 @@ def _compensate_sweep(
     the hub-acceleration and model-compensated forces, and the span of the record where the
     differentiator and the compensator are defined (their windows inside the record)."""
     fs = float(sweep.sample_rate_hz)
-    a_contact = base_acceleration_signal(rec[DISPLACEMENT], fs)
-    f_contact = rec[PLATE_FORCE] - plate.mass_kg * a_contact
+    a_contact, f_contact = _contact_force(rec, fs, plate)
     inner = np.isfinite(a_contact)
     mass = estimate_wheel_mass(
         f_contact[inner],

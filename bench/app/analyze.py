@@ -76,6 +76,11 @@ def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> Cam
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None
         )
+        four_post = [  # the last is the one the knowledge's four-post result comes from
+            run
+            for run in campaign.runs
+            if run.kind == "sweep" and run.status == "complete" and run.conditions.get("bench") == "four_post"
+        ]
         return CampaignAnalysis(
             path=path,
             software_version=campaign.software_version,
@@ -88,6 +93,7 @@ def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> Cam
             skipped=tuple((run.run_id, run.status) for run in campaign.runs if run.status != "complete"),
             hammer_record=hammer.hammer_record() if hammer is not None else None,
             sequences=sequences_run(run.run_id for run in campaign.runs),
+            sweep_record=four_post[-1].sweep_record() if four_post and knowledge.four_post else None,
         )
 
 

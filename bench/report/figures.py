@@ -29,7 +29,13 @@ from matplotlib.ticker import FuncFormatter, Locator, MaxNLocator, NullFormatter
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import Frf, ValidBand
 from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
-from bench.analysis.runs import FourPostResult, ShakerAmplitudeResult, ShakerCampaignResult
+from bench.analysis.runs import (
+    ForceDifferenceTrace,
+    FourPostResult,
+    ShakerAmplitudeResult,
+    ShakerCampaignResult,
+    force_difference_trace,
+)
 from bench.analysis.shaker_models import shaker_response
 from bench.models.parameters import WfsSensor
 
@@ -294,17 +300,27 @@ def four_post_ratios_figure(result: FourPostResult) -> Figure:
     return fig
 
 
-def four_post_hub_figure(result: FourPostResult) -> Figure:
+def four_post_hub_figure(result: FourPostResult, trace: ForceDifferenceTrace | None = None) -> Figure:
     """F_contact - F_WFS against m_wheel a_hub, both over Z (reliable bins): the hub-acceleration
     compensation ``F_contact = F_WFS + m_wheel a_hub`` holds where they agree. The hub acceleration
-    is advanced by the accelerometer's lag, as the compensation advances it."""
+    is advanced by the accelerometer's lag, as the compensation advances it. With ``trace`` (the
+    sweep's record at hand) a third panel shows both in time, as the paper's Fig. 8 does."""
     frfs, m = result.frfs, result.wheel_mass
     keep = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     f = frfs.wfs_per_z.freq_hz[keep]
     difference = (frfs.contact_per_z.value - frfs.wfs_per_z.value)[keep]
     advance = np.exp(2j * np.pi * f * m.accelerometer_delay_s)
     inertial = m.mass_kg * frfs.accel_per_z.value[keep] * advance
-    fig, (mag, phase) = _new_figure(2)
+    if trace is None:
+        fig, (mag, phase) = _new_figure(2)
+    else:
+        fig = Figure(figsize=(9, 9), dpi=DPI)
+        FigureCanvasAgg(fig)
+        fig.subplots_adjust(left=0.09, right=0.98, top=0.96, bottom=0.06, hspace=0.35)
+        grid = fig.add_gridspec(3, 1)
+        mag = fig.add_subplot(grid[0])
+        phase = fig.add_subplot(grid[1], sharex=mag)
+        _time_panel(fig.add_subplot(grid[2]), trace)
     mag.plot(f, np.abs(difference), color="tab:red", lw=1.1, label="F_contact - F_WFS")
     mag.plot(
         f,
@@ -326,6 +342,18 @@ def four_post_hub_figure(result: FourPostResult) -> Figure:
     mag.legend(fontsize=8)
     _frequency_axes(mag, phase)
     return fig
+
+
+def _time_panel(ax: Axes, trace: ForceDifferenceTrace) -> None:
+    ax.plot(trace.t_s, trace.difference_n, color="tab:red", lw=1.1, label="F_contact - F_WFS")
+    ax.plot(trace.t_s, trace.inertial_n, color="tab:blue", lw=1.1, ls="--", label="m_wheel a_hub")
+    ax.set(
+        xlabel="time in the sweep (s)",
+        ylabel="force (N), less its mean",
+        title=f"in time, as the sweep passes {trace.freq_hz:.1f} Hz (Fig. 8 of the paper)",
+    )
+    ax.legend(fontsize=8, loc="upper right")
+    ax.grid(alpha=0.3)
 
 
 # ---------------------------------------------------------------------------------------- all
@@ -382,7 +410,12 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 "Four-post: force difference and hub acceleration (Fig. 8)",
                 "Where the two curves agree, the difference between WFS and contact force is the"
                 " inertia of the mass below the sensor.",
-                lambda: four_post_hub_figure(car),
+                lambda: four_post_hub_figure(
+                    car,
+                    None
+                    if analysis.sweep_record is None
+                    else force_difference_trace(analysis.sweep_record, car),
+                ),
             )
         )
     return out
