@@ -73,6 +73,13 @@ async def type_path(pilot, app: WfsBenchApp, path: Path) -> None:
     await pilot.press("enter")
 
 
+async def screenshot(pilot, app: WfsBenchApp, name: str, shots: Path, words: tuple[str, ...]) -> str:
+    """Save an SVG of the screen once it shows ``words`` (a screen just switched to, or a dialog
+    just opened, is drawn at the app's next refresh, later on a loaded machine); returns its path."""
+    await until(pilot, lambda: all(w in app.export_screenshot() for w in words), f"{name} drawn")
+    return app.save_screenshot(name, str(shots))
+
+
 async def prompt_open(pilot, app: WfsBenchApp, prompt_id: str) -> PromptDialog:
     await until(
         pilot,
@@ -126,17 +133,18 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         recorded = await open_app(pilot, app)
         await until(pilot, lambda: app.controller is not None, "the controller status read")
         await pilot.pause()
-        bench_svg = app.save_screenshot("bench.svg", str(shots))
+        bench_words = ("interlocks", "controller", "hydraulics")
+        bench_svg = await screenshot(pilot, app, "bench.svg", shots, bench_words)
         await pilot.press("question_mark")
         await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
-        help_svg = app.save_screenshot("help.svg", str(shots))
+        help_svg = await screenshot(pilot, app, "help.svg", shots, ("E-STOP", "Keys"))
         await pilot.press("escape")
         await check_smoke(pilot, app)
-        sequence_svg = app.save_screenshot("sequence.svg", str(shots))
+        sequence_svg = await screenshot(pilot, app, "sequence.svg", shots, ("smoke", "valid", "points"))
         await pilot.press("g")
 
         dialog = await prompt_open(pilot, app, "remove_wheel")
-        prompt_svg = app.save_screenshot("prompt.svg", str(shots))
+        prompt_svg = await screenshot(pilot, app, "prompt.svg", shots, ("Remove", "E-STOP"))
         await pilot.press("p")  # the pause is taken at the checkpoint after the answer
         await pilot.press("y")
         await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause")
@@ -145,7 +153,7 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await until(pilot, lambda: app.session.engine.state is not RunState.PAUSED, "the resume")
 
         dialog = await prompt_open(pilot, app, "fit_wheel")
-        run_svg = app.save_screenshot("run.svg", str(shots))
+        run_svg = await screenshot(pilot, app, "run.svg", shots, ("commanded", "displacement", "forces"))
         await pilot.press("y")
         dialog = await prompt_open(pilot, app, "pressure")
         await pilot.press(*"9.9", "enter")
@@ -161,7 +169,9 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await until(
             pilot, lambda: app.query_one("#results-runs").row_count == 3, "the runs of the file listed"
         )
-        results_svg = app.save_screenshot("results.svg", str(shots))
+        results_svg = await screenshot(
+            pilot, app, "results.svg", shots, ("F_wfs/F_contact", "phase", "complete")
+        )
         lines = text_of(app, "#results-lines")
         assert "m_comp" in lines and "Model 2" in lines
         assert app.query_one("#bode-mag").series, "the Bode plot of the grid is drawn"
