@@ -81,13 +81,15 @@ class EngineTiming:
     during an excitation, how long after START (wall clock: frames recorded before the START took
     effect may still be queued) the excitation must show on the sync bits, the margin (s of samples)
     beyond its planned duration after which a started excitation counts as hung, and how long a
-    triggered capture may take to arrive after the blow was asked for (beyond its own length)."""
+    triggered capture may take to arrive after the blow was asked for (beyond its own length), and
+    how long a reset may take (the controller tapers out of an e-stop before it takes commands)."""
 
     block_timeout_s: float = 0.05
     status_period_s: float = 0.2
     start_timeout_s: float = 5.0
     end_margin_s: float = 5.0
     capture_timeout_s: float = 10.0
+    reset_timeout_s: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -230,8 +232,18 @@ class Engine:
         self.machine.fire(trigger)
 
     def reset(self) -> None:
-        """Release an interlock or e-stop once the cause is cleared (the controller goes to low)."""
+        """Release an interlock or e-stop once the cause is cleared. Returns once the controller
+        has come to rest at hydraulics low: out of an e-stop it tapers first and refuses commands
+        meanwhile (its status is read every ``status_period_s``). A controller still moving after
+        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was."""
         self.actuator.reset_interlock()
+        deadline_s = self._clock() + self.timing.reset_timeout_s
+        while self.actuator.read_status().moving:
+            if self._clock() > deadline_s:
+                raise TimeoutError(
+                    f"the controller still moves {self.timing.reset_timeout_s:g} s after the reset"
+                )
+            time.sleep(self.timing.status_period_s)  # the controller tells no event: read it again
         self.machine.fire(Trigger.RESET)
         self._estop.clear()
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +38,6 @@ from bench.engine import events as ev
 from bench.engine.engine import Engine
 from bench.engine.states import RunState
 from bench.store import open_campaign
-from drivers.register_map import ControllerState
 from sequences import AnswerError, Prompt
 
 log = logging.getLogger(__name__)
@@ -49,11 +47,6 @@ log = logging.getLogger(__name__)
 LIVE_CHANNELS = ("fz_wfs_n", "f_plate_n", "z_base_m", "a_hub_m_s2")
 #: How long the controller status may go unread while no sequence runs (s).
 STATUS_PERIOD_S = 0.5
-#: After a reset the controller tapers out before it takes commands: how long that may take (s),
-#: and how often its state is read meanwhile.
-RESET_TIMEOUT_S = 10.0
-RESET_POLL_S = 0.05
-_NOT_READY = (ControllerState.TAPERING, ControllerState.ESTOP, ControllerState.INTERLOCK)
 
 
 @dataclass(frozen=True)
@@ -306,7 +299,7 @@ class BenchSession:
     def reset(self) -> None:
         """Release an interlock or e-stop; the commands after it wait until the controller has
         tapered out and takes commands again."""
-        self._commands.put(lambda: self._guarded("reset", self._reset))
+        self._commands.put(lambda: self._guarded("reset", self.engine.reset))
 
     # -- requests to the running sequence (any thread, at once) ---------------------------------
 
@@ -348,15 +341,6 @@ class BenchSession:
             self.running.clear()
         self._post_past_runs()
 
-    def _reset(self) -> None:
-        self.engine.reset()
-        deadline = time.monotonic() + RESET_TIMEOUT_S
-        while self.devices.actuator.read_status().status.state in _NOT_READY:
-            if time.monotonic() > deadline:
-                raise RuntimeError(
-                    f"the controller did not return to hydraulics low in {RESET_TIMEOUT_S:g} s"
-                )
-            time.sleep(RESET_POLL_S)
 
     def _guarded(self, what: str, action: Callable[..., None], *args: object) -> None:
         try:

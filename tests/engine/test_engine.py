@@ -17,7 +17,7 @@ from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
 from drivers.errors import LinkTimeoutError
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
-from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock
+from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock, FakeStatus
 
 RATE_HZ = 1000.0
 
@@ -320,3 +320,48 @@ def test_run_ids_read_back_as_sequence_step_and_kind():
     seq = Sequence(name="paper shaker", description="", steps=(Hydraulics("high"), grid()), source="<test>")
     match = RUN_ID.match(Engine.run_id(seq, 1))
     assert (match["sequence"], match["step"], match["kind"]) == ("paper_shaker", "001", "dwell_grid")
+
+
+class TapersOutOfEstop(FakeBench):
+    """A controller that, reset out of an e-stop, tapers for ``taper_reads`` status reads (it
+    refuses commands meanwhile) before it rests at hydraulics low; None: it never comes to rest."""
+
+    def __init__(self, taper_reads: int | None) -> None:
+        super().__init__()
+        self.taper_reads = taper_reads
+        self.reads_after_reset: int | None = None
+
+    def reset_interlock(self) -> None:
+        super().reset_interlock()
+        self.reads_after_reset = 0
+
+    def read_status(self) -> FakeStatus:
+        status = super().read_status()
+        if self.reads_after_reset is None:
+            return status
+        self.reads_after_reset += 1
+        tapering = self.taper_reads is None or self.reads_after_reset <= self.taper_reads
+        return FakeStatus(tapering, status.interlock_reason, status.sample_count)
+
+
+def _estopped(bench: FakeBench) -> Engine:
+    engine, _ = make_engine(bench)
+    engine.request_estop()
+    assert engine.state is RunState.ESTOPPED
+    return engine
+
+
+def test_a_reset_returns_once_the_controller_has_tapered_out_of_its_estop():
+    bench = TapersOutOfEstop(taper_reads=3)
+    engine = _estopped(bench)
+    engine.reset()
+    assert bench.reads_after_reset == 4  # three reads while it tapered, the fourth at rest
+    assert engine.state is RunState.HYDRAULICS_LOW
+
+
+def test_a_controller_that_does_not_come_to_rest_fails_the_reset_and_the_engine_stays_stopped():
+    bench = TapersOutOfEstop(taper_reads=None)
+    engine = _estopped(bench)
+    with pytest.raises(TimeoutError, match="still moves 10 s after the reset"):
+        engine.reset()
+    assert engine.state is RunState.ESTOPPED
