@@ -12,7 +12,10 @@ import numpy as np
 import pytest
 
 from bench.analysis import analyse_free_run, analyse_hammer
+from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.records import DwellRecord
+from bench.app.post_run import RunAnalyser, replay_campaign
+from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, simulate_dwells, simulate_hammer
 from bench.store import CampaignWriter, ChannelSpec, PointRow, open_campaign
@@ -89,3 +92,17 @@ def test_hammer_from_the_file_gives_the_records_eigenfrequency(stored):
     reference = analyse_hammer(_float32(hammer), sensor_mass_kg=SENSOR_MASS_KG)
     assert from_file.eigenfrequency_hz == pytest.approx(reference.eigenfrequency_hz, rel=1e-12)
     assert from_file.stiffness_n_per_m == pytest.approx(reference.stiffness_n_per_m, rel=1e-12)
+
+
+def test_a_replay_analyses_the_runs_its_knowledge_has_not_taken_in_yet(stored):
+    """A campaign's knowledge carried to its next sequence is not rebuilt from the file: the runs
+    it took in are not analysed again; a fresh knowledge takes in every complete run."""
+    path, _, _ = stored
+    fresh = CampaignKnowledge(sensor=WfsSensor(mass_kg=SENSOR_MASS_KG), wheel_mass_kg=29.0)
+    with open_campaign(path) as campaign:
+        first = replay_campaign(campaign, RunAnalyser(fresh))
+        again = replay_campaign(campaign, RunAnalyser(fresh))
+    assert [a.run_id for a in first] == ["001-free-run", "002-hammer"]
+    assert [a.name for a in first] == ["plate_mass", "hammer"]
+    assert fresh.analysed_runs == {"001-free-run", "002-hammer"} and fresh.hammer is not None
+    assert again == []

@@ -16,7 +16,8 @@ from bench.models.parameters import WfsSensor
 
 @dataclass
 class CampaignKnowledge:
-    """What the campaign has established so far, for the analyses that follow."""
+    """What the campaign has established so far, for the analyses that follow; ``analysed_runs``:
+    the ids of the runs it has taken in (a replay of the file skips them)."""
 
     sensor: WfsSensor
     wheel_mass_kg: float
@@ -25,6 +26,7 @@ class CampaignKnowledge:
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
     hammer: HammerResult | None = None
     four_post: FourPostResult | None = None
+    analysed_runs: set[str] = field(default_factory=set)
 
 
 @dataclass(frozen=True)

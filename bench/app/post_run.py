@@ -118,6 +118,7 @@ class RunAnalyser:
 
     def analyse(self, run: RunView, campaign: CampaignFile) -> RunAnalysis:
         """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis."""
+        self.knowledge.analysed_runs.add(run.run_id)
         try:
             name, lines, results = self._analyse(run, campaign)
         except (AnalysisInputError, ValueError) as exc:
@@ -242,12 +243,14 @@ def _grids_end(run: RunView, following: list[RunView]) -> bool:
 def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
     """Analyse the complete runs of ``campaign`` in the order they began, as they would have been
     analysed while the campaign ran: each dwell grid together with the grids of its tyre pressure
-    that follow it directly, after the last of them. Runs that did not complete are not analysed."""
+    that follow it directly, after the last of them. Runs that did not complete are not analysed,
+    nor those the analyser's knowledge has taken in already (carried from an earlier sequence)."""
     complete = [run for run in campaign.runs if run.status == "complete"]
     return [
         analyser.analyse(run, campaign)
         for i, run in enumerate(complete)
-        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
+        if (run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2]))
+        and run.run_id not in analyser.knowledge.analysed_runs
     ]
 
 
