@@ -75,6 +75,18 @@ class SampleBlock:
         return len(self.frames)
 
 
+def merge_blocks(blocks: list[SampleBlock]) -> SampleBlock:
+    """Consecutive blocks as one, the gaps and resyncs re-indexed to the merged frames."""
+    gaps: list[Gap] = []
+    resyncs: list[Resync] = []
+    first = 0
+    for block in blocks:
+        gaps.extend(replace(g, index=g.index + first) for g in block.gaps)
+        resyncs.extend(replace(r, index=r.index + first) for r in block.resyncs)
+        first += len(block)
+    return SampleBlock(np.concatenate([b.frames for b in blocks]), tuple(gaps), tuple(resyncs))
+
+
 class Subscription:
     """One consumer's queue of sample blocks (see :meth:`WfsReader.subscribe`)."""
 
@@ -103,6 +115,21 @@ class Subscription:
             self._cond.notify_all()
             return block
 
+    def get_all(self, timeout_s: float | None = None) -> SampleBlock | None:
+        """Every block queued since the last call, merged into one (gaps and resyncs re-indexed), or
+        None if none arrived within ``timeout_s``.
+
+        A consumer that has fallen behind catches up in one step: its cost per call is paid once for
+        all the queued frames instead of once per block the port happened to deliver."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._blocks or self._closed, timeout_s)
+            if not self._blocks:
+                return None
+            blocks = list(self._blocks)
+            self._blocks.clear()
+            self._cond.notify_all()
+        return blocks[0] if len(blocks) == 1 else merge_blocks(blocks)
+
     def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
         """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed.
 
@@ -110,19 +137,15 @@ class Subscription:
         :attr:`dropped_blocks` before and after.
         """
         deadline = time.monotonic() + timeout_s
-        parts: list[np.ndarray] = []
-        gaps: list[Gap] = []
-        resyncs: list[Resync] = []
+        blocks: list[SampleBlock] = []
         have = 0
         while have < n:
             block = self.get(max(deadline - time.monotonic(), 0.0))
             if block is None:
                 raise LinkTimeoutError(f"{have} of {n} frames within {timeout_s} s")
-            gaps.extend(replace(g, index=g.index + have) for g in block.gaps)
-            resyncs.extend(replace(r, index=r.index + have) for r in block.resyncs)
-            parts.append(block.frames)
+            blocks.append(block)
             have += len(block)
-        return SampleBlock(np.concatenate(parts), tuple(gaps), tuple(resyncs))
+        return merge_blocks(blocks)
 
     def close(self) -> None:
         """Stop receiving blocks; a reader waiting for room in this queue goes on."""
@@ -382,9 +405,11 @@ class WfsReader:
 
     def _read_available(self, port: SerialLike) -> bytes:
         """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one
-        byte, then take whatever else has arrived meanwhile, without waiting for more."""
+        byte, then take whatever else has arrived meanwhile, up to ``read_size`` bytes, without
+        waiting for more. A pty hands over at most 4 KiB per read: the reads go on while bytes are
+        waiting, so a fast stream is parsed in large pieces."""
         data = port.read(min(port.in_waiting, self.read_size) or 1)
-        if data and (waiting := min(port.in_waiting, self.read_size)):
+        while data and (waiting := min(port.in_waiting, self.read_size - len(data))) > 0:
             data += port.read(waiting)
         return data
 

@@ -12,7 +12,9 @@ import pytest
 
 from drivers.errors import ProtocolMismatchError
 from drivers.wfs_commands import Reply
-from drivers.wfs_reader import WfsReader
+from drivers.wfs_frame import new_frames
+from drivers.wfs_reader import SampleBlock, Subscription, WfsReader
+from drivers.wfs_stream import Gap, Resync
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
@@ -139,3 +141,39 @@ def test_identify_refuses_a_device_of_another_protocol_version(pty_rig):
     device.commands["IDENT"] = lambda args: Reply(True, "IDENT", ("WFSBENCH", "SIM-WFS6", "0001", "1.0"))
     with pytest.raises(ProtocolMismatchError, match=r"protocol 1\.0, this reader 2"):
         reader.identify()
+
+
+def test_get_all_hands_over_every_queued_block_as_one_with_gaps_and_resyncs_reindexed():
+    sub = Subscription(lossless=True, max_blocks=8, on_close=lambda s: None)
+    never = threading.Event()
+    frames = new_frames(30)
+    frames["seq"] = np.arange(30)
+    sub._offer(SampleBlock(frames[:10]), never)
+    sub._offer(SampleBlock(frames[10:25], gaps=(Gap(index=4, first_seq=100, missing=3),)), never)
+    restart = Resync(index=2, last_boot=1, boot=2, last_seq=7, seq=0)
+    sub._offer(SampleBlock(frames[25:], resyncs=(restart,)), never)
+    merged = sub.get_all(0)
+    assert np.array_equal(merged.frames["seq"], np.arange(30))
+    assert merged.gaps == (Gap(index=14, first_seq=100, missing=3),)
+    assert [r.index for r in merged.resyncs] == [27]
+    assert sub.get_all(0) is None
+    single = SampleBlock(frames[:5])
+    sub._offer(single, never)
+    assert sub.get_all(0) is single  # nothing to merge: the block itself
+
+
+def test_a_consumer_taking_all_it_is_behind_gets_every_frame_over_a_pty():
+    """get_all over a real pty with the bench unpaced: contiguous frames, none lost or doubled."""
+    with wfs_rig(PtyLink(), lambda link: WfsReader.serial(link.path)) as (device, reader):
+        engine = reader.subscribe(lossless=True, max_blocks=64)
+        reader.start_stream()
+        blocks = []
+        while sum(len(b) for b in blocks) < 20_000:
+            block = engine.get_all(5)
+            assert block is not None
+            blocks.append(block)
+        engine.close()
+        reader.stop_stream()
+    seq = np.concatenate([b.frames["seq"] for b in blocks]).astype(np.int64)
+    assert np.all(np.diff(seq) == 1)
+    assert not any(b.gaps for b in blocks) and device.frames_dropped == 0

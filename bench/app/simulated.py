@@ -25,7 +25,7 @@ from simulators.world import SimulatedOperator, SimulatedWorld
 
 #: Output samples per block the unpaced bench advances: large blocks keep the simulation's
 #: overhead small when it runs far faster than real time; paced, blocks are 10 ms.
-UNPACED_BLOCK_S = 0.05
+UNPACED_BLOCK_S = 0.2
 
 
 @dataclass(frozen=True)

@@ -95,8 +95,9 @@ class SampleBlockLike(Protocol):
 
 
 class SampleSubscription(Protocol):
-    def get(self, timeout_s: float) -> SampleBlockLike | None:
-        """The next block of frames, or None when none arrived within ``timeout_s`` seconds."""
+    def get_all(self, timeout_s: float) -> SampleBlockLike | None:
+        """Every frame that arrived since the last call, as one block, or None when none arrived
+        within ``timeout_s`` seconds."""
         ...
 
     def close(self) -> None:

@@ -758,11 +758,11 @@ class _RunRecording:
 
         threading.Thread(target=stop, name="wfs-stop", daemon=True).start()
         while not stopped.is_set():
-            if (block := self._subscription.get(timeout_s)) is not None:
+            if (block := self._subscription.get_all(timeout_s)) is not None:
                 self._record(block)
         if failure:
             raise failure[0]
-        while (block := self._subscription.get(timeout_s)) is not None:
+        while (block := self._subscription.get_all(timeout_s)) is not None:
             self._record(block)
 
     def _record(self, block) -> Mapping[str, np.ndarray]:
@@ -805,7 +805,10 @@ class _RunRecording:
         e.actuator.configure(setpoint)
         e.actuator.start()
         tracker = SpanTracker(e.sync_bits.active, e.sync_bits.hold)
+        # the start watchdog waits for start_timeout_s of wall time and of samples, whichever is
+        # later: a consumer behind the stream sees the start only once it has read up to it
         start_deadline_s = e._clock() + e.timing.start_timeout_s
+        start_deadline_sample = self.samples + round(e.timing.start_timeout_s * e.sample_rate_hz)
         overrun = round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
         stopping: str | None = None
         while not tracker.ended:
@@ -822,9 +825,9 @@ class _RunRecording:
             if stopping is None and (e._abort.is_set() or e._pause.is_set()):
                 stopping = "abort" if e._abort.is_set() else "pause"
                 e._defensive_stop()
-            if not tracker.started and e._clock() > start_deadline_s:
+            if not tracker.started and e._clock() > start_deadline_s and self.samples > start_deadline_sample:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
-            if tracker.started and self.samples > tracker.start + overrun:
+            if tracker.started and not tracker.ended and self.samples > tracker.start + overrun:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
         # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
         # excitation early: its status, read now, tells that from the planned end
@@ -838,7 +841,7 @@ class _RunRecording:
     def _next_columns(self) -> Mapping[str, np.ndarray]:
         """The next block's columns, recorded; empty columns when none came in time."""
         e = self.engine
-        block = self._subscription.get(e.timing.block_timeout_s)
+        block = self._subscription.get_all(e.timing.block_timeout_s)
         if block is None:
             return {}
         self._last_frame_s = e._clock()

@@ -144,7 +144,7 @@ class FakeBench:
     def link_counters(self) -> dict[str, int]:
         return {"frames_ok": self._seq}
 
-    def get(self, timeout_s: float) -> FakeBlock | None:
+    def get_all(self, timeout_s: float) -> FakeBlock | None:
         if self.on_block is not None:
             self.on_block(self)
         if not self.streaming or self.silent:

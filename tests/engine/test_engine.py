@@ -298,8 +298,8 @@ class ReplyBehindFrames(FakeBench):
                 raise LinkTimeoutError("no reply to 'STOP': the reader is held by a full subscription")
         super().stop_stream()
 
-    def get(self, timeout_s: float) -> FakeBlock | None:
-        block = super().get(timeout_s)
+    def get_all(self, timeout_s: float) -> FakeBlock | None:
+        block = super().get_all(timeout_s)
         with self.turn:
             if self.in_flight and block is not None:
                 self.in_flight -= 1
@@ -365,3 +365,76 @@ def test_a_controller_that_does_not_come_to_rest_fails_the_reset_and_the_engine_
     with pytest.raises(TimeoutError, match="still moves 10 s after the reset"):
         engine.reset()
     assert engine.state is RunState.ESTOPPED
+
+
+class DeafBench(FakeBench):
+    """A controller that acknowledges START but never runs the excitation."""
+
+    def start(self) -> None:
+        self._check_link()
+        self.log.append("start ignored")
+
+
+class WallClock:
+    """A test's wall clock: ``step_s`` per reading."""
+
+    def __init__(self, step_s: float) -> None:
+        self.step_s = step_s
+        self.now_s = 0.0
+
+    def __call__(self) -> float:
+        self.now_s += self.step_s
+        return self.now_s
+
+
+@pytest.mark.parametrize(
+    ("block", "clock_step_s", "gate"),
+    [(10_000, 0.1, "wall"), (50, 1.0, "samples")],
+    ids=["samples-ahead-of-wall-time", "wall-time-ahead-of-samples"],
+)
+def test_the_start_watchdog_waits_for_five_seconds_of_wall_time_and_of_samples(block, clock_step_s, gate):
+    """An engine far behind the stream (big blocks, little wall time) and a slow stream (small
+    blocks, much wall time) both trip only once 5 s have passed on both clocks."""
+    bench = DeafBench(block=block)
+    clock = WallClock(clock_step_s)
+    engine, seen = make_engine(bench, clock=clock)
+    outcome = engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(5.0,))))
+    assert outcome.status == "interlocked"
+    assert outcome.reason == "excitation watchdog: the controller did not start the excitation"
+    assert engine.state is RunState.INTERLOCKED
+    recorded_s = sum(len(b) for b in of(seen, ev.SamplesRecorded)) / RATE_HZ
+    assert recorded_s > 5.0 and clock.now_s > 5.0
+    if gate == "wall":  # the samples had passed 5 s long before the wall clock did
+        assert recorded_s > 50.0 and clock.now_s < 10.0
+    else:  # the wall clock had passed 5 s long before the samples did
+        assert clock.now_s > 50.0 and recorded_s < 5.0 + 2 * block / RATE_HZ
+
+
+def test_a_whole_excitation_and_a_long_tail_in_one_block_is_a_point_not_an_overrun():
+    """An engine that catches up takes the whole excitation and much of what followed in one
+    block: the excitation ended inside it, so the end watchdog does not trip."""
+    bench = FakeBench(block=20_000)  # 20 s of samples; the excitation lasts about 1 s
+    engine, seen = make_engine(bench)
+    assert engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(5.0,)))).status == "complete"
+    (point,) = of(seen, ev.PointDone)
+    assert point.status == "done"
+    assert point.end_sample - point.start_sample < 2 * RATE_HZ
+
+
+class RunawayBench(FakeBench):
+    """A controller whose active output never falls after the start."""
+
+    def get_all(self, timeout_s: float) -> FakeBlock | None:
+        block = super().get_all(timeout_s)
+        if block is not None and self.log[-1] == "start":
+            block.frames["status"] |= ACTIVE_BIT
+        return block
+
+
+def test_an_excitation_that_runs_past_its_planned_end_trips_the_end_watchdog():
+    bench = RunawayBench()
+    engine, _ = make_engine(bench)
+    outcome = engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(5.0,))))
+    assert outcome.status == "interlocked"
+    assert outcome.reason == "excitation watchdog: the excitation did not end when planned"
+    assert "stop" in bench.log
