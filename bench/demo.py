@@ -72,7 +72,7 @@ def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
             raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")
     wall_s = time.perf_counter() - start
     lines = _report(knowledge, out, wall_s)
-    written = write_report(out, out_dir / "report")
+    written = write_report(out, out_dir / "report", knowledge=knowledge)
     return [*lines, "", f"report ({len(written.figures)} figures): {written.page}"]
 
 

@@ -14,6 +14,7 @@ import pytest
 from bench.analysis import analyse_free_run, analyse_hammer
 from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.records import DwellRecord
+from bench.app.analyze import analyze_campaign
 from bench.app.post_run import RunAnalyser, replay_campaign
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
@@ -96,13 +97,36 @@ def test_hammer_from_the_file_gives_the_records_eigenfrequency(stored):
 
 def test_a_replay_analyses_the_runs_its_knowledge_has_not_taken_in_yet(stored):
     """A campaign's knowledge carried to its next sequence is not rebuilt from the file: the runs
-    it took in are not analysed again; a fresh knowledge takes in every complete run."""
+    it took in give the analyses it holds, not analysed again; a fresh knowledge takes in every
+    complete run."""
     path, _, _ = stored
     fresh = CampaignKnowledge(sensor=WfsSensor(mass_kg=SENSOR_MASS_KG), wheel_mass_kg=29.0)
+    analyser = RunAnalyser(fresh)
+    calls: list[str] = []
+    analyse = analyser.analyse
+    analyser.analyse = lambda run, campaign: calls.append(run.run_id) or analyse(run, campaign)
     with open_campaign(path) as campaign:
-        first = replay_campaign(campaign, RunAnalyser(fresh))
-        again = replay_campaign(campaign, RunAnalyser(fresh))
+        first = replay_campaign(campaign, analyser)
+        again = replay_campaign(campaign, analyser)
     assert [a.run_id for a in first] == ["001-free-run", "002-hammer"]
     assert [a.name for a in first] == ["plate_mass", "hammer"]
-    assert fresh.analysed_runs == {"001-free-run", "002-hammer"} and fresh.hammer is not None
-    assert again == []
+    assert list(fresh.analysed_runs) == ["001-free-run", "002-hammer"] and fresh.hammer is not None
+    assert calls == ["001-free-run", "002-hammer"]  # the second replay analysed nothing again
+    assert again == first and all(a is b for a, b in zip(again, first, strict=True))
+
+
+def test_an_analysis_with_the_campaigns_knowledge_equals_a_fresh_one_without_analysing_again(stored):
+    """The demo's report takes the knowledge its campaign's post-run analysis built: the file's
+    analysis is then the fresh one, run for run, and no run is analysed twice."""
+    path, _, _ = stored
+    fresh = analyze_campaign(path)
+    carried = CampaignKnowledge(sensor=fresh.knowledge.sensor, wheel_mass_kg=fresh.knowledge.wheel_mass_kg)
+    with open_campaign(path) as campaign:
+        replay_campaign(campaign, RunAnalyser(carried))  # as the post-run analysis did while it ran
+    taken_in = dict(carried.analysed_runs)
+    reused = analyze_campaign(path, knowledge=carried)
+    assert [(r.run_id, r.lines, r.results.keys()) for r in reused.runs] == [
+        (r.run_id, r.lines, r.results.keys()) for r in fresh.runs
+    ]
+    assert all(r is taken_in[r.run_id] for r in reused.runs)
+    assert reused.knowledge is carried and reused.hammer_record is not None

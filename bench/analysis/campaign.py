@@ -17,7 +17,8 @@ from bench.models.parameters import WfsSensor
 @dataclass
 class CampaignKnowledge:
     """What the campaign has established so far, for the analyses that follow; ``analysed_runs``:
-    the ids of the runs it has taken in (a replay of the file skips them)."""
+    the analyses of the runs it has taken in, by run id (a replay of the file takes these instead
+    of analysing the runs again)."""
 
     sensor: WfsSensor
     wheel_mass_kg: float
@@ -26,7 +27,7 @@ class CampaignKnowledge:
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
     hammer: HammerResult | None = None
     four_post: FourPostResult | None = None
-    analysed_runs: set[str] = field(default_factory=set)
+    analysed_runs: dict[str, RunAnalysis] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -56,11 +56,16 @@ def sequences_run(run_ids: Iterable[str]) -> tuple[tuple[str, int], ...]:
     return tuple(counts.items())
 
 
-def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> CampaignAnalysis:
+def analyze_campaign(
+    path: str | Path, config: BenchConfig | None = None, knowledge: CampaignKnowledge | None = None
+) -> CampaignAnalysis:
     """Analyse every complete run of the campaign file at ``path`` in order; ``config`` replaces
-    the configuration stored in the file (its masses). A file that does not follow the schema
-    raises :class:`~bench.store.StoreError` (which names the file and the place); an analysis that
-    fails for one run is a flagged :class:`RunAnalysis`, not an error."""
+    the configuration stored in the file (its masses). ``knowledge``: what the analysis of this
+    file's runs has established already (the post-run analysis of the campaign that wrote it, whose
+    analyses read the runs back from this file): the runs it took in are not analysed again. A file
+    that does not follow the schema raises :class:`~bench.store.StoreError` (which names the file
+    and the place); an analysis that fails for one run is a flagged :class:`RunAnalysis`, not an
+    error."""
     path = Path(path)
     with open_campaign(path) as campaign:
         if config is None:
@@ -68,10 +73,9 @@ def analyze_campaign(path: str | Path, config: BenchConfig | None = None) -> Cam
         else:
             source = config.source
         masses = config.masses
-        knowledge = CampaignKnowledge(
-            sensor=WfsSensor(mass_kg=masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
-            wheel_mass_kg=masses.wheel_below_sensor_kg,
-        )
+        if knowledge is None:
+            sensor = WfsSensor(mass_kg=masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ)
+            knowledge = CampaignKnowledge(sensor=sensor, wheel_mass_kg=masses.wheel_below_sensor_kg)
         runs = tuple(replay_campaign(campaign, RunAnalyser(knowledge)))
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None

@@ -67,8 +67,9 @@ class PostRunAnalysis:
         self._pending_grid: tuple[str, object] | None = None  # (run id, tyre pressure) not analysed yet
         self._started: tuple[str, str, object] = ("", "", None)  # the run being recorded: id, kind, pressure
         with open_campaign(campaign_path) as campaign:
+            known = set(knowledge.analysed_runs)
             for outcome in replay_campaign(campaign, self.analyser):
-                if outcome.error:
+                if outcome.error and outcome.run_id not in known:
                     log.warning("earlier run %s not analysed: %s", outcome.run_id, outcome.error)
 
     def __call__(self, event: ev.Event) -> None:
@@ -117,12 +118,13 @@ class RunAnalyser:
         self.knowledge = knowledge
 
     def analyse(self, run: RunView, campaign: CampaignFile) -> RunAnalysis:
-        """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis."""
-        self.knowledge.analysed_runs.add(run.run_id)
+        """Analyse ``run`` of ``campaign``; a failure is returned as a flagged analysis. The
+        knowledge keeps the analysis (:attr:`CampaignKnowledge.analysed_runs`)."""
         try:
             name, lines, results = self._analyse(run, campaign)
+            outcome = RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
         except (AnalysisInputError, ValueError) as exc:
-            return RunAnalysis(
+            outcome = RunAnalysis(
                 run.run_id,
                 run.kind,
                 "analysis",
@@ -130,7 +132,8 @@ class RunAnalyser:
                 {"error": str(exc)},
                 error=str(exc),
             )
-        return RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
+        self.knowledge.analysed_runs[run.run_id] = outcome
+        return outcome
 
     def _analyse(self, run: RunView, campaign: CampaignFile) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
@@ -241,16 +244,17 @@ def _grids_end(run: RunView, following: list[RunView]) -> bool:
 
 
 def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
-    """Analyse the complete runs of ``campaign`` in the order they began, as they would have been
-    analysed while the campaign ran: each dwell grid together with the grids of its tyre pressure
-    that follow it directly, after the last of them. Runs that did not complete are not analysed,
-    nor those the analyser's knowledge has taken in already (carried from an earlier sequence)."""
+    """The analyses of the complete runs of ``campaign`` in the order they began, as they would
+    have been analysed while the campaign ran: each dwell grid together with the grids of its tyre
+    pressure that follow it directly, after the last of them. Runs that did not complete are not
+    analysed; a run the analyser's knowledge has taken in already (analysed while the campaign ran,
+    or carried from an earlier sequence) gives the analysis it holds, without analysing it again."""
     complete = [run for run in campaign.runs if run.status == "complete"]
+    known = analyser.knowledge.analysed_runs
     return [
-        analyser.analyse(run, campaign)
+        known[run.run_id] if run.run_id in known else analyser.analyse(run, campaign)
         for i, run in enumerate(complete)
-        if (run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2]))
-        and run.run_id not in analyser.knowledge.analysed_runs
+        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
     ]
 
 

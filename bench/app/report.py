@@ -11,6 +11,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench.analysis.campaign import CampaignKnowledge
 from bench.app.analyze import CampaignAnalysis, analyze_campaign
 from bench.report.figures import FigureFile, write_figures
 from bench.report.html import report_html
@@ -49,14 +50,17 @@ def check_report_dir(out_dir: Path) -> None:
         raise ReportDirError(f"{out_dir}: cannot be created: {ancestor} is not writable")
 
 
-def write_report(campaign_path: str | Path, out_dir: str | Path) -> WrittenReport:
+def write_report(
+    campaign_path: str | Path, out_dir: str | Path, knowledge: CampaignKnowledge | None = None
+) -> WrittenReport:
     """Analyse the campaign file and write its figures and ``report.html`` into ``out_dir``
     (created if needed; earlier figures of the same names are replaced). ``out_dir`` is checked
     first (:func:`check_report_dir`), so an unusable one costs no analysis; a write that fails
-    anyway raises :class:`ReportDirError` too."""
+    anyway raises :class:`ReportDirError` too. ``knowledge``: the post-run analysis of the campaign
+    that wrote the file, whose runs are then not analysed again (:func:`analyze_campaign`)."""
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
-    analysis = analyze_campaign(campaign_path)
+    analysis = analyze_campaign(campaign_path, knowledge=knowledge)
     try:
         figures = tuple(write_figures(analysis, out_dir))
         page = out_dir / REPORT_PAGE
