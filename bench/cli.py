@@ -150,7 +150,7 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
             print(f"cannot open {args.port}: {reader.last_error}", file=sys.stderr)
             return 1
         print("identity:", ",".join(reader.identify()))
-        view = reader.subscribe(lossless=False, max_blocks=64)  # a live view never slows the reader
+        view = reader.subscribe(lossless=False, max_frames=10_000)  # a live view never slows the reader
         reader.start_stream()
         end = time.monotonic() + args.duration if args.duration else None
         try:

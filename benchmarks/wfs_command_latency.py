@@ -58,7 +58,7 @@ def main() -> None:
             baseline = round_trips_ms(raw_ident, args.commands)
         with WfsReader.serial(link.path) as reader:
             reader.wait_connected(5)
-            view = reader.subscribe(lossless=False, max_blocks=4)
+            view = reader.subscribe(lossless=False, max_frames=256)
             if args.streaming:
                 reader.start_stream()
             measured = round_trips_ms(reader.identify, args.commands)

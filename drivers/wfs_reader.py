@@ -3,11 +3,11 @@
 The thread reads whatever the port has as soon as it has anything (``in_waiting``, at least one
 byte), feeds the stream parser, and hands each :class:`SampleBlock` to every :class:`Subscription`:
 
-- a *lossless* subscription (the run engine, the recorder) has a bounded queue; when it is full
-  the reader waits, so a device that is paced by its host slows down (a device whose buffers
-  overflow meanwhile drops frames and the sequence counter reports the loss);
+- a *lossless* subscription (the run engine, the recorder) has a queue bounded in frames; when it
+  is full the reader waits, so a device that is paced by its host slows down (a device whose
+  buffers overflow meanwhile drops frames and the sequence counter reports the loss);
 - a *lossy* subscription (a live view) never slows the reader: when its queue is full its oldest
-  block is dropped and counted (:attr:`Subscription.dropped_blocks`).
+  blocks are dropped and counted (:attr:`Subscription.dropped_blocks`).
 
 Blocks that arrive while nobody subscribes are not kept. Replies to text commands are routed to
 :meth:`WfsReader.command`, which serialises the commands of several threads. A port error closes
@@ -90,13 +90,14 @@ def merge_blocks(blocks: list[SampleBlock]) -> SampleBlock:
 class Subscription:
     """One consumer's queue of sample blocks (see :meth:`WfsReader.subscribe`)."""
 
-    def __init__(self, *, lossless: bool, max_blocks: int, on_close: Callable[[Subscription], None]) -> None:
-        if max_blocks < 1:
-            raise ValueError(f"max_blocks must be >= 1, got {max_blocks}")
+    def __init__(self, *, lossless: bool, max_frames: int, on_close: Callable[[Subscription], None]) -> None:
+        if max_frames < 1:
+            raise ValueError(f"max_frames must be >= 1, got {max_frames}")
         self.lossless = lossless
-        self.max_blocks = max_blocks
+        self.max_frames = max_frames
         self.dropped_blocks = 0  # lossy only: oldest blocks dropped because the queue was full
         self._blocks: collections.deque[SampleBlock] = collections.deque()
+        self._frames = 0  # frames queued
         self._cond = threading.Condition()
         self._closed = False
         self._on_close = on_close
@@ -112,6 +113,7 @@ class Subscription:
             if not self._blocks:
                 return None
             block = self._blocks.popleft()
+            self._frames -= len(block)
             self._cond.notify_all()
             return block
 
@@ -127,6 +129,7 @@ class Subscription:
                 return None
             blocks = list(self._blocks)
             self._blocks.clear()
+            self._frames = 0
             self._cond.notify_all()
         return blocks[0] if len(blocks) == 1 else merge_blocks(blocks)
 
@@ -152,6 +155,7 @@ class Subscription:
         with self._cond:
             self._closed = True
             self._blocks.clear()
+            self._frames = 0
             self._cond.notify_all()
         self._on_close(self)
 
@@ -162,16 +166,20 @@ class Subscription:
         self.close()
 
     def _offer(self, block: SampleBlock, stopping: threading.Event) -> None:
-        """Reader side: queue ``block``; a lossless queue waits for room, a lossy one drops its oldest."""
+        """Reader side: queue ``block``. A lossless queue holding ``max_frames`` frames or more waits
+        until its consumer takes them; a lossy one drops its oldest blocks until the new one fits
+        (the newest block is always kept, however long)."""
         with self._cond:
             if self.lossless:
-                while len(self._blocks) >= self.max_blocks and not self._closed and not stopping.is_set():
+                while self._frames >= self.max_frames and not self._closed and not stopping.is_set():
                     self._cond.wait(0.1)
-            elif len(self._blocks) >= self.max_blocks:
-                self._blocks.popleft()
-                self.dropped_blocks += 1
+            else:
+                while self._blocks and self._frames + len(block) > self.max_frames:
+                    self._frames -= len(self._blocks.popleft())
+                    self.dropped_blocks += 1
             if not self._closed:
                 self._blocks.append(block)
+                self._frames += len(block)
                 self._cond.notify_all()
 
 
@@ -257,13 +265,13 @@ class WfsReader:
 
     # -- data ---------------------------------------------------------------------------------
 
-    def subscribe(self, *, lossless: bool, max_blocks: int = 256) -> Subscription:
+    def subscribe(self, *, lossless: bool, max_frames: int = 4096) -> Subscription:
         """A new consumer of the sample stream, from the next block on (see the module docstring).
 
         Close it when done: a lossless subscription nobody reads stops the reader, and with it the
         replies to commands, so its consumer reads in a thread of its own.
         """
-        sub = Subscription(lossless=lossless, max_blocks=max_blocks, on_close=self._unsubscribe)
+        sub = Subscription(lossless=lossless, max_frames=max_frames, on_close=self._unsubscribe)
         with self._subscriptions_lock:
             self._subscriptions.append(sub)
         return sub

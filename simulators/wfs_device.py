@@ -68,7 +68,7 @@ _MAX_LINE = 64
 #: the lowest output rate RATE accepts (Hz)
 MIN_RATE_HZ = 100
 #: the longest a block of frames waits for the host to drain the link before it is dropped (s)
-BACKPRESSURE_S = 0.1
+BACKPRESSURE_S = 1.0
 #: how long a block is offered while the host is not draining (s)
 _OVERFLOW_PROBE_S = 0.005
 #: the longest a command reply waits for the host to drain the link (s)

@@ -404,7 +404,7 @@ def test_tare_zeroes_the_loads_at_the_present_load():
             assert bench.controller.write_setpoints({"waveform": WaveformCode.STATIC, "mean_mm": 5.0}) is None
             for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
                 assert bench.controller.command(command) is None
-        sub = reader.subscribe(lossless=True, max_blocks=100_000)  # never full within this test
+        sub = reader.subscribe(lossless=True, max_frames=10**9)  # never full within this test
         reader.start_stream()
         before = sub.read_frames(3000, timeout_s=20).frames[-500:]  # the 0.5 s mean ramp is over
         reader.tare()
@@ -430,7 +430,7 @@ def test_a_device_restart_is_a_resync_for_the_reader():
     reader = WfsReader(link.open_host)
     reader.start()
     try:
-        sub = reader.subscribe(lossless=True, max_blocks=100_000)
+        sub = reader.subscribe(lossless=True, max_frames=10**9)
         reader.start_stream()
         first = sub.read_frames(500, timeout_s=20)
         device.restart()  # a power cycle: streaming stops, the counters start over

@@ -68,7 +68,7 @@ def test_commands_of_two_threads_never_take_each_others_replies(pty_rig):
     """Two threads hammer commands on one reader over a real pty while frames stream: every command
     gets its own reply on the first attempt within its timeout."""
     _, reader = pty_rig
-    sub = reader.subscribe(lossless=False, max_blocks=4)
+    sub = reader.subscribe(lossless=False, max_frames=256)
     reader.start_stream()
     errors: list[BaseException] = []
     answers: dict[str, list[tuple[str, ...]]] = {"IDENT": [], "RATE?": []}
@@ -94,33 +94,51 @@ def test_commands_of_two_threads_never_take_each_others_replies(pty_rig):
 
 def test_a_lossy_view_never_slows_a_lossless_consumer():
     """The lossless consumer gets every frame, paced by its own reading; a live view that is never
-    read keeps only its newest blocks and counts what it dropped."""
+    read keeps only its newest frames and counts the blocks it dropped."""
     with wfs_rig(MemoryLink(), lambda link: WfsReader(link.open_host)) as (device, reader):
-        engine = reader.subscribe(lossless=True, max_blocks=8)
-        view = reader.subscribe(lossless=False, max_blocks=3)
+        engine = reader.subscribe(lossless=True, max_frames=512)
+        view = reader.subscribe(lossless=False, max_frames=300)
         reader.start_stream()
         block = engine.read_frames(20_000, timeout_s=30)
         engine.close()  # closed first: a full lossless queue nobody reads would hold the replies up
         newest_seq = int(block.frames["seq"][-1])
         reader.stop_stream()
-        kept = [view.get(0) for _ in range(4)]
+        kept = []
+        while (piece := view.get(0)) is not None:
+            kept.append(piece)
         view.close()
         assert view.get(0) is None and view.closed
     seq = block.frames["seq"].astype(np.int64)
     assert np.all(np.diff(seq) == 1) and not block.gaps
     assert reader.counters.frames_missing == 0 and device.frames_dropped == 0
-    # the view holds at most 3 blocks, the newest ones, and counted every other block as dropped
-    assert kept[3] is None and all(b is not None for b in kept[:3])
-    view_seq = np.concatenate([b.frames["seq"] for b in kept[:3]]).astype(np.int64)
+    # the view holds at most 300 frames (or its one newest block), the newest ones, and counted
+    # every other block as dropped
+    view_seq = np.concatenate([b.frames["seq"] for b in kept]).astype(np.int64)
+    assert len(view_seq) <= 300 or len(kept) == 1
     assert np.all(np.diff(view_seq) == 1)
     assert view_seq[-1] >= newest_seq
     assert view.dropped_blocks > 10
 
 
+def test_a_lossy_view_drops_its_oldest_blocks_to_keep_within_its_frames():
+    sub = Subscription(lossless=False, max_frames=100, on_close=lambda s: None)
+    never = threading.Event()
+    frames = new_frames(250)
+    frames["seq"] = np.arange(250)
+    for start in (0, 40, 80):
+        sub._offer(SampleBlock(frames[start : start + 40]), never)
+    # 40 + 40 + 40 frames exceed 100: the oldest block went
+    assert np.array_equal(sub.get_all(0).frames["seq"], np.arange(40, 120))
+    assert sub.dropped_blocks == 1
+    # a block longer than the bound is kept alone, whole
+    sub._offer(SampleBlock(frames[120:250]), never)
+    assert np.array_equal(sub.get_all(0).frames["seq"], np.arange(120, 250))
+
+
 def test_a_lossless_subscription_paces_an_unpaced_bench():
     """A consumer that drains slowly slows the bench down instead of losing frames."""
     with wfs_rig(MemoryLink(capacity=4096), lambda link: WfsReader(link.open_host)) as (device, reader):
-        engine = reader.subscribe(lossless=True, max_blocks=2)
+        engine = reader.subscribe(lossless=True, max_frames=128)
         reader.start_stream()
         frames = []
         while sum(len(f) for f in frames) < 3000:
@@ -144,7 +162,7 @@ def test_identify_refuses_a_device_of_another_protocol_version(pty_rig):
 
 
 def test_get_all_hands_over_every_queued_block_as_one_with_gaps_and_resyncs_reindexed():
-    sub = Subscription(lossless=True, max_blocks=8, on_close=lambda s: None)
+    sub = Subscription(lossless=True, max_frames=1000, on_close=lambda s: None)
     never = threading.Event()
     frames = new_frames(30)
     frames["seq"] = np.arange(30)
@@ -165,7 +183,7 @@ def test_get_all_hands_over_every_queued_block_as_one_with_gaps_and_resyncs_rein
 def test_a_consumer_taking_all_it_is_behind_gets_every_frame_over_a_pty():
     """get_all over a real pty with the bench unpaced: contiguous frames, none lost or doubled."""
     with wfs_rig(PtyLink(), lambda link: WfsReader.serial(link.path)) as (device, reader):
-        engine = reader.subscribe(lossless=True, max_blocks=64)
+        engine = reader.subscribe(lossless=True, max_frames=4096)
         reader.start_stream()
         blocks = []
         while sum(len(b) for b in blocks) < 20_000:

@@ -111,7 +111,7 @@ async def test_a_modbus_dwell_shows_its_hold_in_the_frames_and_the_wheel_loads_m
     client = ActuatorClient.tcp(host, port, limits=SoftLimits())
     reader = WfsReader(link.open_host)
     reader.start()
-    sub = reader.subscribe(lossless=True, max_blocks=100_000)  # the reader never waits for the test
+    sub = reader.subscribe(lossless=True, max_frames=10**9)  # the reader never waits for the test
     rate_hz = bench.output_rate_hz
     try:
         await asyncio.to_thread(reader.start_stream)

@@ -19,7 +19,7 @@ from bench.app.answers import FileAnswers
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.progress import DoneBefore
 from bench.app.recorder import Recorder
-from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
+from bench.app.simulated import UNPACED_BACKLOG_S, SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
@@ -27,7 +27,7 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import AuxInput, FrameChannels
 from bench.engine.contracts import Operator
-from bench.engine.engine import Engine, SyncBits, is_measurement
+from bench.engine.engine import Engine, EngineTiming, SyncBits, is_measurement
 from bench.engine.interlocks import standard_interlocks
 from bench.models.parameters import WfsSensor
 from bench.store import CampaignWriter, open_campaign
@@ -173,7 +173,9 @@ def _client(config: BenchConfig, host: str, port: int) -> ActuatorClient:
 
 
 def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
-    """The engine on ``devices`` with the configured channels, interlocks and tare policy."""
+    """The engine on ``devices`` with the configured channels, interlocks and tare policy (and a
+    short backlog on the unpaced simulated bench, which waits for the engine)."""
+    unpaced = devices.lab is not None and not devices.lab.settings.paced
     channels = FrameChannels(
         aux=[AuxInput(a.name, a.unit, a.scale) for a in config.aux],
         loads=LoadProcessor(matrix=config.calibration.matrix_array()),
@@ -191,6 +193,7 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
         amplitude_control=AmplitudeControl(max_command_mm=config.soft_limits.max_amplitude_mm),
         tare=config.calibration.tare,
         bench_kind=config.kind,
+        timing=EngineTiming(backlog_s=UNPACED_BACKLOG_S) if unpaced else EngineTiming(),
     )
 
 

@@ -26,6 +26,9 @@ from simulators.world import SimulatedOperator, SimulatedWorld
 #: Output samples per block the unpaced bench advances: large blocks keep the simulation's
 #: overhead small when it runs far faster than real time; paced, blocks are 10 ms.
 UNPACED_BLOCK_S = 0.2
+#: How far (s of samples) the unpaced bench may run ahead of the engine (``EngineTiming.backlog_s``):
+#: it waits for its host, so one block is enough; more would only be rest recorded between points.
+UNPACED_BACKLOG_S = UNPACED_BLOCK_S
 
 
 @dataclass(frozen=True)

@@ -106,9 +106,9 @@ class SampleSubscription(Protocol):
 
 
 class SampleSource(Protocol):
-    def subscribe(self, *, lossless: bool, max_blocks: int) -> SampleSubscription:
+    def subscribe(self, *, lossless: bool, max_frames: int) -> SampleSubscription:
         """A new consumer of the frame stream. A lossless subscriber holds the acquisition back when
-        it falls ``max_blocks`` behind (the engine and the recorder must see every frame); a lossy
+        it falls ``max_frames`` behind (the engine and the recorder must see every frame); a lossy
         one loses its oldest blocks instead (a live view) and never slows the others."""
         ...
 

@@ -82,7 +82,13 @@ class EngineTiming:
     effect may still be queued) the excitation must show on the sync bits, the margin (s of samples)
     beyond its planned duration after which a started excitation counts as hung, and how long a
     triggered capture may take to arrive after the blow was asked for (beyond its own length), and
-    how long a reset may take (the controller tapers out of an e-stop before it takes commands)."""
+    how long a reset may take (the controller tapers out of an e-stop before it takes commands).
+
+    ``backlog_s`` (s of samples): how far the acquisition may run ahead of the engine before the
+    reader waits for it. A real acquisition cannot wait (its frames overflow once the serial port's
+    buffer is full), so the default covers the longest stall of the engine; a simulated one that
+    waits for its host needs little, and a short backlog keeps it from simulating rest the engine
+    records while it is busy between points."""
 
     block_timeout_s: float = 0.05
     status_period_s: float = 0.2
@@ -90,6 +96,7 @@ class EngineTiming:
     end_margin_s: float = 5.0
     capture_timeout_s: float = 10.0
     reset_timeout_s: float = 10.0
+    backlog_s: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -720,7 +727,8 @@ class _RunRecording:
         )
         if e.tare == "before_each_run":
             e.acquisition.tare()
-        self._subscription = e.acquisition.subscribe(lossless=True, max_blocks=1024)
+        backlog = max(1, round(e.timing.backlog_s * e.sample_rate_hz))
+        self._subscription = e.acquisition.subscribe(lossless=True, max_frames=backlog)
         e.acquisition.start_stream()
         self._last_frame_s = e._clock()
         return self

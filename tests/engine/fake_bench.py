@@ -123,7 +123,7 @@ class FakeBench:
 
     # -- acquisition --------------------------------------------------------------------------
 
-    def subscribe(self, *, lossless: bool, max_blocks: int) -> FakeBench:
+    def subscribe(self, *, lossless: bool, max_frames: int) -> FakeBench:
         return self
 
     def close(self) -> None:
