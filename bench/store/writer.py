@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import os
 import time
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
 from itertools import pairwise
@@ -29,6 +30,7 @@ from typing import Any
 
 import h5py
 import numpy as np
+from h5py import h5z
 
 from bench.store import schema as s
 from bench.store.reader import open_campaign
@@ -36,6 +38,8 @@ from bench.store.results import as_mapping, write_tree
 from bench.store.schema import ChannelSpec, PointRow, StoreError
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
+#: Filter mask of a chunk stored without deflate, the second filter of a channel's pipeline.
+_DEFLATE_SKIPPED = 0b10
 
 
 def _now_iso() -> str:
@@ -313,11 +317,17 @@ class RunWriter:
         self._group = group
         self.run_id = group.name.rsplit("/", 1)[-1]
         self.sample_rate_hz = float(group.attrs["sample_rate_hz"])
-        self._channels: dict[str, h5py.Dataset] = dict(group[s.CHANNELS].items())
-        self.chunk_samples = next(iter(self._channels.values())).chunks[0]
-        self._samples = min((ds.shape[0] for ds in self._channels.values()), default=0)
+        datasets = group[s.CHANNELS]
+        self._names = frozenset(datasets)
+        self._sinks = [_ChannelSink(campaign.path, ds) for ds in datasets.values()]
+        self.chunk_samples = self._sinks[0].chunk_samples
+        self._samples = min(sink.length for sink in self._sinks)
         self._written = self._durable_samples = self._samples
-        self._pending: dict[str, list[np.ndarray]] = {name: [] for name in self._channels}
+        # the pending samples start at a chunk boundary: a partial last chunk (a run closed
+        # unfinished) is read back and written again whole once it fills
+        self._origin = self._samples // self.chunk_samples * self.chunk_samples
+        for sink in self._sinks:
+            sink.reload(self._origin, self._samples)
         self._pending_rows: list[np.ndarray] = []  # point rows waiting for their samples
         self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
         self.is_open = True
@@ -335,46 +345,33 @@ class RunWriter:
     def append(self, columns: Mapping[str, np.ndarray]) -> None:
         """Append one block: a 1-D array per channel of the run, all of one length. Integer
         channels take integer arrays whose values their dtype holds (else refused, naming the
-        channel); float channels are stored as float32."""
-        where = f"{self._group.name}/{s.CHANNELS}"
-        self._check_open(where)
-        if set(columns) != set(self._channels):
-            missing, extra = set(self._channels) - set(columns), set(columns) - set(self._channels)
+        channel); float channels are stored as float32. The block is copied (the caller may reuse
+        its buffers); a refused block leaves nothing behind."""
+        if not self.is_open or columns.keys() != self._names:
+            where = f"{self._group.name}/{s.CHANNELS}"
+            self._check_open(where)
+            missing, extra = self._names - columns.keys(), columns.keys() - self._names
             raise StoreError(
                 self._campaign.path,
                 where,
                 f"block channels differ: missing {sorted(missing)}, unknown {sorted(extra)}",
             )
-        blocks = {name: self._converted(name, values) for name, values in columns.items()}
-        lengths = {name: block.shape[0] for name, block in blocks.items()}
-        if len(set(lengths.values())) != 1:
-            raise StoreError(self._campaign.path, where, f"block channels have different lengths: {lengths}")
-        n = next(iter(lengths.values()))
-        if n == 0:
-            return
-        for name, block in blocks.items():
-            self._pending[name].append(block)
-        self._samples += n
-        self._campaign.flush_if_due()
-
-    def _converted(self, name: str, values: np.ndarray) -> np.ndarray:
-        where = f"{self._group.name}/{s.CHANNELS}/{name}"
-        array = np.asarray(values)
-        if array.ndim != 1:
-            raise StoreError(self._campaign.path, where, f"a block must be 1-D, got shape {array.shape}")
-        dtype = self._channels[name].dtype
-        if dtype.kind == "f":  # a copy: the block is held until the flush, the caller may reuse its buffer
-            return array.astype(dtype)
-        if array.dtype.kind not in "iu":
-            raise StoreError(self._campaign.path, where, f"{dtype} channel given {array.dtype} values")
-        low, high = _DTYPE_LIMITS[dtype.str[1:]]
-        if array.size and (array.min() < low or array.max() > high):
+        arrays = [sink.checked(columns[sink.name]) for sink in self._sinks]
+        n = arrays[0].shape[0]
+        if any(array.shape[0] != n for array in arrays):
+            lengths = {sink.name: array.shape[0] for sink, array in zip(self._sinks, arrays, strict=True)}
             raise StoreError(
                 self._campaign.path,
-                where,
-                f"values {array.min()}..{array.max()} outside {dtype} ({low}..{high})",
+                f"{self._group.name}/{s.CHANNELS}",
+                f"block channels have different lengths: {lengths}",
             )
-        return array.astype(dtype)
+        if n == 0:
+            return
+        at = self._samples - self._origin
+        for sink, array in zip(self._sinks, arrays, strict=True):
+            sink.put(at, array)
+        self._samples += n
+        self._campaign.flush_if_due()
 
     def add_point(self, row: PointRow) -> None:
         """Add one row to the points table. A point index can be ``"done"`` once only in a step
@@ -457,18 +454,19 @@ class RunWriter:
         self._campaign._run_closed(self)
 
     def _write_pending(self, *, final: bool) -> None:
-        """Write the whole chunks the pending blocks fill (all of them when ``final``), one resize
-        and one write per channel, then the point rows whose samples are written."""
-        upto = self._samples if final else self._samples // self.chunk_samples * self.chunk_samples
+        """Write the whole chunks the pending samples fill (and the last partial one when
+        ``final``), one extent change per channel and one write per chunk, then the point rows
+        whose samples are written."""
+        chunk = self.chunk_samples
+        upto = self._samples if final else self._samples // chunk * chunk
         if upto > self._written:
-            n = upto - self._written
-            for name, blocks in self._pending.items():
-                data = np.concatenate(blocks)
-                ds = self._channels[name]
-                ds.resize((upto,))
-                ds[self._written :] = data[:n]
-                blocks[:] = [data[n:]] if n < data.shape[0] else []
+            for sink in self._sinks:
+                sink.write(self._origin, upto)
             self._written = upto
+            whole = (upto - self._origin) // chunk * chunk
+            for sink in self._sinks:
+                sink.drop(whole, self._samples - self._origin)
+            self._origin += whole
         ready = [row for row in self._pending_rows if row["end_sample"][0] <= self._written]
         if ready:
             _append_rows(self._group[s.POINTS], np.concatenate(ready))
@@ -480,6 +478,76 @@ class RunWriter:
     def _check_open(self, where: str) -> None:
         if not self.is_open and not where.startswith(f"{self._group.name}/{s.RESULTS}"):
             raise StoreError(self._campaign.path, where, f"run {self.run_id!r} is finished")
+
+
+class _ChannelSink:
+    """One channel of the run being written: checks a block's values against the channel's dtype,
+    keeps the pending samples in a buffer that begins at a chunk boundary, and writes whole chunks
+    of it through the channel's filter pipeline (:func:`_filtered_chunk`) as finished chunks, so
+    that per chunk HDF5 only records where it lies."""
+
+    def __init__(self, path: Path, dataset: h5py.Dataset) -> None:
+        self.name = dataset.name.rsplit("/", 1)[-1]
+        self._path = path
+        self._where = dataset.name
+        self._dataset = dataset
+        self._id = dataset.id
+        self.dtype = dataset.dtype
+        self.length = dataset.shape[0]
+        self.chunk_samples = _check_pipeline(path, dataset)
+        self._limits = None if self.dtype.kind == "f" else _DTYPE_LIMITS[self.dtype.str[1:]]
+        self._buffer = np.zeros(2 * self.chunk_samples, self.dtype)
+
+    def checked(self, values: np.ndarray) -> np.ndarray:
+        """``values`` as an array this channel can store, else a :class:`StoreError` naming it."""
+        array = np.asarray(values)
+        if array.ndim != 1:
+            raise StoreError(self._path, self._where, f"a block must be 1-D, got shape {array.shape}")
+        if self._limits is None or np.can_cast(array.dtype, self.dtype):
+            return array  # a float channel stores any number as float32; a narrower integer fits
+        if array.dtype.kind not in "iu":
+            raise StoreError(self._path, self._where, f"{self.dtype} channel given {array.dtype} values")
+        low, high = self._limits
+        if array.size and (array.min() < low or array.max() > high):
+            raise StoreError(
+                self._path,
+                self._where,
+                f"values {array.min()}..{array.max()} outside {self.dtype} ({low}..{high})",
+            )
+        return array
+
+    def put(self, at: int, array: np.ndarray) -> None:
+        """Copy ``array`` into the buffer from position ``at`` (converted to the channel's dtype)."""
+        end = at + array.shape[0]
+        if end > self._buffer.shape[0]:
+            grown = np.zeros(max(end, 2 * self._buffer.shape[0]), self.dtype)
+            grown[:at] = self._buffer[:at]
+            self._buffer = grown
+        self._buffer[at:end] = array
+
+    def reload(self, origin: int, length: int) -> None:
+        """Put the samples ``origin .. length`` already in the file back into the buffer."""
+        self._buffer[: length - origin] = self._dataset[origin:length]
+
+    def write(self, origin: int, upto: int) -> None:
+        """Extend the dataset to ``upto`` samples and write the chunks from ``origin`` (a chunk
+        boundary, the buffer's start) that hold samples below ``upto``; a partial last chunk is
+        filled with zeros, the dataset's fill value, as HDF5 fills it."""
+        self._id.set_extent((upto,))
+        chunk = self.chunk_samples
+        for start in range(0, upto - origin, chunk):
+            block = self._buffer[start : start + chunk]
+            if start + chunk > upto - origin:
+                block = np.zeros(chunk, self.dtype)
+                block[: upto - origin - start] = self._buffer[start : upto - origin]
+            filter_mask, data = _filtered_chunk(block)
+            self._id.write_direct_chunk((origin + start,), data, filter_mask)
+        self.length = upto
+
+    def drop(self, n: int, pending: int) -> None:
+        """Forget the first ``n`` buffered samples (written); ``pending`` samples are buffered."""
+        if n:
+            self._buffer[: pending - n] = self._buffer[n:pending]
 
 
 def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, Any] | object) -> None:
@@ -518,6 +586,40 @@ def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str,
         for (run_id, name), result in results.items():
             _write_results(path, runs[run_id], name, result)
         file.flush()
+
+
+def _check_pipeline(path: Path, dataset: h5py.Dataset) -> int:
+    """The samples per chunk of a channel dataset, after checking that it is stored as
+    :func:`_filtered_chunk` writes chunks: 1-D chunks, shuffle then optional gzip at
+    :data:`~bench.store.schema.GZIP_LEVEL`, fill value 0."""
+    plist = dataset.id.get_create_plist()
+    filters = [plist.get_filter(i)[:3] for i in range(plist.get_nfilters())]
+    expected = [
+        (h5z.FILTER_SHUFFLE, h5z.FLAG_OPTIONAL, (dataset.dtype.itemsize,)),
+        (h5z.FILTER_DEFLATE, h5z.FLAG_OPTIONAL, (s.GZIP_LEVEL,)),
+    ]
+    if dataset.chunks is None or len(dataset.chunks) != 1 or filters != expected or dataset.fillvalue != 0:
+        raise StoreError(
+            path,
+            dataset.name,
+            f"stored with chunks {dataset.chunks}, filters {filters}, fill value {dataset.fillvalue}; "
+            f"the writer appends to 1-D chunked channels, shuffled, gzip level {s.GZIP_LEVEL}, filled with 0",
+        )
+    return dataset.chunks[0]
+
+
+def _filtered_chunk(chunk: np.ndarray) -> tuple[int, bytes]:
+    """A whole chunk of a channel as HDF5's filter pipeline stores it, with its filter mask: the
+    shuffle filter (the first bytes of every element, then the second bytes, ...), then deflate at
+    :data:`~bench.store.schema.GZIP_LEVEL`. Deflate is optional in the pipeline: when its output
+    would be longer than its input HDF5 keeps the shuffled bytes and sets the filter's bit in the
+    mask, and so does this. Compressing here rather than in HDF5 lets other threads run meanwhile
+    (``zlib`` releases the GIL, HDF5 calls do not)."""
+    shuffled = chunk.view(np.uint8).reshape(-1, chunk.itemsize).T.tobytes()
+    deflated = zlib.compress(shuffled, s.GZIP_LEVEL)
+    if len(deflated) > len(shuffled):
+        return _DEFLATE_SKIPPED, shuffled
+    return 0, deflated
 
 
 def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:
