@@ -61,7 +61,7 @@ class CampaignWriter:
         self.flush_interval_s = flush_interval_s
         self._run: RunWriter | None = None
         self._clock = clock
-        self._last_flush_wall_s = clock()
+        self._last_sync_wall_s = clock()
 
     @classmethod
     def create(
@@ -218,6 +218,8 @@ class CampaignWriter:
         self._check_no_open_run(where)
         done = self._resumable(run_id)
         group = self._file[s.RUNS][run_id]
+        for dataset in group[s.CHANNELS].values():  # before anything changes
+            _check_pipeline(self.path, dataset)
         ended = {"status": str(group.attrs["status"]), "reason": str(group.attrs["reason"])}
         group.attrs.update({"status": s.INCOMPLETE, "reason": "", "finished": ""})
         lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
@@ -251,32 +253,39 @@ class CampaignWriter:
     def flush(self) -> None:
         """Make durable what can be written safely: the whole chunks of samples, the point rows
         whose samples they hold, events, attributes; HDF5 flush, then fsync of the file."""
-        self._flush(final=False)
+        self._flush(final=False, sync=True)
 
-    def _flush(self, *, final: bool) -> None:
-        """``final``: the run ends, so its last partial chunk is written too."""
+    def _flush(self, *, final: bool, sync: bool) -> None:
+        """``final``: the run ends, so its last partial chunk is written too; ``sync``: fsync the
+        file (also done when the flush interval of wall time has passed since the last fsync)."""
         if self._run is not None:
             self._run._write_pending(final=final)
         self._file.flush()
-        os.fsync(self._file.id.get_vfd_handle())
-        self._last_flush_wall_s = self._clock()
+        now_s = self._clock()
+        if sync or now_s - self._last_sync_wall_s >= self.flush_interval_s:
+            os.fsync(self._file.id.get_vfd_handle())
+            self._last_sync_wall_s = now_s
         if self._run is not None:
             self._run._flushed()
 
     def flush_if_due(self) -> bool:
         """Flush when the open run's unwritten samples fill a chunk (one flush interval of
-        samples) or the interval's wall time has passed; returns whether it flushed. Every write
-        calls it; an engine whose stream stalls calls it from its idle loop too."""
+        samples), with an fsync only if the interval's wall time has passed since the last one;
+        or flush and fsync when the interval's wall time has passed since the last fsync. Returns
+        whether it flushed. Every write calls it; an engine whose stream stalls calls it from its
+        idle loop too."""
         run = self._run
-        due_samples = run is not None and run.samples - run.durable_samples >= run.chunk_samples
-        if due_samples or self._clock() - self._last_flush_wall_s >= self.flush_interval_s:
-            self.flush()
+        if run is not None and run._samples - run._written >= run.chunk_samples:
+            self._flush(final=False, sync=False)
+            return True
+        if self._clock() - self._last_sync_wall_s >= self.flush_interval_s:
+            self._flush(final=False, sync=True)
             return True
         return False
 
     def close(self) -> None:
         if self._file.id.valid:
-            self._flush(final=True)
+            self._flush(final=True, sync=True)
             self._file.close()
         self._run = None
 
@@ -305,7 +314,7 @@ class CampaignWriter:
 
     def _run_closed(self, run: RunWriter) -> None:
         if self._run is run:
-            self._flush(final=True)
+            self._flush(final=True, sync=True)
             self._run = None
 
 
