@@ -1,15 +1,21 @@
 """Write a campaign file incrementally: one run at a time, blocks of samples as they arrive.
 
 Durability is flush-based (why not SWMR, and why this is safe: ``docs/hdf5.md``). A channel's
-chunk holds one flush interval of samples. Sample blocks are kept in memory until a flush, which
-writes the whole chunks they fill (one write per channel), the point rows whose samples are now
-written, then flushes the whole file and ``fsync`` s it. A chunk is written once and never
-rewritten, so a writer killed in the middle of a flush cannot damage what an earlier flush made
-durable; the last, partial chunk is written when the run ends. Every write checks the cadence and
-flushes once a chunk is full or :data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has
-passed since the last flush, so less than one flush interval of samples is ever at risk. A run is
-created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a run whose
-writer died reads as incomplete.
+chunk holds one flush interval of samples. Sample blocks are kept in memory, one buffer per
+channel, until a flush, which writes the whole chunks they fill (each compressed here, as the
+channel's filters would, and handed to HDF5 finished), the point rows whose samples are now
+written, then flushes the whole file (HDF5 flush: what a killed writer leaves is this state).
+A chunk is written once and never rewritten, so a writer killed in the middle of a flush cannot
+damage what an earlier flush made durable; the last, partial chunk is written when the run ends.
+Every write checks the cadence and flushes once a chunk is full or
+:data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has passed since the last ``fsync``,
+so less than one flush interval of samples is ever at risk from a killed writer. The file is
+``fsync`` ed with a flush once that interval of wall time has passed since the last ``fsync``,
+and with every explicit :meth:`CampaignWriter.flush`, run end and close: a power loss can take
+in addition what was flushed in the last interval of wall time (about one interval of samples
+at the real-time rate; a simulated bench running faster flushes many chunks per ``fsync``).
+A run is created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a
+run whose writer died reads as incomplete.
 
 Resume (``docs/hdf5.md``): :meth:`CampaignWriter.open_append` reopens a file;
 :meth:`CampaignWriter.continue_run` goes on writing an incomplete run where its durable data ends,
@@ -38,8 +44,6 @@ from bench.store.results import as_mapping, write_tree
 from bench.store.schema import ChannelSpec, PointRow, StoreError
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
-#: Filter mask of a chunk stored without deflate, the second filter of a channel's pipeline.
-_DEFLATE_SKIPPED = 0b10
 
 
 def _now_iso() -> str:
@@ -512,10 +516,12 @@ class _ChannelSink:
         array = np.asarray(values)
         if array.ndim != 1:
             raise StoreError(self._path, self._where, f"a block must be 1-D, got shape {array.shape}")
-        if self._limits is None or np.can_cast(array.dtype, self.dtype):
-            return array  # a float channel stores any number as float32; a narrower integer fits
+        if self._limits is None:
+            return array  # a float channel stores any number as float32
         if array.dtype.kind not in "iu":
             raise StoreError(self._path, self._where, f"{self.dtype} channel given {array.dtype} values")
+        if np.can_cast(array.dtype, self.dtype):
+            return array  # every value of a narrower unsigned type fits
         low, high = self._limits
         if array.size and (array.min() < low or array.max() > high):
             raise StoreError(
@@ -549,8 +555,7 @@ class _ChannelSink:
             if start + chunk > upto - origin:
                 block = np.zeros(chunk, self.dtype)
                 block[: upto - origin - start] = self._buffer[start : upto - origin]
-            filter_mask, data = _filtered_chunk(block)
-            self._id.write_direct_chunk((origin + start,), data, filter_mask)
+            self._id.write_direct_chunk((origin + start,), _filtered_chunk(block))
         self.length = upto
 
     def drop(self, n: int, pending: int) -> None:
@@ -599,14 +604,11 @@ def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str,
 
 def _check_pipeline(path: Path, dataset: h5py.Dataset) -> int:
     """The samples per chunk of a channel dataset, after checking that it is stored as
-    :func:`_filtered_chunk` writes chunks: 1-D chunks, shuffle then optional gzip at
+    :func:`_filtered_chunk` writes chunks: 1-D chunks, shuffle then gzip at
     :data:`~bench.store.schema.GZIP_LEVEL`, fill value 0."""
     plist = dataset.id.get_create_plist()
-    filters = [plist.get_filter(i)[:3] for i in range(plist.get_nfilters())]
-    expected = [
-        (h5z.FILTER_SHUFFLE, h5z.FLAG_OPTIONAL, (dataset.dtype.itemsize,)),
-        (h5z.FILTER_DEFLATE, h5z.FLAG_OPTIONAL, (s.GZIP_LEVEL,)),
-    ]
+    filters = [(code, values) for code, _, values, _ in map(plist.get_filter, range(plist.get_nfilters()))]
+    expected = [(h5z.FILTER_SHUFFLE, (dataset.dtype.itemsize,)), (h5z.FILTER_DEFLATE, (s.GZIP_LEVEL,))]
     if dataset.chunks is None or len(dataset.chunks) != 1 or filters != expected or dataset.fillvalue != 0:
         raise StoreError(
             path,
@@ -617,18 +619,14 @@ def _check_pipeline(path: Path, dataset: h5py.Dataset) -> int:
     return dataset.chunks[0]
 
 
-def _filtered_chunk(chunk: np.ndarray) -> tuple[int, bytes]:
-    """A whole chunk of a channel as HDF5's filter pipeline stores it, with its filter mask: the
-    shuffle filter (the first bytes of every element, then the second bytes, ...), then deflate at
-    :data:`~bench.store.schema.GZIP_LEVEL`. Deflate is optional in the pipeline: when its output
-    would be longer than its input HDF5 keeps the shuffled bytes and sets the filter's bit in the
-    mask, and so does this. Compressing here rather than in HDF5 lets other threads run meanwhile
-    (``zlib`` releases the GIL, HDF5 calls do not)."""
+def _filtered_chunk(chunk: np.ndarray) -> bytes:
+    """A whole chunk of a channel as HDF5's filter pipeline stores it: the shuffle filter (the
+    first bytes of every element, then the second bytes, ...), then deflate at
+    :data:`~bench.store.schema.GZIP_LEVEL` (kept even when it does not shrink the chunk, as HDF5
+    2.0 keeps it). Compressing here rather than in HDF5 lets other threads run meanwhile (``zlib``
+    releases the GIL, HDF5 calls do not)."""
     shuffled = chunk.view(np.uint8).reshape(-1, chunk.itemsize).T.tobytes()
-    deflated = zlib.compress(shuffled, s.GZIP_LEVEL)
-    if len(deflated) > len(shuffled):
-        return _DEFLATE_SKIPPED, shuffled
-    return 0, deflated
+    return zlib.compress(shuffled, s.GZIP_LEVEL)
 
 
 def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:
