@@ -30,13 +30,14 @@ import time
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
+from functools import cache
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
-from h5py import h5z
+from h5py import h5s, h5t, h5z
 
 from bench.store import schema as s
 from bench.store.reader import open_campaign
@@ -341,8 +342,9 @@ class RunWriter:
         self._origin = self._samples // self.chunk_samples * self.chunk_samples
         for sink in self._sinks:
             sink.reload(self._origin, self._samples)
+        self._points, self._events = group[s.POINTS], group[s.EVENTS]
         self._pending_rows: list[np.ndarray] = []  # point rows waiting for their samples
-        self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
+        self._done = frozenset(_done_indices(self._points)) | done_before
         self.is_open = True
 
     @property
@@ -424,7 +426,7 @@ class RunWriter:
         current sample position; ``fields`` are stored as JSON."""
         self._check_open(f"{self._group.name}/{s.EVENTS}")
         _append_event(
-            self._group[s.EVENTS],
+            self._events,
             path=self._campaign.path,
             sample=self._samples,
             kind=kind,
@@ -482,7 +484,7 @@ class RunWriter:
             self._origin += whole
         ready = [row for row in self._pending_rows if row["end_sample"][0] <= self._written]
         if ready:
-            _append_rows(self._group[s.POINTS], np.concatenate(ready))
+            _append_rows(self._points, np.concatenate(ready))
             self._pending_rows = [row for row in self._pending_rows if row["end_sample"][0] > self._written]
 
     def _flushed(self) -> None:
@@ -681,9 +683,19 @@ def _as_dtype(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
 
 
 def _append_rows(table: h5py.Dataset, rows: np.ndarray) -> None:
-    n = table.shape[0]
-    table.resize((n + rows.shape[0],))
-    table[n:] = rows
+    """Append ``rows`` to ``table`` through h5py's low-level calls: its high-level path rebuilds
+    the compound's dtype and memory type on every call, which costs more than the write."""
+    n = table.id.shape[0]
+    table.id.set_extent((n + rows.shape[0],))
+    file_space = table.id.get_space()
+    file_space.select_hyperslab((n,), rows.shape)
+    table.id.write(h5s.create_simple(rows.shape), file_space, rows, mtype=_memory_type(rows.dtype))
+
+
+@cache
+def _memory_type(dtype: np.dtype) -> h5t.TypeID:
+    """The HDF5 memory type of a table's rows (variable-length strings as h5py hands them over)."""
+    return h5t.py_create(dtype)
 
 
 def _append_event(
