@@ -335,7 +335,7 @@ class RunWriter:
         self._names = frozenset(datasets)
         self._sinks = [_ChannelSink(campaign.path, ds) for ds in datasets.values()]
         self.chunk_samples = self._sinks[0].chunk_samples
-        self._samples = min(sink.length for sink in self._sinks)
+        self._samples = min(ds.shape[0] for ds in datasets.values())
         self._written = self._durable_samples = self._samples
         # the pending samples start at a chunk boundary: a partial last chunk (a run closed
         # unfinished) is read back and written again whole once it fills
@@ -354,7 +354,9 @@ class RunWriter:
 
     @property
     def durable_samples(self) -> int:
-        """Samples made durable by the last flush (whole chunks until the run ends)."""
+        """Samples made durable by the last flush (whole chunks until the run ends): they survive a
+        killed writer; a power loss too once the next fsync has run (within the flush interval of
+        wall time)."""
         return self._durable_samples
 
     def append(self, columns: Mapping[str, np.ndarray]) -> None:
@@ -508,7 +510,6 @@ class _ChannelSink:
         self._dataset = dataset
         self._id = dataset.id
         self.dtype = dataset.dtype
-        self.length = dataset.shape[0]
         self.chunk_samples = _check_pipeline(path, dataset)
         self._limits = None if self.dtype.kind == "f" else _DTYPE_LIMITS[self.dtype.str[1:]]
         self._buffer = np.zeros(2 * self.chunk_samples, self.dtype)
@@ -558,7 +559,6 @@ class _ChannelSink:
                 block = np.zeros(chunk, self.dtype)
                 block[: upto - origin - start] = self._buffer[start : upto - origin]
             self._id.write_direct_chunk((origin + start,), _filtered_chunk(block))
-        self.length = upto
 
     def drop(self, n: int, pending: int) -> None:
         """Forget the first ``n`` buffered samples (written); ``pending`` samples are buffered."""
