@@ -26,9 +26,10 @@ SCHEMA_VERSION = 1
 #: (Debian's h5dump) and older h5py builds; HDF5 2.0 would otherwise write objects they refuse.
 LIBVER = ("v108", "v110")
 
-#: Writer cadence: the file is flushed once this much sample time or wall time has passed since
-#: the last flush (checked on every write), so at most this much of the recording is ever at risk.
-#: A channel's chunk holds this much sample time.
+#: Writer cadence: the file is flushed once this much sample time has been appended since the last
+#: flush, or this much wall time has passed since the last fsync (checked on every write), so at
+#: most this much of the recording is ever at risk; the cadence fsyncs at most once per this much
+#: wall time (explicit flushes, run ends and close fsync too). A chunk holds this much sample time.
 FLUSH_INTERVAL_S = 1.0
 
 #: File-space strategy: freed file space is never reused while the file is open, so a write

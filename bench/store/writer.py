@@ -1,15 +1,21 @@
 """Write a campaign file incrementally: one run at a time, blocks of samples as they arrive.
 
 Durability is flush-based (why not SWMR, and why this is safe: ``docs/hdf5.md``). A channel's
-chunk holds one flush interval of samples. Sample blocks are kept in memory until a flush, which
-writes the whole chunks they fill (one write per channel), the point rows whose samples are now
-written, then flushes the whole file and ``fsync`` s it. A chunk is written once and never
-rewritten, so a writer killed in the middle of a flush cannot damage what an earlier flush made
-durable; the last, partial chunk is written when the run ends. Every write checks the cadence and
-flushes once a chunk is full or :data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has
-passed since the last flush, so less than one flush interval of samples is ever at risk. A run is
-created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a run whose
-writer died reads as incomplete.
+chunk holds one flush interval of samples. Sample blocks are kept in memory, one buffer per
+channel, until a flush, which writes the whole chunks they fill (each compressed here, as the
+channel's filters would, and handed to HDF5 finished), the point rows whose samples are now
+written, then flushes the whole file (HDF5 flush: what a killed writer leaves is this state).
+A chunk is written once and never rewritten, so a writer killed in the middle of a flush cannot
+damage what an earlier flush made durable; the last, partial chunk is written when the run ends.
+Every write checks the cadence and flushes once a chunk is full or
+:data:`~bench.store.schema.FLUSH_INTERVAL_S` of wall time has passed since the last ``fsync``,
+so less than one flush interval of samples is ever at risk from a killed writer. The file is
+``fsync`` ed with a flush once that interval of wall time has passed since the last ``fsync``,
+and with every explicit :meth:`CampaignWriter.flush`, run end and close: a power loss can take
+in addition what was flushed in the last interval of wall time (about one interval of samples
+at the real-time rate; a simulated bench running faster flushes many chunks per ``fsync``).
+A run is created with status ``"incomplete"`` and keeps it until :meth:`RunWriter.finish`, so a
+run whose writer died reads as incomplete.
 
 Resume (``docs/hdf5.md``): :meth:`CampaignWriter.open_append` reopens a file;
 :meth:`CampaignWriter.continue_run` goes on writing an incomplete run where its durable data ends,
@@ -21,14 +27,17 @@ from __future__ import annotations
 
 import os
 import time
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
+from functools import cache
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
+from h5py import h5s, h5t, h5z
 
 from bench.store import schema as s
 from bench.store.reader import open_campaign
@@ -57,7 +66,7 @@ class CampaignWriter:
         self.flush_interval_s = flush_interval_s
         self._run: RunWriter | None = None
         self._clock = clock
-        self._last_flush_wall_s = clock()
+        self._last_sync_wall_s = clock()
 
     @classmethod
     def create(
@@ -214,6 +223,8 @@ class CampaignWriter:
         self._check_no_open_run(where)
         done = self._resumable(run_id)
         group = self._file[s.RUNS][run_id]
+        for dataset in group[s.CHANNELS].values():  # before anything changes
+            _check_pipeline(self.path, dataset)
         ended = {"status": str(group.attrs["status"]), "reason": str(group.attrs["reason"])}
         group.attrs.update({"status": s.INCOMPLETE, "reason": "", "finished": ""})
         lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
@@ -247,32 +258,39 @@ class CampaignWriter:
     def flush(self) -> None:
         """Make durable what can be written safely: the whole chunks of samples, the point rows
         whose samples they hold, events, attributes; HDF5 flush, then fsync of the file."""
-        self._flush(final=False)
+        self._flush(final=False, sync=True)
 
-    def _flush(self, *, final: bool) -> None:
-        """``final``: the run ends, so its last partial chunk is written too."""
+    def _flush(self, *, final: bool, sync: bool) -> None:
+        """``final``: the run ends, so its last partial chunk is written too; ``sync``: fsync the
+        file (also done when the flush interval of wall time has passed since the last fsync)."""
         if self._run is not None:
             self._run._write_pending(final=final)
         self._file.flush()
-        os.fsync(self._file.id.get_vfd_handle())
-        self._last_flush_wall_s = self._clock()
+        now_s = self._clock()
+        if sync or now_s - self._last_sync_wall_s >= self.flush_interval_s:
+            os.fsync(self._file.id.get_vfd_handle())
+            self._last_sync_wall_s = now_s
         if self._run is not None:
             self._run._flushed()
 
     def flush_if_due(self) -> bool:
         """Flush when the open run's unwritten samples fill a chunk (one flush interval of
-        samples) or the interval's wall time has passed; returns whether it flushed. Every write
-        calls it; an engine whose stream stalls calls it from its idle loop too."""
+        samples), with an fsync only if the interval's wall time has passed since the last one;
+        or flush and fsync when the interval's wall time has passed since the last fsync. Returns
+        whether it flushed. Every write calls it; an engine whose stream stalls calls it from its
+        idle loop too."""
         run = self._run
-        due_samples = run is not None and run.samples - run.durable_samples >= run.chunk_samples
-        if due_samples or self._clock() - self._last_flush_wall_s >= self.flush_interval_s:
-            self.flush()
+        if run is not None and run._samples - run._written >= run.chunk_samples:
+            self._flush(final=False, sync=False)
+            return True
+        if self._clock() - self._last_sync_wall_s >= self.flush_interval_s:
+            self._flush(final=False, sync=True)
             return True
         return False
 
     def close(self) -> None:
         if self._file.id.valid:
-            self._flush(final=True)
+            self._flush(final=True, sync=True)
             self._file.close()
         self._run = None
 
@@ -301,7 +319,7 @@ class CampaignWriter:
 
     def _run_closed(self, run: RunWriter) -> None:
         if self._run is run:
-            self._flush(final=True)
+            self._flush(final=True, sync=True)
             self._run = None
 
 
@@ -313,13 +331,20 @@ class RunWriter:
         self._group = group
         self.run_id = group.name.rsplit("/", 1)[-1]
         self.sample_rate_hz = float(group.attrs["sample_rate_hz"])
-        self._channels: dict[str, h5py.Dataset] = dict(group[s.CHANNELS].items())
-        self.chunk_samples = next(iter(self._channels.values())).chunks[0]
-        self._samples = min((ds.shape[0] for ds in self._channels.values()), default=0)
+        datasets = group[s.CHANNELS]
+        self._names = frozenset(datasets)
+        self._sinks = [_ChannelSink(campaign.path, ds) for ds in datasets.values()]
+        self.chunk_samples = self._sinks[0].chunk_samples
+        self._samples = min(ds.shape[0] for ds in datasets.values())
         self._written = self._durable_samples = self._samples
-        self._pending: dict[str, list[np.ndarray]] = {name: [] for name in self._channels}
+        # the pending samples start at a chunk boundary: a partial last chunk (a run closed
+        # unfinished) is read back and written again whole once it fills
+        self._origin = self._samples // self.chunk_samples * self.chunk_samples
+        for sink in self._sinks:
+            sink.reload(self._origin, self._samples)
+        self._points, self._events = group[s.POINTS], group[s.EVENTS]
         self._pending_rows: list[np.ndarray] = []  # point rows waiting for their samples
-        self._done = frozenset(_done_indices(group[s.POINTS])) | done_before
+        self._done = frozenset(_done_indices(self._points)) | done_before
         self.is_open = True
 
     @property
@@ -329,52 +354,41 @@ class RunWriter:
 
     @property
     def durable_samples(self) -> int:
-        """Samples made durable by the last flush (whole chunks until the run ends)."""
+        """Samples made durable by the last flush (whole chunks until the run ends): they survive a
+        killed writer; a power loss too once the next fsync has run (within the flush interval of
+        wall time)."""
         return self._durable_samples
 
     def append(self, columns: Mapping[str, np.ndarray]) -> None:
         """Append one block: a 1-D array per channel of the run, all of one length. Integer
         channels take integer arrays whose values their dtype holds (else refused, naming the
-        channel); float channels are stored as float32."""
-        where = f"{self._group.name}/{s.CHANNELS}"
-        self._check_open(where)
-        if set(columns) != set(self._channels):
-            missing, extra = set(self._channels) - set(columns), set(columns) - set(self._channels)
+        channel); float channels are stored as float32. The block is copied (the caller may reuse
+        its buffers); a refused block leaves nothing behind."""
+        if not self.is_open or columns.keys() != self._names:
+            where = f"{self._group.name}/{s.CHANNELS}"
+            self._check_open(where)
+            missing, extra = self._names - columns.keys(), columns.keys() - self._names
             raise StoreError(
                 self._campaign.path,
                 where,
                 f"block channels differ: missing {sorted(missing)}, unknown {sorted(extra)}",
             )
-        blocks = {name: self._converted(name, values) for name, values in columns.items()}
-        lengths = {name: block.shape[0] for name, block in blocks.items()}
-        if len(set(lengths.values())) != 1:
-            raise StoreError(self._campaign.path, where, f"block channels have different lengths: {lengths}")
-        n = next(iter(lengths.values()))
-        if n == 0:
-            return
-        for name, block in blocks.items():
-            self._pending[name].append(block)
-        self._samples += n
-        self._campaign.flush_if_due()
-
-    def _converted(self, name: str, values: np.ndarray) -> np.ndarray:
-        where = f"{self._group.name}/{s.CHANNELS}/{name}"
-        array = np.asarray(values)
-        if array.ndim != 1:
-            raise StoreError(self._campaign.path, where, f"a block must be 1-D, got shape {array.shape}")
-        dtype = self._channels[name].dtype
-        if dtype.kind == "f":  # a copy: the block is held until the flush, the caller may reuse its buffer
-            return array.astype(dtype)
-        if array.dtype.kind not in "iu":
-            raise StoreError(self._campaign.path, where, f"{dtype} channel given {array.dtype} values")
-        low, high = _DTYPE_LIMITS[dtype.str[1:]]
-        if array.size and (array.min() < low or array.max() > high):
+        arrays = [sink.checked(columns[sink.name]) for sink in self._sinks]
+        n = arrays[0].shape[0]
+        if any(array.shape[0] != n for array in arrays):
+            lengths = {sink.name: array.shape[0] for sink, array in zip(self._sinks, arrays, strict=True)}
             raise StoreError(
                 self._campaign.path,
-                where,
-                f"values {array.min()}..{array.max()} outside {dtype} ({low}..{high})",
+                f"{self._group.name}/{s.CHANNELS}",
+                f"block channels have different lengths: {lengths}",
             )
-        return array.astype(dtype)
+        if n == 0:
+            return
+        at = self._samples - self._origin
+        for sink, array in zip(self._sinks, arrays, strict=True):
+            sink.put(at, array)
+        self._samples += n
+        self._campaign.flush_if_due()
 
     def add_point(self, row: PointRow) -> None:
         """Add one row to the points table. A point index can be ``"done"`` once only in a step
@@ -414,7 +428,7 @@ class RunWriter:
         current sample position; ``fields`` are stored as JSON."""
         self._check_open(f"{self._group.name}/{s.EVENTS}")
         _append_event(
-            self._group[s.EVENTS],
+            self._events,
             path=self._campaign.path,
             sample=self._samples,
             kind=kind,
@@ -457,21 +471,22 @@ class RunWriter:
         self._campaign._run_closed(self)
 
     def _write_pending(self, *, final: bool) -> None:
-        """Write the whole chunks the pending blocks fill (all of them when ``final``), one resize
-        and one write per channel, then the point rows whose samples are written."""
-        upto = self._samples if final else self._samples // self.chunk_samples * self.chunk_samples
+        """Write the whole chunks the pending samples fill (and the last partial one when
+        ``final``), one extent change per channel and one write per chunk, then the point rows
+        whose samples are written."""
+        chunk = self.chunk_samples
+        upto = self._samples if final else self._samples // chunk * chunk
         if upto > self._written:
-            n = upto - self._written
-            for name, blocks in self._pending.items():
-                data = np.concatenate(blocks)
-                ds = self._channels[name]
-                ds.resize((upto,))
-                ds[self._written :] = data[:n]
-                blocks[:] = [data[n:]] if n < data.shape[0] else []
+            for sink in self._sinks:
+                sink.write(self._origin, upto)
             self._written = upto
+            whole = (upto - self._origin) // chunk * chunk
+            for sink in self._sinks:
+                sink.drop(whole, self._samples - self._origin)
+            self._origin += whole
         ready = [row for row in self._pending_rows if row["end_sample"][0] <= self._written]
         if ready:
-            _append_rows(self._group[s.POINTS], np.concatenate(ready))
+            _append_rows(self._points, np.concatenate(ready))
             self._pending_rows = [row for row in self._pending_rows if row["end_sample"][0] > self._written]
 
     def _flushed(self) -> None:
@@ -480,6 +495,75 @@ class RunWriter:
     def _check_open(self, where: str) -> None:
         if not self.is_open and not where.startswith(f"{self._group.name}/{s.RESULTS}"):
             raise StoreError(self._campaign.path, where, f"run {self.run_id!r} is finished")
+
+
+class _ChannelSink:
+    """One channel of the run being written: checks a block's values against the channel's dtype,
+    keeps the pending samples in a buffer that begins at a chunk boundary, and writes whole chunks
+    of it through the channel's filter pipeline (:func:`_filtered_chunk`) as finished chunks, so
+    that per chunk HDF5 only records where it lies."""
+
+    def __init__(self, path: Path, dataset: h5py.Dataset) -> None:
+        self.name = dataset.name.rsplit("/", 1)[-1]
+        self._path = path
+        self._where = dataset.name
+        self._dataset = dataset
+        self._id = dataset.id
+        self.dtype = dataset.dtype
+        self.chunk_samples = _check_pipeline(path, dataset)
+        self._limits = None if self.dtype.kind == "f" else _DTYPE_LIMITS[self.dtype.str[1:]]
+        self._buffer = np.zeros(2 * self.chunk_samples, self.dtype)
+
+    def checked(self, values: np.ndarray) -> np.ndarray:
+        """``values`` as an array this channel can store, else a :class:`StoreError` naming it."""
+        array = np.asarray(values)
+        if array.ndim != 1:
+            raise StoreError(self._path, self._where, f"a block must be 1-D, got shape {array.shape}")
+        if self._limits is None:
+            return array  # a float channel stores any number as float32
+        if array.dtype.kind not in "iu":
+            raise StoreError(self._path, self._where, f"{self.dtype} channel given {array.dtype} values")
+        if np.can_cast(array.dtype, self.dtype):
+            return array  # every value of a narrower unsigned type fits
+        low, high = self._limits
+        if array.size and (array.min() < low or array.max() > high):
+            raise StoreError(
+                self._path,
+                self._where,
+                f"values {array.min()}..{array.max()} outside {self.dtype} ({low}..{high})",
+            )
+        return array
+
+    def put(self, at: int, array: np.ndarray) -> None:
+        """Copy ``array`` into the buffer from position ``at`` (converted to the channel's dtype)."""
+        end = at + array.shape[0]
+        if end > self._buffer.shape[0]:
+            grown = np.zeros(max(end, 2 * self._buffer.shape[0]), self.dtype)
+            grown[:at] = self._buffer[:at]
+            self._buffer = grown
+        self._buffer[at:end] = array
+
+    def reload(self, origin: int, length: int) -> None:
+        """Put the samples ``origin .. length`` already in the file back into the buffer."""
+        self._buffer[: length - origin] = self._dataset[origin:length]
+
+    def write(self, origin: int, upto: int) -> None:
+        """Extend the dataset to ``upto`` samples and write the chunks from ``origin`` (a chunk
+        boundary, the buffer's start) that hold samples below ``upto``; a partial last chunk is
+        filled with zeros, the dataset's fill value, as HDF5 fills it."""
+        self._id.set_extent((upto,))
+        chunk = self.chunk_samples
+        for start in range(0, upto - origin, chunk):
+            block = self._buffer[start : start + chunk]
+            if start + chunk > upto - origin:
+                block = np.zeros(chunk, self.dtype)
+                block[: upto - origin - start] = self._buffer[start : upto - origin]
+            self._id.write_direct_chunk((origin + start,), _filtered_chunk(block))
+
+    def drop(self, n: int, pending: int) -> None:
+        """Forget the first ``n`` buffered samples (written); ``pending`` samples are buffered."""
+        if n:
+            self._buffer[: pending - n] = self._buffer[n:pending]
 
 
 def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, Any] | object) -> None:
@@ -518,6 +602,33 @@ def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str,
         for (run_id, name), result in results.items():
             _write_results(path, runs[run_id], name, result)
         file.flush()
+
+
+def _check_pipeline(path: Path, dataset: h5py.Dataset) -> int:
+    """The samples per chunk of a channel dataset, after checking that it is stored as
+    :func:`_filtered_chunk` writes chunks: 1-D chunks, shuffle then gzip at
+    :data:`~bench.store.schema.GZIP_LEVEL`, fill value 0."""
+    plist = dataset.id.get_create_plist()
+    filters = [(code, values) for code, _, values, _ in map(plist.get_filter, range(plist.get_nfilters()))]
+    expected = [(h5z.FILTER_SHUFFLE, (dataset.dtype.itemsize,)), (h5z.FILTER_DEFLATE, (s.GZIP_LEVEL,))]
+    if dataset.chunks is None or len(dataset.chunks) != 1 or filters != expected or dataset.fillvalue != 0:
+        raise StoreError(
+            path,
+            dataset.name,
+            f"stored with chunks {dataset.chunks}, filters {filters}, fill value {dataset.fillvalue}; "
+            f"the writer appends to 1-D chunked channels, shuffled, gzip level {s.GZIP_LEVEL}, filled with 0",
+        )
+    return dataset.chunks[0]
+
+
+def _filtered_chunk(chunk: np.ndarray) -> bytes:
+    """A whole chunk of a channel as HDF5's filter pipeline stores it: the shuffle filter (the
+    first bytes of every element, then the second bytes, ...), then deflate at
+    :data:`~bench.store.schema.GZIP_LEVEL` (kept even when it does not shrink the chunk, as HDF5
+    2.0 keeps it). Compressing here rather than in HDF5 lets other threads run meanwhile (``zlib``
+    releases the GIL, HDF5 calls do not)."""
+    shuffled = chunk.view(np.uint8).reshape(-1, chunk.itemsize).T.tobytes()
+    return zlib.compress(shuffled, s.GZIP_LEVEL)
 
 
 def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:
@@ -572,9 +683,19 @@ def _as_dtype(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
 
 
 def _append_rows(table: h5py.Dataset, rows: np.ndarray) -> None:
-    n = table.shape[0]
-    table.resize((n + rows.shape[0],))
-    table[n:] = rows
+    """Append ``rows`` to ``table`` through h5py's low-level calls: its high-level path rebuilds
+    the compound's dtype and memory type on every call, which costs more than the write."""
+    n = table.id.shape[0]
+    table.id.set_extent((n + rows.shape[0],))
+    file_space = table.id.get_space()
+    file_space.select_hyperslab((n,), rows.shape)
+    table.id.write(h5s.create_simple(rows.shape), file_space, rows, mtype=_memory_type(rows.dtype))
+
+
+@cache
+def _memory_type(dtype: np.dtype) -> h5t.TypeID:
+    """The HDF5 memory type of a table's rows (variable-length strings as h5py hands them over)."""
+    return h5t.py_create(dtype)
 
 
 def _append_event(
