@@ -48,7 +48,7 @@ from bench.analysis.lsq import (
     weighted_fit,
 )
 from bench.analysis.plate_mass import ShakerErrors
-from bench.analysis.shaker_models import RubberTerms, shaker_response
+from bench.analysis.shaker_models import RubberTerms, shaker_response, shaker_response_derivatives
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre, WfsSensor
@@ -176,6 +176,14 @@ class _Data:
         r = np.concatenate([y1, y2]) * np.sqrt(2.0)
         return np.concatenate([r.real, r.imag])
 
+    def whitened_derivative(self, d_wfs: np.ndarray, d_contact: np.ndarray) -> np.ndarray:
+        """The derivatives of :meth:`whitened` for model derivatives with one row per parameter:
+        ``L^-1`` applied to them (the data drop out), one row per parameter."""
+        y1 = d_wfs / self.l11
+        y2 = (d_contact - self.l21 * y1) / self.l22
+        r = np.concatenate([y1, y2], axis=1) * np.sqrt(2.0)
+        return np.concatenate([r.real, r.imag], axis=1)
+
 
 def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _Data:
     if wfs_per_z.freq_hz.shape != contact_per_z.freq_hz.shape or np.any(
@@ -207,6 +215,48 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _D
     l21 = cov_cw / l11
     l22 = np.sqrt(np.maximum(var_c - np.abs(l21) ** 2, 1e-30 * var_c))
     return _Data(2 * np.pi * f, f, h_w, h_c, l11, l21, l22, float(sigma_m))
+
+
+@dataclass(frozen=True)
+class _Misfit:
+    """The whitened misfit of one model to the data as a function of the fitted values (names of
+    :data:`TYRE_PARAMETERS`, the rubber terms and :data:`PLATE_MASS_OFFSET`), and its Jacobian."""
+
+    model: TyreModel
+    data: _Data
+    sensor: WfsSensor
+    wheel_mass_kg: float
+
+    def residuals(self, values: Mapping[str, float]) -> np.ndarray:
+        data = self.data
+        tyre, rubber = _model_objects(self.model, values, self.wheel_mass_kg)
+        wfs, contact = shaker_response(self.model, tyre, self.sensor, data.freq_hz, rubber)
+        if data.plate_mass_sigma_kg == 0:
+            return data.whitened(wfs, contact)
+        # the measured F_contact/Z holds w^2 (m_comp,used - m_comp,true); its prior: the free run
+        offset = values[PLATE_MASS_OFFSET]
+        return np.append(data.whitened(wfs, contact + data.w**2 * offset), offset / data.plate_mass_sigma_kg)
+
+    def jacobian(self, values: Mapping[str, float]) -> np.ndarray:
+        """``d residuals / d values``, one column per value: the whitening is linear, so it maps the
+        model's exact derivatives; the offset moves F_contact/Z by ``w^2`` and its prior by
+        ``1 / sigma_m``."""
+        data = self.data
+        tyre, rubber = _model_objects(self.model, values, self.wheel_mass_kg)
+        names = tuple(values)
+        physical = [i for i, n in enumerate(names) if n != PLATE_MASS_OFFSET]
+        d_wfs = np.zeros((len(names), data.w.size), complex)
+        d_contact = np.zeros((len(names), data.w.size), complex)
+        *_, d_wfs[physical], d_contact[physical] = shaker_response_derivatives(
+            self.model, tyre, self.sensor, data.freq_hz, rubber, names=tuple(names[i] for i in physical)
+        )
+        if data.plate_mass_sigma_kg == 0:
+            return data.whitened_derivative(d_wfs, d_contact).T
+        offset = names.index(PLATE_MASS_OFFSET)
+        d_contact[offset] = data.w**2
+        prior = np.zeros((1, len(names)))
+        prior[0, offset] = 1 / data.plate_mass_sigma_kg
+        return np.vstack([data.whitened_derivative(d_wfs, d_contact).T, prior])
 
 
 def _start_values(data: _Data, model: TyreModel, names: tuple[str, ...], wheel_mass_kg: float) -> dict:
@@ -318,14 +368,7 @@ def fit_tyre_model(
     )
     sigma_m = data.plate_mass_sigma_kg
 
-    def residuals(values: Mapping[str, float]) -> np.ndarray:
-        tyre, rubber = _model_objects(model, values, wheel_mass_kg)
-        wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
-        if sigma_m == 0:
-            return data.whitened(wfs, contact)
-        # the measured F_contact/Z holds w^2 (m_comp,used - m_comp,true); its prior: the free run
-        offset = values[PLATE_MASS_OFFSET]
-        return np.append(data.whitened(wfs, contact + data.w**2 * offset), offset / sigma_m)
+    misfit = _Misfit(model, data, sensor, wheel_mass_kg)
 
     def scale_of(start: dict) -> dict:
         small = {RATE: 0.01, PLATE_MASS_OFFSET: sigma_m}
@@ -333,12 +376,13 @@ def fit_tyre_model(
 
     def solve(start: dict, budget: int) -> LsqResult:
         return weighted_fit(
-            residuals,
+            misfit.residuals,
             start,
             {n: _bounds(n, wheel_mass_kg, k0) for n in start},
             scale=scale_of(start),
             resolution=_resolution,
             max_nfev_per_parameter=budget,
+            jacobian=misfit.jacobian,
         )
 
     fit = solve(starts[0], FULL_BUDGET)
