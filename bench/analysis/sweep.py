@@ -258,22 +258,25 @@ def sweep_ratio(
     value = np.full(centres.size, np.nan, complex)
     sigma = np.full(centres.size, np.nan)
     half = 0.5 * resolution_hz
+    wide_half = (1 + 2 * NOISE_NEIGHBOUR_BINS) * half
+    # the fine bins ascend: each band [lo, hi) of them is a slice, found by bisection
+    g0, g1 = np.searchsorted(f, centres - half), np.searchsorted(f, centres + half)
+    w0, w1 = np.searchsorted(f, centres - wide_half), np.searchsorted(f, centres + wide_half)
     for i, centre in enumerate(centres):
-        group = (f >= centre - half) & (f < centre + half)
+        group = slice(g0[i], g1[i])
         cross = np.sum(np.conj(z[group]) * den[group])
-        if not group.any() or cross == 0:
+        if g1[i] <= g0[i] or cross == 0:
             continue
         value[i] = np.sum(np.conj(z[group]) * num[group]) / cross
-        wide = (f >= centre - (1 + 2 * NOISE_NEIGHBOUR_BINS) * half) & (
-            f < centre + (1 + 2 * NOISE_NEIGHBOUR_BINS) * half
-        )
+        wide = slice(w0[i], w1[i])
         design = np.column_stack([den[wide], (f[wide] - centre) * den[wide]])
-        if wide.sum() <= design.shape[1]:
+        n_wide = w1[i] - w0[i]
+        if n_wide <= design.shape[1]:
             raise AnalysisInputError(
-                f"{int(wide.sum())} fine bins around {centre:g} Hz cannot estimate the noise:"
+                f"{int(n_wide)} fine bins around {centre:g} Hz cannot estimate the noise:"
                 " the record is too short for the resolution"
             )
         coef, *_ = np.linalg.lstsq(design, num[wide], rcond=None)
-        residual_power = np.sum(np.abs(num[wide] - design @ coef) ** 2) / (wide.sum() - design.shape[1])
+        residual_power = np.sum(np.abs(num[wide] - design @ coef) ** 2) / (n_wide - design.shape[1])
         sigma[i] = np.sqrt(residual_power * np.sum(np.abs(z[group]) ** 2)) / np.abs(cross)
     return value, sigma

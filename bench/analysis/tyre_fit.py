@@ -32,7 +32,7 @@ is a finding for the user.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, TypeVar
 
 import numpy as np
@@ -142,13 +142,15 @@ class ShakerIdentification:
     ``frequency_dependent_stiffness`` and ``hysteretic_damping`` say whether the data needed those
     rubber terms (chosen on Model 2, or on Model 3 when it is the best, and kept for all models);
     ``findings``: what the user must know about the chosen fit (none determined, far outside the
-    noise)."""
+    noise); ``tried``: every fit made on the way, by model and rubber terms ``(model,
+    stiffness rise, hysteretic)`` (Model 2 with each of the four combinations among them)."""
 
     fits: dict[TyreModel, TyreFit]
     best: TyreModel
     frequency_dependent_stiffness: bool
     hysteretic_damping: bool
     findings: tuple[str, ...] = ()
+    tried: dict[tuple[TyreModel, bool, bool], TyreFit] = field(default_factory=dict)
 
     @property
     def best_fit(self) -> TyreFit:
@@ -443,16 +445,25 @@ def identify_shaker(
     BIC among the fits with every parameter determined; when that is Model 3, the rubber terms
     are chosen again on Model 3 (a Model 2 far from the data is no judge of them).
     """
-    kw = {"wheel_mass_kg": wheel_mass_kg, "sensor": sensor, "errors": errors}
+    tried: dict[tuple[TyreModel, bool, bool], TyreFit] = {}
+
+    def fit(model: TyreModel, rate: bool, hyst: bool) -> TyreFit:
+        """Each model and rubber-term variant is fitted once: the fit depends on nothing else."""
+        if (model, rate, hyst) not in tried:
+            tried[(model, rate, hyst)] = fit_tyre_model(
+                model,
+                wfs_per_z,
+                contact_per_z,
+                wheel_mass_kg=wheel_mass_kg,
+                sensor=sensor,
+                stiffness_rise=rate,
+                hysteretic=hyst,
+                errors=errors,
+            )
+        return tried[(model, rate, hyst)]
 
     def variants(model: TyreModel) -> dict[tuple[bool, bool], TyreFit]:
-        return {
-            (rate, hyst): fit_tyre_model(
-                model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-            )
-            for rate in (False, True)
-            for hyst in (False, True)
-        }
+        return {(rate, hyst): fit(model, rate, hyst) for rate in (False, True) for hyst in (False, True)}
 
     def rubber_choice(fits: dict[tuple[bool, bool], TyreFit]) -> tuple[bool, bool]:
         return _choose(fits, lambda f: _rubber_terms_relevant(f) and f.determined)
@@ -461,18 +472,14 @@ def identify_shaker(
     rate, hyst = rubber_choice(m2)
     fits = {TyreModel.WHEEL_TREAD: m2[(rate, hyst)]}
     for model in (TyreModel.WHEEL, TyreModel.WHEEL_TREAD_SIDEWALL):
-        fits[model] = fit_tyre_model(
-            model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-        )
+        fits[model] = fit(model, rate, hyst)
     best = _choose(fits, lambda f: f.determined)
     if best is TyreModel.WHEEL_TREAD_SIDEWALL:
         m3 = variants(TyreModel.WHEEL_TREAD_SIDEWALL)
         rate, hyst = rubber_choice(m3)
         fits[TyreModel.WHEEL_TREAD_SIDEWALL] = m3[(rate, hyst)]
         fits[TyreModel.WHEEL_TREAD] = m2[(rate, hyst)]
-        fits[TyreModel.WHEEL] = fit_tyre_model(
-            TyreModel.WHEEL, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-        )
+        fits[TyreModel.WHEEL] = fit(TyreModel.WHEEL, rate, hyst)
         best = _choose(fits, lambda f: f.determined)
     chosen = fits[best]
     findings = []
@@ -487,7 +494,7 @@ def identify_shaker(
             f" {chosen.reduced_chi2:.3g}): a value taken as known (the sensor, the wheel mass, m_comp)"
             " may be wrong, or the tyre is not one of Models 1-3"
         )
-    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings))
+    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings), tried)
 
 
 @dataclass(frozen=True)
@@ -548,19 +555,29 @@ def amplitude_dependence(
 ) -> AmplitudeDependence:
     """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping;
     ``errors``: each amplitude's shared errors (propagated), ``None`` for independent points."""
-    amps = sorted(per_amplitude)
-    fits = tuple(
-        fit_tyre_model(
-            TyreModel.WHEEL_TREAD,
-            *per_amplitude[a],
-            wheel_mass_kg=wheel_mass_kg,
-            sensor=sensor,
-            stiffness_rise=stiffness_rise,
-            hysteretic=hysteretic,
-            errors=None if errors is None else errors[a],
-        )
-        for a in amps
+    return tabulate_amplitude_dependence(
+        {
+            a: fit_tyre_model(
+                TyreModel.WHEEL_TREAD,
+                *frfs,
+                wheel_mass_kg=wheel_mass_kg,
+                sensor=sensor,
+                stiffness_rise=stiffness_rise,
+                hysteretic=hysteretic,
+                errors=None if errors is None else errors[a],
+            )
+            for a, frfs in per_amplitude.items()
+        }
     )
+
+
+def tabulate_amplitude_dependence(model2_fits: Mapping[float, TyreFit]) -> AmplitudeDependence:
+    """:class:`AmplitudeDependence` of Model-2 fits already made, by amplitude (m), with the same
+    rubber terms (for instance those :func:`identify_shaker` tried on each amplitude)."""
+    amps = sorted(model2_fits)
+    fits = tuple(model2_fits[a] for a in amps)
+    if any(f.model is not TyreModel.WHEEL_TREAD for f in fits):
+        raise AnalysisInputError("the amplitude dependence tabulates Model 2 fits only")
     k = np.array([f.tyre.stiffness_n_per_m for f in fits])
     d = np.array([float(f.rubber.equivalent_damping_ns_per_m(f.tyre, tread_resonance_hz(f))) for f in fits])
     return AmplitudeDependence(
