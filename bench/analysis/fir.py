@@ -9,6 +9,12 @@ solved as one real linear least-squares problem (real and imaginary rows stacked
 stable by construction and causal; the output at sample ``n`` describes the input instant
 ``n - L``. The small ridge term ``lam`` bounds the taps, so the gain outside the weighted band
 stays bounded.
+
+With a ridge the problem is solved through its normal equations ``(B^T B + lam I) h = B^T d``
+(Cholesky): their condition number is at most ``1 + n_taps / ridge`` (``lam`` is ``ridge`` times
+the trace of ``B^T B`` over ``n_taps``), so they lose at most that times the machine precision
+(4e-8 for 160 taps and a ridge of 1e-6), at a fraction of the cost of the SVD that solves the
+problem without a ridge, whose condition nothing bounds.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 from scipy.signal import freqz, lfilter
 
 from bench.analysis.validation import AnalysisInputError
@@ -54,12 +61,12 @@ def design_fir(
     d = np.asarray(target, dtype=complex) * np.exp(-2j * np.pi * f * latency_samples / fs_hz)
     sw = np.sqrt(np.asarray(weight, dtype=float))
     basis = np.exp(-2j * np.pi * np.outer(f / fs_hz, np.arange(n_taps))) * sw[:, None]
-    rows = [basis.real, basis.imag]
-    rhs = [(d * sw).real, (d * sw).imag]
+    rows = np.vstack([basis.real, basis.imag])
+    rhs = np.concatenate([(d * sw).real, (d * sw).imag])
     if ridge > 0:
-        rows.append(np.sqrt(ridge * np.mean(sw**2) * f.size) * np.eye(n_taps))
-        rhs.append(np.zeros(n_taps))
-    taps, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
+        gram = rows.T @ rows + ridge * np.mean(sw**2) * f.size * np.eye(n_taps)
+        return cho_solve(cho_factor(gram), rows.T @ rhs)
+    taps, *_ = np.linalg.lstsq(rows, rhs, rcond=None)
     return taps
 
 
