@@ -109,14 +109,13 @@ def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int, X: np.ndarr
     coef = solve_triangular(r, q.T @ y)
     res = y - X @ coef
     dof = max(t.size - X.shape[1], 1)
-    var = np.sum(res**2, axis=0) / dof
-    r_inv = solve_triangular(r, np.eye(r.shape[0]))
-    white = var * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))  # diagonal of (X'X)^-1
-    local = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
-    fundamental_sigma = np.sqrt(white if local is None else local)
-    power = np.maximum(np.sum(res**2, axis=0), 1e-300)
-    lag1 = np.sum(res[1:] * res[:-1], axis=0) / power
-    return _Fit(coef, np.sqrt(np.mean(res**2, axis=0)), fundamental_sigma, lag1, dof)
+    square_sum = np.sum(res**2, axis=0)
+    variance = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
+    if variance is None:  # white noise: the diagonal of (X'X)^-1 times the residual variance
+        r_inv = solve_triangular(r, np.eye(r.shape[0]))
+        variance = square_sum / dof * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))
+    lag1 = np.sum(res[1:] * res[:-1], axis=0) / np.maximum(square_sum, 1e-300)
+    return _Fit(coef, np.sqrt(square_sum / t.size), np.sqrt(variance), lag1, dof)
 
 
 def _residual_growth_limit(fit: _Fit, half: _Fit, n_channels: int) -> np.ndarray:
