@@ -8,8 +8,9 @@ explodes where the contact force nearly vanishes). The reported ratio error uses
 
 Fit: bounded non-linear least squares (``scipy.optimize.least_squares``) on the real and imaginary
 parts of the whitened misfit ``L^-1 (H_model - H_measured)``, parameters scaled by their start
-values, with the closed forms of :mod:`bench.analysis.shaker_models`. The wheel mass (weighed) and
-the sensor (hammer test) are known. Start values come from a linear least-squares fit of
+values, with the closed forms of :mod:`bench.analysis.shaker_models` and their exact derivatives
+(the Jacobian; the whitening is linear). The wheel mass (weighed) and the sensor (hammer test)
+are known. Start values come from a linear least-squares fit of
 ``Re(F_contact/Z) = k - m_T w^2`` and ``Im(F_contact/Z) = w d + h``, never from presets; Model 3
 is searched from several starts (sidewall modes across the band and above it), the best kept.
 
