@@ -41,7 +41,7 @@ def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndar
     return freqz(np.asarray(taps, dtype=float), 1.0, worN=f, fs=fs_hz)[1].reshape(np.shape(freq_hz))
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=4)
 def _fourier_basis(freq_hz_bytes: bytes, fs_hz: float, n_taps: int) -> np.ndarray:
     """``exp(-j 2 pi f_k n / fs)`` for the frequencies (float64 bytes) and taps ``n``: the same for
     every design on one grid (a compensator's two filters, every compensator at one sample rate),
