@@ -10,19 +10,24 @@ sweep FRFs, valid bands, quarter car with its body and wheel modes), and the ham
 baseline, timed in the same run, is a plain numpy FFT of every recorded channel (the same data
 volume). Each time is the best of ``--repeats``; the Model 1-3 identifications alone (every
 grid's ``identify_shaker`` on the FRFs the analysis made) are timed the same way, as their share.
+``--campaign FILE`` also times ``analyze_campaign`` of a campaign file (the demo's: the post-run
+analysis path, the file's reading included).
 
-Run: ``OMP_NUM_THREADS=1 PYTHONPATH=. .venv/bin/python benchmarks/analysis_speed.py [--repeats N]``
-(one core, as the target states).
+Run: ``OMP_NUM_THREADS=1 PYTHONPATH=. .venv/bin/python benchmarks/analysis_speed.py [--repeats N]
+[--campaign wfsbench-demo/campaign.h5]`` (one core, as the target states). To compare with other
+code, put an export of it first on ``PYTHONPATH`` and run this same script.
 """
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
 from bench.analysis.runs import analyse_four_post, analyse_hammer, analyse_shaker_campaign
 from bench.analysis.tyre_fit import identify_shaker
+from bench.app.analyze import analyze_campaign
 from bench.models.setup import BenchSetup
 from bench.report.text import summary_lines
 from bench.simulated_campaign import simulate_paper_campaign
@@ -70,7 +75,9 @@ def identify_every_grid(campaigns) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the best counts")
-    repeats = parser.parse_args().repeats
+    parser.add_argument("--campaign", type=Path, help="a campaign file to analyse as a whole too")
+    args = parser.parse_args()
+    repeats = args.repeats
     data = simulate_campaign()
     n_samples = baseline(*data)
     t_base = best_time_s(lambda: baseline(*data), repeats)
@@ -83,6 +90,9 @@ def main() -> None:
         f"analysis end to end: {t_analysis:.3f} s ({t_analysis / t_base:.0f}x the FFT baseline; target < 2 s)"
     )
     print(f"of which the 9 grids' Model 1-3 identifications: {t_fits:.3f} s")
+    if args.campaign is not None:
+        t_file = best_time_s(lambda: analyze_campaign(args.campaign), repeats)
+        print(f"analyze_campaign of {args.campaign}: {t_file:.3f} s")
     k = {
         p: c.nearest(2e-3).identification.best_fit.tyre.stiffness_n_per_m / 1e3 for p, c in campaigns.items()
     }
