@@ -90,25 +90,32 @@ class _Fit:
     dof: int
 
 
-def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int) -> _Fit:
+def _design(t: np.ndarray, w: float, n_harm: int) -> np.ndarray:
+    """Columns: offset, then cos and sin of each harmonic ``k w t``."""
     cols = [np.ones_like(t)]
     for k in range(1, n_harm + 1):
         cols += [np.cos(k * w * t), np.sin(k * w * t)]
-    X = np.stack(cols, axis=1)
+    return np.stack(cols, axis=1)
+
+
+def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int, X: np.ndarray | None = None) -> _Fit:
+    """Least-squares fit of ``y`` (samples x channels) at times ``t``; ``X``: the design of ``t``
+    when the caller has it (the rows of a longer window's design are the same numbers)."""
+    if X is None:
+        X = _design(t, w, n_harm)
     w_dt = w * (t[1] - t[0]) if t.size > 1 else 0.0
     # QR instead of the normal equations: (X'X)^-1 = R^-1 R^-T without squaring X's condition
     q, r = np.linalg.qr(X)
     coef = solve_triangular(r, q.T @ y)
     res = y - X @ coef
     dof = max(t.size - X.shape[1], 1)
-    var = np.sum(res**2, axis=0) / dof
-    r_inv = solve_triangular(r, np.eye(r.shape[0]))
-    white = var * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))  # diagonal of (X'X)^-1
-    local = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
-    fundamental_sigma = np.sqrt(white if local is None else local)
-    power = np.maximum(np.sum(res**2, axis=0), 1e-300)
-    lag1 = np.sum(res[1:] * res[:-1], axis=0) / power
-    return _Fit(coef, np.sqrt(np.mean(res**2, axis=0)), fundamental_sigma, lag1, dof)
+    square_sum = np.sum(res**2, axis=0)
+    variance = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
+    if variance is None:  # white noise: the diagonal of (X'X)^-1 times the residual variance
+        r_inv = solve_triangular(r, np.eye(r.shape[0]))
+        variance = square_sum / dof * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))
+    lag1 = np.sum(res[1:] * res[:-1], axis=0) / np.maximum(square_sum, 1e-300)
+    return _Fit(coef, np.sqrt(square_sum / t.size), np.sqrt(variance), lag1, dof)
 
 
 def _residual_growth_limit(fit: _Fit, half: _Fit, n_channels: int) -> np.ndarray:
@@ -185,17 +192,17 @@ def fit_dwell(
     i0 = i1 - n_samples
     names = list(data)
     y = np.stack([data[n][i0:i1] for n in names], axis=1)
-    t = np.arange(i0, i1) / fs
-    w = 2 * np.pi * freq_hz
-    full = _fit_window(t, y, w, n_harm)
+    t, w = np.arange(i0, i1) / fs, 2 * np.pi * freq_hz
+    X = _design(t, w, n_harm)  # the halves' designs are its rows
+    full = _fit_window(t, y, w, n_harm, X)
     a1 = _phasors(full.coef, 1)
     harm = np.array([_phasors(full.coef, k) for k in range(2, n_harm + 1)]).reshape(n_harm - 1, len(names))
 
     notes: list[str] = []
     if n_cycles >= 2:
         half = round((n_cycles // 2) * fs / freq_hz)
-        first = _fit_window(t[:half], y[:half], w, n_harm)
-        last = _fit_window(t[-half:], y[-half:], w, n_harm)
+        first = _fit_window(t[:half], y[:half], w, n_harm, X[:half])
+        last = _fit_window(t[-half:], y[-half:], w, n_harm, X[-half:])
         diff = np.abs(_phasors(last.coef, 1) - _phasors(first.coef, 1))
         sigma_diff = np.hypot(first.fundamental_sigma, last.fundamental_sigma)
         amp_ok = diff <= DRIFT_SIGMAS * sigma_diff + settle_tolerance * np.abs(a1)

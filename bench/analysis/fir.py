@@ -9,14 +9,23 @@ solved as one real linear least-squares problem (real and imaginary rows stacked
 stable by construction and causal; the output at sample ``n`` describes the input instant
 ``n - L``. The small ridge term ``lam`` bounds the taps, so the gain outside the weighted band
 stays bounded.
+
+With a ridge the problem is solved through its normal equations ``(B^T B + lam I) h = B^T d``
+(Cholesky; ``B^T B`` is Toeplitz, ``sum_k W_k cos(2 pi f_k (n - m) / fs)``): their condition
+number is at most ``1 + n_taps / ridge`` (``lam`` is ``ridge`` times the trace of ``B^T B`` over
+``n_taps``), so they lose at most that times the machine precision (4e-8 for 160 taps and a ridge
+of 1e-6), at a fraction of the cost of the SVD that solves the problem without a ridge, whose
+condition nothing bounds.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve, toeplitz
 from scipy.signal import freqz, lfilter
 
 from bench.analysis.validation import AnalysisInputError
@@ -30,6 +39,17 @@ def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndar
     """Complex frequency response of FIR ``taps`` at ``freq_hz`` (:func:`scipy.signal.freqz`)."""
     f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
     return freqz(np.asarray(taps, dtype=float), 1.0, worN=f, fs=fs_hz)[1].reshape(np.shape(freq_hz))
+
+
+@lru_cache(maxsize=4)
+def _fourier_basis(freq_hz_bytes: bytes, fs_hz: float, n_taps: int) -> np.ndarray:
+    """``exp(-j 2 pi f_k n / fs)`` for the frequencies (float64 bytes) and taps ``n``: the same for
+    every design on one grid (a compensator's two filters, every compensator at one sample rate),
+    so it is computed once per grid; read-only."""
+    f = np.frombuffer(freq_hz_bytes, dtype=float)
+    basis = np.exp(-2j * np.pi * np.outer(f / fs_hz, np.arange(n_taps)))
+    basis.flags.writeable = False
+    return basis
 
 
 def design_fir(
@@ -52,14 +72,16 @@ def design_fir(
     if np.any(f < 0) or np.any(f > fs_hz / 2):
         raise AnalysisInputError("design frequencies must lie in [0, fs/2]")
     d = np.asarray(target, dtype=complex) * np.exp(-2j * np.pi * f * latency_samples / fs_hz)
-    sw = np.sqrt(np.asarray(weight, dtype=float))
-    basis = np.exp(-2j * np.pi * np.outer(f / fs_hz, np.arange(n_taps))) * sw[:, None]
-    rows = [basis.real, basis.imag]
-    rhs = [(d * sw).real, (d * sw).imag]
+    w = np.asarray(weight, dtype=float)
+    basis = _fourier_basis(f.tobytes(), float(fs_hz), n_taps)
     if ridge > 0:
-        rows.append(np.sqrt(ridge * np.mean(sw**2) * f.size) * np.eye(n_taps))
-        rhs.append(np.zeros(n_taps))
-    taps, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
+        # B^T B sums W_k cos(w_k (n - m)): a Toeplitz matrix, its first column Re(W @ basis)
+        gram = toeplitz((w @ basis).real) + ridge * np.mean(w) * f.size * np.eye(n_taps)
+        return cho_solve(cho_factor(gram), (np.conj(basis).T @ (w * d)).real)
+    sw = np.sqrt(w)
+    weighted, d_weighted = basis * sw[:, None], d * sw
+    rows = np.vstack([weighted.real, weighted.imag])
+    taps, *_ = np.linalg.lstsq(rows, np.concatenate([d_weighted.real, d_weighted.imag]), rcond=None)
     return taps
 
 

@@ -70,9 +70,9 @@ from bench.analysis.tyre_fit import (
     RatioPeak,
     ShakerIdentification,
     TyreFit,
-    amplitude_dependence,
     identify_shaker,
     ratio_peak,
+    tabulate_amplitude_dependence,
 )
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
@@ -364,14 +364,15 @@ def analyse_shaker_campaign(
     dependence = None
     if len(results) > 1:
         idents = [r.identification for r in results.values()]
+        # every identification fitted Model 2 to its amplitude with each combination of rubber terms
+        variant = (
+            TyreModel.WHEEL_TREAD,
+            any(i.frequency_dependent_stiffness for i in idents),
+            any(i.hysteretic_damping for i in idents),
+        )
         with _named("amplitude dependence"):
-            dependence = amplitude_dependence(
-                {a: (r.frfs.wfs_per_z, r.frfs.contact_per_z) for a, r in results.items()},
-                wheel_mass_kg=wheel_mass_kg,
-                sensor=sensor,
-                stiffness_rise=any(i.frequency_dependent_stiffness for i in idents),
-                hysteretic=any(i.hysteretic_damping for i in idents),
-                errors={a: r.frfs.errors for a, r in results.items()},
+            dependence = tabulate_amplitude_dependence(
+                {a: r.identification.tried[variant] for a, r in results.items()}
             )
     return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence)
 

@@ -101,6 +101,104 @@ def shaker_response(
     return ks * z_r, -m_t * w**2 + tyre_el * (1 - z_r)
 
 
+def _element_partials(
+    names: tuple[str, ...], tyre: Tyre, rubber: RubberTerms, f: np.ndarray, w: np.ndarray
+) -> dict[str, np.ndarray]:
+    """How each parameter of ``names`` moves the elements of the network, one row per name and
+    one column per frequency: ``k`` the (air) stiffness ``k(f)``, ``loss`` the tyre's loss term,
+    ``upper``/``lower`` the sidewall springs, ``tread``/``sidewall`` the masses."""
+    elements = ("k", "loss", "upper", "lower", "tread", "sidewall")
+    rows = {e: np.zeros((len(names), f.size), complex) for e in elements}
+    for i, name in enumerate(names):
+        if name == "stiffness_n_per_m":
+            rows["k"][i] = rubber.stiffness_factor(f)
+        elif name == "stiffness_rise_per_decade":
+            decades = np.log10(np.maximum(f, STIFFNESS_MIN_HZ) / STIFFNESS_REFERENCE_HZ)
+            rows["k"][i] = tyre.stiffness_n_per_m * decades
+        elif name == "damping_ns_per_m":
+            rows["loss"][i] = 1j * w
+        elif name == "hysteretic_damping_n_per_m":
+            rows["loss"][i] = 1j
+        else:
+            element = {
+                "sidewall_upper_stiffness_n_per_m": "upper",
+                "sidewall_lower_stiffness_n_per_m": "lower",
+                "tread_mass_kg": "tread",
+                "sidewall_mass_kg": "sidewall",
+            }[name]
+            rows[element][i] = 1.0
+    return rows
+
+
+#: The parameters each model's shaker response depends on (besides the rubber terms).
+_MODEL_PARAMETERS = {
+    TyreModel.WHEEL: ("stiffness_n_per_m", "damping_ns_per_m"),
+    TyreModel.WHEEL_TREAD: ("stiffness_n_per_m", "damping_ns_per_m", "tread_mass_kg"),
+    TyreModel.WHEEL_TREAD_SIDEWALL: (
+        "stiffness_n_per_m",
+        "damping_ns_per_m",
+        "tread_mass_kg",
+        "sidewall_mass_kg",
+        "sidewall_lower_stiffness_n_per_m",
+        "sidewall_upper_stiffness_n_per_m",
+    ),
+}
+_RUBBER_PARAMETERS = ("stiffness_rise_per_decade", "hysteretic_damping_n_per_m")
+
+
+def shaker_response_derivatives(
+    model: TyreModel,
+    tyre: Tyre,
+    sensor: WfsSensor,
+    freq_hz: np.ndarray,
+    rubber: RubberTerms,
+    *,
+    names: tuple[str, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shaker_response` and its exact partial derivatives with respect to the parameters
+    ``names`` (fields of :class:`Tyre` and :class:`RubberTerms`; the wheel mass and sensor held):
+    ``(wfs, contact, d_wfs, d_contact)``, the derivatives with one row per name (units of the
+    response per unit of the parameter).
+
+    Implicit differentiation of the network's equations ``K z = b`` (``z``: rim, and sidewall in
+    Model 3; ``b``: what the unit plate displacement drives): ``dz = K^-1 (db - dK z)``, then the
+    forces' own dependence on the elements (see the module docstring for ``K``, ``b`` and the
+    forces). A parameter the model does not have raises ``ValueError``.
+    """
+    model = TyreModel(model)
+    allowed = _MODEL_PARAMETERS[model] + _RUBBER_PARAMETERS
+    unknown = [n for n in names if n not in allowed]
+    if unknown:
+        raise ValueError(f"Model {int(model)}'s shaker response has no parameter {unknown}")
+    f = np.asarray(freq_hz, dtype=float)
+    w, ks, k, loss = _dynamic_terms(tyre, sensor, f, rubber)
+    w2 = w**2
+    p = _element_partials(names, tyre, rubber, f, w)
+    dk, dm_t = p["k"], p["tread"]
+    if model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        lower, upper, a11, a22, det = _sidewall_system(tyre, w, ks, k, loss)
+        z_sw = (lower * a22 + upper * k) / det
+        z_r = (a11 * k + upper * lower) / det
+        dl, du, dm_sw = p["lower"], p["upper"] + p["loss"], p["sidewall"]
+        da11 = -dm_sw * w2 + dl + du
+        da22 = (dm_t + dm_sw) * w2 + dk + du
+        r_sw = dl - (da11 * z_sw - du * z_r)  # db - dK z, sidewall row
+        r_r = dk - (da22 * z_r - du * z_sw)  # rim row
+        dz_sw = (a22 * r_sw + upper * r_r) / det
+        dz_r = (upper * r_sw + a11 * r_r) / det
+        d_contact = -dm_t * w2 + dk * (1 - z_r) - k * dz_r + dl * (1 - z_sw) - lower * dz_sw
+        contact = -tyre.tread_mass_kg * w2 + k * (1 - z_r) + lower * (1 - z_sw)
+        return ks * z_r, contact, ks * dz_r, d_contact
+    m_t = tyre.tread_mass_kg if model is TyreModel.WHEEL_TREAD else 0.0
+    tyre_el = k + loss
+    dyn = -(tyre.wheel_mass_kg - m_t) * w2 + tyre_el + ks
+    z_r = tyre_el / dyn
+    d_el = dk + p["loss"]
+    dz_r = (d_el - (dm_t * w2 + d_el) * z_r) / dyn
+    d_contact = -dm_t * w2 + d_el * (1 - z_r) - tyre_el * dz_r
+    return ks * z_r, -m_t * w2 + tyre_el * (1 - z_r), ks * dz_r, d_contact
+
+
 def hub_driven_response(
     model: TyreModel,
     tyre: Tyre,

@@ -226,6 +226,14 @@ def sweep_frfs(
     return out
 
 
+def _bands(f: np.ndarray, centres: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the ascending fine bins ``f`` in ``[centre - half_width, centre + half_width)``
+    for each centre, one row each padded to the longest, and the mask of those inside."""
+    lo, hi = np.searchsorted(f, centres - half_width), np.searchsorted(f, centres + half_width)
+    index = lo[:, None] + np.arange(max(int(np.max(hi - lo, initial=0)), 1))
+    return np.minimum(index, f.size - 1), index < hi[:, None]
+
+
 def sweep_ratio(
     reference: np.ndarray,
     numerator: np.ndarray,
@@ -255,25 +263,34 @@ def sweep_ratio(
     if denominator_per_reference is not None:
         den = den + np.asarray(denominator_per_reference(f)) * z
     centres = np.asarray(freq_hz, dtype=float)
-    value = np.full(centres.size, np.nan, complex)
-    sigma = np.full(centres.size, np.nan)
     half = 0.5 * resolution_hz
-    for i, centre in enumerate(centres):
-        group = (f >= centre - half) & (f < centre + half)
-        cross = np.sum(np.conj(z[group]) * den[group])
-        if not group.any() or cross == 0:
-            continue
-        value[i] = np.sum(np.conj(z[group]) * num[group]) / cross
-        wide = (f >= centre - (1 + 2 * NOISE_NEIGHBOUR_BINS) * half) & (
-            f < centre + (1 + 2 * NOISE_NEIGHBOUR_BINS) * half
+    wide_half = (1 + 2 * NOISE_NEIGHBOUR_BINS) * half
+    # the fine bins ascend: each bin's band [lo, hi) of them, padded to the longest (mask: inside)
+    group, in_group = _bands(f, centres, half)
+    cross = np.sum(np.conj(z[group]) * den[group] * in_group, axis=1)
+    found = in_group.any(axis=1) & (cross != 0)
+    value = np.full(centres.size, np.nan, complex)
+    value[found] = np.sum(np.conj(z[group]) * num[group] * in_group, axis=1)[found] / cross[found]
+    # noise: the residual of num = (a + b x) den over the bin and its neighbours, x = (f - centre)
+    # over the half-width (least squares by its 2x2 normal equations, well conditioned: x is
+    # nearly symmetric about 0)
+    wide, in_wide = _bands(f, centres, wide_half)
+    n_wide = in_wide.sum(axis=1)
+    short = found & (n_wide <= 2)
+    if short.any():
+        raise AnalysisInputError(
+            f"{int(n_wide[short][0])} fine bins around {centres[short][0]:g} Hz cannot estimate the noise:"
+            " the record is too short for the resolution"
         )
-        design = np.column_stack([den[wide], (f[wide] - centre) * den[wide]])
-        if wide.sum() <= design.shape[1]:
-            raise AnalysisInputError(
-                f"{int(wide.sum())} fine bins around {centre:g} Hz cannot estimate the noise:"
-                " the record is too short for the resolution"
-            )
-        coef, *_ = np.linalg.lstsq(design, num[wide], rcond=None)
-        residual_power = np.sum(np.abs(num[wide] - design @ coef) ** 2) / (wide.sum() - design.shape[1])
-        sigma[i] = np.sqrt(residual_power * np.sum(np.abs(z[group]) ** 2)) / np.abs(cross)
+    d, y = den[wide] * in_wide, num[wide] * in_wide
+    x = (f[wide] - centres[:, None]) / wide_half
+    d2 = np.abs(d) ** 2
+    g00, g01, g11 = np.sum(d2, axis=1), np.sum(x * d2, axis=1), np.sum(x**2 * d2, axis=1)
+    r0, r1 = np.sum(np.conj(d) * y, axis=1), np.sum(x * np.conj(d) * y, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det = g00 * g11 - g01**2
+        a, b = (g11 * r0 - g01 * r1) / det, (g00 * r1 - g01 * r0) / det
+        residual_power = np.sum(np.abs(y - (a[:, None] + b[:, None] * x) * d) ** 2, axis=1) / (n_wide - 2)
+        noise = np.sqrt(residual_power * np.sum(np.abs(z[group] * in_group) ** 2, axis=1)) / np.abs(cross)
+    sigma = np.where(found, noise, np.nan)
     return value, sigma

@@ -8,8 +8,9 @@ explodes where the contact force nearly vanishes). The reported ratio error uses
 
 Fit: bounded non-linear least squares (``scipy.optimize.least_squares``) on the real and imaginary
 parts of the whitened misfit ``L^-1 (H_model - H_measured)``, parameters scaled by their start
-values, with the closed forms of :mod:`bench.analysis.shaker_models`. The wheel mass (weighed) and
-the sensor (hammer test) are known. Start values come from a linear least-squares fit of
+values, with the closed forms of :mod:`bench.analysis.shaker_models` and their exact derivatives
+(the Jacobian; the whitening is linear). The wheel mass (weighed) and the sensor (hammer test)
+are known. Start values come from a linear least-squares fit of
 ``Re(F_contact/Z) = k - m_T w^2`` and ``Im(F_contact/Z) = w d + h``, never from presets; Model 3
 is searched from several starts (sidewall modes across the band and above it), the best kept.
 
@@ -32,7 +33,7 @@ is a finding for the user.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, TypeVar
 
 import numpy as np
@@ -48,7 +49,7 @@ from bench.analysis.lsq import (
     weighted_fit,
 )
 from bench.analysis.plate_mass import ShakerErrors
-from bench.analysis.shaker_models import RubberTerms, shaker_response
+from bench.analysis.shaker_models import RubberTerms, shaker_response, shaker_response_derivatives
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre, WfsSensor
@@ -142,13 +143,15 @@ class ShakerIdentification:
     ``frequency_dependent_stiffness`` and ``hysteretic_damping`` say whether the data needed those
     rubber terms (chosen on Model 2, or on Model 3 when it is the best, and kept for all models);
     ``findings``: what the user must know about the chosen fit (none determined, far outside the
-    noise)."""
+    noise); ``tried``: every fit made on the way, by model and rubber terms ``(model,
+    stiffness rise, hysteretic)`` (Model 2 with each of the four combinations among them)."""
 
     fits: dict[TyreModel, TyreFit]
     best: TyreModel
     frequency_dependent_stiffness: bool
     hysteretic_damping: bool
     findings: tuple[str, ...] = ()
+    tried: dict[tuple[TyreModel, bool, bool], TyreFit] = field(default_factory=dict)
 
     @property
     def best_fit(self) -> TyreFit:
@@ -175,6 +178,14 @@ class _Data:
         y2 = (contact - self.h_contact - self.l21 * y1) / self.l22
         r = np.concatenate([y1, y2]) * np.sqrt(2.0)
         return np.concatenate([r.real, r.imag])
+
+    def whitened_derivative(self, d_wfs: np.ndarray, d_contact: np.ndarray) -> np.ndarray:
+        """The derivatives of :meth:`whitened` for model derivatives with one row per parameter:
+        ``L^-1`` applied to them (the data drop out), one row per parameter."""
+        y1 = d_wfs / self.l11
+        y2 = (d_contact - self.l21 * y1) / self.l22
+        r = np.concatenate([y1, y2], axis=1) * np.sqrt(2.0)
+        return np.concatenate([r.real, r.imag], axis=1)
 
 
 def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _Data:
@@ -207,6 +218,48 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _D
     l21 = cov_cw / l11
     l22 = np.sqrt(np.maximum(var_c - np.abs(l21) ** 2, 1e-30 * var_c))
     return _Data(2 * np.pi * f, f, h_w, h_c, l11, l21, l22, float(sigma_m))
+
+
+@dataclass(frozen=True)
+class _Misfit:
+    """The whitened misfit of one model to the data as a function of the fitted values (names of
+    :data:`TYRE_PARAMETERS`, the rubber terms and :data:`PLATE_MASS_OFFSET`), and its Jacobian."""
+
+    model: TyreModel
+    data: _Data
+    sensor: WfsSensor
+    wheel_mass_kg: float
+
+    def residuals(self, values: Mapping[str, float]) -> np.ndarray:
+        data = self.data
+        tyre, rubber = _model_objects(self.model, values, self.wheel_mass_kg)
+        wfs, contact = shaker_response(self.model, tyre, self.sensor, data.freq_hz, rubber)
+        if data.plate_mass_sigma_kg == 0:
+            return data.whitened(wfs, contact)
+        # the measured F_contact/Z holds w^2 (m_comp,used - m_comp,true); its prior: the free run
+        offset = values[PLATE_MASS_OFFSET]
+        return np.append(data.whitened(wfs, contact + data.w**2 * offset), offset / data.plate_mass_sigma_kg)
+
+    def jacobian(self, values: Mapping[str, float]) -> np.ndarray:
+        """``d residuals / d values``, one column per value: the whitening is linear, so it maps the
+        model's exact derivatives; the offset moves F_contact/Z by ``w^2`` and its prior by
+        ``1 / sigma_m``."""
+        data = self.data
+        tyre, rubber = _model_objects(self.model, values, self.wheel_mass_kg)
+        names = tuple(values)
+        physical = [i for i, n in enumerate(names) if n != PLATE_MASS_OFFSET]
+        d_wfs = np.zeros((len(names), data.w.size), complex)
+        d_contact = np.zeros((len(names), data.w.size), complex)
+        *_, d_wfs[physical], d_contact[physical] = shaker_response_derivatives(
+            self.model, tyre, self.sensor, data.freq_hz, rubber, names=tuple(names[i] for i in physical)
+        )
+        if data.plate_mass_sigma_kg == 0:
+            return data.whitened_derivative(d_wfs, d_contact).T
+        offset = names.index(PLATE_MASS_OFFSET)
+        d_contact[offset] = data.w**2
+        prior = np.zeros((1, len(names)))
+        prior[0, offset] = 1 / data.plate_mass_sigma_kg
+        return np.vstack([data.whitened_derivative(d_wfs, d_contact).T, prior])
 
 
 def _start_values(data: _Data, model: TyreModel, names: tuple[str, ...], wheel_mass_kg: float) -> dict:
@@ -318,14 +371,7 @@ def fit_tyre_model(
     )
     sigma_m = data.plate_mass_sigma_kg
 
-    def residuals(values: Mapping[str, float]) -> np.ndarray:
-        tyre, rubber = _model_objects(model, values, wheel_mass_kg)
-        wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
-        if sigma_m == 0:
-            return data.whitened(wfs, contact)
-        # the measured F_contact/Z holds w^2 (m_comp,used - m_comp,true); its prior: the free run
-        offset = values[PLATE_MASS_OFFSET]
-        return np.append(data.whitened(wfs, contact + data.w**2 * offset), offset / sigma_m)
+    misfit = _Misfit(model, data, sensor, wheel_mass_kg)
 
     def scale_of(start: dict) -> dict:
         small = {RATE: 0.01, PLATE_MASS_OFFSET: sigma_m}
@@ -333,12 +379,13 @@ def fit_tyre_model(
 
     def solve(start: dict, budget: int) -> LsqResult:
         return weighted_fit(
-            residuals,
+            misfit.residuals,
             start,
             {n: _bounds(n, wheel_mass_kg, k0) for n in start},
             scale=scale_of(start),
             resolution=_resolution,
             max_nfev_per_parameter=budget,
+            jacobian=misfit.jacobian,
         )
 
     fit = solve(starts[0], FULL_BUDGET)
@@ -399,16 +446,25 @@ def identify_shaker(
     BIC among the fits with every parameter determined; when that is Model 3, the rubber terms
     are chosen again on Model 3 (a Model 2 far from the data is no judge of them).
     """
-    kw = {"wheel_mass_kg": wheel_mass_kg, "sensor": sensor, "errors": errors}
+    tried: dict[tuple[TyreModel, bool, bool], TyreFit] = {}
+
+    def fit(model: TyreModel, rate: bool, hyst: bool) -> TyreFit:
+        """Each model and rubber-term variant is fitted once: the fit depends on nothing else."""
+        if (model, rate, hyst) not in tried:
+            tried[(model, rate, hyst)] = fit_tyre_model(
+                model,
+                wfs_per_z,
+                contact_per_z,
+                wheel_mass_kg=wheel_mass_kg,
+                sensor=sensor,
+                stiffness_rise=rate,
+                hysteretic=hyst,
+                errors=errors,
+            )
+        return tried[(model, rate, hyst)]
 
     def variants(model: TyreModel) -> dict[tuple[bool, bool], TyreFit]:
-        return {
-            (rate, hyst): fit_tyre_model(
-                model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-            )
-            for rate in (False, True)
-            for hyst in (False, True)
-        }
+        return {(rate, hyst): fit(model, rate, hyst) for rate in (False, True) for hyst in (False, True)}
 
     def rubber_choice(fits: dict[tuple[bool, bool], TyreFit]) -> tuple[bool, bool]:
         return _choose(fits, lambda f: _rubber_terms_relevant(f) and f.determined)
@@ -417,18 +473,14 @@ def identify_shaker(
     rate, hyst = rubber_choice(m2)
     fits = {TyreModel.WHEEL_TREAD: m2[(rate, hyst)]}
     for model in (TyreModel.WHEEL, TyreModel.WHEEL_TREAD_SIDEWALL):
-        fits[model] = fit_tyre_model(
-            model, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-        )
+        fits[model] = fit(model, rate, hyst)
     best = _choose(fits, lambda f: f.determined)
     if best is TyreModel.WHEEL_TREAD_SIDEWALL:
         m3 = variants(TyreModel.WHEEL_TREAD_SIDEWALL)
         rate, hyst = rubber_choice(m3)
         fits[TyreModel.WHEEL_TREAD_SIDEWALL] = m3[(rate, hyst)]
         fits[TyreModel.WHEEL_TREAD] = m2[(rate, hyst)]
-        fits[TyreModel.WHEEL] = fit_tyre_model(
-            TyreModel.WHEEL, wfs_per_z, contact_per_z, stiffness_rise=rate, hysteretic=hyst, **kw
-        )
+        fits[TyreModel.WHEEL] = fit(TyreModel.WHEEL, rate, hyst)
         best = _choose(fits, lambda f: f.determined)
     chosen = fits[best]
     findings = []
@@ -443,7 +495,7 @@ def identify_shaker(
             f" {chosen.reduced_chi2:.3g}): a value taken as known (the sensor, the wheel mass, m_comp)"
             " may be wrong, or the tyre is not one of Models 1-3"
         )
-    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings))
+    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings), tried)
 
 
 @dataclass(frozen=True)
@@ -504,19 +556,29 @@ def amplitude_dependence(
 ) -> AmplitudeDependence:
     """Fit Model 2 to each amplitude's ``(F_wfs/Z, F_contact/Z)`` and tabulate k and damping;
     ``errors``: each amplitude's shared errors (propagated), ``None`` for independent points."""
-    amps = sorted(per_amplitude)
-    fits = tuple(
-        fit_tyre_model(
-            TyreModel.WHEEL_TREAD,
-            *per_amplitude[a],
-            wheel_mass_kg=wheel_mass_kg,
-            sensor=sensor,
-            stiffness_rise=stiffness_rise,
-            hysteretic=hysteretic,
-            errors=None if errors is None else errors[a],
-        )
-        for a in amps
+    return tabulate_amplitude_dependence(
+        {
+            a: fit_tyre_model(
+                TyreModel.WHEEL_TREAD,
+                *frfs,
+                wheel_mass_kg=wheel_mass_kg,
+                sensor=sensor,
+                stiffness_rise=stiffness_rise,
+                hysteretic=hysteretic,
+                errors=None if errors is None else errors[a],
+            )
+            for a, frfs in per_amplitude.items()
+        }
     )
+
+
+def tabulate_amplitude_dependence(model2_fits: Mapping[float, TyreFit]) -> AmplitudeDependence:
+    """:class:`AmplitudeDependence` of Model-2 fits already made, by amplitude (m), with the same
+    rubber terms (for instance those :func:`identify_shaker` tried on each amplitude)."""
+    amps = sorted(model2_fits)
+    fits = tuple(model2_fits[a] for a in amps)
+    if any(f.model is not TyreModel.WHEEL_TREAD for f in fits):
+        raise AnalysisInputError("the amplitude dependence tabulates Model 2 fits only")
     k = np.array([f.tyre.stiffness_n_per_m for f in fits])
     d = np.array([float(f.rubber.equivalent_damping_ns_per_m(f.tyre, tread_resonance_hz(f))) for f in fits])
     return AmplitudeDependence(

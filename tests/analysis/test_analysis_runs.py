@@ -16,6 +16,7 @@ from bench.analysis import (
     analyse_shaker_campaign,
 )
 from bench.analysis.frf import valid_band
+from bench.analysis.tyre_fit import amplitude_dependence
 from bench.models.benches import TyreModel
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchKind, BenchSetup
@@ -80,6 +81,33 @@ def test_amplitude_dependence_from_the_campaign(shaker_nonlinear_campaign, shake
     text = "\n".join(summary_lines(shaker_nonlinear_campaign))
     assert "amplitude dependence (Model 2" in text
     assert all(f"{mm} mm valid band" in text for mm in (1, 2, 5))
+
+
+def test_campaign_reuses_the_identifications_fits_for_the_amplitude_dependence(shaker_nonlinear_campaign):
+    """Each identification fits every model variant once and keeps them all (Model 2 with the four
+    combinations of rubber terms among them); the campaign's amplitude dependence is the same
+    objects, and equals the dependence fitted afresh from the FRFs."""
+    campaign = shaker_nonlinear_campaign
+    for result in campaign.amplitudes.values():
+        tried = result.identification.tried
+        assert {(TyreModel.WHEEL_TREAD, r, h) for r in (False, True) for h in (False, True)} <= set(tried)
+        assert all(fit in tried.values() for fit in result.identification.fits.values())
+    dep = campaign.amplitude_dependence
+    rate = any(r.identification.frequency_dependent_stiffness for r in campaign.amplitudes.values())
+    hyst = any(r.identification.hysteretic_damping for r in campaign.amplitudes.values())
+    for amp, fit in zip(dep.amplitude_m, dep.fits, strict=True):
+        assert fit is campaign.amplitudes[amp].identification.tried[(TyreModel.WHEEL_TREAD, rate, hyst)]
+    fresh = amplitude_dependence(
+        {a: (r.frfs.wfs_per_z, r.frfs.contact_per_z) for a, r in campaign.amplitudes.items()},
+        wheel_mass_kg=campaign.wheel_mass_kg,
+        sensor=campaign.sensor,
+        stiffness_rise=rate,
+        hysteretic=hyst,
+        errors={a: r.frfs.errors for a, r in campaign.amplitudes.items()},
+    )
+    columns = ("stiffness_n_per_m", "stiffness_ci95_n_per_m", "equivalent_damping_ns_per_m", "tread_mass_kg")
+    for name in columns:
+        np.testing.assert_array_equal(getattr(fresh, name), getattr(dep, name))
 
 
 def test_four_post_result_and_summary(four_post_analysis):
