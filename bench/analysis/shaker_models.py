@@ -131,7 +131,7 @@ def _element_partials(
 
 
 #: The parameters each model's shaker response depends on (besides the rubber terms).
-_MODEL_PARAMETERS = {
+MODEL_PARAMETERS: dict[TyreModel, tuple[str, ...]] = {
     TyreModel.WHEEL: ("stiffness_n_per_m", "damping_ns_per_m"),
     TyreModel.WHEEL_TREAD: ("stiffness_n_per_m", "damping_ns_per_m", "tread_mass_kg"),
     TyreModel.WHEEL_TREAD_SIDEWALL: (
@@ -143,7 +143,8 @@ _MODEL_PARAMETERS = {
         "sidewall_upper_stiffness_n_per_m",
     ),
 }
-_RUBBER_PARAMETERS = ("stiffness_rise_per_decade", "hysteretic_damping_n_per_m")
+#: The rubber terms' parameters (:class:`RubberTerms`), which any model may take.
+RUBBER_PARAMETERS = ("stiffness_rise_per_decade", "hysteretic_damping_n_per_m")
 
 
 def shaker_response_derivatives(
@@ -166,7 +167,7 @@ def shaker_response_derivatives(
     forces). A parameter the model does not have raises ``ValueError``.
     """
     model = TyreModel(model)
-    allowed = _MODEL_PARAMETERS[model] + _RUBBER_PARAMETERS
+    allowed = MODEL_PARAMETERS[model] + RUBBER_PARAMETERS
     unknown = [n for n in names if n not in allowed]
     if unknown:
         raise ValueError(f"Model {int(model)}'s shaker response has no parameter {unknown}")

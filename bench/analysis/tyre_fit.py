@@ -49,24 +49,18 @@ from bench.analysis.lsq import (
     weighted_fit,
 )
 from bench.analysis.plate_mass import ShakerErrors
-from bench.analysis.shaker_models import RubberTerms, shaker_response, shaker_response_derivatives
+from bench.analysis.shaker_models import (
+    MODEL_PARAMETERS,
+    RUBBER_PARAMETERS,
+    RubberTerms,
+    shaker_response,
+    shaker_response_derivatives,
+)
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel
 from bench.models.parameters import Tyre, WfsSensor
 
-TYRE_PARAMETERS: dict[TyreModel, tuple[str, ...]] = {
-    TyreModel.WHEEL: ("stiffness_n_per_m", "damping_ns_per_m"),
-    TyreModel.WHEEL_TREAD: ("stiffness_n_per_m", "damping_ns_per_m", "tread_mass_kg"),
-    TyreModel.WHEEL_TREAD_SIDEWALL: (
-        "stiffness_n_per_m",
-        "damping_ns_per_m",
-        "tread_mass_kg",
-        "sidewall_mass_kg",
-        "sidewall_lower_stiffness_n_per_m",
-        "sidewall_upper_stiffness_n_per_m",
-    ),
-}
-RATE, HYST = "stiffness_rise_per_decade", "hysteretic_damping_n_per_m"
+RATE, HYST = RUBBER_PARAMETERS
 #: Nuisance parameter: m_comp used for F_contact/Z minus the true m_comp (kg), with the free run's
 #: interval as its prior, so that its error is common to all points instead of independent noise.
 PLATE_MASS_OFFSET = "plate_mass_offset_kg"
@@ -223,7 +217,7 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _D
 @dataclass(frozen=True)
 class _Misfit:
     """The whitened misfit of one model to the data as a function of the fitted values (names of
-    :data:`TYRE_PARAMETERS`, the rubber terms and :data:`PLATE_MASS_OFFSET`), and its Jacobian."""
+    :data:`MODEL_PARAMETERS`, the rubber terms and :data:`PLATE_MASS_OFFSET`), and its Jacobian."""
 
     model: TyreModel
     data: _Data
@@ -361,7 +355,7 @@ def fit_tyre_model(
     ``errors``: the errors the points share (propagated); ``None`` takes the points as independent."""
     model = TyreModel(model)
     data = _data(wfs_per_z, contact_per_z, errors)
-    names = TYRE_PARAMETERS[model] + ((RATE,) if stiffness_rise else ()) + ((HYST,) if hysteretic else ())
+    names = MODEL_PARAMETERS[model] + ((RATE,) if stiffness_rise else ()) + ((HYST,) if hysteretic else ())
     linear_start = _start_values(data, model, names, wheel_mass_kg)
     k0 = linear_start["stiffness_n_per_m"]
     starts = (

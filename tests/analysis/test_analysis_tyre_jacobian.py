@@ -9,12 +9,16 @@ import pytest
 from bench.analysis.frf import Frf
 from bench.analysis.lsq import Z95, weighted_fit
 from bench.analysis.plate_mass import ShakerErrors
-from bench.analysis.shaker_models import RubberTerms, shaker_response, shaker_response_derivatives
+from bench.analysis.shaker_models import (
+    MODEL_PARAMETERS,
+    RubberTerms,
+    shaker_response,
+    shaker_response_derivatives,
+)
 from bench.analysis.tyre_fit import (
     HYST,
     PLATE_MASS_OFFSET,
     RATE,
-    TYRE_PARAMETERS,
     _data,
     _Misfit,
     fit_tyre_model,
@@ -57,7 +61,7 @@ def _central(fun, value: float, step: float = STEP):
 @pytest.mark.parametrize("seed", range(5))
 def test_response_derivatives_equal_central_differences(model, seed):
     tyre, rubber = _random_point(np.random.default_rng(seed))
-    names = TYRE_PARAMETERS[model] + RUBBER_NAMES
+    names = MODEL_PARAMETERS[model] + RUBBER_NAMES
     wfs, contact, d_wfs, d_contact = shaker_response_derivatives(
         model, tyre, SENSOR, FREQ, rubber, names=names
     )
@@ -99,7 +103,7 @@ def _shaker_data(model: TyreModel, tyre: Tyre, rubber: RubberTerms, *, shared_er
 
 
 def _values(names, tyre: Tyre, rubber: RubberTerms, offset_kg: float) -> dict[str, float]:
-    values = {n: getattr(tyre, n) for n in names if n in TYRE_PARAMETERS[TyreModel.WHEEL_TREAD_SIDEWALL]}
+    values = {n: getattr(tyre, n) for n in names if n in MODEL_PARAMETERS[TyreModel.WHEEL_TREAD_SIDEWALL]}
     values |= {n: getattr(rubber, n) for n in names if n in (RATE, HYST)}
     if PLATE_MASS_OFFSET in names:
         values[PLATE_MASS_OFFSET] = offset_kg
@@ -117,7 +121,7 @@ def test_misfit_jacobian_equals_central_differences(model, rate, hyst, shared_er
     misfit = _Misfit(model, _data(wfs, contact, errors), SENSOR, truth.wheel_mass_kg)
     point, point_rubber = _random_point(rng)
     point = replace(point, wheel_mass_kg=truth.wheel_mass_kg)
-    names = TYRE_PARAMETERS[model] + ((RATE,) if rate else ()) + ((HYST,) if hyst else ())
+    names = MODEL_PARAMETERS[model] + ((RATE,) if rate else ()) + ((HYST,) if hyst else ())
     names += (PLATE_MASS_OFFSET,) if shared_errors else ()
     values = _values(names, point, point_rubber, offset_kg=2e-4)
     exact = misfit.jacobian(values)
