@@ -135,24 +135,6 @@ def test_a_lossy_view_drops_its_oldest_blocks_to_keep_within_its_frames():
     assert np.array_equal(sub.get_all(0).frames["seq"], np.arange(120, 250))
 
 
-def test_a_lossless_subscription_paces_an_unpaced_bench():
-    """A consumer that drains slowly slows the bench down instead of losing frames."""
-    with wfs_rig(MemoryLink(capacity=4096), lambda link: WfsReader(link.open_host)) as (device, reader):
-        engine = reader.subscribe(lossless=True, max_frames=128)
-        reader.start_stream()
-        frames = []
-        while sum(len(f) for f in frames) < 3000:
-            block = engine.get(5)
-            assert block is not None
-            frames.append(block.frames)
-            time.sleep(0.002)  # a slow consumer: the reader waits for room, the device for the reader
-        engine.close()
-        reader.stop_stream()
-    seq = np.concatenate(frames)["seq"].astype(np.int64)
-    assert np.all(np.diff(seq) == 1)
-    assert device.frames_dropped == 0 and device.frames_sent >= 3000
-
-
 def test_identify_refuses_a_device_of_another_protocol_version(pty_rig):
     device, reader = pty_rig
     assert reader.identify()[-1] == "2"
@@ -180,18 +162,32 @@ def test_get_all_hands_over_every_queued_block_as_one_with_gaps_and_resyncs_rein
     assert sub.get_all(0) is single  # nothing to merge: the block itself
 
 
-def test_a_consumer_taking_all_it_is_behind_gets_every_frame_over_a_pty():
-    """get_all over a real pty with the bench unpaced: contiguous frames, none lost or doubled."""
-    with wfs_rig(PtyLink(), lambda link: WfsReader.serial(link.path)) as (device, reader):
-        engine = reader.subscribe(lossless=True, max_frames=4096)
+@pytest.mark.parametrize(
+    ("link", "take", "max_frames", "pause_s", "frames"),
+    [("memory", "get", 128, 0.002, 3000), ("pty", "get_all", 4096, 0.0, 20_000)],
+    ids=["a-slow-consumer-paces-the-bench", "taking-all-it-is-behind-over-a-pty"],
+)
+def test_a_lossless_consumer_gets_every_frame_of_an_unpaced_bench(link, take, max_frames, pause_s, frames):
+    """A consumer that drains slowly (block by block, pausing between) slows the bench down instead
+    of losing frames; one that takes all it is behind at each read (over a real pty) gets them in
+    order too: contiguous frames, none lost or doubled."""
+    if link == "memory":
+        port, open_reader = MemoryLink(capacity=4096), lambda p: WfsReader(p.open_host)
+    else:
+        port, open_reader = PtyLink(), lambda p: WfsReader.serial(p.path)
+    with wfs_rig(port, open_reader) as (device, reader):
+        engine = reader.subscribe(lossless=True, max_frames=max_frames)
         reader.start_stream()
         blocks = []
-        while sum(len(b) for b in blocks) < 20_000:
-            block = engine.get_all(5)
+        while sum(len(b) for b in blocks) < frames:
+            block = getattr(engine, take)(5)
             assert block is not None
             blocks.append(block)
+            if pause_s:
+                time.sleep(pause_s)  # a slow consumer: the reader waits for room, the device for the reader
         engine.close()
         reader.stop_stream()
     seq = np.concatenate([b.frames["seq"] for b in blocks]).astype(np.int64)
     assert np.all(np.diff(seq) == 1)
     assert not any(b.gaps for b in blocks) and device.frames_dropped == 0
+    assert device.frames_sent >= frames
