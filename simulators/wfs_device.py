@@ -16,11 +16,11 @@ runner change them under one lock.
 The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
 
-Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link; what
-is not sent by then is dropped (``frames_dropped``; the sequence counter shows the gap to the host)
-and, until the host drains again, later blocks are only offered briefly, so a host that stops
-reading never freezes the bench (the bench then runs in real time and the controller's watchdog
-fires).
+Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link (it goes
+out in pieces of whole frames, a command reply between two); what is not sent by then is dropped
+(``frames_dropped``; the sequence counter shows the gap to the host) and, until the host drains
+again, later blocks are only offered briefly, so a host that stops reading never freezes the bench
+(the bench then runs in real time and the controller's watchdog fires).
 
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
 frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart.
@@ -71,6 +71,8 @@ MIN_RATE_HZ = 100
 BACKPRESSURE_S = 1.0
 #: how long a block is offered while the host is not draining (s)
 _OVERFLOW_PROBE_S = 0.005
+#: frames go out in pieces of this many bytes (whole frames); a command reply goes between two
+_WRITE_PIECE_BYTES = 64 * FRAME_SIZE
 #: the longest a command reply waits for the host to drain the link (s)
 _REPLY_TIMEOUT_S = 1.0
 
@@ -241,20 +243,30 @@ class WfsDevice:
             self.frames_unsent += len(frames)
             return
         data = self.faults.apply(encode(frames))
-        with self._write_lock:
-            if not self._link_up:
-                self.frames_unsent += len(frames)
-                return
-            try:
-                sent = self._write_all(data, _OVERFLOW_PROBE_S if self._overflowing else BACKPRESSURE_S)
-            except (serial.SerialException, OSError) as exc:
-                log.debug("WFS device write failed: %s", exc)
-                self.frames_unsent += len(frames)
-                return
-        self._overflowing = sent < len(data)
-        whole = len(frames) if not self._overflowing else min(sent // FRAME_SIZE, len(frames))
+        deadline = time.monotonic() + (_OVERFLOW_PROBE_S if self._overflowing else BACKPRESSURE_S)
+        sent, link_lost = 0, False
+        # written a piece of whole frames at a time, so that a reply waits for one piece at most
+        for start in range(0, len(data), _WRITE_PIECE_BYTES):
+            piece = data[start : start + _WRITE_PIECE_BYTES]
+            with self._write_lock:
+                try:
+                    if not self._link_up:
+                        raise OSError("link down")
+                    written = self._write_all(piece, deadline - time.monotonic())
+                except (serial.SerialException, OSError) as exc:
+                    log.debug("WFS device write failed: %s", exc)
+                    link_lost = True
+                    break
+            sent += written
+            if written < len(piece):
+                break
+        whole = min(sent // FRAME_SIZE, len(frames))
         self.frames_sent += whole
-        self.frames_dropped += len(frames) - whole
+        if link_lost:
+            self.frames_unsent += len(frames) - whole
+        else:
+            self._overflowing = sent < len(data)
+            self.frames_dropped += len(frames) - whole
 
     def _write_all(self, data: bytes, timeout_s: float) -> int:
         """Write as much of ``data`` as the host drains within ``timeout_s``; return the bytes sent

@@ -71,9 +71,13 @@ class Recorder:
             raise RuntimeError(
                 f"run {event.run_id}: samples from {event.first_sample} on, but the file holds {run.samples}"
             )
-        if event.gaps:
-            run.add_event("gap", f"{event.gaps} frames lost on the WFS link", missing=event.gaps)
-        run.append(event.columns)
+        position = 0  # each gap's event is placed at the sample it came before
+        for index, missing in event.gaps:
+            if index > position:
+                run.append({name: column[position:index] for name, column in event.columns.items()})
+                position = index
+            run.add_event("gap", f"{missing} frames lost on the WFS link", missing=missing)
+        run.append({name: column[position:] for name, column in event.columns.items()})
 
     def _point(self, event: ev.PointDone) -> None:
         commanded = event.commanded_amplitude_mm

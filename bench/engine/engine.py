@@ -78,9 +78,10 @@ RUN_ID = re.compile(r"^(?P<sequence>.+)-s(?P<step>[0-9]{3,})-(?P<kind>[a-z_]+)$"
 @dataclass(frozen=True)
 class EngineTiming:
     """Bounds (s): how long to wait for a block of frames, how often to read the controller's status
-    during an excitation, how long after START (wall clock: frames recorded before the START took
-    effect may still be queued) the excitation must show on the sync bits, the margin (s of samples)
-    beyond its planned duration after which a started excitation counts as hung, and how long a
+    during an excitation, how long after START the excitation must show on the sync bits (wall
+    time and samples, whichever is later: frames recorded before the START took effect may still
+    be queued), the margin (s of samples) beyond its planned duration after which a started
+    excitation counts as hung (samples received or reported lost count alike), and how long a
     triggered capture may take to arrive after the blow was asked for (beyond its own length), and
     how long a reset may take (the controller tapers out of an e-stop before it takes commands).
 
@@ -708,6 +709,10 @@ class _RunRecording:
         self.run_id = run_id
         self.step = step
         self.samples = first_sample  # the run's samples so far: the index of the next one
+        # the acquisition's sample time since this recording began: the samples received and those
+        # the link reported lost (what the watchdogs count, so that a link that lets only a few
+        # frames through cannot hold them off)
+        self.elapsed_samples = 0
         self.displacement: list[np.ndarray] = []
         self._subscription = None
         self._last_status_s = -np.inf
@@ -775,10 +780,11 @@ class _RunRecording:
 
     def _record(self, block) -> Mapping[str, np.ndarray]:
         columns = self.engine.channels.columns(block.frames)
-        missing = sum(g.missing for g in block.gaps)
-        self.engine.bus.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, missing))
+        gaps = tuple((g.index, g.missing) for g in block.gaps)
+        self.engine.bus.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, gaps))
         self.displacement.append(np.asarray(columns[DISPLACEMENT], dtype=float))
         self.samples += len(block.frames)
+        self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
         return columns
 
     def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
@@ -816,13 +822,16 @@ class _RunRecording:
         # the start watchdog waits for start_timeout_s of wall time and of samples, whichever is
         # later: a consumer behind the stream sees the start only once it has read up to it
         start_deadline_s = e._clock() + e.timing.start_timeout_s
-        start_deadline_sample = self.samples + round(e.timing.start_timeout_s * e.sample_rate_hz)
+        start_deadline = self.elapsed_samples + round(e.timing.start_timeout_s * e.sample_rate_hz)
         overrun = round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
+        end_deadline: int | None = None  # in elapsed samples, once the start is seen
         stopping: str | None = None
         while not tracker.ended:
             columns = self._next_columns()
             first = self.samples - len(columns.get("status", ()))
             tracker.feed(first, columns.get("status", np.zeros(0, int)))
+            if tracker.started and end_deadline is None:
+                end_deadline = self.elapsed_samples - (self.samples - tracker.start) + overrun
             if watch is not None and not watch.done:
                 watch.feed(first, columns, tracker.hold_start, tracker.hold_end)
                 if watch.done and stopping is None:
@@ -833,9 +842,10 @@ class _RunRecording:
             if stopping is None and (e._abort.is_set() or e._pause.is_set()):
                 stopping = "abort" if e._abort.is_set() else "pause"
                 e._defensive_stop()
-            if not tracker.started and e._clock() > start_deadline_s and self.samples > start_deadline_sample:
+            elapsed = self.elapsed_samples
+            if not tracker.started and e._clock() > start_deadline_s and elapsed > start_deadline:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
-            if tracker.started and not tracker.ended and self.samples > tracker.start + overrun:
+            if end_deadline is not None and not tracker.ended and elapsed > end_deadline:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
         # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
         # excitation early: its status, read now, tells that from the planned end

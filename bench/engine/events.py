@@ -63,12 +63,14 @@ class RunStarted:
 
 @dataclass(frozen=True)
 class SamplesRecorded:
-    """Consecutive samples of the present run, by channel name, from run sample ``first_sample`` on."""
+    """Consecutive samples of the present run, by channel name, from run sample ``first_sample`` on;
+    ``gaps``: ``(index, missing)`` for each place in the block where the link lost frames (``missing``
+    of them just before its sample ``index``)."""
 
     run_id: str
     first_sample: int
     columns: Mapping[str, np.ndarray]
-    gaps: int = 0  # frames lost on the link just before or inside this block
+    gaps: tuple[tuple[int, int], ...] = ()
 
     def __len__(self) -> int:
         return len(next(iter(self.columns.values())))

@@ -9,13 +9,16 @@ import threading
 import numpy as np
 import pytest
 
+from bench.app.recorder import Recorder
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
 from bench.engine.engine import RUN_ID, Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
+from bench.store import CampaignWriter, open_campaign
 from drivers.errors import LinkTimeoutError
+from drivers.wfs_stream import Gap
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock, FakeStatus
 
@@ -438,3 +441,58 @@ def test_an_excitation_that_runs_past_its_planned_end_trips_the_end_watchdog():
     assert outcome.status == "interlocked"
     assert outcome.reason == "excitation watchdog: the excitation did not end when planned"
     assert "stop" in bench.log
+
+
+class GappyBench(FakeBench):
+    """A link that loses 5 frames before the 30th frame of the third block it delivers."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.blocks = 0
+
+    def get_all(self, timeout_s: float) -> FakeBlock | None:
+        block = super().get_all(timeout_s)
+        if block is not None:
+            self.blocks += 1
+            if self.blocks == 3:
+                return FakeBlock(block.frames, gaps=(Gap(index=30, first_seq=0, missing=5),))
+        return block
+
+
+def test_a_gap_is_recorded_as_an_event_at_the_sample_it_came_before(tmp_path):
+    bench = GappyBench()
+    engine, seen = make_engine(bench)
+    path = tmp_path / "gap.h5"
+    empty = {"config_toml": "", "sequence_toml": "", "sequence_name": ""}
+    with CampaignWriter.create(path, software_version="t", **empty) as writer:
+        engine.bus.subscribe(Recorder(writer), critical=True)
+        assert engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(5.0,)))).status == "complete"
+    (third,) = [b for b in of(seen, ev.SamplesRecorded) if b.gaps]
+    assert third.gaps == ((30, 5),)
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        gaps = [e for e in run.events if e.kind == "gap"]
+        assert [(e.sample, e.fields["missing"]) for e in gaps] == [(third.first_sample + 30, 5)]
+        assert run.n_samples == sum(len(b) for b in of(seen, ev.SamplesRecorded))
+
+
+class TricklingDeafBench(DeafBench):
+    """A controller that never starts, behind a link that lets 1 frame in 100 through and reports
+    the others lost."""
+
+    def get_all(self, timeout_s: float) -> FakeBlock | None:
+        block = super().get_all(timeout_s)
+        if block is None:
+            return None
+        lost = len(block.frames) - 1
+        return FakeBlock(block.frames[-1:], gaps=(Gap(index=0, first_seq=0, missing=lost),))
+
+
+def test_a_link_that_loses_most_frames_does_not_hold_the_start_watchdog_off():
+    """The watchdog counts the samples the link reported lost with those received: 5 s of them."""
+    bench = TricklingDeafBench()
+    engine, seen = make_engine(bench, clock=WallClock(0.1))
+    outcome = engine.run(sequence(Hydraulics("high"), grid(freqs_hz=(5.0,))))
+    assert outcome.reason == "excitation watchdog: the controller did not start the excitation"
+    received = sum(len(b) for b in of(seen, ev.SamplesRecorded))
+    assert received < 0.02 * 5 * RATE_HZ  # tripped after about 5 s of samples, 1 in 100 received
