@@ -16,6 +16,7 @@ from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.records import DwellRecord
 from bench.app.analyze import analyze_campaign
 from bench.app.post_run import RunAnalyser, replay_campaign
+from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, simulate_dwells, simulate_hammer
@@ -130,3 +131,10 @@ def test_an_analysis_with_the_campaigns_knowledge_equals_a_fresh_one_without_ana
     ]
     assert all(r is taken_in[r.run_id] for r in reused.runs)
     assert reused.knowledge is carried and reused.hammer_record is not None
+
+
+def test_an_analysis_refuses_a_configuration_beside_a_knowledge(stored):
+    path, _, _ = stored
+    knowledge = CampaignKnowledge(sensor=WfsSensor(mass_kg=SENSOR_MASS_KG), wheel_mass_kg=29.0)
+    with pytest.raises(ValueError, match="not both"):
+        analyze_campaign(path, default_bench_config(), knowledge=knowledge)

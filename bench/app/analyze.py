@@ -62,11 +62,15 @@ def analyze_campaign(
     """Analyse every complete run of the campaign file at ``path`` in order; ``config`` replaces
     the configuration stored in the file (its masses). ``knowledge``: what the analysis of this
     file's runs has established already (the post-run analysis of the campaign that wrote it, whose
-    analyses read the runs back from this file): the runs it took in are not analysed again. A file
+    analyses read the runs back from this file): the runs it took in are not analysed again, and
+    their analyses are those made as the campaign ran (a run analysed before later runs of its kind
+    existed says what it said then). Not both: the knowledge holds its masses. A file
     that does not follow the schema raises :class:`~bench.store.StoreError` (which names the file
     and the place); an analysis that fails for one run is a flagged :class:`RunAnalysis`, not an
     error."""
     path = Path(path)
+    if config is not None and knowledge is not None:
+        raise ValueError("give a configuration or a knowledge, not both: the knowledge holds its masses")
     with open_campaign(path) as campaign:
         if config is None:
             config, source = _stored_config(path, campaign.config_toml, campaign.config_name)

@@ -277,8 +277,7 @@ class CampaignWriter:
         """Flush when the open run's unwritten samples fill a chunk (one flush interval of
         samples), with an fsync only if the interval's wall time has passed since the last one;
         or flush and fsync when the interval's wall time has passed since the last fsync. Returns
-        whether it flushed. Every write calls it; an engine whose stream stalls calls it from its
-        idle loop too."""
+        whether it flushed. Every write calls it."""
         run = self._run
         if run is not None and run._samples - run._written >= run.chunk_samples:
             self._flush(final=False, sync=False)
