@@ -443,16 +443,18 @@ class WfsReader:
                 port.close()
 
     def _consume(self, data: bytes) -> None:
+        """Parse ``data``; hand its frames to the subscriptions first, then its replies and captures
+        to whoever awaits them: a command's reply is seen only once the frames that came before it
+        on the line are queued (a host that stops the stream has every frame sent before STOP)."""
         with self._lock:
             result = self._parser.feed(data)
+        if len(result.frames) or result.gaps or result.resyncs:
+            block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
+            with self._subscriptions_lock:
+                subscriptions = sorted(self._subscriptions, key=lambda sub: sub.lossless)  # lossy first
+            for sub in subscriptions:
+                sub._offer(block, self._stop)
         for reply in result.replies:
             self._replies.put(reply)
         for capture in result.captures:
             self._captures.put(capture)
-        if len(result.frames) == 0 and not result.gaps and not result.resyncs:
-            return
-        block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
-        with self._subscriptions_lock:
-            subscriptions = sorted(self._subscriptions, key=lambda sub: sub.lossless)  # lossy first
-        for sub in subscriptions:
-            sub._offer(block, self._stop)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import queue
 import statistics
 import threading
 import time
@@ -12,7 +13,7 @@ import pytest
 
 from drivers.errors import ProtocolMismatchError
 from drivers.wfs_commands import Reply
-from drivers.wfs_frame import new_frames
+from drivers.wfs_frame import encode, new_frames
 from drivers.wfs_reader import SampleBlock, Subscription, WfsReader
 from drivers.wfs_stream import Gap, Resync
 from simulators.bench_sim import BenchRunner, SimulatedBench
@@ -191,3 +192,23 @@ def test_a_lossless_consumer_gets_every_frame_of_an_unpaced_bench(link, take, ma
     assert np.all(np.diff(seq) == 1)
     assert not any(b.gaps for b in blocks) and device.frames_dropped == 0
     assert device.frames_sent >= frames
+
+
+def test_a_reply_is_handed_on_only_after_the_frames_that_came_before_it():
+    """Frames and a STOP reply parsed from one read: when the reply reaches the waiting command,
+    every frame sent before it is already queued, so a host that stops the stream has them all."""
+    reader = WfsReader(lambda: MemoryLink().open_host())
+    sub = reader.subscribe(lossless=True, max_frames=10_000)
+    frames = new_frames(500)
+    frames["seq"] = np.arange(500)
+    queued_at_reply: list[int] = []
+
+    class Replies(queue.Queue):
+        def put(self, item, block=True, timeout=None):
+            queued_at_reply.append(sub._frames)
+            super().put(item, block, timeout)
+
+    reader._replies = Replies()
+    reader._consume(encode(frames) + Reply(True, "STOP").encode())
+    assert queued_at_reply == [500]
+    assert np.array_equal(sub.get_all(0).frames["seq"], np.arange(500))
