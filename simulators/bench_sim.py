@@ -193,6 +193,12 @@ class SimulatedBench:
             )
 
 
+#: Seconds of output per block: paced, short blocks (a bench one watches in real time); unpaced,
+#: large blocks keep the simulation's overhead per block small when it runs far faster than real time.
+PACED_BLOCK_S = 0.01
+UNPACED_BLOCK_S = 0.2
+
+
 class BenchRunner:
     """The thread that advances the bench and feeds its sinks.
 
@@ -203,10 +209,12 @@ class BenchRunner:
     controller's tapers and watchdog behave as on a real bench.
     """
 
-    def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_s: float = 0.01) -> None:
+    def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_s: float | None = None) -> None:
+        """``block_s``: seconds of output per block; by default :data:`PACED_BLOCK_S` or
+        :data:`UNPACED_BLOCK_S`."""
         self.bench = bench
         self.paced = paced
-        self.block_s = block_s
+        self.block_s = block_s if block_s is not None else PACED_BLOCK_S if paced else UNPACED_BLOCK_S
         self.sinks: list[BenchSink] = []
         self._worker = Worker(self._run, "bench-runner")
         self._stop = self._worker.stopping

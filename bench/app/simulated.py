@@ -16,16 +16,13 @@ from dataclasses import dataclass
 from bench.models.benches import TyreModel
 from bench.models.setup import BenchSetup
 from sequences import Prompt
-from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
 from simulators.ports import PtyLink
 from simulators.wfs_device import WfsDevice
 from simulators.world import SimulatedOperator, SimulatedWorld
 
-#: Output samples per block the unpaced bench advances: large blocks keep the simulation's
-#: overhead small when it runs far faster than real time; paced, blocks are 10 ms.
-UNPACED_BLOCK_S = 0.2
 #: How far (s of samples) the unpaced bench may run ahead of the engine (``EngineTiming.backlog_s``):
 #: it waits for its host, so one block is enough; more would only be rest recorded between points.
 UNPACED_BACKLOG_S = UNPACED_BLOCK_S
@@ -69,7 +66,7 @@ class SimulatedLab:
         self.operator = SimulatedOperator(self.world)
         self.link = PtyLink()
         self.device = WfsDevice(self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s)
-        self.runner = BenchRunner(self.bench, paced=s.paced, block_s=0.01 if s.paced else UNPACED_BLOCK_S)
+        self.runner = BenchRunner(self.bench, paced=s.paced)
         self.runner.sinks.append(self.device)
         self.server = ControllerServer(self.bench)
         self._loop = asyncio.new_event_loop()
