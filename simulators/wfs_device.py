@@ -249,9 +249,10 @@ class WfsDevice:
         for start in range(0, len(data), _WRITE_PIECE_BYTES):
             piece = data[start : start + _WRITE_PIECE_BYTES]
             with self._write_lock:
+                if not self._link_up:
+                    link_lost = True
+                    break
                 try:
-                    if not self._link_up:
-                        raise OSError("link down")
                     written = self._write_all(piece, deadline - time.monotonic())
                 except (serial.SerialException, OSError) as exc:
                     log.debug("WFS device write failed: %s", exc)

@@ -71,6 +71,9 @@ class Recorder:
             raise RuntimeError(
                 f"run {event.run_id}: samples from {event.first_sample} on, but the file holds {run.samples}"
             )
+        if not event.gaps:
+            run.append(event.columns)
+            return
         position = 0  # each gap's event is placed at the sample it came before
         for index, missing in event.gaps:
             if index > position:
