@@ -20,7 +20,7 @@ from drivers.wfs_frame import FRAME_SIZE, Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
-from simulators.bench_sim import BenchBlock, BenchRunner, SimulatedBench
+from simulators.bench_sim import PACED_BLOCK_S, BenchBlock, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
 from simulators.plant import PlantSimulator, SensorRealism
@@ -38,7 +38,9 @@ def _rig(link, *, faults=None, speed_rad_s=0.0):
     bench = SimulatedBench.paper_shaker(seed=2)
     device = WfsDevice(link, bench, seed=3, faults=faults, speed_rad_s=speed_rad_s)
     device.start()
-    runner = BenchRunner(bench, paced=False)
+    # unpaced, in blocks of 10 frames: the link's tests race commands against the numbering of
+    # many small blocks (the unpaced default, 200 frames, would number few)
+    runner = BenchRunner(bench, paced=False, block_s=PACED_BLOCK_S)
     runner.sinks.append(device)
     runner.start()
     return bench, device, runner
