@@ -80,12 +80,19 @@ class FitStatistics:
         return self.lsq.reduced_chi2
 
 
+def chi2_far_outside_noise(chi2: float, dof: int) -> bool:
+    """``chi2`` of whitened residuals with ``dof`` degrees of freedom exceeds the
+    ``OUTSIDE_NOISE_QUANTILE`` quantile of its distribution and ``OUTSIDE_NOISE_MIN_REDUCED_CHI2``
+    times ``dof``: the residuals are far larger than the data's stated uncertainty."""
+    dof = max(int(dof), 1)
+    limit = max(chi2_distribution.ppf(OUTSIDE_NOISE_QUANTILE, dof), OUTSIDE_NOISE_MIN_REDUCED_CHI2 * dof)
+    return bool(chi2 > limit)
+
+
 def far_outside_noise(fit: LsqResult) -> bool:
     """The residuals are far larger than the data's stated uncertainty: the model (or something
     taken as known, such as a sensor or a mass) does not describe the data. A finding, not noise."""
-    dof = max(fit.n_residuals - fit.n_parameters, 1)
-    limit = max(chi2_distribution.ppf(OUTSIDE_NOISE_QUANTILE, dof), OUTSIDE_NOISE_MIN_REDUCED_CHI2 * dof)
-    return fit.chi2 > limit
+    return chi2_far_outside_noise(fit.chi2, fit.n_residuals - fit.n_parameters)
 
 
 def relative_resolution(name: str, values: Mapping[str, float]) -> float:

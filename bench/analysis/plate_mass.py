@@ -6,7 +6,16 @@ its weighted least-squares solution over all frequencies::
     m = -sum(w^2 Re(H) / s^2) / sum(w^4 / s^2),   var(m) = 1 / (2 sum(w^4 / s^2))
 
 (``s``: point uncertainty; each of Re, Im has variance s^2/2), inflated by the reduced chi^2 when the
-points scatter more than their uncertainty says. With a wheel, the contact force is
+points scatter more than their uncertainty says, as long as the rigid-mass model still describes them.
+
+A free run whose misfit lies far outside its noise (chi^2 of the ``2n`` real residuals over ``2n - 1``
+degrees of freedom beyond :func:`~bench.analysis.lsq.chi2_far_outside_noise`, the test the tyre fits
+use) is no rigid plate: the wheel left on adds the tyre's stiffness ``k - m_T w^2`` to ``F/Z``
+(residuals of thousands of sigma). Its m_comp is flagged (:attr:`PlateMass.outside_noise`) and keeps
+the interval its points' noise gives: the inflation assumes the model holds and the noise was
+understated, and an interval inflated by a model error (kilograms) would let the tyre fit, which
+takes m_comp's error as common to every ``F_contact/Z`` point, trade m_comp for the tread mass and
+fit Model 1 to a tread resonance. With a wheel, the contact force is
 ``F_contact = F_shaker + m_comp w^2 Z`` in the frequency domain, and ``F_shaker - m_comp z''`` in the
 time domain, with ``z''`` from a least-squares FIR double differentiator.
 """
@@ -21,18 +30,28 @@ import numpy as np
 from bench.analysis.dwell import DwellFit, dwell_phasors
 from bench.analysis.fir import apply_aligned, double_differentiator
 from bench.analysis.frf import Frf, phasor_ratio
+from bench.analysis.lsq import chi2_far_outside_noise
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 
 
 @dataclass(frozen=True)
 class PlateMass:
     """``mass_kg`` (m_comp) with its standard uncertainty ``sigma_kg``; ``residual_rms_n_per_m``:
-    rms misfit of ``F_dyn / Z`` over the ``n_points`` reliable points used."""
+    rms misfit of ``F_dyn / Z`` over the ``n_points`` reliable points used; ``reduced_chi2``: that
+    misfit against the points' noise (0 for a mass that was given, not fitted)."""
 
     mass_kg: float
     sigma_kg: float
     residual_rms_n_per_m: float
     n_points: int
+    reduced_chi2: float = 0.0
+
+    @property
+    def outside_noise(self) -> bool:
+        """The rigid-mass fit misses the free run far outside its noise (see the module docstring):
+        the plate did not move as a rigid mass, so m_comp is no plate mass."""
+        dof = 2 * self.n_points - 1
+        return chi2_far_outside_noise(self.reduced_chi2 * dof, dof)
 
 
 def identify_plate_mass(plate_per_z: Frf) -> PlateMass:
@@ -46,9 +65,12 @@ def identify_plate_mass(plate_per_z: Frf) -> PlateMass:
     mass = -np.sum(w2 * h.real / s**2) / np.sum(w2**2 / s**2)
     resid = h + mass * w2
     n = int(use.sum())
-    red_chi2 = np.sum(2 * np.abs(resid) ** 2 / s**2) / max(2 * n - 1, 1)
-    sigma = np.sqrt(max(red_chi2, 1.0) / (2 * np.sum(w2**2 / s**2)))
-    return PlateMass(float(mass), float(sigma), float(np.sqrt(np.mean(np.abs(resid) ** 2))), n)
+    dof = 2 * n - 1
+    chi2 = float(np.sum(2 * np.abs(resid) ** 2 / s**2))
+    inflation = 1.0 if chi2_far_outside_noise(chi2, dof) else max(chi2 / dof, 1.0)
+    sigma = np.sqrt(inflation / (2 * np.sum(w2**2 / s**2)))
+    rms = float(np.sqrt(np.mean(np.abs(resid) ** 2)))
+    return PlateMass(float(mass), float(sigma), rms, n, chi2 / dof)
 
 
 @dataclass(frozen=True)

@@ -162,7 +162,7 @@ class FreeRunResult:
     """m_comp of a bench's plate from its free run: ``plate`` (mass, sigma, residual), the dwell
     ``fits`` (ascending frequency) and ``unsettled``: the dwells that did not settle, with why
     (their points are left out of m_comp); ``findings``: what the user must know about m_comp
-    (a mass that is not positive is not physical)."""
+    (a mass that is not positive is not physical; a fit far outside the noise is no plate mass)."""
 
     plate: PlateMass
     fits: tuple[DwellFit, ...]
@@ -172,19 +172,29 @@ class FreeRunResult:
 
 
 def plate_mass_findings(plate: PlateMass) -> tuple[str, ...]:
-    """A finding when m_comp is not a positive finite mass: a plate cannot weigh zero or less, so
-    the plate force or the displacement has the wrong sign (or unit) in the record."""
-    if np.isfinite(plate.mass_kg) and plate.mass_kg > 0:
-        return ()
-    return (
-        f"m_comp {plate.mass_kg:.4g} kg is not physical (a plate mass is positive):"
-        f" check the sign and units of the plate force {PLATE_FORCE} and the displacement {DISPLACEMENT}",
-    )
+    """Findings on m_comp: a mass that is not positive and finite (a plate cannot weigh zero or
+    less, so the plate force or the displacement has the wrong sign or unit in the record), and a
+    rigid-mass fit far outside the free run's noise (:attr:`PlateMass.outside_noise`: something
+    besides the plate moved with it, such as a wheel left on the bench)."""
+    findings = []
+    if not (np.isfinite(plate.mass_kg) and plate.mass_kg > 0):
+        findings.append(
+            f"m_comp {plate.mass_kg:.4g} kg is not physical (a plate mass is positive):"
+            f" check the sign and units of the plate force {PLATE_FORCE} and the displacement {DISPLACEMENT}"
+        )
+    if plate.outside_noise:
+        findings.append(
+            f"m_comp misses the free run far outside its noise (reduced chi^2 {plate.reduced_chi2:.3g},"
+            f" residual {plate.residual_rms_n_per_m:.3g} N/m rms): the plate did not move as a rigid"
+            " mass (was the specimen removed?); m_comp and every contact force corrected with it are"
+            " not to be trusted"
+        )
+    return tuple(findings)
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
     """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``), flagged when it is
-    not a positive mass (:func:`plate_mass_findings`)."""
+    not a positive mass or its fit misses the data (:func:`plate_mass_findings`)."""
     ordered, fits, rejected = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
     with _named("free run"):
         plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
@@ -280,6 +290,17 @@ def _compensated_ratio(fits: Sequence[DwellFit], plate: PlateMass, comp: ModelCo
     return Frf(f, ratio, sigma, reliable, "f_compensated", "f_contact")
 
 
+def _unreliable_plate_finding(ident: ShakerIdentification) -> str:
+    """The finding of a shaker fit on an m_comp its free run does not describe: its error ``dm``
+    enters every ``F_contact/Z`` as ``w^2 dm``, which a tread mass fits as well, so the tyre fit
+    cannot see it (its chi^2 stays within the noise)."""
+    return (
+        f"Model {int(ident.best)} rests on an m_comp its free run does not describe (see the free run):"
+        " its error enters the contact force as a mass and passes into the tread mass; the parameters,"
+        " the ratio peak and the valid bands are not to be trusted"
+    )
+
+
 def _analyse_amplitude(
     amplitude_m: float,
     records: Sequence[DwellRecord],
@@ -300,6 +321,8 @@ def _analyse_amplitude(
         ident = identify_shaker(
             frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
         )
+        if plate.outside_noise:
+            ident = replace(ident, findings=(*ident.findings, _unreliable_plate_finding(ident)))
         best = ident.best_fit
         comp = design_model_compensator(
             best.model,

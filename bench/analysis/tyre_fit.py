@@ -94,7 +94,8 @@ class TyreFit(FitStatistics):
     ``lsq``: the least-squares result (its ``values``/``ci95``, ``undetermined``, ``chi2`` over
     ``n_residuals`` with ``n_parameters``, ``converged`` are also properties of the fit, without the
     nuisance offset of m_comp); ``aic``, ``bic``; ``ratio_relative_rms``: rms of
-    ``|ratio_model / ratio_measured - 1|`` for ``F_wfs / F_contact``; ``n_starts``: how many start
+    ``|ratio_model / ratio_measured - 1|`` for ``F_wfs / F_contact`` over the reliable points, the
+    measured ratio with the free run's m_comp (not moved by the fitted offset); ``n_starts``: how many start
     values the search tried (Model 3: several sidewall modes).
     """
 
@@ -390,8 +391,9 @@ def fit_tyre_model(
         fit = min(fit, solve(found.values, FULL_BUDGET), key=lambda f: f.chi2)
     tyre, rubber = _model_objects(model, fit.values, wheel_mass_kg)
     wfs, contact = shaker_response(model, tyre, sensor, data.freq_hz, rubber)
-    ratio_meas = data.h_wfs / (data.h_contact - data.w**2 * fit.values.get(PLATE_MASS_OFFSET, 0.0))
-    ratio_rel = np.abs((wfs / contact) / ratio_meas - 1)
+    # against the measured ratio (m_comp of the free run), not one corrected by the fitted offset:
+    # the offset can carry a tread mass, and the figure would then measure the fit against itself
+    ratio_rel = np.abs((wfs / contact) / (data.h_wfs / data.h_contact) - 1)
     p, n_res = fit.n_parameters, fit.n_residuals
     return TyreFit(
         model=model,

@@ -67,6 +67,7 @@ def free_run_json(result: FreeRunResult) -> dict[str, Any]:
         "m_comp_kg": p.mass_kg,
         "m_comp_sigma_kg": p.sigma_kg,
         "residual_rms_n_per_m": p.residual_rms_n_per_m,
+        "residual_reduced_chi2": p.reduced_chi2,
         "n_points_used": p.n_points,
         "n_dwells": len(result.fits),
         "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
