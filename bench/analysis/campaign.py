@@ -10,13 +10,24 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
-from bench.analysis.runs import FourPostResult, HammerResult, ShakerCampaignResult
+from bench.analysis.runs import FourPostResult, FreeRunResult, HammerResult, ShakerCampaignResult
 from bench.models.parameters import WfsSensor
+
+
+@dataclass(frozen=True)
+class PlateMassRun:
+    """A free run analysed: its ``run_id``, the ``plate`` it weighed (``"shaker plate"`` or
+    ``"four-post post"``) and its ``result`` (m_comp)."""
+
+    run_id: str
+    plate: str
+    result: FreeRunResult
 
 
 @dataclass
 class CampaignKnowledge:
-    """What the campaign has established so far, for the analyses that follow; ``analysed_runs``:
+    """What the campaign has established so far, for the analyses that follow; ``plate_masses``:
+    every free run analysed, in order (whether or not a later run used it); ``analysed_runs``:
     the analyses of the runs it has taken in, by run id (a replay of the file takes these instead
     of analysing the runs again)."""
 
@@ -24,6 +35,7 @@ class CampaignKnowledge:
     wheel_mass_kg: float
     shaker_free_run: list[DwellRecord] = field(default_factory=list)
     post_free_run: list[DwellRecord] = field(default_factory=list)
+    plate_masses: list[PlateMassRun] = field(default_factory=list)
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
     hammer: HammerResult | None = None
     four_post: FourPostResult | None = None

@@ -29,7 +29,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
+from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis
 from bench.analysis.runs import (
     ShakerCampaignResult,
     analyse_four_post,
@@ -158,8 +158,10 @@ class RunAnalyser:
             result = analyse_free_run(records)
             if run.conditions.get("bench") == "four_post":
                 k.post_free_run = records
+                k.plate_masses.append(PlateMassRun(run.run_id, "four-post post", result))
             else:
                 k.shaker_free_run = records
+                k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
             return (
                 "plate_mass",
                 summary_lines(result),

@@ -105,27 +105,20 @@ def _sensor(analysis: CampaignAnalysis) -> str:
 
 
 def _plate_masses(analysis: CampaignAnalysis) -> str:
-    k = analysis.knowledge
+    """Every free run analysed, whether or not a later run of the file used its m_comp (a file
+    whose shaker grids were interrupted still weighed its plate)."""
     rows = [
         (
-            f"shaker plate ({p:g} bar campaign)",
-            _g(r.free_run.plate.mass_kg, 6),
-            _g(r.free_run.plate.sigma_kg, 2),
-            f"{r.free_run.plate.n_points} of {len(r.free_run.fits)}",
+            run.plate,
+            run.run_id,
+            _g(run.result.plate.mass_kg, 6),
+            _g(run.result.plate.sigma_kg, 2),
+            f"{run.result.plate.n_points} of {len(run.result.fits)}",
         )
-        for p, r in sorted(k.shaker.items())
+        for run in analysis.knowledge.plate_masses
     ]
-    if k.four_post is not None:
-        post = k.four_post.post_free_run.plate
-        rows.append(
-            (
-                "four-post post",
-                _g(post.mass_kg, 6),
-                _g(post.sigma_kg, 2),
-                f"{post.n_points} of {len(k.four_post.post_free_run.fits)}",
-            )
-        )
-    return _table(("plate", "m_comp (kg)", "sigma (kg)", "dwells used"), rows) if rows else "<p>none</p>"
+    header = ("plate", "free run", "m_comp (kg)", "sigma (kg)", "dwells used")
+    return _table(header, rows) if rows else "<p>none</p>"
 
 
 def _parameters(analysis: CampaignAnalysis) -> str:
