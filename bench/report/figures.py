@@ -3,9 +3,9 @@ paper's Figs. 3, 6, 7/9 and 8 from the analysis results.
 
 - ``hammer``: the blow's decay in time with the analysed free decay shaded, and its amplitude
   spectrum with the identified eigenfrequency marked (Fig. 3).
-- ``shaker_<p>bar``: |F_WFS/F_contact| and its phase over frequency at one tyre pressure, one
-  colour per amplitude; measured dwells as dots with 95 % bars (1.96 sigma), Models 1 / 2 / 3 as
-  lines (Fig. 6).
+- ``shaker_<p>bar``: |F_WFS/F_contact| (log) and its phase over frequency at one tyre pressure, one
+  colour per amplitude; measured dwells as dots with 95 % intervals (a magnitude's lower end no
+  lower than the axis, a phase's wrapped into -180..180 deg), Models 1 / 2 / 3 as lines (Fig. 6).
 - ``shaker_compensated_<p>bar``: the same ratio raw against model-compensated, with the tolerance
   of the valid band.
 - ``four_post_ratios``: raw, hub-acceleration compensated and model-compensated ratios over the
@@ -45,6 +45,10 @@ DPI = 100
 MODEL_GRID_POINTS = 300
 #: Normal quantile of the drawn uncertainty bars (95 %).
 Z95 = 1.96
+#: Factor of room below the smallest and above the largest magnitude drawn on a log axis.
+MAGNITUDE_MARGIN = 1.5
+#: Room beyond +/-180 deg on a phase axis, so that points at the wrap stay visible.
+PHASE_MARGIN_DEG = 10.0
 _MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
 #: Labelled frequencies per decade, coarse to fine; a log axis takes the first giving enough labels.
 FREQUENCY_TICK_SUBS = ((1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0, 7.0), tuple(float(k) for k in range(1, 10)))
@@ -170,13 +174,64 @@ def _model_ratio(
     return wfs / contact
 
 
-def _dots(mag: Axes, phase: Axes, frf: Frf, colour: str, label: str, *, marker: str = "o") -> None:
-    """Measured points with 95 % bars; unreliable ones hollow."""
+def magnitude_limits(magnitudes: list[np.ndarray]) -> tuple[float, float]:
+    """Log-axis limits that show every drawn magnitude (dots and model lines, not the bars) with a
+    margin of ``MAGNITUDE_MARGIN``: an interval reaching beyond them runs off the axes instead of
+    stretching them over decades of nothing."""
+    values = np.concatenate([np.ravel(m) for m in magnitudes])
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size == 0:
+        return 0.1, 10.0
+    return float(values.min()) / MAGNITUDE_MARGIN, float(values.max()) * MAGNITUDE_MARGIN
+
+
+def magnitude_bar(magnitude: np.ndarray, sigma: np.ndarray, floor: float) -> np.ndarray:
+    """Lower and upper extent (2 x n, for ``errorbar``'s ``yerr``) of the 95 % interval of a
+    magnitude: ``|H| -/+ 1.96 sigma``, the lower end no lower than ``floor`` (> 0, the axis' bottom):
+    a magnitude is not negative, and an interval that reaches zero runs to the bottom of the axes."""
+    lower = np.minimum(Z95 * sigma, np.maximum(magnitude - floor, 0.0))
+    return np.vstack([lower, Z95 * sigma])
+
+
+def phase_half_width_deg(magnitude: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Half-width of the 95 % phase interval of a complex point: the phases of the circle of radius
+    ``1.96 sigma`` around it, ``arcsin(1.96 sigma / |H|)``; 180 deg (any phase) when the circle
+    holds zero."""
+    ratio = np.divide(Z95 * sigma, magnitude, out=np.full(magnitude.shape, np.inf), where=magnitude > 0)
+    return np.where(ratio < 1, np.degrees(np.arcsin(np.minimum(ratio, 1.0))), 180.0)
+
+
+def _phase_bars(phase: Axes, f: np.ndarray, phase_deg: np.ndarray, half_deg: np.ndarray, style: dict) -> None:
+    """Phase intervals on the (-180, 180] axis: the part beyond +/-180 deg continues from the other
+    edge (the phase wraps), an interval of 360 deg or more spans the whole axis."""
+    lo, hi = phase_deg - half_deg, phase_deg + half_deg
+    full = half_deg >= 180.0
+    lo, hi = np.where(full, -180.0, np.maximum(lo, -180.0)), np.where(full, 180.0, np.minimum(hi, 180.0))
+    pieces = [(f, lo, hi)]
+    over = ~full & (phase_deg + half_deg > 180.0)
+    under = ~full & (phase_deg - half_deg < -180.0)
+    pieces.append((f[over], np.full(over.sum(), -180.0), phase_deg[over] + half_deg[over] - 360.0))
+    pieces.append((f[under], phase_deg[under] - half_deg[under] + 360.0, np.full(under.sum(), 180.0)))
+    for x, y0, y1 in pieces:
+        if x.size:
+            phase.vlines(x, y0, y1, color=style["ecolor"], lw=style["elinewidth"])
+
+
+def _phase_axis(phase: Axes) -> None:
+    """Phase from -180 to 180 deg (the range of a wrapped phase), ticks every 90 deg."""
+    phase.set_ylim(-180.0 - PHASE_MARGIN_DEG, 180.0 + PHASE_MARGIN_DEG)
+    phase.set_yticks([-180, -90, 0, 90, 180])
+
+
+def _dots(
+    mag: Axes, phase: Axes, frf: Frf, colour: str, label: str, *, floor: float, marker: str = "o"
+) -> None:
+    """Measured points with 95 % intervals (magnitude: lower ends no lower than ``floor``; phase:
+    wrapped); unreliable points hollow."""
     for keep, face in ((frf.reliable, colour), (~frf.reliable, "none")):
         if not np.any(keep):
             continue
         f, h, sigma = frf.freq_hz[keep], frf.value[keep], frf.sigma[keep]
-        phase_sigma_deg = np.degrees(np.minimum(sigma / np.abs(h), np.pi))
         dots = {
             "fmt": marker,
             "ms": 4,
@@ -187,19 +242,24 @@ def _dots(mag: Axes, phase: Axes, frf: Frf, colour: str, label: str, *, marker: 
             "capsize": 2,
             "ls": "none",
         }
-        mag.errorbar(f, np.abs(h), yerr=Z95 * sigma, label=label if face != "none" else None, **dots)
-        phase.errorbar(f, np.degrees(np.angle(h)), yerr=Z95 * phase_sigma_deg, **dots)
+        magnitude = np.abs(h)
+        bar = magnitude_bar(magnitude, sigma, floor)
+        mag.errorbar(f, magnitude, yerr=bar, label=label if face != "none" else None, **dots)
+        phase.plot(f, np.degrees(np.angle(h)), marker, ms=4, mfc=face, mec=colour, ls="none")
+        _phase_bars(phase, f, np.degrees(np.angle(h)), phase_half_width_deg(magnitude, sigma), dots)
 
 
 def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
-    """|F_WFS/F_contact| and phase per amplitude: measured dots, Models 1-3 as lines."""
+    """|F_WFS/F_contact| (log) and phase per amplitude: measured dots, Models 1-3 as lines."""
     fig, (mag, phase) = _new_figure(2)
+    drawn = []
     for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
         ratio = amp.frfs.wfs_per_contact
         grid = np.geomspace(ratio.freq_hz[0], ratio.freq_hz[-1], MODEL_GRID_POINTS)
-        _dots(mag, phase, ratio, colour, f"{amp.label} measured")
+        drawn.append(ratio.magnitude)
         for model in amp.identification.fits:
             h = _model_ratio(amp, int(model), result.sensor, grid)
+            drawn.append(np.abs(h))
             chosen = " (selected)" if model == amp.identification.best else ""
             mag.plot(
                 grid,
@@ -210,12 +270,18 @@ def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
                 label=f"{amp.label} Model {int(model)}{chosen}",
             )
             phase.plot(grid, np.degrees(np.angle(h)), ls=_MODEL_STYLES[int(model)], color=colour, lw=1.1)
+    limits = magnitude_limits(drawn)
+    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
+        _dots(mag, phase, amp.frfs.wfs_per_contact, colour, f"{amp.label} measured", floor=limits[0])
     mag.set(
+        yscale="log",
+        ylim=limits,
         ylabel="|F_WFS / F_contact|",
         title=f"Shaker, tyre at {pressure_bar:g} bar: measured (95 % bars) and Models 1 (dotted),"
         " 2 (solid), 3 (dashed)",
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    _phase_axis(phase)
     mag.legend(fontsize=7, ncol=3, loc="upper left")
     _frequency_axes(mag, phase)
     return fig
@@ -230,9 +296,17 @@ def _tolerance(mag: Axes, phase: Axes, band: ValidBand) -> None:
 def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
     """Raw against model-compensated ratio per amplitude, with the valid band's tolerances."""
     fig, (mag, phase) = _new_figure(2)
+    limits = magnitude_limits(
+        [
+            frf.magnitude
+            for amp in result.amplitudes.values()
+            for frf in (amp.frfs.wfs_per_contact, amp.compensated_per_contact)
+        ]
+    )
     for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
-        _dots(mag, phase, amp.frfs.wfs_per_contact, colour, f"{amp.label} raw", marker="o")
-        _dots(mag, phase, amp.compensated_per_contact, colour, f"{amp.label} model-compensated", marker="s")
+        raw, compensated = amp.frfs.wfs_per_contact, amp.compensated_per_contact
+        _dots(mag, phase, raw, colour, f"{amp.label} raw", floor=limits[0], marker="o")
+        _dots(mag, phase, compensated, colour, f"{amp.label} model-compensated", floor=limits[0], marker="s")
         for ax, values in (
             (mag, amp.compensated_per_contact.magnitude),
             (phase, amp.compensated_per_contact.phase_deg),
@@ -242,11 +316,13 @@ def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult)
     _tolerance(mag, phase, first.valid_band_raw)
     mag.set(
         yscale="log",
+        ylim=limits,
         ylabel="|F / F_contact|",
         title=f"Shaker at {pressure_bar:g} bar: raw (circles), model-compensated (squares),"
         " tolerance (dashed)",
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
+    _phase_axis(phase)
     mag.legend(fontsize=7, ncol=3, loc="upper left")
     _frequency_axes(mag, phase)
     return fig
