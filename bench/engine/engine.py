@@ -438,24 +438,41 @@ class Engine:
             mean_mm=self._mean(step.mean_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
-            span = run.excite(setpoint, planned_s=step.duration_s)
-            self.bus.publish(
-                ev.PointDone(
-                    run_id,
-                    0,
-                    1,
-                    "done",
-                    step.start_hz,
-                    step.amplitude_mm,
-                    step.amplitude_mm,
-                    step.amplitude_mm,
-                    float("nan"),
-                    span.start,
-                    span.hold_start,
-                    span.hold_end,
-                    span.end,
-                )
+            attempt = 0
+            while True:
+                self._checkpoint()
+                attempt += 1
+                try:
+                    span = run.excite(setpoint, planned_s=step.duration_s)
+                except _PointInterruptedError as interrupted:
+                    self._publish_sweep(run_id, step, attempt, "interrupted", interrupted.span)
+                    self._wait_paused()
+                    continue
+                self._publish_sweep(run_id, step, attempt, "done", span)
+                return
+
+    def _publish_sweep(
+        self, run_id: str, step: Sweep, attempt: int, status: str, span: ExcitationSpan
+    ) -> None:
+        """The sweep's one point: ``done``, or ``interrupted`` by a pause (the sweep is repeated from
+        its start on resume)."""
+        self.bus.publish(
+            ev.PointDone(
+                run_id,
+                0,
+                attempt,
+                status,
+                step.start_hz,
+                step.amplitude_mm,
+                step.amplitude_mm,
+                step.amplitude_mm,
+                float("nan"),
+                span.start,
+                span.hold_start,
+                span.hold_end,
+                span.end,
             )
+        )
 
     def _hammer_run(self, run_id: str, step: HammerTest, held: RecordedRun) -> None:
         """Per blow: arm the triggered capture, ask for the blow, record the captured block.

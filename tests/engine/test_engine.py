@@ -496,3 +496,79 @@ def test_a_link_that_loses_most_frames_does_not_hold_the_start_watchdog_off():
     assert outcome.reason == "excitation watchdog: the controller did not start the excitation"
     received = sum(len(b) for b in of(seen, ev.SamplesRecorded))
     assert received < 0.02 * 5 * RATE_HZ  # tripped after about 5 s of samples, 1 in 100 received
+
+
+def sweep_step() -> Sweep:
+    return Sweep(start_hz=1.0, end_hz=10.0, duration_s=3.0, amplitude_mm=2.0, taper_in_s=0.5, taper_out_s=0.5)
+
+
+def pause_once_mid_excitation(engine: Engine, seen: list, after_blocks: int):
+    """A bench hook that requests a pause once, ``after_blocks`` blocks into the first excitation,
+    and a subscriber that resumes once paused."""
+    paused: list[bool] = []
+
+    def pause(b: FakeBench) -> None:
+        if not paused and len(of(seen, ev.SamplesRecorded)) >= after_blocks and len(b._wave):
+            paused.append(True)
+            engine.request_pause()
+
+    def resume(event) -> None:
+        if isinstance(event, ev.StateChanged) and event.new is RunState.PAUSED:
+            engine.request_resume()
+
+    engine.bus.subscribe(resume)
+    return pause
+
+
+def test_a_pause_interrupts_a_sweep_which_is_repeated_from_its_start_on_resume(tmp_path):
+    """The sweep under way is tapered out, recorded as interrupted, and run again whole: the file
+    holds it once interrupted and once done, and its sweep record is the repeated one."""
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = pause_once_mid_excitation(engine, seen, after_blocks=15)
+    path = tmp_path / "sweep.h5"
+    empty = {"config_toml": "", "sequence_toml": "", "sequence_name": ""}
+    with CampaignWriter.create(path, software_version="t", **empty) as writer:
+        engine.bus.subscribe(Recorder(writer), critical=True)
+        outcome = engine.run(sequence(Hydraulics("high"), sweep_step()))
+    assert (outcome.status, outcome.reason) == ("complete", "")
+    states = [e.new for e in of(seen, ev.StateChanged)]
+    assert states == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING, RunState.FINISHED]
+    interrupted, done = of(seen, ev.PointDone)
+    assert (interrupted.status, interrupted.attempt) == ("interrupted", 1)
+    assert (done.status, done.attempt) == ("done", 2)
+    assert interrupted.end_sample - interrupted.start_sample < 3000  # tapered out early
+    assert done.end_sample - done.start_sample == 3000  # the whole sweep, from its start
+    assert done.start_sample >= interrupted.end_sample
+    assert bench.log.count("start") == 2 and bench.log.count("stop") == 1
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        assert run.status == "complete"
+        assert [(p.index, p.status) for p in run.points] == [(0, "interrupted"), (0, "done")]
+        record = run.sweep_record()
+        assert len(record.channels["z_base_m"]) == 3000
+
+
+def test_a_pause_in_a_free_run_repeats_the_dwell_under_way():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = pause_once_mid_excitation(engine, seen, after_blocks=5)
+    assert engine.run(sequence(Hydraulics("high"), FreeRun(grid()))).status == "complete"
+    assert [(p.index, p.status) for p in of(seen, ev.PointDone)] == [
+        (0, "interrupted"),
+        (0, "done"),
+        (1, "done"),
+    ]
+
+
+def test_abort_during_a_sweep_tapers_out_and_ends_the_sequence_aborted():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = lambda b: engine.request_abort() if len(of(seen, ev.SamplesRecorded)) == 15 else None
+    outcome = engine.run(sequence(Hydraulics("high"), sweep_step()))
+    assert (outcome.status, outcome.reason) == ("aborted", "aborted by the operator")
+    assert engine.state is RunState.ABORTED
+    assert "stop" in bench.log and "estop" not in bench.log
+    assert not of(seen, ev.PointDone)
+    (finished,) = of(seen, ev.RunFinished)
+    assert (finished.status, finished.reason) == ("aborted", "aborted by the operator")
