@@ -8,6 +8,7 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.engine import events as ev
@@ -18,6 +19,7 @@ from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import RunPane
 from drivers.actuator import ActuatorClient
 from drivers.register_map import ControllerState
+from drivers.wfs_frame import Status
 from tests.waiting import async_wait_until
 
 FILES = Path(__file__).parent / "files"
@@ -354,3 +356,52 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
         row = app.query_one("#run-points").get_row_at(0)
         assert row[1:4] == ["9", "40.8", "done"] and row[-1] == "model peak"
         assert app.query_one(RunPane)._total == 10
+
+
+class PauseInTheSweep:
+    """Requests a pause through the session (what `p` does) from the engine's thread, once the
+    sweep's frames show the controller's hold output: the sweep is then surely under way."""
+
+    def __init__(self, app: WfsBenchApp, run_id: str) -> None:
+        self.app, self.run_id = app, run_id
+        self.requested = False
+
+    def __call__(self, event: ev.Event) -> None:
+        if self.requested or not isinstance(event, ev.SamplesRecorded) or event.run_id != self.run_id:
+            return
+        if (np.asarray(event.columns["status"]) & int(Status.AMPLITUDE_HOLD)).any():
+            self.requested = True
+            self.app.session.pause()
+
+
+async def answer_smoke_prompts(pilot, app: WfsBenchApp) -> None:
+    await prompt_open(pilot, app, "remove_wheel")
+    await pilot.press("y")
+    await prompt_open(pilot, app, "fit_wheel")
+    await pilot.press("y")
+    await prompt_open(pilot, app, "pressure")
+    await pilot.press(*"2.5", "enter")
+
+
+async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, tmp_path: Path) -> None:
+    """p while the smoke's sweep runs: the engine waits paused, r runs the sweep again from its
+    start, and the sequence completes; the file holds the sweep once interrupted, once done."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        pause = PauseInTheSweep(app, "smoke-s010-sweep")
+        app.session.engine.bus.subscribe(pause)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await answer_smoke_prompts(pilot, app)
+        await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause in the sweep")
+        assert pause.requested
+        await pilot.press("r")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert (finished(recorded).status, finished(recorded).reason) == ("complete", "")
+        assert not app.query_one("#banner").has_class("shown")
+    sweep = [p for p in recorded.of(ev.PointDone) if p.run_id == "smoke-s010-sweep"]
+    assert [(p.status, p.attempt) for p in sweep] == [("interrupted", 1), ("done", 2)]
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        run = campaign.run("smoke-s010-sweep")
+        assert run.status == "complete"
+        assert [p.status for p in run.points] == ["interrupted", "done"]
