@@ -31,7 +31,7 @@ from bench.engine.interlocks import Interlock, Observation, first_trip
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
-from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
+from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from drivers.errors import LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
@@ -243,8 +243,19 @@ class Engine:
         """Release an interlock or e-stop once the cause is cleared. Returns once the controller
         has come to rest at hydraulics low: out of an e-stop it tapers first and refuses commands
         meanwhile (its status is read every ``status_period_s``). A controller still moving after
-        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was."""
-        self.actuator.reset_interlock()
+        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was.
+
+        The controller is sent its reset when it holds an interlock or e-stop of its own, or when
+        its link was lost (the reset reconnects). A stop the engine made alone (its own interlock,
+        a failed sequence) leaves the controller with nothing to release, and it refuses a reset
+        then: it is switched to hydraulics low once at rest instead, as its reset would leave it."""
+        needs_reset = self.actuator.link_fault() is not None or self.actuator.read_status().interlock_reason
+        if not needs_reset and not self.machine.allows(Trigger.RESET):
+            raise TransitionRefusedError(
+                f"nothing to reset while {self.state.value}: neither the engine nor the controller is stopped"
+            )
+        if needs_reset:
+            self.actuator.reset_interlock()
         deadline_s = self._clock() + self.timing.reset_timeout_s
         while self.actuator.read_status().moving:
             if self._clock() > deadline_s:
@@ -252,7 +263,9 @@ class Engine:
                     f"the controller still moves {self.timing.reset_timeout_s:g} s after the reset"
                 )
             time.sleep(self.timing.status_period_s)  # the controller tells no event: read it again
-        self.machine.fire(Trigger.RESET)
+        if not needs_reset:
+            self.actuator.set_hydraulics("low")
+        self._force_state(Trigger.RESET)  # a controller's own interlock may come while the engine rests
         self._estop.clear()
 
     # -- the sequence -------------------------------------------------------------------------

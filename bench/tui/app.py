@@ -102,6 +102,7 @@ class WfsBenchApp(App):
         self.interlock_names: tuple[str, ...] = ()
         self.controller: ControllerStatus | None = None
         self.tripped: dict[str, str] = {}
+        self.failure: str | None = None  # why the last sequence failed, until a reset or a start
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
 
     # -- layout ---------------------------------------------------------------------------------
@@ -219,6 +220,7 @@ class WfsBenchApp(App):
     def action_start(self) -> None:
         self.clear_banner()
         self.tripped.clear()
+        self.failure = None
         self.query_one(ResultsPane).clear_results()
         self.session.start_sequence(self.plan)
         self.action_pane("run")
@@ -291,6 +293,7 @@ class WfsBenchApp(App):
                 "interlocked",
             ):
                 self.tripped.clear()
+                self.failure = None
                 self.clear_banner()
             case ev.SequenceFinished():
                 self._sequence_finished(p)
@@ -304,7 +307,8 @@ class WfsBenchApp(App):
             self.notify(f"sequence complete; file {self.session.out_path}")
             self.action_pane("results")
         elif event.status == "failed":
-            self.show_banner(f"sequence failed{why}")
+            self.failure = event.reason
+            self.show_banner(f"sequence failed{why} (x on the Bench screen, F2, resets)")
         else:
             self.notify(f"sequence {event.status}{why}", severity="warning")
 
@@ -335,6 +339,7 @@ class WfsBenchApp(App):
                 actuator_fault=devices.actuator.link_fault(),
                 wfs_connected=devices.acquisition.wait_connected(0),
                 tripped=self.tripped,
+                failure=self.failure,
                 interlocks=self.interlock_names,
                 values=trace.latest() if trace else {},
                 counters=devices.acquisition.link_counters(),

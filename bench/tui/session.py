@@ -336,11 +336,16 @@ class BenchSession:
             run_on_engine(self.engine, plan, self.out_path, knowledge=self.knowledge)
         except Exception as exc:
             log.exception("the sequence failed")
-            self.post(BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}"))
+            self.post(BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}{self._reset_hint()}"))
         finally:
             self.running.clear()
         self._post_past_runs()
 
+    def _reset_hint(self) -> str:
+        """What the technician does next when the engine was left stopped."""
+        if self.engine.state in (RunState.INTERLOCKED, RunState.ESTOPPED):
+            return f" (the bench is {self.engine.state.value}: x on the Bench screen, F2, resets)"
+        return ""
 
     def _guarded(self, what: str, action: Callable[..., None], *args: object) -> None:
         try:

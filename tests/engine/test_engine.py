@@ -15,9 +15,9 @@ from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
 from bench.engine.engine import RUN_ID, Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
-from bench.engine.states import RunState
+from bench.engine.states import RunState, TransitionRefusedError
 from bench.store import CampaignWriter, open_campaign
-from drivers.errors import LinkTimeoutError
+from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_stream import Gap
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock, FakeStatus
@@ -572,3 +572,59 @@ def test_abort_during_a_sweep_tapers_out_and_ends_the_sequence_aborted():
     assert not of(seen, ev.PointDone)
     (finished,) = of(seen, ev.RunFinished)
     assert (finished.status, finished.reason) == ("aborted", "aborted by the operator")
+
+
+class RefusingController(FakeBench):
+    """A controller that, as the real one, refuses a reset while it holds no interlock or e-stop,
+    and refuses hydraulics high once ``refuse_high`` is set. It tapers out while nobody reads its
+    frames, as a real one does."""
+
+    refuse_high: bool = False
+
+    def read_status(self) -> FakeStatus:
+        """With the stream stopped, each read lets the controller taper on by one block."""
+        if not self.streaming:
+            self._wave = self._wave[self.block :]
+        return super().read_status()
+
+    def reset_interlock(self) -> None:
+        if not self.estopped:
+            raise CommandRejectedError("RESET_INTERLOCK refused: the controller holds no interlock")
+        super().reset_interlock()
+
+    def set_hydraulics(self, level: str) -> None:
+        if level == "high" and self.refuse_high:
+            raise CommandRejectedError("HYDRAULICS_HIGH refused: the controller is off")
+        super().set_hydraulics(level)
+
+
+@pytest.mark.parametrize(
+    "fault",
+    ["refused command", "own interlock"],
+)
+def test_a_reset_after_a_stop_the_controller_did_not_see_returns_the_engine_to_hydraulics_low(fault):
+    """A failed sequence (a refused command) or an interlock of the engine's own leaves the
+    controller with nothing to release: the reset switches it to hydraulics low instead of
+    sending a reset it would refuse, and the engine can start again."""
+    bench = RefusingController(force_per_m=2e6)  # 2 mm: 4 kN, beyond the force limit below
+    engine, _ = make_engine(bench, force_limit_n=1000.0 if fault == "own interlock" else 20_000.0)
+    bench.refuse_high = fault == "refused command"
+    outcome = engine.run(sequence(Hydraulics("high"), grid()))
+    assert outcome.status == ("failed" if fault == "refused command" else "interlocked")
+    assert engine.state is RunState.INTERLOCKED
+    engine.reset()
+    assert engine.state is RunState.HYDRAULICS_LOW
+    assert bench.hydraulics == "low" and "reset" not in bench.log
+    bench.refuse_high = False
+    bench.force_per_m = 0.0
+    assert engine.run(sequence(Hydraulics("high"), grid())).status == "complete"
+
+
+def test_a_reset_with_nothing_stopped_is_refused_and_changes_nothing():
+    bench = RefusingController()
+    engine, _ = make_engine(bench)
+    engine.set_hydraulics("low")
+    engine.set_hydraulics("high")
+    with pytest.raises(TransitionRefusedError, match="nothing to reset while hydraulics high"):
+        engine.reset()
+    assert engine.state is RunState.HYDRAULICS_HIGH and bench.hydraulics == "high"

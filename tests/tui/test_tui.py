@@ -18,7 +18,7 @@ from bench.tui.app import SessionMessage, WfsBenchApp
 from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import RunPane
 from drivers.actuator import ActuatorClient
-from drivers.register_map import ControllerState
+from drivers.register_map import Command, ControllerState
 from drivers.wfs_frame import Status
 from tests.waiting import async_wait_until
 
@@ -405,3 +405,50 @@ async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, t
         run = campaign.run("smoke-s010-sweep")
         assert run.status == "complete"
         assert [p.status for p in run.points] == ["interrupted", "done"]
+
+
+async def switch_controller_off(app: WfsBenchApp) -> None:
+    """The hydraulics switched off at the controller itself (its own panel), over Modbus TCP by a
+    client of its own: the engine is not told."""
+    client = ActuatorClient.tcp(*app.session.devices.lab.address)
+    try:
+        await client.connect()
+        await client.command(Command.HYDRAULICS_OFF)
+    finally:
+        await client.close()
+
+
+async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsBenchApp) -> None:
+    """The controller refuses the smoke's hydraulics high (switched off at its panel meanwhile):
+    the sequence fails, the banner and a lamp say why and that x resets; x (confirmed) brings the
+    controller to hydraulics low and the engine with it, and the sequence starts again."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await switch_controller_off(app)
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "failed"
+        assert "HYDRAULICS_HIGH" in finished(recorded).reason
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+        assert app.session.engine.state is RunState.INTERLOCKED
+        assert "x on the Bench screen" in text_of(app, "#banner")
+
+        await pilot.press("f2")
+        await until(pilot, lambda: "sequence failed" in text_of(app, "#bench-lamps"), "the failure lamp")
+        await pilot.press("x")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
+        await pilot.press("y")
+        await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
+        assert await controller_state(app) is ControllerState.HYDRAULICS_LOW
+        assert not app.query_one("#banner").has_class("shown")
+        await until(pilot, lambda: "sequence failed" not in text_of(app, "#bench-lamps"), "the lamp off")
+
+        app.session.out_path = app.session.out_path.with_name("after-reset.h5")
+        await pilot.press("f3", "g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("a")
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
