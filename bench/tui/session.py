@@ -37,7 +37,7 @@ from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
 from bench.engine.engine import Engine
 from bench.engine.states import RunState
-from bench.store import open_campaign
+from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
 
 log = logging.getLogger(__name__)
@@ -371,8 +371,11 @@ class BenchSession:
                 runs = tuple(
                     PastRun(r.run_id, r.kind, r.status, r.reason, r.n_samples) for r in campaign.runs
                 )
-        except Exception as exc:
-            self.post(BenchFault(f"{self.out_path}: {exc}"))
+        except StoreError as exc:  # it names the file and the place in it
+            self.post(BenchFault(str(exc)))
+            return
+        except Exception as exc:  # shown, never raised into the worker
+            self.post(BenchFault(f"{self.out_path}: {type(exc).__name__}: {exc}"))
             return
         self.post(PastRuns(runs))
 

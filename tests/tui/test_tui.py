@@ -452,3 +452,16 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         await pilot.press("a")
         await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
+
+
+
+async def test_a_file_that_is_no_campaign_file_is_named_once(tmp_path: Path) -> None:
+    out = tmp_path / "not.h5"
+    out.write_text("not HDF5\n")
+    app = WfsBenchApp(None, out)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await until(pilot, lambda: app.query_one("#banner").has_class("shown"), "the banner")
+        banner = text_of(app, "#banner")
+        assert banner.startswith(f"{out}: not a readable HDF5 file")
+        assert banner.count(str(out)) == 1
