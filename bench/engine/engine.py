@@ -314,7 +314,9 @@ class Engine:
     def _steps_to_run(self, sequence: Sequence, resume: ResumePlan | None) -> list[int]:
         """Step indices to execute. On resume, a prompt and its steps up to the next prompt are
         skipped when every measurement run among them is complete (the bench is already past them);
-        hydraulics steps always run."""
+        a prompt with no measurement before the next prompt ("fit the wheel" before "set the
+        pressure") is skipped only when the measurements after it are, since they need what it
+        asks for. Hydraulics steps always run."""
         if resume is None:
             return list(range(len(sequence.steps)))
         segments: list[list[int]] = [[]]
@@ -322,14 +324,13 @@ class Engine:
             if isinstance(step, Prompt) and segments[-1]:
                 segments.append([])
             segments[-1].append(index)
-        chosen = []
-        for segment in segments:
-            done = all(
-                resume.run_complete(self.run_id(sequence, i))
-                for i in segment
-                if is_measurement(sequence.steps[i])
-            )
-            chosen += [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
+        chosen: list[int] = []
+        done_after = False  # nothing follows the last segment: a prompt left there is asked
+        for segment in reversed(segments):
+            runs = [self.run_id(sequence, i) for i in segment if is_measurement(sequence.steps[i])]
+            done = all(resume.run_complete(run_id) for run_id in runs) if runs else done_after
+            chosen[:0] = [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
+            done_after = done
         return chosen
 
     @staticmethod

@@ -189,10 +189,14 @@ def test_an_interlock_mid_point_stops_the_actuator_and_marks_the_run(setup, name
 
 
 class Done:
-    """A resume plan: the free run is complete, the grid has point 0 done."""
+    """A resume plan: the runs ``complete`` are complete (by default the free run), the grid
+    ``test-s003-dwell_grid`` has point 0 done."""
+
+    def __init__(self, complete: frozenset[str] = frozenset({"test-s001-free_run"})) -> None:
+        self.complete = complete
 
     def run_complete(self, run_id: str) -> bool:
-        return run_id == "test-s001-free_run"
+        return run_id in self.complete
 
     def completed_points(self, run_id: str) -> set[int]:
         return {0} if run_id == "test-s003-dwell_grid" else set()
@@ -225,6 +229,24 @@ def test_resume_skips_complete_runs_their_prompts_and_done_points():
     assert of(seen, ev.RunStarted)[0].conditions["tyre_pressure_bar"] == 2.5
     assert of(seen, ev.SamplesRecorded)[0].first_sample == 4321  # the new samples follow the file's
     assert all(p.start_sample >= 4321 for p in of(seen, ev.PointDone))
+
+
+def test_resume_asks_again_a_prompt_without_a_measurement_of_its_own_before_unfinished_runs():
+    """"Fit the wheel" then "set the pressure" then the grid: with the free run complete and the
+    grid not, both prompts are asked again (the wheel was off for the free run); with the grid
+    complete too, neither is."""
+    fit = Prompt("fit", "Fit the wheel", action="fit_wheel")
+    pressure = Prompt("p25", "Set 2.5 bar", answer="number", unit="bar", minimum=1, maximum=4, target=2.5)
+    remove = Prompt("wheel", "Remove the wheel", action="remove_wheel")
+    steps = (remove, FreeRun(grid()), Hydraulics("low"), fit, pressure, Hydraulics("high"), grid())
+    engine, seen = make_engine(FakeBench())
+    assert engine.run(sequence(*steps), resume=Done()).status == "complete"
+    assert engine.operator.asked == ["fit", "p25"]
+    assert of(seen, ev.RunStarted)[0].conditions["wheel_fitted"] is True
+    engine, seen = make_engine(FakeBench())
+    done_both = Done(frozenset({"test-s001-free_run", "test-s006-dwell_grid"}))
+    assert engine.run(sequence(*steps), resume=done_both).status == "complete"
+    assert engine.operator.asked == [] and not of(seen, ev.RunStarted)
 
 
 def test_a_sweep_is_one_point_spanning_its_tapers():
