@@ -94,7 +94,7 @@ class ConfirmDialog(ModalScreen[bool]):
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(ESTOP_HINT)
-            yield Label(f"[b]{self.question}[/b]")
+            yield Label(f"[b]{self.question}[/b]", id="confirm-question")
             yield Label("y: yes    n: no")
 
     def action_answer(self, yes: bool) -> None:

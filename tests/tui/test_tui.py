@@ -393,7 +393,12 @@ async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, t
         await check_smoke(pilot, app)
         await pilot.press("g")
         await answer_smoke_prompts(pilot, app)
-        await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause in the sweep")
+        await until(
+            pilot,
+            lambda: app.session.engine.state is RunState.PAUSED or finished(recorded),
+            "the pause in the sweep",
+        )
+        assert finished(recorded) is None, finished(recorded)
         assert pause.requested
         await pilot.press("r")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
@@ -465,3 +470,79 @@ async def test_a_file_that_is_no_campaign_file_is_named_once(tmp_path: Path) -> 
         banner = text_of(app, "#banner")
         assert banner.startswith(f"{out}: not a readable HDF5 file")
         assert banner.count(str(out)) == 1
+
+
+class AbortInTheFreeRun:
+    """Aborts through the session (what `a` does) from the engine's thread as the free run's
+    second point starts: the file then holds the free run, incomplete."""
+
+    def __init__(self, app: WfsBenchApp) -> None:
+        self.app = app
+        self.requested = False
+
+    def __call__(self, event: ev.Event) -> None:
+        if not self.requested and isinstance(event, ev.PointStarted) and event.index == 1:
+            self.requested = True
+            self.app.session.abort()
+
+
+async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenchApp, tmp_path: Path) -> None:
+    """After an abort, g asks whether to resume the sequence in the same file: n starts nothing,
+    y resumes it (the free run's done point skipped) to its end, as wfsbench run --resume does."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        abort = AbortInTheFreeRun(app)
+        app.session.engine.bus.subscribe(abort)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the abort")
+        assert finished(recorded).status == "aborted"
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+
+        await pilot.press("f3", "g")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
+        question = text_of(app.screen, "#confirm-question")
+        assert "holds 1 run(s) of sequence 'smoke'" in question and "Resume it" in question
+        await pilot.press("n")
+        await pilot.pause()
+        assert not app.session.running.is_set()
+        assert any("nothing started" in n.message for n in app._notifications)
+
+        await pilot.press("g")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer again")
+        await pilot.press("y")
+        await answer_smoke_prompts(pilot, app)
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the resumed sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "complete"
+        assert not app.query_one("#banner").has_class("shown")
+        await until(
+            pilot, lambda: app.query_one("#results-runs").row_count == 3, "the runs of the file listed"
+        )
+    free_run = [p for p in recorded.of(ev.PointDone) if p.run_id == "smoke-s003-free_run"]
+    assert sorted(p.index for p in free_run if p.status == "done") == [0, 1, 2]
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        assert {r.run_id: r.status for r in campaign.runs} == {
+            "smoke-s003-free_run": "complete",
+            "smoke-s009-dwell_grid": "complete",
+            "smoke-s010-sweep": "complete",
+        }
+        assert campaign.run("smoke-s003-free_run").completed_point_indices() == {0, 1, 2}
+
+
+
+
+async def test_g_into_a_file_that_is_no_campaign_file_says_so_and_starts_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "not.h5"
+    out.write_text("not HDF5\n")
+    app = WfsBenchApp(None, out)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await until(pilot, lambda: "did not start" in text_of(app, "#banner"), "the refusal")
+        assert not app.session.running.is_set()
+        banner = text_of(app, "#banner")
+        assert banner.startswith(f"the sequence did not start: {out}: not a readable HDF5 file")
+        assert "Error" not in banner.split(":")[1]
