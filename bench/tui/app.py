@@ -308,6 +308,9 @@ class WfsBenchApp(App):
                 else:
                     self.plan = p.plan
                     pane.show_plan(p.plan)
+                    if self.pane == "sequence" and self.focused is self.query_one("#seq-path"):
+                        # the path is checked: g must start it, not go into the field
+                        self.screen_stack[0].set_focus(self.query_one("#seq-shipped"))
             case PromptRequest():
                 self.push_screen(PromptDialog(p.prompt), self.session.answer)
             case PastRuns():

@@ -546,3 +546,19 @@ async def test_g_into_a_file_that_is_no_campaign_file_says_so_and_starts_nothing
         banner = text_of(app, "#banner")
         assert banner.startswith(f"the sequence did not start: {out}: not a readable HDF5 file")
         assert "Error" not in banner.split(":")[1]
+
+
+async def test_g_starts_a_typed_path_once_checked(paced_app: WfsBenchApp) -> None:
+    """The path typed, Enter: once "g: start this sequence" shows, g starts it (it does not go
+    into the path field)."""
+    app = paced_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await pilot.press("f3")
+        await type_path(pilot, app, FILES / "long_dwell.toml")
+        await until(pilot, lambda: "start this sequence" in text_of(app, "#seq-report"), "the check")
+        await pilot.press("g")
+        await until(pilot, lambda: recorded.of(ev.PointStarted), "the dwell started")
+        assert app.query_one("#seq-path").value == str(FILES / "long_dwell.toml")
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
