@@ -10,12 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rich.text import Text
 
 from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.store import open_campaign
 from bench.tui.app import SessionMessage, WfsBenchApp
-from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from bench.tui.dialogs import HELP_TEXT, ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import RunPane
 from drivers.actuator import ActuatorClient
 from drivers.register_map import Command, ControllerState
@@ -562,3 +563,18 @@ async def test_g_starts_a_typed_path_once_checked(paced_app: WfsBenchApp) -> Non
         assert app.query_one("#seq-path").value == str(FILES / "long_dwell.toml")
         await pilot.press("a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+
+
+async def test_the_help_breaks_no_line_at_120_by_40(app: WfsBenchApp) -> None:
+    """Every line of the help fits the dialog's width, so none is split mid-phrase."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await pilot.press("question_mark")
+        await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
+        text = app.screen.query_one("#help-text")
+        await until(pilot, lambda: text.content_region.width > 0, "the help laid out")
+        lines = [Text.from_markup(line) for line in HELP_TEXT.split("\n")]
+        widest = max(line.cell_len for line in lines)
+        assert widest <= text.content_region.width, (widest, text.content_region.width)
+        assert text.content_region.height == len(lines)  # as many rows as lines: none wrapped
+        assert "x: reset an interlock or e-stop" in HELP_TEXT and "checked and dry-run" in HELP_TEXT
