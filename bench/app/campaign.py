@@ -282,15 +282,25 @@ def _check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> _ResumeFr
     existing = _run_ids(out_path)
     if existing is None and resume:
         raise ValueError(f"{out_path}: no campaign file to resume")
-    planned = {
-        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
-    }
-    if existing and not resume and existing & planned:
+    if existing and not resume and existing & _planned_runs(plan):
         raise ValueError(
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
             " or write to another file"
         )
     return _ResumeFromFile(out_path) if resume else None
+
+
+def held_runs(plan: CampaignPlan, out_path: Path) -> set[str]:
+    """The runs of ``plan``'s sequence that the campaign file ``out_path`` holds already (none when
+    there is no file; StoreError when the file is no campaign file): a new start into it must
+    resume them."""
+    return (_run_ids(Path(out_path)) or set()) & _planned_runs(plan)
+
+
+def _planned_runs(plan: CampaignPlan) -> set[str]:
+    return {
+        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
+    }
 
 
 def _run_on(

@@ -31,7 +31,7 @@ from bench.engine.interlocks import Interlock, Observation, first_trip
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
-from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
+from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from drivers.errors import LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
@@ -243,8 +243,19 @@ class Engine:
         """Release an interlock or e-stop once the cause is cleared. Returns once the controller
         has come to rest at hydraulics low: out of an e-stop it tapers first and refuses commands
         meanwhile (its status is read every ``status_period_s``). A controller still moving after
-        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was."""
-        self.actuator.reset_interlock()
+        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was.
+
+        The controller is sent its reset when it holds an interlock or e-stop of its own, or when
+        its link was lost (the reset reconnects). A stop the engine made alone (its own interlock,
+        a failed sequence) leaves the controller with nothing to release, and it refuses a reset
+        then: it is switched to hydraulics low once at rest instead, as its reset would leave it."""
+        needs_reset = self.actuator.link_fault() is not None or self.actuator.read_status().interlock_reason
+        if not needs_reset and not self.machine.allows(Trigger.RESET):
+            raise TransitionRefusedError(
+                f"nothing to reset while {self.state.value}: neither the engine nor the controller is stopped"
+            )
+        if needs_reset:
+            self.actuator.reset_interlock()
         deadline_s = self._clock() + self.timing.reset_timeout_s
         while self.actuator.read_status().moving:
             if self._clock() > deadline_s:
@@ -252,7 +263,9 @@ class Engine:
                     f"the controller still moves {self.timing.reset_timeout_s:g} s after the reset"
                 )
             time.sleep(self.timing.status_period_s)  # the controller tells no event: read it again
-        self.machine.fire(Trigger.RESET)
+        if not needs_reset:
+            self.actuator.set_hydraulics("low")
+        self._force_state(Trigger.RESET)  # a controller's own interlock may come while the engine rests
         self._estop.clear()
 
     # -- the sequence -------------------------------------------------------------------------
@@ -301,7 +314,9 @@ class Engine:
     def _steps_to_run(self, sequence: Sequence, resume: ResumePlan | None) -> list[int]:
         """Step indices to execute. On resume, a prompt and its steps up to the next prompt are
         skipped when every measurement run among them is complete (the bench is already past them);
-        hydraulics steps always run."""
+        a prompt with no measurement before the next prompt ("fit the wheel" before "set the
+        pressure") is skipped only when the measurements after it are, since they need what it
+        asks for. Hydraulics steps always run."""
         if resume is None:
             return list(range(len(sequence.steps)))
         segments: list[list[int]] = [[]]
@@ -309,14 +324,13 @@ class Engine:
             if isinstance(step, Prompt) and segments[-1]:
                 segments.append([])
             segments[-1].append(index)
-        chosen = []
-        for segment in segments:
-            done = all(
-                resume.run_complete(self.run_id(sequence, i))
-                for i in segment
-                if is_measurement(sequence.steps[i])
-            )
-            chosen += [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
+        chosen: list[int] = []
+        done_after = False  # nothing follows the last segment: a prompt left there is asked
+        for segment in reversed(segments):
+            runs = [self.run_id(sequence, i) for i in segment if is_measurement(sequence.steps[i])]
+            done = all(resume.run_complete(run_id) for run_id in runs) if runs else done_after
+            chosen[:0] = [i for i in segment if not done or isinstance(sequence.steps[i], Hydraulics)]
+            done_after = done
         return chosen
 
     @staticmethod
@@ -438,24 +452,41 @@ class Engine:
             mean_mm=self._mean(step.mean_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
-            span = run.excite(setpoint, planned_s=step.duration_s)
-            self.bus.publish(
-                ev.PointDone(
-                    run_id,
-                    0,
-                    1,
-                    "done",
-                    step.start_hz,
-                    step.amplitude_mm,
-                    step.amplitude_mm,
-                    step.amplitude_mm,
-                    float("nan"),
-                    span.start,
-                    span.hold_start,
-                    span.hold_end,
-                    span.end,
-                )
+            attempt = 0
+            while True:
+                self._checkpoint()
+                attempt += 1
+                try:
+                    span = run.excite(setpoint, planned_s=step.duration_s)
+                except _PointInterruptedError as interrupted:
+                    self._publish_sweep(run_id, step, attempt, "interrupted", interrupted.span)
+                    self._wait_paused()
+                    continue
+                self._publish_sweep(run_id, step, attempt, "done", span)
+                return
+
+    def _publish_sweep(
+        self, run_id: str, step: Sweep, attempt: int, status: str, span: ExcitationSpan
+    ) -> None:
+        """The sweep's one point: ``done``, or ``interrupted`` by a pause (the sweep is repeated from
+        its start on resume)."""
+        self.bus.publish(
+            ev.PointDone(
+                run_id,
+                0,
+                attempt,
+                status,
+                step.start_hz,
+                step.amplitude_mm,
+                step.amplitude_mm,
+                step.amplitude_mm,
+                float("nan"),
+                span.start,
+                span.hold_start,
+                span.hold_end,
+                span.end,
             )
+        )
 
     def _hammer_run(self, run_id: str, step: HammerTest, held: RecordedRun) -> None:
         """Per blow: arm the triggered capture, ask for the blow, record the captured block.

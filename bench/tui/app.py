@@ -20,8 +20,10 @@ from textual.css.query import NoMatches
 from textual.message import Message
 from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
 
+from bench.app.campaign import CampaignPlan
 from bench.engine import events as ev
 from bench.engine.states import ACTIVE
+from bench.store import StoreError
 from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane
 from bench.tui.session import (
@@ -102,6 +104,7 @@ class WfsBenchApp(App):
         self.interlock_names: tuple[str, ...] = ()
         self.controller: ControllerStatus | None = None
         self.tripped: dict[str, str] = {}
+        self.failure: str | None = None  # why the last sequence failed, until a reset or a start
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
 
     # -- layout ---------------------------------------------------------------------------------
@@ -217,10 +220,42 @@ class WfsBenchApp(App):
         self.push_screen(ConfirmDialog(question), answered)
 
     def action_start(self) -> None:
+        """Start the checked sequence; when the campaign file holds runs of it already, offer to
+        resume them (its complete runs and points skipped, as ``wfsbench run --resume``)."""
+        plan, out = self.plan, self.session.out_path
+        try:
+            held = self.session.held_runs(plan)
+        except StoreError as exc:
+            self.show_banner(f"the sequence did not start: {exc} (quit and give another --out)")
+            return
+        if not held:
+            self._start(plan, resume=False)
+            return
+
+        def answered(yes: bool | None) -> None:
+            if yes:
+                self._start(plan, resume=True)
+            else:
+                self.notify(
+                    f"nothing started: {out} keeps its runs of {plan.sequence.name!r};"
+                    " to run it afresh, quit and give another --out",
+                    severity="warning",
+                )
+
+        self.push_screen(
+            ConfirmDialog(
+                f"{out} holds {len(held)} run(s) of sequence {plan.sequence.name!r} already."
+                " Resume it (its complete runs and points are skipped)?"
+            ),
+            answered,
+        )
+
+    def _start(self, plan: CampaignPlan, *, resume: bool) -> None:
         self.clear_banner()
         self.tripped.clear()
+        self.failure = None
         self.query_one(ResultsPane).clear_results()
-        self.session.start_sequence(self.plan)
+        self.session.start_sequence(plan, resume=resume)
         self.action_pane("run")
 
     def action_pause(self) -> None:
@@ -249,8 +284,14 @@ class WfsBenchApp(App):
 
     # -- what the session reports -----------------------------------------------------------------
 
-    def on_session_message(self, message: SessionMessage) -> None:  # noqa: PLR0912 - one branch a kind
-        p = message.payload
+    def on_session_message(self, message: SessionMessage) -> None:
+        try:
+            self._show(message.payload)
+        except NoMatches:  # the app is closing: its widgets go before the session's last messages
+            return
+        self.refresh_bindings()
+
+    def _show(self, p: object) -> None:  # noqa: PLR0912 - one branch a kind
         match p:
             case BenchOpened():
                 self.bench_name, self.interlock_names = p.description, p.interlocks
@@ -267,6 +308,9 @@ class WfsBenchApp(App):
                 else:
                     self.plan = p.plan
                     pane.show_plan(p.plan)
+                    if self.pane == "sequence" and self.focused is self.query_one("#seq-path"):
+                        # the path is checked: g must start it, not go into the field
+                        self.screen_stack[0].set_focus(self.query_one("#seq-shipped"))
             case PromptRequest():
                 self.push_screen(PromptDialog(p.prompt), self.session.answer)
             case PastRuns():
@@ -291,10 +335,10 @@ class WfsBenchApp(App):
                 "interlocked",
             ):
                 self.tripped.clear()
+                self.failure = None
                 self.clear_banner()
             case ev.SequenceFinished():
                 self._sequence_finished(p)
-        self.refresh_bindings()
 
     def _sequence_finished(self, event: ev.SequenceFinished) -> None:
         if isinstance(self.screen, PromptDialog):  # an abort ended the sequence while it asked
@@ -304,7 +348,8 @@ class WfsBenchApp(App):
             self.notify(f"sequence complete; file {self.session.out_path}")
             self.action_pane("results")
         elif event.status == "failed":
-            self.show_banner(f"sequence failed{why}")
+            self.failure = event.reason
+            self.show_banner(f"sequence failed{why} (x on the Bench screen, F2, resets)")
         else:
             self.notify(f"sequence {event.status}{why}", severity="warning")
 
@@ -335,6 +380,7 @@ class WfsBenchApp(App):
                 actuator_fault=devices.actuator.link_fault(),
                 wfs_connected=devices.acquisition.wait_connected(0),
                 tripped=self.tripped,
+                failure=self.failure,
                 interlocks=self.interlock_names,
                 values=trace.latest() if trace else {},
                 counters=devices.acquisition.link_counters(),

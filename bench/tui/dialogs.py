@@ -94,7 +94,7 @@ class ConfirmDialog(ModalScreen[bool]):
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(ESTOP_HINT)
-            yield Label(f"[b]{self.question}[/b]")
+            yield Label(f"[b]{self.question}[/b]", id="confirm-question")
             yield Label("y: yes    n: no")
 
     def action_answer(self, yes: bool) -> None:
@@ -111,26 +111,32 @@ HELP_TEXT = """\
   F5    Results: identified parameters, Bode plot, valid bands, past runs
   ?     this help          q   quit (not while a sequence runs)
 
-[b]Bench[/b]     l / h / o: hydraulics low / high / off   t: tare   x: reset an interlock or e-stop
+[b]Bench[/b]     l / h / o: hydraulics low / high / off    t: tare
+          x: reset an interlock or e-stop
           (each asks for a confirmation: y / n)
-[b]Sequence[/b]  Enter on a shipped sequence, or type a file's path and Enter: checked and
-          dry-run; g starts it once it is valid
+[b]Sequence[/b]  Enter on a shipped sequence, or type a file's path and Enter:
+          checked and dry-run; g starts it once it is valid
+          (a file holding runs of it already: g offers to resume them)
 [b]Run[/b]       p pause   r resume   a abort
-[b]Prompts[/b]   a number: type it and Enter (a bad value is refused and asked again);
-          a confirmation: y or n; Escape gives no answer and aborts the sequence
+[b]Prompts[/b]   a number: type it and Enter (a bad value is asked again);
+          a confirmation: y or n;
+          Escape gives no answer and aborts the sequence
 
-A link loss or an interlock shows as a red banner with its reason; x on the Bench screen resets
-once the cause is cleared.
+A link loss or an interlock shows as a red banner with its reason;
+x on the Bench screen resets once the cause is cleared.
 """
 
 
 class HelpDialog(ModalScreen[None]):
+    """The keys. Each line of the text fits the dialog as it is (no line is broken by the
+    dialog's width, which would split a key from what it does)."""
+
     BINDINGS: ClassVar[list[Binding]] = [Binding("escape,question_mark,q", "close", "Close")]
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog", id="help"):
             yield Label(ESTOP_HINT)
-            yield Static(HELP_TEXT)
+            yield Static(HELP_TEXT, id="help-text")
             yield Label("Escape closes")
 
     def action_close(self) -> None:

@@ -49,6 +49,7 @@ class BenchPane(Vertical):
         actuator_fault: str | None,
         wfs_connected: bool | None,
         tripped: dict[str, str],
+        failure: str | None,
         interlocks: tuple[str, ...],
         values: dict[str, float],
         counters: dict[str, int],
@@ -63,6 +64,8 @@ class BenchPane(Vertical):
         lamps = [lamp(name not in tripped, name) for name in interlocks]
         if controller is not None and controller.interlock:
             lamps.append(lamp(False, controller.interlock))
+        if failure is not None:  # the engine stopped the bench itself: no interlock lamp tells why
+            lamps.append(lamp(False, f"sequence failed: {failure}"))
         self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))
         v = values
         self.query_one("#bench-values", Static).update(

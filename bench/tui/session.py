@@ -27,6 +27,7 @@ from bench.app.campaign import (
     BenchDevices,
     CampaignPlan,
     build_engine,
+    held_runs,
     initial_knowledge,
     open_bench,
     plan_campaign,
@@ -37,7 +38,7 @@ from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
 from bench.engine.engine import Engine
 from bench.engine.states import RunState
-from bench.store import open_campaign
+from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
 
 log = logging.getLogger(__name__)
@@ -228,6 +229,7 @@ class BenchSession:
         self.trace: LiveTrace | None = None
         self.knowledge: CampaignKnowledge | None = None
         self.running = threading.Event()  # a sequence is under way
+        self._started = False  # the sequence under way got past its checks (the engine started it)
         self._commands: queue.Queue[Callable[[], None] | None] = queue.Queue()
         self._thread = threading.Thread(target=self._serve, name="tui-bench", daemon=True)
         self.opened = threading.Event()
@@ -286,9 +288,16 @@ class BenchSession:
             target=self._check, args=(Path(sequence_path),), name="tui-check", daemon=True
         ).start()
 
-    def start_sequence(self, plan: CampaignPlan) -> None:
+    def held_runs(self, plan: CampaignPlan) -> set[str]:
+        """The runs of ``plan``'s sequence the campaign file holds already: a start must resume
+        them (StoreError when the file is no campaign file)."""
+        return held_runs(plan, self.out_path)
+
+    def start_sequence(self, plan: CampaignPlan, *, resume: bool = False) -> None:
+        """Run ``plan`` into the campaign file; ``resume`` continues its runs there, skipping its
+        complete runs and points (as ``wfsbench run --resume``)."""
         self.running.set()
-        self._commands.put(lambda: self._run(plan))
+        self._commands.put(lambda: self._run(plan, resume))
 
     def hydraulics(self, level: str) -> None:
         self._commands.put(lambda: self._guarded(f"hydraulics {level}", self.engine.set_hydraulics, level))
@@ -330,17 +339,29 @@ class BenchSession:
         else:
             self.post(PlanChecked(path, plan, ""))
 
-    def _run(self, plan: CampaignPlan) -> None:
+    def _run(self, plan: CampaignPlan, resume: bool) -> None:
         self.knowledge = initial_knowledge(plan.config)
+        self._started = False
         try:
-            run_on_engine(self.engine, plan, self.out_path, knowledge=self.knowledge)
+            run_on_engine(self.engine, plan, self.out_path, resume=resume, knowledge=self.knowledge)
         except Exception as exc:
-            log.exception("the sequence failed")
-            self.post(BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}"))
+            if not self._started:  # the campaign file refused it (it names the file): nothing moved
+                log.warning("the sequence did not start: %s", exc)
+                self.post(BenchFault(f"the sequence did not start: {exc}{self._reset_hint()}"))
+            else:
+                log.exception("the sequence failed")
+                self.post(
+                    BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}{self._reset_hint()}")
+                )
         finally:
             self.running.clear()
         self._post_past_runs()
 
+    def _reset_hint(self) -> str:
+        """What the technician does next when the engine was left stopped."""
+        if self.engine.state in (RunState.INTERLOCKED, RunState.ESTOPPED):
+            return f" (the bench is {self.engine.state.value}: x on the Bench screen, F2, resets)"
+        return ""
 
     def _guarded(self, what: str, action: Callable[..., None], *args: object) -> None:
         try:
@@ -366,8 +387,11 @@ class BenchSession:
                 runs = tuple(
                     PastRun(r.run_id, r.kind, r.status, r.reason, r.n_samples) for r in campaign.runs
                 )
-        except Exception as exc:
-            self.post(BenchFault(f"{self.out_path}: {exc}"))
+        except StoreError as exc:  # it names the file and the place in it
+            self.post(BenchFault(str(exc)))
+            return
+        except Exception as exc:  # shown, never raised into the worker
+            self.post(BenchFault(f"{self.out_path}: {type(exc).__name__}: {exc}"))
             return
         self.post(PastRuns(runs))
 
@@ -378,6 +402,8 @@ class BenchSession:
         if isinstance(event, ev.SamplesRecorded):
             self.trace.append(dict(event.columns))
             return
+        if isinstance(event, ev.SequenceStarted):
+            self._started = True
         self.post(event)
         if isinstance(event, ev.AnalysisDone):
             self.post(RunResult(event.run_id, event.name, tuple(event.summary), self._bode(event)))

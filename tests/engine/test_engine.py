@@ -15,9 +15,9 @@ from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
 from bench.engine.engine import RUN_ID, Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
-from bench.engine.states import RunState
+from bench.engine.states import RunState, TransitionRefusedError
 from bench.store import CampaignWriter, open_campaign
-from drivers.errors import LinkTimeoutError
+from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_stream import Gap
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock, FakeStatus
@@ -189,10 +189,14 @@ def test_an_interlock_mid_point_stops_the_actuator_and_marks_the_run(setup, name
 
 
 class Done:
-    """A resume plan: the free run is complete, the grid has point 0 done."""
+    """A resume plan: the runs ``complete`` are complete (by default the free run), the grid
+    ``test-s003-dwell_grid`` has point 0 done."""
+
+    def __init__(self, complete: frozenset[str] = frozenset({"test-s001-free_run"})) -> None:
+        self.complete = complete
 
     def run_complete(self, run_id: str) -> bool:
-        return run_id == "test-s001-free_run"
+        return run_id in self.complete
 
     def completed_points(self, run_id: str) -> set[int]:
         return {0} if run_id == "test-s003-dwell_grid" else set()
@@ -225,6 +229,24 @@ def test_resume_skips_complete_runs_their_prompts_and_done_points():
     assert of(seen, ev.RunStarted)[0].conditions["tyre_pressure_bar"] == 2.5
     assert of(seen, ev.SamplesRecorded)[0].first_sample == 4321  # the new samples follow the file's
     assert all(p.start_sample >= 4321 for p in of(seen, ev.PointDone))
+
+
+def test_resume_asks_again_a_prompt_without_a_measurement_of_its_own_before_unfinished_runs():
+    """"Fit the wheel" then "set the pressure" then the grid: with the free run complete and the
+    grid not, both prompts are asked again (the wheel was off for the free run); with the grid
+    complete too, neither is."""
+    fit = Prompt("fit", "Fit the wheel", action="fit_wheel")
+    pressure = Prompt("p25", "Set 2.5 bar", answer="number", unit="bar", minimum=1, maximum=4, target=2.5)
+    remove = Prompt("wheel", "Remove the wheel", action="remove_wheel")
+    steps = (remove, FreeRun(grid()), Hydraulics("low"), fit, pressure, Hydraulics("high"), grid())
+    engine, seen = make_engine(FakeBench())
+    assert engine.run(sequence(*steps), resume=Done()).status == "complete"
+    assert engine.operator.asked == ["fit", "p25"]
+    assert of(seen, ev.RunStarted)[0].conditions["wheel_fitted"] is True
+    engine, seen = make_engine(FakeBench())
+    done_both = Done(frozenset({"test-s001-free_run", "test-s006-dwell_grid"}))
+    assert engine.run(sequence(*steps), resume=done_both).status == "complete"
+    assert engine.operator.asked == [] and not of(seen, ev.RunStarted)
 
 
 def test_a_sweep_is_one_point_spanning_its_tapers():
@@ -496,3 +518,135 @@ def test_a_link_that_loses_most_frames_does_not_hold_the_start_watchdog_off():
     assert outcome.reason == "excitation watchdog: the controller did not start the excitation"
     received = sum(len(b) for b in of(seen, ev.SamplesRecorded))
     assert received < 0.02 * 5 * RATE_HZ  # tripped after about 5 s of samples, 1 in 100 received
+
+
+def sweep_step() -> Sweep:
+    return Sweep(start_hz=1.0, end_hz=10.0, duration_s=3.0, amplitude_mm=2.0, taper_in_s=0.5, taper_out_s=0.5)
+
+
+def pause_once_mid_excitation(engine: Engine, seen: list, after_blocks: int):
+    """A bench hook that requests a pause once, ``after_blocks`` blocks into the first excitation,
+    and a subscriber that resumes once paused."""
+    paused: list[bool] = []
+
+    def pause(b: FakeBench) -> None:
+        if not paused and len(of(seen, ev.SamplesRecorded)) >= after_blocks and len(b._wave):
+            paused.append(True)
+            engine.request_pause()
+
+    def resume(event) -> None:
+        if isinstance(event, ev.StateChanged) and event.new is RunState.PAUSED:
+            engine.request_resume()
+
+    engine.bus.subscribe(resume)
+    return pause
+
+
+def test_a_pause_interrupts_a_sweep_which_is_repeated_from_its_start_on_resume(tmp_path):
+    """The sweep under way is tapered out, recorded as interrupted, and run again whole: the file
+    holds it once interrupted and once done, and its sweep record is the repeated one."""
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = pause_once_mid_excitation(engine, seen, after_blocks=15)
+    path = tmp_path / "sweep.h5"
+    empty = {"config_toml": "", "sequence_toml": "", "sequence_name": ""}
+    with CampaignWriter.create(path, software_version="t", **empty) as writer:
+        engine.bus.subscribe(Recorder(writer), critical=True)
+        outcome = engine.run(sequence(Hydraulics("high"), sweep_step()))
+    assert (outcome.status, outcome.reason) == ("complete", "")
+    states = [e.new for e in of(seen, ev.StateChanged)]
+    assert states == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING, RunState.FINISHED]
+    interrupted, done = of(seen, ev.PointDone)
+    assert (interrupted.status, interrupted.attempt) == ("interrupted", 1)
+    assert (done.status, done.attempt) == ("done", 2)
+    assert interrupted.end_sample - interrupted.start_sample < 3000  # tapered out early
+    assert done.end_sample - done.start_sample == 3000  # the whole sweep, from its start
+    assert done.start_sample >= interrupted.end_sample
+    assert bench.log.count("start") == 2 and bench.log.count("stop") == 1
+    with open_campaign(path) as campaign:
+        (run,) = campaign.runs
+        assert run.status == "complete"
+        assert [(p.index, p.status) for p in run.points] == [(0, "interrupted"), (0, "done")]
+        record = run.sweep_record()
+        assert len(record.channels["z_base_m"]) == 3000
+
+
+def test_a_pause_in_a_free_run_repeats_the_dwell_under_way():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = pause_once_mid_excitation(engine, seen, after_blocks=5)
+    assert engine.run(sequence(Hydraulics("high"), FreeRun(grid()))).status == "complete"
+    assert [(p.index, p.status) for p in of(seen, ev.PointDone)] == [
+        (0, "interrupted"),
+        (0, "done"),
+        (1, "done"),
+    ]
+
+
+def test_abort_during_a_sweep_tapers_out_and_ends_the_sequence_aborted():
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    bench.on_block = lambda b: engine.request_abort() if len(of(seen, ev.SamplesRecorded)) == 15 else None
+    outcome = engine.run(sequence(Hydraulics("high"), sweep_step()))
+    assert (outcome.status, outcome.reason) == ("aborted", "aborted by the operator")
+    assert engine.state is RunState.ABORTED
+    assert "stop" in bench.log and "estop" not in bench.log
+    assert not of(seen, ev.PointDone)
+    (finished,) = of(seen, ev.RunFinished)
+    assert (finished.status, finished.reason) == ("aborted", "aborted by the operator")
+
+
+class RefusingController(FakeBench):
+    """A controller that, as the real one, refuses a reset while it holds no interlock or e-stop,
+    and refuses hydraulics high once ``refuse_high`` is set. It tapers out while nobody reads its
+    frames, as a real one does."""
+
+    refuse_high: bool = False
+
+    def read_status(self) -> FakeStatus:
+        """With the stream stopped, each read lets the controller taper on by one block."""
+        if not self.streaming:
+            self._wave = self._wave[self.block :]
+        return super().read_status()
+
+    def reset_interlock(self) -> None:
+        if not self.estopped:
+            raise CommandRejectedError("RESET_INTERLOCK refused: the controller holds no interlock")
+        super().reset_interlock()
+
+    def set_hydraulics(self, level: str) -> None:
+        if level == "high" and self.refuse_high:
+            raise CommandRejectedError("HYDRAULICS_HIGH refused: the controller is off")
+        super().set_hydraulics(level)
+
+
+@pytest.mark.parametrize(
+    "fault",
+    ["refused command", "own interlock"],
+)
+def test_a_reset_after_a_stop_the_controller_did_not_see_returns_the_engine_to_hydraulics_low(fault):
+    """A failed sequence (a refused command) or an interlock of the engine's own leaves the
+    controller with nothing to release: the reset switches it to hydraulics low instead of
+    sending a reset it would refuse, and the engine can start again."""
+    bench = RefusingController(force_per_m=2e6)  # 2 mm: 4 kN, beyond the force limit below
+    engine, _ = make_engine(bench, force_limit_n=1000.0 if fault == "own interlock" else 20_000.0)
+    bench.refuse_high = fault == "refused command"
+    outcome = engine.run(sequence(Hydraulics("high"), grid()))
+    assert outcome.status == ("failed" if fault == "refused command" else "interlocked")
+    assert engine.state is RunState.INTERLOCKED
+    engine.reset()
+    assert engine.state is RunState.HYDRAULICS_LOW
+    assert bench.hydraulics == "low" and "reset" not in bench.log
+    bench.refuse_high = False
+    bench.force_per_m = 0.0
+    assert engine.run(sequence(Hydraulics("high"), grid())).status == "complete"
+
+
+def test_a_reset_with_nothing_stopped_is_refused_and_changes_nothing():
+    bench = RefusingController()
+    engine, _ = make_engine(bench)
+    engine.set_hydraulics("low")
+    engine.set_hydraulics("high")
+    with pytest.raises(TransitionRefusedError, match="nothing to reset while hydraulics high"):
+        engine.reset()
+    assert engine.state is RunState.HYDRAULICS_HIGH and bench.hydraulics == "high"

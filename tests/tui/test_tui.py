@@ -8,16 +8,19 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
+from rich.text import Text
 
 from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.store import open_campaign
 from bench.tui.app import SessionMessage, WfsBenchApp
-from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from bench.tui.dialogs import HELP_TEXT, ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import RunPane
 from drivers.actuator import ActuatorClient
-from drivers.register_map import ControllerState
+from drivers.register_map import Command, ControllerState
+from drivers.wfs_frame import Status
 from tests.waiting import async_wait_until
 
 FILES = Path(__file__).parent / "files"
@@ -354,3 +357,224 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
         row = app.query_one("#run-points").get_row_at(0)
         assert row[1:4] == ["9", "40.8", "done"] and row[-1] == "model peak"
         assert app.query_one(RunPane)._total == 10
+
+
+class PauseInTheSweep:
+    """Requests a pause through the session (what `p` does) from the engine's thread, once the
+    sweep's frames show the controller's hold output: the sweep is then surely under way."""
+
+    def __init__(self, app: WfsBenchApp, run_id: str) -> None:
+        self.app, self.run_id = app, run_id
+        self.requested = False
+
+    def __call__(self, event: ev.Event) -> None:
+        if self.requested or not isinstance(event, ev.SamplesRecorded) or event.run_id != self.run_id:
+            return
+        if (np.asarray(event.columns["status"]) & int(Status.AMPLITUDE_HOLD)).any():
+            self.requested = True
+            self.app.session.pause()
+
+
+async def answer_smoke_prompts(pilot, app: WfsBenchApp) -> None:
+    await prompt_open(pilot, app, "remove_wheel")
+    await pilot.press("y")
+    await prompt_open(pilot, app, "fit_wheel")
+    await pilot.press("y")
+    await prompt_open(pilot, app, "pressure")
+    await pilot.press(*"2.5", "enter")
+
+
+async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, tmp_path: Path) -> None:
+    """p while the smoke's sweep runs: the engine waits paused, r runs the sweep again from its
+    start, and the sequence completes; the file holds the sweep once interrupted, once done."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        pause = PauseInTheSweep(app, "smoke-s010-sweep")
+        app.session.engine.bus.subscribe(pause)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await answer_smoke_prompts(pilot, app)
+        await until(
+            pilot,
+            lambda: app.session.engine.state is RunState.PAUSED or finished(recorded),
+            "the pause in the sweep",
+        )
+        assert finished(recorded) is None, finished(recorded)
+        assert pause.requested
+        await pilot.press("r")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert (finished(recorded).status, finished(recorded).reason) == ("complete", "")
+        assert not app.query_one("#banner").has_class("shown")
+    sweep = [p for p in recorded.of(ev.PointDone) if p.run_id == "smoke-s010-sweep"]
+    assert [(p.status, p.attempt) for p in sweep] == [("interrupted", 1), ("done", 2)]
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        run = campaign.run("smoke-s010-sweep")
+        assert run.status == "complete"
+        assert [p.status for p in run.points] == ["interrupted", "done"]
+
+
+async def switch_controller_off(app: WfsBenchApp) -> None:
+    """The hydraulics switched off at the controller itself (its own panel), over Modbus TCP by a
+    client of its own: the engine is not told."""
+    client = ActuatorClient.tcp(*app.session.devices.lab.address)
+    try:
+        await client.connect()
+        await client.command(Command.HYDRAULICS_OFF)
+    finally:
+        await client.close()
+
+
+async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsBenchApp) -> None:
+    """The controller refuses the smoke's hydraulics high (switched off at its panel meanwhile):
+    the sequence fails, the banner and a lamp say why and that x resets; x (confirmed) brings the
+    controller to hydraulics low and the engine with it, and the sequence starts again."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await switch_controller_off(app)
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        assert finished(recorded).status == "failed"
+        assert "HYDRAULICS_HIGH" in finished(recorded).reason
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+        assert app.session.engine.state is RunState.INTERLOCKED
+        assert "x on the Bench screen" in text_of(app, "#banner")
+
+        await pilot.press("f2")
+        await until(pilot, lambda: "sequence failed" in text_of(app, "#bench-lamps"), "the failure lamp")
+        await pilot.press("x")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
+        await pilot.press("y")
+        await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
+        assert await controller_state(app) is ControllerState.HYDRAULICS_LOW
+        assert not app.query_one("#banner").has_class("shown")
+        await until(pilot, lambda: "sequence failed" not in text_of(app, "#bench-lamps"), "the lamp off")
+
+        app.session.out_path = app.session.out_path.with_name("after-reset.h5")
+        await pilot.press("f3", "g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("a")
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
+
+
+
+async def test_a_file_that_is_no_campaign_file_is_named_once(tmp_path: Path) -> None:
+    out = tmp_path / "not.h5"
+    out.write_text("not HDF5\n")
+    app = WfsBenchApp(None, out)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await until(pilot, lambda: app.query_one("#banner").has_class("shown"), "the banner")
+        banner = text_of(app, "#banner")
+        assert banner.startswith(f"{out}: not a readable HDF5 file")
+        assert banner.count(str(out)) == 1
+
+
+class AbortInTheFreeRun:
+    """Aborts through the session (what `a` does) from the engine's thread as the free run's
+    second point starts: the file then holds the free run, incomplete."""
+
+    def __init__(self, app: WfsBenchApp) -> None:
+        self.app = app
+        self.requested = False
+
+    def __call__(self, event: ev.Event) -> None:
+        if not self.requested and isinstance(event, ev.PointStarted) and event.index == 1:
+            self.requested = True
+            self.app.session.abort()
+
+
+async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenchApp, tmp_path: Path) -> None:
+    """After an abort, g asks whether to resume the sequence in the same file: n starts nothing,
+    y resumes it (the free run's done point skipped) to its end, as wfsbench run --resume does."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        abort = AbortInTheFreeRun(app)
+        app.session.engine.bus.subscribe(abort)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("y")
+        await until(pilot, lambda: finished(recorded) is not None, "the abort")
+        assert finished(recorded).status == "aborted"
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+
+        await pilot.press("f3", "g")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
+        question = text_of(app.screen, "#confirm-question")
+        assert "holds 1 run(s) of sequence 'smoke'" in question and "Resume it" in question
+        await pilot.press("n")
+        await pilot.pause()
+        assert not app.session.running.is_set()
+        assert any("nothing started" in n.message for n in app._notifications)
+
+        await pilot.press("g")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer again")
+        await pilot.press("y")
+        await answer_smoke_prompts(pilot, app)
+        await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the resumed sequence's end")
+        assert recorded.of(ev.SequenceFinished)[1].status == "complete"
+        assert not app.query_one("#banner").has_class("shown")
+        await until(
+            pilot, lambda: app.query_one("#results-runs").row_count == 3, "the runs of the file listed"
+        )
+    free_run = [p for p in recorded.of(ev.PointDone) if p.run_id == "smoke-s003-free_run"]
+    assert sorted(p.index for p in free_run if p.status == "done") == [0, 1, 2]
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        assert {r.run_id: r.status for r in campaign.runs} == {
+            "smoke-s003-free_run": "complete",
+            "smoke-s009-dwell_grid": "complete",
+            "smoke-s010-sweep": "complete",
+        }
+        assert campaign.run("smoke-s003-free_run").completed_point_indices() == {0, 1, 2}
+
+
+
+
+async def test_g_into_a_file_that_is_no_campaign_file_says_so_and_starts_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "not.h5"
+    out.write_text("not HDF5\n")
+    app = WfsBenchApp(None, out)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await until(pilot, lambda: "did not start" in text_of(app, "#banner"), "the refusal")
+        assert not app.session.running.is_set()
+        banner = text_of(app, "#banner")
+        assert banner.startswith(f"the sequence did not start: {out}: not a readable HDF5 file")
+        assert "Error" not in banner.split(":")[1]
+
+
+async def test_g_starts_a_typed_path_once_checked(paced_app: WfsBenchApp) -> None:
+    """The path typed, Enter: once "g: start this sequence" shows, g starts it (it does not go
+    into the path field)."""
+    app = paced_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await pilot.press("f3")
+        await type_path(pilot, app, FILES / "long_dwell.toml")
+        await until(pilot, lambda: "start this sequence" in text_of(app, "#seq-report"), "the check")
+        await pilot.press("g")
+        await until(pilot, lambda: recorded.of(ev.PointStarted), "the dwell started")
+        assert app.query_one("#seq-path").value == str(FILES / "long_dwell.toml")
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+
+
+async def test_the_help_breaks_no_line_at_120_by_40(app: WfsBenchApp) -> None:
+    """Every line of the help fits the dialog's width, so none is split mid-phrase."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await pilot.press("question_mark")
+        await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
+        text = app.screen.query_one("#help-text")
+        await until(pilot, lambda: text.content_region.width > 0, "the help laid out")
+        lines = [Text.from_markup(line) for line in HELP_TEXT.split("\n")]
+        widest = max(line.cell_len for line in lines)
+        assert widest <= text.content_region.width, (widest, text.content_region.width)
+        assert text.content_region.height == len(lines)  # as many rows as lines: none wrapped
+        assert "x: reset an interlock or e-stop" in HELP_TEXT and "checked and dry-run" in HELP_TEXT
