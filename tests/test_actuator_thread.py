@@ -84,3 +84,26 @@ def test_a_late_reply_to_a_refused_hydraulics_command_names_the_state():
             assert actuator.read_status().status.state is ControllerState.HYDRAULICS_LOW
         finally:
             actuator.close()
+
+
+def test_late_replies_to_start_and_stop_are_settled_by_the_status():
+    """START whose acknowledgement comes late: the controller moves, so it started; STOP likewise:
+    it tapers (the watchdog, armed at power-up with 1.5 s and unfed here, has not tripped)."""
+    with SimulatedLab() as lab:
+        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
+        try:
+            actuator.connect()
+            actuator.set_hydraulics("low")
+            actuator.set_hydraulics("high")
+            actuator.configure(DwellSetpoint(freq_hz=10.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.5))
+            faults = lab.server.faults
+            faults.delay_next, faults.delay_s = 1, LATE_S
+            actuator.start()
+            assert actuator.read_status().status.state is ControllerState.RUNNING
+            faults.delay_next = 1
+            actuator.stop()
+            assert faults.delay_next == 0, "the stop's reply was the late one"
+            assert actuator.read_status().status.state is not ControllerState.RUNNING
+            assert InterlockFlag.WATCHDOG not in lab.bench.controller.flags
+        finally:
+            actuator.close()

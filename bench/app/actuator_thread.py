@@ -6,10 +6,11 @@ lives with its heartbeat task, and turns each contract call into a coroutine run
 may call it: an e-stop from a front end's thread reaches the controller without waiting for the
 engine's loop.
 
-A hydraulics command whose reply came too late (:class:`CommandOutcomeUnknownError`: the client
-never re-sends a write) is settled by reading the status, as docs/protocols.md asks: the controller
-in the commanded state means the command took effect; any other state raises the error, naming it.
-One slow reply on a loaded host therefore does not end a sequence.
+A hydraulics, start or stop command whose reply came too late (:class:`CommandOutcomeUnknownError`:
+the client never re-sends a write) is settled by reading the status, as docs/protocols.md asks: the
+controller in the state the command leads to means it took effect; any other state raises the
+error, naming it. One slow reply on a loaded host therefore does not end a sequence. (A setpoint's
+configure is not settled so: its several writes leave START refused until it is configured again.)
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any, TypeVar
 
 from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError, ConnectionLostError, LinkTimeoutError
-from drivers.register_map import ControllerState, InterlockFlag
+from drivers.register_map import MOVING_STATES, ControllerState, InterlockFlag
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 
 T = TypeVar("T")
@@ -123,31 +124,39 @@ class ThreadedActuator:
         self._call(self._client.configure(setpoint))
 
     def start(self) -> None:
-        self._call(self._client.start())
+        self._settled("start", self._client.start(), lambda state: state in MOVING_STATES)
 
     def stop(self) -> None:
-        self._call(self._client.stop())
+        self._settled("stop", self._client.stop(), lambda state: state is not ControllerState.RUNNING)
 
     def estop(self) -> None:
         self._call(self._client.estop())
 
     def set_hydraulics(self, level: str) -> None:
-        """Command the hydraulics ``level``; a reply too late to tell whether the command took
-        effect is settled by the controller's state (CommandOutcomeUnknownError if not in it)."""
         operation = {
             "off": self._client.hydraulics_off,
             "low": self._client.hydraulics_low,
             "high": self._client.hydraulics_high,
         }[level]
+        wanted = HYDRAULICS_STATES[level]
+        self._settled(f"hydraulics {level}", operation(), lambda state: state is wanted)
+
+    def _settled(
+        self, what: str, command: Coroutine[Any, Any, None], took_effect: Callable[[ControllerState], bool]
+    ) -> None:
+        """Send ``command``; when its reply came too late to tell whether it took effect
+        (:class:`CommandOutcomeUnknownError`), the status read after it decides: a state for which
+        ``took_effect`` holds means it did; any other state raises the error, naming the state.
+        Requests are answered in order, so the read sees the command if it arrived at all."""
         try:
-            self._call(operation())
+            self._call(command)
         except CommandOutcomeUnknownError as exc:
             state = self._call(self._client.read_status()).state
-            if state is not HYDRAULICS_STATES[level]:
+            if not took_effect(state):
                 raise CommandOutcomeUnknownError(
-                    f"hydraulics {level}: {exc}; the controller reads {state.name.lower()} after it"
+                    f"{what}: {exc}; the controller reads {state.name.lower()} after it"
                 ) from exc
-            log.warning("hydraulics %s: %s; the controller reads %s: done", level, exc, state.name.lower())
+            log.warning("%s: %s; the controller reads %s: done", what, exc, state.name.lower())
 
     def reset_interlock(self) -> None:
         """Reset the controller; after a lost link, reconnect and beat again first (the lost
