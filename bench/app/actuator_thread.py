@@ -5,25 +5,40 @@ its own thread. :class:`ThreadedActuator` owns an event loop on a thread of its 
 lives with its heartbeat task, and turns each contract call into a coroutine run there. Any thread
 may call it: an e-stop from a front end's thread reaches the controller without waiting for the
 engine's loop.
+
+A hydraulics, start or stop command whose reply came too late (:class:`CommandOutcomeUnknownError`:
+the client never re-sends a write) is settled by reading the status, as docs/protocols.md asks: the
+controller in the state the command leads to means it took effect; any other state raises the
+error, naming it. One slow reply on a loaded host therefore does not end a sequence. (A setpoint's
+configure is not settled so: its several writes leave START refused until it is configured again.)
 """
 
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
+import logging
 import threading
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
-from drivers.errors import ConnectionLostError, LinkTimeoutError
-from drivers.register_map import ControllerState, InterlockFlag
+from drivers.errors import CommandOutcomeUnknownError, ConnectionLostError, LinkTimeoutError
+from drivers.register_map import MOVING_STATES, ControllerState, InterlockFlag
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 
 T = TypeVar("T")
+log = logging.getLogger(__name__)
 
 #: Longest a single contract call may take (s): a request's attempts with their timeouts and margin.
 CALL_TIMEOUT_S = 5.0
+#: The controller state each hydraulics level of the contract commands.
+HYDRAULICS_STATES = {
+    "off": ControllerState.OFF,
+    "low": ControllerState.HYDRAULICS_LOW,
+    "high": ControllerState.HYDRAULICS_HIGH,
+}
 
 
 @dataclass(frozen=True)
@@ -65,12 +80,15 @@ class ThreadedActuator:
         return make_client()
 
     def _call(self, coro: Coroutine[Any, Any, T], timeout_s: float = CALL_TIMEOUT_S) -> T:
+        """Run ``coro`` on the client's loop; what it raises is raised as it is (a
+        :class:`LinkTimeoutError` of the client is a TimeoutError too, so only the wait itself
+        running out is reported as this call taking too long)."""
         future = asyncio.run_coroutine_threadsafe(coro, self._loop)
-        try:
-            return future.result(timeout_s)
-        except TimeoutError as exc:
+        done, _ = concurrent.futures.wait((future,), timeout_s)
+        if not done:
             future.cancel()
-            raise LinkTimeoutError(f"actuator call took longer than {timeout_s} s") from exc
+            raise LinkTimeoutError(f"actuator call took longer than {timeout_s} s")
+        return future.result()
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -106,10 +124,10 @@ class ThreadedActuator:
         self._call(self._client.configure(setpoint))
 
     def start(self) -> None:
-        self._call(self._client.start())
+        self._settled("start", self._client.start(), lambda state: state in MOVING_STATES)
 
     def stop(self) -> None:
-        self._call(self._client.stop())
+        self._settled("stop", self._client.stop(), lambda state: state is not ControllerState.RUNNING)
 
     def estop(self) -> None:
         self._call(self._client.estop())
@@ -120,7 +138,25 @@ class ThreadedActuator:
             "low": self._client.hydraulics_low,
             "high": self._client.hydraulics_high,
         }[level]
-        self._call(operation())
+        wanted = HYDRAULICS_STATES[level]
+        self._settled(f"hydraulics {level}", operation(), lambda state: state is wanted)
+
+    def _settled(
+        self, what: str, command: Coroutine[Any, Any, None], took_effect: Callable[[ControllerState], bool]
+    ) -> None:
+        """Send ``command``; when its reply came too late to tell whether it took effect
+        (:class:`CommandOutcomeUnknownError`), the status read after it decides: a state for which
+        ``took_effect`` holds means it did; any other state raises the error, naming the state.
+        Requests are answered in order, so the read sees the command if it arrived at all."""
+        try:
+            self._call(command)
+        except CommandOutcomeUnknownError as exc:
+            state = self._call(self._client.read_status()).state
+            if not took_effect(state):
+                raise CommandOutcomeUnknownError(
+                    f"{what}: {exc}; the controller reads {state.name.lower()} after it"
+                ) from exc
+            log.warning("%s: %s; the controller reads %s: done", what, exc, state.name.lower())
 
     def reset_interlock(self) -> None:
         """Reset the controller; after a lost link, reconnect and beat again first (the lost

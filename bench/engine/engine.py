@@ -920,8 +920,13 @@ class _RunRecording:
             self._trip(*tripped)
 
     def _trip(self, name: str, reason: str) -> None:
-        """Stop the actuator with a taper, publish the interlock and end the run."""
+        """Stop the actuator with a taper, publish the interlock and end the run. An e-stop
+        requested meanwhile ends it as e-stopped instead: its request is set before the stop is
+        sent, so a controller seen e-stopped after the loop last looked at the request (the
+        operator's thread sent it in between) is the e-stop's doing, not an interlock."""
         e = self.engine
+        if e._estop.is_set():
+            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
         e._defensive_stop()
         e.bus.publish(ev.InterlockTripped(name, reason, self.run_id))
         e._force_state(Trigger.INTERLOCK)

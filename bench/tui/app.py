@@ -69,9 +69,10 @@ class WfsBenchApp(App):
     #seq-shipped { height: 6; }
     #run-plots { height: 12; }
     #run-plots BraillePlot { width: 1fr; height: 12; }
+    #results-text { height: 1fr; }
     #results-bode { height: 12; }
     #results-bode BraillePlot { width: 1fr; height: 12; }
-    #results-runs { height: auto; max-height: 12; }
+    #results-runs { height: auto; max-height: 8; }
     #run-points { height: 1fr; }
     .dialog { width: 80; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
     ModalScreen { align: center middle; }

@@ -199,11 +199,15 @@ class RunPane(Vertical):
         self.query_one("#plot-disp", BraillePlot).plot([Series("z", t_s, v["z_base_m"] * 1e3, "green")], note)
 
 
-class ResultsPane(VerticalScroll):
-    """The analysis of each run, the Bode plot of the force ratio, the runs of the open file."""
+class ResultsPane(Vertical):
+    """The analysis of each run, the Bode plot of the force ratio, the runs of the open file.
+
+    Only the analysis text scrolls (it grows with every run and with whatever a run flags): the
+    Bode plot, the valid bands and the runs table stay in view below it at any length of text."""
 
     def compose(self) -> ComposeResult:
-        yield Static("no results yet", id="results-lines")
+        with VerticalScroll(id="results-text"):
+            yield Static("no results yet", id="results-lines")
         with Horizontal(id="results-bode"):
             yield BraillePlot("|F_wfs/F_contact|", "|H|", id="bode-mag")
             yield BraillePlot("phase", "deg", id="bode-phase")

@@ -161,6 +161,24 @@ def test_estop_reaches_the_controller_at_once_and_ends_the_run():
     assert engine.state is RunState.HYDRAULICS_LOW
 
 
+def test_an_estop_sent_between_the_loops_look_and_its_status_read_ends_the_run_as_estopped():
+    """The operator's thread e-stops right after the engine's loop looked at the request and before
+    it reads the status: the controller's e-stop state is the e-stop's doing, not an interlock."""
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    read = bench.read_status
+
+    def estop_then_read() -> FakeStatus:
+        if len(of(seen, ev.SamplesRecorded)) >= 12 and not bench.estopped:
+            engine.request_estop()
+        return read()
+
+    bench.read_status = estop_then_read
+    assert engine.run(sequence(grid())).status == "e-stopped"
+    assert of(seen, ev.RunFinished)[0].status == "e-stopped"
+    assert not of(seen, ev.InterlockTripped)
+
+
 @pytest.mark.parametrize(
     ("setup", "name"),
     [

@@ -18,6 +18,7 @@ from bench.store import open_campaign
 from bench.tui.app import SessionMessage, WfsBenchApp
 from bench.tui.dialogs import HELP_TEXT, ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import RunPane
+from bench.tui.session import BodeCurves, PastRun, PastRuns, RunResult
 from drivers.actuator import ActuatorClient
 from drivers.register_map import Command, ControllerState
 from drivers.wfs_frame import Status
@@ -81,6 +82,18 @@ async def screenshot(pilot, app: WfsBenchApp, name: str, shots: Path, words: tup
     just opened, is drawn at the app's next refresh, later on a loaded machine); returns its path."""
     await until(pilot, lambda: all(w in app.export_screenshot() for w in words), f"{name} drawn")
     return app.save_screenshot(name, str(shots))
+
+
+async def screenshot_text(pilot, app: WfsBenchApp, words: tuple[str, ...]) -> str:
+    """The first screenshot (SVG text) that shows ``words``: the frame drawn after what was posted."""
+    shown = [""]
+
+    def drawn() -> bool:
+        shown[0] = app.export_screenshot()
+        return all(w in shown[0] for w in words)
+
+    await until(pilot, drawn, f"{words} drawn")
+    return shown[0]
 
 
 async def prompt_open(pilot, app: WfsBenchApp, prompt_id: str) -> PromptDialog:
@@ -151,7 +164,8 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await pilot.press("p")  # the pause is taken at the checkpoint after the answer
         await pilot.press("y")
         await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause")
-        assert "paused" in text_of(app, "#run-progress")
+        # the progress line follows the engine at the live view's next refresh (10 Hz)
+        await until(pilot, lambda: "paused" in text_of(app, "#run-progress"), "the pause shown")
         await pilot.press("r")
         await until(pilot, lambda: app.session.engine.state is not RunState.PAUSED, "the resume")
 
@@ -175,6 +189,8 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         results_svg = await screenshot(
             pilot, app, "results.svg", shots, ("F_wfs/F_contact", "phase", "complete")
         )
+        table = app.query_one("#results-runs")
+        assert [table.get_row_at(i)[2] for i in range(3)] == ["complete"] * 3
         lines = text_of(app, "#results-lines")
         assert "m_comp" in lines and "Model 2" in lines
         assert app.query_one("#bode-mag").series, "the Bode plot of the grid is drawn"
@@ -578,3 +594,22 @@ async def test_the_help_breaks_no_line_at_120_by_40(app: WfsBenchApp) -> None:
         assert widest <= text.content_region.width, (widest, text.content_region.width)
         assert text.content_region.height == len(lines)  # as many rows as lines: none wrapped
         assert "x: reset an interlock or e-stop" in HELP_TEXT and "checked and dry-run" in HELP_TEXT
+
+
+async def test_results_keep_the_plot_and_the_runs_in_view_below_a_long_analysis(app: WfsBenchApp) -> None:
+    """An analysis longer than the screen (40 lines, as many flags would give) scrolls in its own
+    box: the Bode plot's titles and every run of the file stay on the screen below it."""
+    runs = tuple(PastRun(f"past-s{i:03d}-dwell_grid", "dwell_grid", "complete", "", 1000) for i in range(3))
+    freq_hz = np.array([10.0, 20.0, 30.0, 40.0])
+    curves = BodeCurves("2 mm", freq_hz, 1.0 + 0.01j * freq_hz, np.ones(4, complex), ("raw: 10-40 Hz",))
+    lines = tuple(f"FLAG finding-{i:02d}" for i in range(40))
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await pilot.press("f5")
+        app.post_message(SessionMessage(PastRuns(runs)))
+        await screenshot_text(pilot, app, (runs[-1].run_id,))
+        app.post_message(SessionMessage(RunResult("new-s001-dwell_grid", "shaker", lines, (curves,))))
+        shown = await screenshot_text(pilot, app, ("finding-00",))
+        assert "finding-39" not in shown, "the analysis is longer than its box: the test means something"
+        for word in ("|F_wfs/F_contact|", "phase", *(r.run_id for r in runs)):
+            assert word in shown, f"{word!r} scrolled out of view by the analysis text"
