@@ -205,6 +205,29 @@ class BenchConfig:
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
 
+def measured_bench(config: BenchConfig) -> dict[str, object]:
+    """What of ``config`` shapes a measurement, flat by dotted key (``limits.stroke_mm``): everything
+    but how the devices are reached (the ``[actuator]`` table, the WFS's transport, device and baud
+    rate), whether the simulated bench is paced and the file's name; ``simulated`` says whether the
+    devices are simulated. Two configurations with equal values measure alike (a resume compares
+    them)."""
+    data = tomllib.loads(config.to_toml())
+    del data["actuator"], data["simulation"]["paced"]
+    for key in ("transport", "device", "baudrate"):
+        del data["wfs"][key]
+    flat: dict[str, object] = {"simulated": config.simulated}
+
+    def add(prefix: str, value: object) -> None:
+        if isinstance(value, dict):
+            for key, inner in value.items():
+                add(f"{prefix}.{key}" if prefix else key, inner)
+        else:
+            flat[prefix] = value
+
+    add("", data)
+    return flat
+
+
 def _as_dict(value: object) -> dict[str, object]:
     return {f.name: getattr(value, f.name) for f in fields(value)}
 

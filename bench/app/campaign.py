@@ -19,6 +19,7 @@ from bench.app.answers import FileAnswers
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.progress import DoneBefore
 from bench.app.recorder import Recorder
+from bench.app.resume_check import check_resume
 from bench.app.simulated import UNPACED_BACKLOG_S, SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig, load_bench_config
@@ -290,7 +291,11 @@ def _check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> _ResumeFr
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
             " or write to another file"
         )
-    return _ResumeFromFile(out_path) if resume else None
+    if not resume:
+        return None
+    with open_campaign(out_path) as campaign:
+        check_resume(campaign, plan.sequence, plan.config)
+    return _ResumeFromFile(out_path)
 
 
 def _run_on(
