@@ -30,6 +30,10 @@ def test_a_good_file_loads(tmp_path):
         """
         [[steps]]
         type = "hydraulics"
+        level = "low"
+
+        [[steps]]
+        type = "hydraulics"
         level = "high"
 
         [[steps]]
@@ -40,8 +44,8 @@ def test_a_good_file_loads(tmp_path):
     )
     sequence = load_sequence(path, LIMITS)
     assert sequence.name == "t" and sequence.source == str(path)
-    assert sequence.steps[1] == SineDwell(40.0, 2.0)
-    assert isinstance(sequence.steps[1].freq_hz, int)  # TOML integers are numbers too
+    assert sequence.steps[2] == SineDwell(40.0, 2.0)
+    assert isinstance(sequence.steps[2].freq_hz, int)  # TOML integers are numbers too
 
 
 DWELL = '[[steps]]\ntype = "tare"\n\n[[steps]]\ntype = "sine_dwell"\nfreq_hz = 40\n'

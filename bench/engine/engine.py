@@ -32,7 +32,7 @@ from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, Trigger
-from drivers.errors import LinkError
+from drivers.errors import CommandRejectedError, LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
@@ -287,7 +287,9 @@ class Engine:
         except RunStoppedError as stop:
             status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
         except LinkError as exc:
-            status, reason = "failed", f"link error: {exc}"
+            # a refused command is the controller's answer ("controller refused ..."), not a link fault
+            refused = isinstance(exc, CommandRejectedError)
+            status, reason = "failed", str(exc) if refused else f"link error: {exc}"
             self._defensive_stop()
             self._force_state(Trigger.INTERLOCK)
         except BaseException as exc:  # a crash (or Ctrl-C) still stops the actuator and marks the end
