@@ -16,7 +16,7 @@ from simulators.serve import serve  # the CLI is a composition root: it may know
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
-EXIT_STOPPED = 1  # aborted (Ctrl-C too), e-stopped, interlocked or failed: the file holds the data, marked
+EXIT_STOPPED = 1  # aborted (a signal too), e-stopped, interlocked or failed: the file holds the data, marked
 EXIT_LINK = 2  # a device could not be reached
 EXIT_INVALID = 3  # the sequence, configuration, answers or CSV mapping is invalid: nothing opened or moved
 EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved

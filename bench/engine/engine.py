@@ -125,6 +125,10 @@ class RecordedRun:
     samples: int = 0
 
 
+#: The reason an abort records unless its requester gives its own.
+ABORT_REASON = "aborted by the operator"
+
+
 class RunStoppedError(Exception):
     """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
 
@@ -194,6 +198,7 @@ class Engine:
         self._pause = threading.Event()
         self._resume = threading.Event()
         self._abort = threading.Event()
+        self._abort_reason = ABORT_REASON
         self._estop = threading.Event()
         self.conditions: dict[str, Any] = {}
 
@@ -212,8 +217,10 @@ class Engine:
         self._pause.clear()
         self._resume.set()
 
-    def request_abort(self) -> None:
-        """Taper out and end the sequence as aborted; the data recorded so far is kept."""
+    def request_abort(self, reason: str = ABORT_REASON) -> None:
+        """Taper out and end the sequence as aborted, ``reason`` recorded with the run (who or what
+        asked: the operator, a signal); the data recorded so far is kept."""
+        self._abort_reason = reason
         self._abort.set()
         self._resume.set()
 
@@ -269,6 +276,7 @@ class Engine:
         run, and the outcome says how and why."""
         self._pause.clear()
         self._abort.clear()
+        self._abort_reason = ABORT_REASON
         self._estop.clear()
         self.conditions = {"bench": self.bench_kind}
         self.machine.fire(Trigger.START)
@@ -664,9 +672,11 @@ class Engine:
             self._abort_now()
         self.machine.fire(Trigger.RESUME)
 
-    def _abort_now(self, reason: str = "aborted by the operator") -> NoReturn:
-        """End the sequence as aborted, with a taper; as e-stopped if an e-stop came first (an
-        e-stop pressed while a prompt waited, say, and the prompt then left unanswered)."""
+    def _abort_now(self, reason: str | None = None) -> NoReturn:
+        """End the sequence as aborted, with a taper (``reason`` by default the requested abort's);
+        as e-stopped if an e-stop came first (an e-stop pressed while a prompt waited, say, and the
+        prompt then left unanswered)."""
+        reason = reason or self._abort_reason
         if self._estop.is_set():
             raise RunStoppedError(RunState.ESTOPPED, "e-stop")
         self._force_state(Trigger.ABORT)
