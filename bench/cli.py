@@ -7,6 +7,7 @@ import asyncio
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
 from drivers.actuator import ActuatorClient
@@ -147,8 +148,8 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
     """Live values and link counters, one line per ``--interval`` seconds."""
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
         if not reader.wait_connected(5):
-            print(f"cannot open {args.port}: {reader.last_error}", file=sys.stderr)
-            return 1
+            print(f"error: cannot open the WFS port {args.port}: {reader.last_error}", file=sys.stderr)
+            return EXIT_LINK
         print("identity:", ",".join(reader.identify()))
         view = reader.subscribe(lossless=False, max_frames=10_000)  # a live view never slows the reader
         reader.start_stream()
@@ -187,9 +188,18 @@ async def _actuator_status(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the documented exit code for a command line it cannot use: invalid input (3),
+    not argparse's own 2, which ``wfsbench`` keeps for a device that could not be reached."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INVALID, f"error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="wfsbench", description=__doc__)
-    sub = parser.add_subparsers(dest="group", required=True)
+    parser = _Parser(prog="wfsbench", description=__doc__)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     demo = sub.add_parser("demo", help="run the paper's whole campaign through the engine, simulated")
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
     demo.add_argument(
@@ -254,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         return args.run(args)
     except LinkError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_LINK
     except KeyboardInterrupt:  # Ctrl-C before a command took it over (a run: before the devices opened)
         print("interrupted: nothing moved", file=sys.stderr)
         return EXIT_STOPPED
