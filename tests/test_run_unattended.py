@@ -20,11 +20,12 @@ import pytest
 from bench.app.answers import AnswersError, FileAnswers, load_answers
 from bench.app.interrupts import tell
 from bench.app.progress import DoneBefore, Progress
+from bench.app.terminal import TerminalOperator
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
 from bench.config import load_bench_config
 from bench.engine import events as ev
 from bench.store import open_campaign
-from sequences import load_sequence
+from sequences import Prompt, Sequence, load_sequence
 from simulators.bench_sim import SimulatedBench
 from simulators.world import SimulatedOperator, SimulatedWorld
 from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
@@ -43,8 +44,24 @@ def smoke_sequence():
 
 def test_an_answers_file_gives_every_prompt_its_checked_answer(tmp_path):
     path = tmp_path / "answers.toml"
-    path.write_text('fit_wheel = "yes"\nremove_wheel = true\npressure = 3\n')
+    path.write_text('fit_wheel = "Yes"\nremove_wheel = true\npressure = 3\n')
     assert load_answers(path, smoke_sequence()) == {"remove_wheel": True, "fit_wheel": True, "pressure": 3.0}
+
+
+def test_a_choice_is_a_word_whatever_its_case_in_a_file_and_at_the_terminal(tmp_path):
+    """As yes and no are: "Medium" answers a choice of soft / medium / firm, recorded as "medium"."""
+    damper = Prompt("damper", "Damper setting?", answer="choice", choices=("soft", "medium", "firm"))
+    sequence = Sequence("d", "", (damper,), "<test>")
+    path = tmp_path / "answers.toml"
+    path.write_text('damper = "Medium"\n')
+    assert load_answers(path, sequence) == {"damper": "medium"}
+    typed = iter(["Hard", " FIRM "])
+    said = []
+    assert TerminalOperator(read=lambda q: next(typed), write=said.append).answer(damper) == "firm"
+    assert said == ["  damper: 'Hard' is not one of ['soft', 'medium', 'firm']; try again"]
+    path.write_text("damper = 2\n")
+    with pytest.raises(AnswersError, match=r"damper: 2 is an integer, not one of the choices \(a string\)"):
+        load_answers(path, sequence)
 
 
 BAD_ANSWERS = {
@@ -59,11 +76,32 @@ BAD_ANSWERS = {
     ),
     "text for a number": (
         'remove_wheel = true\nfit_wheel = true\npressure = "high"\n',
-        "answers.toml: pressure: 'high' is not a number within 0.5..4.5 bar; allowed: [0.5..4.5 bar]",
+        'answers.toml: pressure: "high" is a string, not a number (write the number without quotes);'
+        " allowed: [0.5..4.5 bar]",
+    ),
+    "a number in quotes": (
+        'remove_wheel = true\nfit_wheel = true\npressure = "2.4"\n',
+        'answers.toml: pressure: "2.4" is a string, not a number (write the number without quotes);'
+        " allowed: [0.5..4.5 bar]",
+    ),
+    "a boolean for a number": (
+        "remove_wheel = true\nfit_wheel = true\npressure = true\n",
+        "answers.toml: pressure: true is a boolean, not a number; allowed: [0.5..4.5 bar]",
+    ),
+    "typed text for a confirmation": (
+        'remove_wheel = true\nfit_wheel = "y"\npressure = 2.4\n',
+        'answers.toml: fit_wheel: "y" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
+    ),
+    "a number for a confirmation": (
+        "remove_wheel = 1\nfit_wheel = true\npressure = 2.4\n",
+        'answers.toml: remove_wheel: 1 is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
     ),
     "not a confirmation": (
         'remove_wheel = "maybe"\nfit_wheel = true\npressure = 2.5\n',
-        "answers.toml: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+        'answers.toml: remove_wheel: "maybe" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
     ),
     "unknown prompt id": (
         SMOKE_ANSWERS + "presure = 2.5\n",
@@ -105,7 +143,8 @@ def test_every_problem_of_an_answers_file_is_reported_in_the_order_of_the_file(t
     assert str(refused.value).splitlines() == [
         f"{path}: presure: no prompt of sequence 'smoke' has this id {prompts}",
         "  and 4 more:",
-        f"  {path}: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+        f'  {path}: remove_wheel: "maybe" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
         f"  {path}: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"
         " the wheel centre': the sequence would abort there; an unattended run needs yes",
         f"  {path}: fit: no prompt of sequence 'smoke' has this id {prompts}",
