@@ -108,7 +108,11 @@ BAD_ANSWERS = {
         "answers.toml: presure: no prompt of sequence 'smoke' has this id"
         " (its prompts: remove_wheel, fit_wheel, pressure)",
     ),
-    "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: not valid TOML: "),
+    "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: line 4: not valid TOML: "),
+    "duplicate key": (
+        SMOKE_ANSWERS + "pressure = 2.5\n",
+        "answers.toml: pressure: line 4: duplicate key: it is already defined above in the same table",
+    ),
     "no to a confirmation": (
         'remove_wheel = true\nfit_wheel = "no"\npressure = 2.5\n',
         "answers.toml: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"

@@ -16,7 +16,7 @@ from pathlib import Path
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt, Sequence
 from sequences.errors import problems_text
-from sequences.toml_text import toml_value
+from sequences.toml_text import toml_error_where, toml_value
 from simulators.world import SimulatedOperator
 
 
@@ -38,11 +38,15 @@ def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool
     at that prompt), then the prompts the file does not answer, in the sequence's order."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
     except OSError as exc:
         raise AnswersError([f"{path}: cannot read the answers file: {exc.strerror or exc}"]) from None
+    except UnicodeDecodeError as exc:
+        raise AnswersError([f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}"]) from None
     except tomllib.TOMLDecodeError as exc:
-        raise AnswersError([f"{path}: not valid TOML: {exc}"]) from None
+        key, reason = toml_error_where(text, str(exc))
+        raise AnswersError([f"{path}: {key + ': ' if key else ''}{reason}"]) from None
     prompts = {step.id: step for step in sequence.steps if isinstance(step, Prompt)}
     answers: dict[str, float | str | bool] = {}
     problems = []
