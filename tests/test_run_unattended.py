@@ -8,6 +8,7 @@ import io
 import math
 import os
 import pty
+import select
 import shutil
 import signal
 import subprocess
@@ -395,7 +396,11 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     assert run.returncode == EXIT_COMPLETE, run.stderr
     assert "\x1b" not in run.stdout and "\r" not in run.stdout
     progress = [line for line in run.stdout.splitlines() if line.startswith("progress: ")]
-    assert progress[0].startswith(
+    assert (
+        progress[0]
+        == "progress: 0/8 points | elapsed 0:00, ETA --:-- | waiting for the operator: prompt remove_wheel"
+    )
+    assert progress[1].startswith(
         "progress: 0/8 points | elapsed 0:00, ETA --:-- | smoke-s003-free_run point 0"
     )
     sweep = "smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
@@ -524,3 +529,102 @@ def test_the_interrupt_s_word_clears_the_progress_line_on_a_terminal_only(monkey
         tell("interrupted")
     with os.fdopen(read_end, "rb") as pipe:
         assert pipe.read() == b"interrupted\n"
+
+
+def test_a_prompt_on_a_terminal_gets_a_line_of_its_own_and_the_status_says_the_bench_waits(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "300")  # the status line whole: it is cut at the terminal's width
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=True, clock=clock)
+    _feed(progress, clock)
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 250, {"status": np.full(10, 0xFFFF, np.uint16)}))
+    asked = len(out.getvalue())
+    progress(ev.PromptAsked("fit_wheel", "Fit the wheel"))
+    clock.now_s += 5.0
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 260, {"status": np.zeros(100, np.uint16)}))
+    progress.line("  a log line while the question waits")
+    text = out.getvalue()[asked:]
+    assert text.startswith("\r[##........] 1/4 points | elapsed 0:01")
+    assert text.split("\x1b[K")[1:] == [
+        "\n  a log line while the question waits\n"
+    ]  # no redraw over the answer
+    assert "| waiting for the operator: prompt fit_wheel" in text and "at amplitude" not in text
+    progress(ev.PromptAnswered("fit_wheel", "Fit the wheel", True, None))
+    progress(ev.PointStarted("seq-s002-dwell_grid", 2, 1, 40.0, 1.5, {}))
+    assert out.getvalue().endswith("seq-s002-dwell_grid point 2: 40 Hz, 1.5 mm, 2.5 bar, tapering in\x1b[K")
+
+
+ASKS_AFTER_A_DWELL = """\
+[sequence]
+name = "asks_later"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "hydraulics"
+level = "high"
+
+[[steps]]
+type = "sine_dwell"
+freq_hz = 10
+amplitude_mm = 1
+measure_min_s = 0.5
+
+[[steps]]
+type = "prompt"
+id = "ready"
+text = "Is the bench clear"
+answer = "confirm"
+
+[[steps]]
+type = "hydraulics"
+level = "off"
+"""
+
+
+def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, lab_devices):  # noqa: F811
+    """Real devices and the command on a pseudo-terminal (its standard input and output): the
+    question comes on a line of its own, below a status that says the bench waits for the operator."""
+    server, pty_path = lab_devices
+    sequence, config = tmp_path / "asks.toml", tmp_path / "bench.toml"
+    sequence.write_text(ASKS_AFTER_A_DWELL)
+    config.write_text(_bench_toml(server, pty_path))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config)],
+        stdin=slave,  # all three the terminal: input() writes its question to standard error there
+        stdout=slave,
+        stderr=slave,
+        cwd=ROOT,
+        env={**os.environ, "COLUMNS": "300", "TERM": "dumb"},
+    )
+    os.close(slave)
+    shown = b""
+    try:
+        while b"Is the bench clear [yes / no]: " not in shown:
+            ready, _, _ = select.select([master], [], [], 60.0)
+            assert ready, f"no question within 60 s: {shown!r}"
+            chunk = os.read(master, 65536)
+            assert chunk, shown
+            shown += chunk
+        os.write(master, b"yes\n")
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the command ended, the terminal's last writer closed
+                break
+            if not chunk:
+                break
+            shown += chunk
+        assert proc.wait(timeout=120) == EXIT_COMPLETE, shown
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    status, question = shown.decode().split("Is the bench clear [yes / no]: ")[0].rsplit("\r", 1)
+    assert question == "\n"  # the status line ended: the question starts a line of its own
+    assert status.endswith("| waiting for the operator: prompt ready\x1b[K")
