@@ -25,7 +25,13 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import PlanRefusedError, done_in_file, plan_campaign, run_campaign
+    from bench.app.campaign import (
+        DeviceUnreachableError,
+        PlanRefusedError,
+        done_in_file,
+        plan_campaign,
+        run_campaign,
+    )
     from bench.app.interrupts import RunInterrupts
     from bench.app.progress import DoneBefore, Progress
     from bench.app.run_log import RunLog
@@ -44,6 +50,8 @@ def _run(args: argparse.Namespace) -> int:
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
+    log_path = _log_beside(Path(args.out))
+    logged_before = log_path.stat().st_size if log_path.exists() else 0
     try:
         done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
         progress = Progress(sys.stdout, done_before=done_before)
@@ -62,9 +70,28 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    except DeviceUnreachableError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+    finally:
+        if log_path.exists() and log_path.stat().st_size > logged_before:
+            print(f"warnings of the links and libraries: {log_path}", file=sys.stderr)
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
+
+
+def _log_beside(out: Path) -> Path:
+    """Send log records (the drivers' warnings, pymodbus's raw frames and retries) to ``out.log``
+    instead of the terminal, where they would cut into the status line; the file is created only
+    when there is a warning to write."""
+    import logging
+
+    path = out.with_name(out.name + ".log")
+    handler = logging.FileHandler(path, delay=True)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
+    logging.basicConfig(level=logging.WARNING, handlers=[handler], force=True)
+    return path
 
 
 def _tui(args: argparse.Namespace) -> int:
