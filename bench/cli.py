@@ -157,6 +157,13 @@ def _import_csv(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from bench.demo import run_demo
 
+    earlier = Path(args.out) / "campaign.h5"
+    if earlier.exists():  # said before the minute of the demo, while Ctrl-C still keeps it
+        print(
+            f"replacing {earlier} and {earlier.with_name('report')}/ of an earlier demo: their runs and"
+            " analyses are not kept (--out DIR writes elsewhere)",
+            flush=True,
+        )
     for line in run_demo(Path(args.out), seed=args.seed):
         print(line)
     return 0
@@ -227,10 +234,19 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="wfsbench", description=__doc__)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    demo = sub.add_parser("demo", help="run the paper's whole campaign through the engine, simulated")
+    demo = sub.add_parser(
+        "demo",
+        help="run the paper's whole campaign through the engine, simulated",
+        description="Run the paper's whole campaign on the simulated benches into DIR/campaign.h5 and"
+        " its report into DIR/report/. A campaign.h5 and report of an earlier demo in DIR are replaced"
+        " (the command says so first): use another --out to keep them.",
+    )
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
     demo.add_argument(
-        "--out", default="wfsbench-demo", help="directory for campaign.h5 (default: %(default)s)"
+        "--out",
+        default="wfsbench-demo",
+        metavar="DIR",
+        help="directory for campaign.h5 and report/, replaced if there (default: %(default)s)",
     )
     demo.set_defaults(run=_demo)
     run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
