@@ -282,7 +282,12 @@ class Engine:
         self.machine.fire(Trigger.START)
         self.bus.publish(
             ev.SequenceStarted(
-                sequence.name, sequence_text, config_text, sequence.points(), sequence.estimated_duration_s
+                sequence.name,
+                sequence_text,
+                config_text,
+                sequence.points(),
+                sequence.estimated_duration_s,
+                sequence.estimated_duration_with_operator_s,
             )
         )
         status, reason = "complete", ""
