@@ -231,9 +231,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INVALID, f"error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="wfsbench", description=__doc__)
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+class _Version(argparse.Action):
+    """``--version``: the installed package's version (looked up only when asked: it costs imports)."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
+        from bench.app.campaign import software_version
+
+        print(f"wfsbench {software_version()}")
+        parser.exit(0)
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
     demo = sub.add_parser(
         "demo",
         help="run the paper's whole campaign through the engine, simulated",
@@ -249,6 +260,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="directory for campaign.h5 and report/, replaced if there (default: %(default)s)",
     )
     demo.set_defaults(run=_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="wfsbench",
+        description="The wfsbench command line: run and check test sequences on a wheel force sensor"
+        " bench, analyse and report campaign files, serve and talk to the (simulated) devices."
+        " Each command has its own --help; docs/cli.md describes them all.",
+    )
+    parser.add_argument("--version", action=_Version)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    _add_demo(sub)
     run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
     run.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
     run.add_argument("--out", required=True, help="campaign file (HDF5, docs/hdf5.md)")

@@ -38,3 +38,14 @@ def test_a_wfs_port_that_cannot_be_opened_is_a_link_error_naming_the_port(tmp_pa
     assert result.returncode == EXIT_LINK, result.stdout + result.stderr
     assert result.stderr.startswith(f"error: cannot open the WFS port {port}: "), result.stderr
     assert result.stdout == ""
+
+
+def test_version_and_help_are_plain_text():
+    from importlib.metadata import version
+
+    shown = wfsbench("--version")
+    assert (shown.returncode, shown.stdout) == (0, f"wfsbench {version('wfs-bench')}\n")
+    helped = wfsbench("--help")
+    assert helped.returncode == 0
+    assert "``" not in helped.stdout and "--version" in helped.stdout
+    assert "The wfsbench command line: run and check test sequences" in " ".join(helped.stdout.split())
