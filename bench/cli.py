@@ -179,18 +179,22 @@ def _announce(line: str) -> None:
 
 
 def _wfs_monitor(args: argparse.Namespace) -> int:
-    """Live values and link counters, one line per ``--interval`` seconds."""
+    """Live values and link counters, one line per ``--interval`` seconds of samples; with
+    ``--duration``, ``duration / interval`` lines (rounded), so exactly that much of the stream. The
+    intervals are counted in frames at the rate the device reports, not by the wall clock."""
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
         if not reader.wait_connected(5):
             print(f"error: cannot open the WFS port {args.port}: {reader.last_error}", file=sys.stderr)
             return EXIT_LINK
         print("identity:", ",".join(reader.identify()))
+        frames_per_line = max(1, round(args.interval * reader.rate_hz()))
+        lines = max(1, round(args.duration / args.interval)) if args.duration else None
         view = reader.subscribe(lossless=False, max_frames=10_000)  # a live view never slows the reader
         reader.start_stream()
-        end = time.monotonic() + args.duration if args.duration else None
         try:
-            while end is None or time.monotonic() < end:
-                block = view.read_frames(max(1, int(args.interval * 1000)), timeout_s=args.interval + 5)
+            shown = 0
+            while lines is None or shown < lines:
+                block = view.read_frames(frames_per_line, timeout_s=args.interval + 5)
                 f = block.frames[-1]
                 c = reader.counters
                 print(
@@ -199,6 +203,7 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
                     f"missing {c.frames_missing} crc {c.crc_rejects} reconnects {c.reconnects}",
                     flush=True,
                 )
+                shown += 1
         except KeyboardInterrupt:
             pass
         finally:
