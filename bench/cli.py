@@ -7,6 +7,7 @@ import asyncio
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
 from drivers.actuator import ActuatorClient
@@ -16,7 +17,7 @@ from simulators.serve import serve  # the CLI is a composition root: it may know
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
-EXIT_STOPPED = 1  # aborted (Ctrl-C too), e-stopped, interlocked or failed: the file holds the data, marked
+EXIT_STOPPED = 1  # aborted (a signal too), e-stopped, interlocked or failed: the file holds the data, marked
 EXIT_LINK = 2  # a device could not be reached
 EXIT_INVALID = 3  # the sequence, configuration, answers or CSV mapping is invalid: nothing opened or moved
 EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
@@ -24,7 +25,13 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import PlanRefusedError, done_in_file, plan_campaign, run_campaign
+    from bench.app.campaign import (
+        DeviceUnreachableError,
+        PlanRefusedError,
+        done_in_file,
+        plan_campaign,
+        run_campaign,
+    )
     from bench.app.interrupts import RunInterrupts
     from bench.app.progress import DoneBefore, Progress
     from bench.app.run_log import RunLog
@@ -43,6 +50,8 @@ def _run(args: argparse.Namespace) -> int:
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
+    log_path = _log_beside(Path(args.out))
+    logged_before = log_path.stat().st_size if log_path.exists() else 0
     try:
         done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
         progress = Progress(sys.stdout, done_before=done_before)
@@ -61,9 +70,28 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    except DeviceUnreachableError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+    finally:
+        if log_path.exists() and log_path.stat().st_size > logged_before:
+            print(f"warnings of the links and libraries: {log_path}", file=sys.stderr)
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
     return EXIT_COMPLETE if outcome.status == "complete" else EXIT_STOPPED
+
+
+def _log_beside(out: Path) -> Path:
+    """Send log records (the drivers' warnings, pymodbus's raw frames and retries) to ``out.log``
+    instead of the terminal, where they would cut into the status line; the file is created only
+    when there is a warning to write."""
+    import logging
+
+    path = out.with_name(out.name + ".log")
+    handler = logging.FileHandler(path, delay=True)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
+    logging.basicConfig(level=logging.WARNING, handlers=[handler], force=True)
+    return path
 
 
 def _tui(args: argparse.Namespace) -> int:
@@ -129,6 +157,13 @@ def _import_csv(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from bench.demo import run_demo
 
+    earlier = Path(args.out) / "campaign.h5"
+    if earlier.exists():  # said before the minute of the demo, while Ctrl-C still keeps it
+        print(
+            f"replacing {earlier} and {earlier.with_name('report')}/ of an earlier demo: their runs and"
+            " analyses are not kept (--out DIR writes elsewhere)",
+            flush=True,
+        )
     for line in run_demo(Path(args.out), seed=args.seed):
         print(line)
     return 0
@@ -144,18 +179,22 @@ def _announce(line: str) -> None:
 
 
 def _wfs_monitor(args: argparse.Namespace) -> int:
-    """Live values and link counters, one line per ``--interval`` seconds."""
+    """Live values and link counters, one line per ``--interval`` seconds of samples; with
+    ``--duration``, ``duration / interval`` lines (rounded), so exactly that much of the stream. The
+    intervals are counted in frames at the rate the device reports, not by the wall clock."""
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
         if not reader.wait_connected(5):
-            print(f"cannot open {args.port}: {reader.last_error}", file=sys.stderr)
-            return 1
+            print(f"error: cannot open the WFS port {args.port}: {reader.last_error}", file=sys.stderr)
+            return EXIT_LINK
         print("identity:", ",".join(reader.identify()))
+        frames_per_line = max(1, round(args.interval * reader.rate_hz()))
+        lines = max(1, round(args.duration / args.interval)) if args.duration else None
         view = reader.subscribe(lossless=False, max_frames=10_000)  # a live view never slows the reader
         reader.start_stream()
-        end = time.monotonic() + args.duration if args.duration else None
         try:
-            while end is None or time.monotonic() < end:
-                block = view.read_frames(max(1, int(args.interval * 1000)), timeout_s=args.interval + 5)
+            shown = 0
+            while lines is None or shown < lines:
+                block = view.read_frames(frames_per_line, timeout_s=args.interval + 5)
                 f = block.frames[-1]
                 c = reader.counters
                 print(
@@ -164,6 +203,7 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
                     f"missing {c.frames_missing} crc {c.crc_rejects} reconnects {c.reconnects}",
                     flush=True,
                 )
+                shown += 1
         except KeyboardInterrupt:
             pass
         finally:
@@ -187,15 +227,56 @@ async def _actuator_status(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="wfsbench", description=__doc__)
-    sub = parser.add_subparsers(dest="group", required=True)
-    demo = sub.add_parser("demo", help="run the paper's whole campaign through the engine, simulated")
+class _Parser(argparse.ArgumentParser):
+    """argparse with the documented exit code for a command line it cannot use: invalid input (3),
+    not argparse's own 2, which ``wfsbench`` keeps for a device that could not be reached."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INVALID, f"error: {message}\n")
+
+
+class _Version(argparse.Action):
+    """``--version``: the installed package's version (looked up only when asked: it costs imports)."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
+        from bench.app.campaign import software_version
+
+        print(f"wfsbench {software_version()}")
+        parser.exit(0)
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    demo = sub.add_parser(
+        "demo",
+        help="run the paper's whole campaign through the engine, simulated",
+        description="Run the paper's whole campaign on the simulated benches into DIR/campaign.h5 and"
+        " its report into DIR/report/. A campaign.h5 and report of an earlier demo in DIR are replaced"
+        " (the command says so first): use another --out to keep them.",
+    )
     demo.add_argument("--seed", type=int, default=1, help="noise seed of the simulated sensors")
     demo.add_argument(
-        "--out", default="wfsbench-demo", help="directory for campaign.h5 (default: %(default)s)"
+        "--out",
+        default="wfsbench-demo",
+        metavar="DIR",
+        help="directory for campaign.h5 and report/, replaced if there (default: %(default)s)",
     )
     demo.set_defaults(run=_demo)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="wfsbench",
+        description="The wfsbench command line: run and check test sequences on a wheel force sensor"
+        " bench, analyse and report campaign files, serve and talk to the (simulated) devices."
+        " Each command has its own --help; docs/cli.md describes them all.",
+    )
+    parser.add_argument("--version", action=_Version)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    _add_demo(sub)
     run = sub.add_parser("run", help="run a sequence file on the bench into a campaign file")
     run.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
     run.add_argument("--out", required=True, help="campaign file (HDF5, docs/hdf5.md)")
@@ -254,7 +335,7 @@ def main(argv: list[str] | None = None) -> int:
         return args.run(args)
     except LinkError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_LINK
     except KeyboardInterrupt:  # Ctrl-C before a command took it over (a run: before the devices opened)
         print("interrupted: nothing moved", file=sys.stderr)
         return EXIT_STOPPED

@@ -26,7 +26,7 @@ from drivers.wfs_frame import FRAME_SIZE
 from sequences.errors import problems_text
 from sequences.limits import BenchLimits
 from sequences.ranges import range_problem
-from sequences.toml_text import toml_table, toml_value
+from sequences.toml_text import toml_error_where, toml_table, toml_value
 
 BENCH_KINDS = ("shaker", "four_post")
 ACTUATOR_TRANSPORTS = ("simulated", "tcp", "rtu")
@@ -35,7 +35,6 @@ TARE_POLICIES = ("before_each_run", "once", "never")
 TYRE_MODELS = (1, 2, 3)
 #: Bits on the serial line per byte (8N1: start, 8 data, stop): a frame rate must fit the baud rate.
 _BITS_PER_BYTE = 10
-_AT_LINE = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
 
 
 class ConfigError(ValueError):
@@ -205,6 +204,29 @@ class BenchConfig:
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
 
+def measured_bench(config: BenchConfig) -> dict[str, object]:
+    """What of ``config`` shapes a measurement, flat by dotted key (``limits.stroke_mm``): everything
+    but how the devices are reached (the ``[actuator]`` table, the WFS's transport, device and baud
+    rate), whether the simulated bench is paced and the file's name; ``simulated`` says whether the
+    devices are simulated. Two configurations with equal values measure alike (a resume compares
+    them)."""
+    data = tomllib.loads(config.to_toml())
+    del data["actuator"], data["simulation"]["paced"]
+    for key in ("transport", "device", "baudrate"):
+        del data["wfs"][key]
+    flat: dict[str, object] = {"simulated": config.simulated}
+
+    def add(prefix: str, value: object) -> None:
+        if isinstance(value, dict):
+            for key, inner in value.items():
+                add(f"{prefix}.{key}" if prefix else key, inner)
+        else:
+            flat[prefix] = value
+
+    add("", data)
+    return flat
+
+
 def _as_dict(value: object) -> dict[str, object]:
     return {f.name: getattr(value, f.name) for f in fields(value)}
 
@@ -246,29 +268,11 @@ def parse_bench_config(text: str, source: str, base_dir: Path | None = None) -> 
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        at = _AT_LINE.search(str(exc))
-        reason = _AT_LINE.sub("", str(exc))
-        if reason.startswith(("Cannot overwrite", "Cannot declare", "Duplicate")):
-            reason = f"duplicate key: it is already defined above in the same table ({reason})"
-        key = _key_on_line(text.splitlines(), int(at[1])) if at else ""
-        where = "".join(f"{part}: " for part in (key, f"line {at[1]}" if at else "") if part)
-        raise ConfigError([f"{source}: {where}{reason}"]) from None
+        key, reason = toml_error_where(text, str(exc))
+        raise ConfigError([f"{source}: {key + ': ' if key else ''}{reason}"]) from None
     if not data:
         raise ConfigError([f"{source}: empty file: a bench configuration needs at least kind"])
     return _Reader(source, base_dir or Path.cwd()).config(data)
-
-
-def _key_on_line(lines: list[str], line: int) -> str:
-    """The dotted key that ``line`` (1-based) defines, prefixed by the table it is in ("" if none)."""
-    table = ""
-    for text in lines[: line - 1]:
-        if text.strip().startswith("["):
-            table = text.strip().strip("[]").strip()
-    current = lines[line - 1].strip() if 0 < line <= len(lines) else ""
-    if current.startswith("["):
-        return current.strip("[]").strip()
-    name = current.split("=", 1)[0].strip() if "=" in current else ""
-    return ".".join(part for part in (table, name) if part)
 
 
 class _Reader:

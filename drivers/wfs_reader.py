@@ -345,6 +345,10 @@ class WfsReader:
     def set_rate(self, rate_hz: int) -> int:
         return int(self.command("RATE", int(rate_hz)).fields[0])
 
+    def rate_hz(self) -> int:
+        """The frame rate the device streams at (Hz), as it reports it."""
+        return int(self.command("RATE?").fields[0])
+
     def capture(
         self, trigger_level_n: float, pre_trigger_s: float, length_s: float, timeout_s: float
     ) -> Capture:

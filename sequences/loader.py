@@ -17,14 +17,13 @@ from pathlib import Path
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
 from sequences.steps import STEP_TYPES, AdaptiveDwell, DwellGrid, FreeRun, Sequence, Step, step_fields
-from sequences.toml_text import toml_table
+from sequences.toml_text import toml_error_where, toml_table
 from sequences.validation import check_sequence_header, check_steps
 
 _TOP_KEYS = ("sequence", "steps")
 _HEADER_KEYS = ("name", "description")
 #: Set by a grid's crossover on the dwells it expands to, never written in a file.
 _DERIVED_KEYS = frozenset({"requested_amplitude_mm", "amplitude_limited_by"})
-_AT_LINE = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
 _STEP_INDEX = re.compile(r"^steps\[(\d+)\]")
 
 
@@ -150,37 +149,10 @@ def _build_adaptive(
 
 def _syntax_error(text: str, source: str, message: str) -> SequenceError:
     """A tomllib error as a :class:`SequenceError` naming the line and, where it can, the key."""
-    at = _AT_LINE.search(message)
-    reason = _AT_LINE.sub("", message)
-    if at is None:
-        return SequenceError(source, "", f"not valid TOML: {reason}")
-    line = int(at[1])
-    key = _key_at(text.splitlines(), line)
-    if reason.startswith(("Cannot overwrite", "Cannot declare", "Duplicate")):
-        reason = f"duplicate key: it is already defined above in the same table ({reason})"
-    else:
-        reason = f"not valid TOML: {reason}"
-    return SequenceError(source, key, f"line {line}: {reason}")
+    key, reason = toml_error_where(text, message)
+    return SequenceError(source, key, reason)
 
 
-def _key_at(lines: list[str], line: int) -> str:
-    """The dotted key defined on ``line`` (1-based), prefixed by the table it is in."""
-    table, step = "", -1
-    for text in lines[: line - 1]:
-        stripped = text.strip()
-        if stripped.startswith("[[steps]]"):
-            step += 1
-            table = f"steps[{step}]"
-        elif stripped.startswith("["):
-            table = stripped.strip("[]").strip()
-    current = lines[line - 1].strip() if 0 < line <= len(lines) else ""
-    if current.startswith("["):
-        return current.strip("[]").strip()
-    name = current.split("=", 1)[0].strip() if "=" in current else ""
-    return ".".join(part for part in (table, name) if part)
-
-
-# ---------------------------------------------------------------------------- writing
 def dump_sequence(sequence: Sequence) -> str:
     """The sequence as a sequence file that :func:`parse_sequence` reads back to an equal sequence
     (for recording a scripted sequence with its run). A dwell's ``requested_amplitude_mm`` and

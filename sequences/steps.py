@@ -332,7 +332,9 @@ class Prompt:
     target: float | str | None = None
 
     def check_answer(self, value: object) -> float | str | bool:
-        """The answer as its type (float, str or bool), or :class:`AnswerError` with what is allowed."""
+        """The answer as its type (float, str or bool), or :class:`AnswerError` with what is allowed.
+        Typed text is accepted as the terminal gives it: a number as text, a choice or yes / no in
+        any case (a choice is returned as the prompt spells it)."""
         if self.answer == "number":
             number = _as_number(value)
             lo = -math.inf if self.minimum is None else self.minimum
@@ -342,9 +344,13 @@ class Prompt:
                 raise AnswerError(f"{self.id}: {value!r} is not a number within {lo:g}..{hi:g}{unit}")
             return number
         if self.answer == "choice":
-            if not isinstance(value, str) or value not in self.choices:
+            # as yes and no, a choice is a word whatever its case; recorded as the prompt spells it
+            match = [c for c in self.choices if isinstance(value, str) and c == value.strip()] or [
+                c for c in self.choices if isinstance(value, str) and c.casefold() == value.strip().casefold()
+            ]
+            if len(match) != 1:
                 raise AnswerError(f"{self.id}: {value!r} is not one of {list(self.choices)}")
-            return value
+            return match[0]
         if isinstance(value, bool):
             return value
         if isinstance(value, str) and value.strip().lower() in _YES + _NO:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Mapping
 
 
@@ -26,3 +27,49 @@ def toml_value(value: object) -> str:
 def toml_table(header: str, values: Mapping[str, object]) -> list[str]:
     """The lines of one table (``header`` like ``[sequence]`` or ``[[steps]]``); None values are left out."""
     return [header, *(f"{key} = {toml_value(v)}" for key, v in values.items() if v is not None)]
+
+
+_AT_LINE = re.compile(r"\s*\(at line (\d+), column (\d+)\)")
+_DUPLICATE = ("Cannot overwrite", "Cannot declare", "Duplicate")
+
+
+def toml_error_where(text: str, message: str) -> tuple[str, str]:
+    """The key a tomllib error of ``text`` points at and the error worded for a person: ``(key,
+    "line N: duplicate key: ...")`` or ``(key, "line N: not valid TOML: ...")``. The key is dotted
+    and prefixed by its table (``steps[2].freq_hz``: an array of tables counts from 0, as in
+    Python), "" where no key can be told (the line holds none, or the message names no line)."""
+    at = _AT_LINE.search(message)
+    reason = _AT_LINE.sub("", message)
+    if at is None:
+        return "", f"not valid TOML: {reason}"
+    line = int(at[1])
+    if reason.startswith(_DUPLICATE):
+        reason = f"duplicate key: it is already defined above in the same table ({reason})"
+    else:
+        reason = f"not valid TOML: {reason}"
+    return _key_at(text.splitlines(), line), f"line {line}: {reason}"
+
+
+def _key_at(lines: list[str], line: int) -> str:
+    """The dotted key defined on ``line`` (1-based), prefixed by the table it is in; an array of
+    tables is indexed (``steps[2]``, ``runs[1].points[0]``)."""
+    table, counts = "", {}
+    for text in lines[: line - 1]:
+        stripped = text.split("#", 1)[0].strip()
+        if stripped.startswith("[["):
+            name = stripped.strip("[]").strip()
+            # a nested array ([[runs.points]]) counts afresh under each entry of its parent
+            counts = {k: v for k, v in counts.items() if not k.startswith(f"{name}.")}
+            counts[name] = counts.get(name, -1) + 1
+            parts = name.split(".")
+            table = ".".join(
+                f"{part}[{counts['.'.join(parts[: i + 1])]}]" if ".".join(parts[: i + 1]) in counts else part
+                for i, part in enumerate(parts)
+            )
+        elif stripped.startswith("["):
+            table = stripped.strip("[]").strip()
+    current = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+    if current.startswith("["):
+        return current.strip("[]").strip()
+    name = current.split("=", 1)[0].strip() if "=" in current else ""
+    return ".".join(part for part in (table, name) if part)

@@ -77,6 +77,7 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
     """The problems of ``(index, step)`` pairs; prompt ids must be unique across them."""
     problems: list[Problem] = []
     prompt_ids: dict[str, int] = {}
+    hydraulics = "off"  # a sequence brings the hydraulics up itself: they are off before its first step
     for index, step in steps:
         check = _Checker(source, f"steps[{index}]", limits)
         if isinstance(step, SineDwell):
@@ -96,7 +97,7 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
             elif isinstance(step.id, str):
                 prompt_ids[step.id] = index
         elif isinstance(step, Hydraulics):
-            check.one_of("level", step.level, HYDRAULIC_LEVELS)
+            hydraulics = check.hydraulics(step.level, hydraulics)
         elif isinstance(step, MeanPosition):
             check.mean(step.mean_mm)
         elif not isinstance(step, Tare):
@@ -115,6 +116,17 @@ class _Checker:
     def add(self, key: str, message: str) -> None:
         full = f"{self.prefix}.{key}" if key else self.prefix
         self.problems.append(Problem(self.source, full, message))
+
+    def hydraulics(self, level: object, before: str) -> str:
+        """Check a hydraulics step given the level ``before`` it; the level after it."""
+        self.one_of("level", level, HYDRAULIC_LEVELS)
+        if level == "high" and before == "off":
+            self.add(
+                "level",
+                "'high' while the hydraulics are off: the controller raises the pressure to high only from"
+                ' low; allowed here: off, low (put a hydraulics step with level = "low" before it)',
+            )
+        return level if level in HYDRAULIC_LEVELS else before
 
     # ---------------------------------------------------------------- values
     def number(

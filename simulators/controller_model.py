@@ -120,7 +120,9 @@ class ControllerModel:
 
     def write_setpoints(self, values: dict[str, float]) -> ErrorCode | None:
         """Apply written holding registers (other than ``command``); refuse invalid ones, all or none.
-        An accepted write clears ``error``.
+        An accepted write clears ``error``, except a write of the heartbeat alone: the host's
+        heartbeat runs beside its commands and would otherwise clear the reason of a refusal before
+        the host reads it.
 
         Setpoints take effect at the next start; a running excitation keeps its own.
         """
@@ -131,7 +133,8 @@ class ControllerModel:
         if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:
             self._last_heartbeat_s = self._clock()
         self.setpoints.update(values)
-        self.error = ErrorCode.NONE
+        if values.keys() - {"heartbeat"}:
+            self.error = ErrorCode.NONE
         return None
 
     def _valid(self, name: str, value: float) -> bool:

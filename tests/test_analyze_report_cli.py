@@ -260,3 +260,19 @@ def test_sequences_run_are_named_by_their_run_ids_in_order():
 
     ids = ["paper-shaker-s001-free_run", "paper-shaker-s004-dwell_grid", "four_post-s001-sweep", "odd"]
     assert sequences_run(ids) == (("paper-shaker", 2), ("four_post", 1), ("odd", 1))
+
+
+def test_a_directory_or_a_text_file_is_refused_in_one_plain_sentence(tmp_path):
+    """No dump of HDF5's read (buffer address, sizes, offsets): the file and what it is."""
+    folder, text = tmp_path / "adir", tmp_path / "notes.h5"
+    folder.mkdir()
+    text.write_text("time,fz\n0,1\n")
+    run = wfsbench("analyze", str(folder))
+    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.stderr == f"error: {folder}: a directory, not a campaign file (an HDF5 file, docs/hdf5.md)\n"
+    run = wfsbench("analyze", str(text))
+    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.stderr == (
+        f"error: {text}: not a readable HDF5 file"
+        " (Unable to synchronously open file (file signature not found))\n"
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 import subprocess
@@ -55,3 +56,12 @@ def test_actuator_status_on_a_closed_port_is_a_clear_error():
     )  # fmt: skip
     assert out.returncode == 2
     assert "cannot connect" in out.stderr
+
+
+def test_wfs_monitor_shows_duration_over_interval_lines_of_interval_seconds_each(sim_process):
+    """``--duration 2 --interval 0.5``: 4 lines, each 0.5 s of frames later than the one before at
+    the rate the device reports (1000 Hz), so 2 s of the stream; it showed 5 lines (2.5 s)."""
+    monitor = _cli("wfs", "monitor", "--port", sim_process["wfs"], "--interval", "0.5", "--duration", "2")
+    samples = [int(m) for m in re.findall(r"^sample\s+(\d+) ", monitor, re.M)]
+    assert len(samples) == 4, monitor
+    assert [b - a for a, b in itertools.pairwise(samples)] == [500, 500, 500], monitor

@@ -292,6 +292,10 @@ BAD_MAPPINGS = {
         ("freq_hz = 10", "freq_hz = -10"),
         "runs[0].points[0].freq_hz: -10 is out of range (allowed > 0)",
     ),
+    "a duplicate key": (
+        ("freq_hz = 10", "freq_hz = 10\nfreq_hz = 12"),
+        "runs[0].points[0].freq_hz: line ",
+    ),
 }
 
 

@@ -19,9 +19,15 @@ ROW = re.compile(
 
 
 def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
+    (tmp_path / "campaign.h5").write_bytes(b"an earlier demo's file")  # replaced, and said so first
     assert main(["demo", "--seed", "2", "--out", str(tmp_path)]) == 0
-    assert (tmp_path / "campaign.h5").exists()
     out = capsys.readouterr().out
+    assert out.splitlines()[0] == (
+        f"replacing {tmp_path / 'campaign.h5'} and {tmp_path / 'report'}/ of an earlier demo: their runs"
+        " and analyses are not kept (--out DIR writes elsewhere)"
+    )
+    with open_campaign(tmp_path / "campaign.h5") as campaign:
+        assert campaign.runs
     rows = [m.groupdict() for m in map(ROW.match, out.splitlines()) if m]
     assert len(rows) == 9  # 3 pressures x 3 amplitudes
     for row in rows:

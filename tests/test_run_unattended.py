@@ -8,6 +8,7 @@ import io
 import math
 import os
 import pty
+import select
 import shutil
 import signal
 import subprocess
@@ -20,11 +21,12 @@ import pytest
 from bench.app.answers import AnswersError, FileAnswers, load_answers
 from bench.app.interrupts import tell
 from bench.app.progress import DoneBefore, Progress
+from bench.app.terminal import TerminalOperator
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
 from bench.config import load_bench_config
 from bench.engine import events as ev
 from bench.store import open_campaign
-from sequences import load_sequence
+from sequences import Prompt, Sequence, load_sequence
 from simulators.bench_sim import SimulatedBench
 from simulators.world import SimulatedOperator, SimulatedWorld
 from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
@@ -43,8 +45,24 @@ def smoke_sequence():
 
 def test_an_answers_file_gives_every_prompt_its_checked_answer(tmp_path):
     path = tmp_path / "answers.toml"
-    path.write_text('fit_wheel = "yes"\nremove_wheel = true\npressure = 3\n')
+    path.write_text('fit_wheel = "Yes"\nremove_wheel = true\npressure = 3\n')
     assert load_answers(path, smoke_sequence()) == {"remove_wheel": True, "fit_wheel": True, "pressure": 3.0}
+
+
+def test_a_choice_is_a_word_whatever_its_case_in_a_file_and_at_the_terminal(tmp_path):
+    """As yes and no are: "Medium" answers a choice of soft / medium / firm, recorded as "medium"."""
+    damper = Prompt("damper", "Damper setting?", answer="choice", choices=("soft", "medium", "firm"))
+    sequence = Sequence("d", "", (damper,), "<test>")
+    path = tmp_path / "answers.toml"
+    path.write_text('damper = "Medium"\n')
+    assert load_answers(path, sequence) == {"damper": "medium"}
+    typed = iter(["Hard", " FIRM "])
+    said = []
+    assert TerminalOperator(read=lambda q: next(typed), write=said.append).answer(damper) == "firm"
+    assert said == ["  damper: 'Hard' is not one of ['soft', 'medium', 'firm']; try again"]
+    path.write_text("damper = 2\n")
+    with pytest.raises(AnswersError, match=r"damper: 2 is an integer, not one of the choices \(a string\)"):
+        load_answers(path, sequence)
 
 
 BAD_ANSWERS = {
@@ -59,18 +77,43 @@ BAD_ANSWERS = {
     ),
     "text for a number": (
         'remove_wheel = true\nfit_wheel = true\npressure = "high"\n',
-        "answers.toml: pressure: 'high' is not a number within 0.5..4.5 bar; allowed: [0.5..4.5 bar]",
+        'answers.toml: pressure: "high" is a string, not a number (write the number without quotes);'
+        " allowed: [0.5..4.5 bar]",
+    ),
+    "a number in quotes": (
+        'remove_wheel = true\nfit_wheel = true\npressure = "2.4"\n',
+        'answers.toml: pressure: "2.4" is a string, not a number (write the number without quotes);'
+        " allowed: [0.5..4.5 bar]",
+    ),
+    "a boolean for a number": (
+        "remove_wheel = true\nfit_wheel = true\npressure = true\n",
+        "answers.toml: pressure: true is a boolean, not a number; allowed: [0.5..4.5 bar]",
+    ),
+    "typed text for a confirmation": (
+        'remove_wheel = true\nfit_wheel = "y"\npressure = 2.4\n',
+        'answers.toml: fit_wheel: "y" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
+    ),
+    "a number for a confirmation": (
+        "remove_wheel = 1\nfit_wheel = true\npressure = 2.4\n",
+        'answers.toml: remove_wheel: 1 is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
     ),
     "not a confirmation": (
         'remove_wheel = "maybe"\nfit_wheel = true\npressure = 2.5\n',
-        "answers.toml: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+        'answers.toml: remove_wheel: "maybe" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
     ),
     "unknown prompt id": (
         SMOKE_ANSWERS + "presure = 2.5\n",
         "answers.toml: presure: no prompt of sequence 'smoke' has this id"
         " (its prompts: remove_wheel, fit_wheel, pressure)",
     ),
-    "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: not valid TOML: "),
+    "not TOML": (SMOKE_ANSWERS + "pressure 2\n", "answers.toml: line 4: not valid TOML: "),
+    "duplicate key": (
+        SMOKE_ANSWERS + "pressure = 2.5\n",
+        "answers.toml: pressure: line 4: duplicate key: it is already defined above in the same table",
+    ),
     "no to a confirmation": (
         'remove_wheel = true\nfit_wheel = "no"\npressure = 2.5\n',
         "answers.toml: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"
@@ -105,7 +148,8 @@ def test_every_problem_of_an_answers_file_is_reported_in_the_order_of_the_file(t
     assert str(refused.value).splitlines() == [
         f"{path}: presure: no prompt of sequence 'smoke' has this id {prompts}",
         "  and 4 more:",
-        f"  {path}: remove_wheel: 'maybe' is not a confirmation; answer yes or no; allowed: [yes / no]",
+        f'  {path}: remove_wheel: "maybe" is not a confirmation: true or false (or "yes" / "no");'
+        " allowed: [yes / no]",
         f"  {path}: fit_wheel: answered no to the confirmation 'Fit the wheel with the sensor and clamp"
         " the wheel centre': the sequence would abort there; an unattended run needs yes",
         f"  {path}: fit: no prompt of sequence 'smoke' has this id {prompts}",
@@ -352,7 +396,11 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     assert run.returncode == EXIT_COMPLETE, run.stderr
     assert "\x1b" not in run.stdout and "\r" not in run.stdout
     progress = [line for line in run.stdout.splitlines() if line.startswith("progress: ")]
-    assert progress[0].startswith(
+    assert (
+        progress[0]
+        == "progress: 0/8 points | elapsed 0:00, ETA --:-- | waiting for the operator: prompt remove_wheel"
+    )
+    assert progress[1].startswith(
         "progress: 0/8 points | elapsed 0:00, ETA --:-- | smoke-s003-free_run point 0"
     )
     sweep = "smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2.4 bar"
@@ -481,3 +529,102 @@ def test_the_interrupt_s_word_clears_the_progress_line_on_a_terminal_only(monkey
         tell("interrupted")
     with os.fdopen(read_end, "rb") as pipe:
         assert pipe.read() == b"interrupted\n"
+
+
+def test_a_prompt_on_a_terminal_gets_a_line_of_its_own_and_the_status_says_the_bench_waits(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "300")  # the status line whole: it is cut at the terminal's width
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=True, clock=clock)
+    _feed(progress, clock)
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 250, {"status": np.full(10, 0xFFFF, np.uint16)}))
+    asked = len(out.getvalue())
+    progress(ev.PromptAsked("fit_wheel", "Fit the wheel"))
+    clock.now_s += 5.0
+    progress(ev.SamplesRecorded("seq-s002-dwell_grid", 260, {"status": np.zeros(100, np.uint16)}))
+    progress.line("  a log line while the question waits")
+    text = out.getvalue()[asked:]
+    assert text.startswith("\r[##........] 1/4 points | elapsed 0:01")
+    assert text.split("\x1b[K")[1:] == [
+        "\n  a log line while the question waits\n"
+    ]  # no redraw over the answer
+    assert "| waiting for the operator: prompt fit_wheel" in text and "at amplitude" not in text
+    progress(ev.PromptAnswered("fit_wheel", "Fit the wheel", True, None))
+    progress(ev.PointStarted("seq-s002-dwell_grid", 2, 1, 40.0, 1.5, {}))
+    assert out.getvalue().endswith("seq-s002-dwell_grid point 2: 40 Hz, 1.5 mm, 2.5 bar, tapering in\x1b[K")
+
+
+ASKS_AFTER_A_DWELL = """\
+[sequence]
+name = "asks_later"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "hydraulics"
+level = "high"
+
+[[steps]]
+type = "sine_dwell"
+freq_hz = 10
+amplitude_mm = 1
+measure_min_s = 0.5
+
+[[steps]]
+type = "prompt"
+id = "ready"
+text = "Is the bench clear"
+answer = "confirm"
+
+[[steps]]
+type = "hydraulics"
+level = "off"
+"""
+
+
+def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, lab_devices):  # noqa: F811
+    """Real devices and the command on a pseudo-terminal (its standard input and output): the
+    question comes on a line of its own, below a status that says the bench waits for the operator."""
+    server, pty_path = lab_devices
+    sequence, config = tmp_path / "asks.toml", tmp_path / "bench.toml"
+    sequence.write_text(ASKS_AFTER_A_DWELL)
+    config.write_text(_bench_toml(server, pty_path))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config)],
+        stdin=slave,  # all three the terminal: input() writes its question to standard error there
+        stdout=slave,
+        stderr=slave,
+        cwd=ROOT,
+        env={**os.environ, "COLUMNS": "300", "TERM": "dumb"},
+    )
+    os.close(slave)
+    shown = b""
+    try:
+        while b"Is the bench clear [yes / no]: " not in shown:
+            ready, _, _ = select.select([master], [], [], 60.0)
+            assert ready, f"no question within 60 s: {shown!r}"
+            chunk = os.read(master, 65536)
+            assert chunk, shown
+            shown += chunk
+        os.write(master, b"yes\n")
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the command ended, the terminal's last writer closed
+                break
+            if not chunk:
+                break
+            shown += chunk
+        assert proc.wait(timeout=120) == EXIT_COMPLETE, shown
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    status, question = shown.decode().split("Is the bench clear [yes / no]: ")[0].rsplit("\r", 1)
+    assert question == "\n"  # the status line ended: the question starts a line of its own
+    assert status.endswith("| waiting for the operator: prompt ready\x1b[K")

@@ -103,6 +103,7 @@ def test_sequence_counts_points_and_durations():
         "s",
         "",
         (
+            Hydraulics("low"),
             Hydraulics("high"),
             Prompt(
                 "p",
@@ -124,7 +125,7 @@ def test_sequence_counts_points_and_durations():
     validate(sequence, LIMITS)
     assert sequence.points() == 4 + 1 + 3
     grid_s = 4 * (0.3 + 0.2 + 1.0 + 0.3)  # 2 cycles are shorter than the minima at 10 and 20 Hz
-    expected = 3.0 + 0.0 + 2.0 + grid_s + 10.0 + 3 * 0.3 + 2.0
+    expected = 2 * 3.0 + 0.0 + 2.0 + grid_s + 10.0 + 3 * 0.3 + 2.0
     assert sequence.estimated_duration_s == pytest.approx(expected)
     assert sequence.estimated_duration_with_operator_s == pytest.approx(expected + 4 * 60.0)
     assert [type(s) for s in sequence.measurement_steps()] == [DwellGrid, Sweep, HammerTest]
@@ -296,6 +297,7 @@ def test_a_valid_sequence_survives_the_file_round_trip():
         "round trip",
         'quotes " and \\ and unicode: ±',
         (
+            Hydraulics("low"),
             Hydraulics("high"),
             FreeRun(DwellGrid((10.0, 100.0), (2.0,), max_acceleration_m_s2=400.0, label="free")),
             Prompt(

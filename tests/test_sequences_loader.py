@@ -2,10 +2,12 @@
 problem of a file is reported at once."""
 
 import textwrap
+import tomllib
 
 import pytest
 
 from sequences import BenchLimits, SequenceError, SineDwell, load_sequence, parse_sequence
+from sequences.toml_text import toml_error_where
 
 LIMITS = BenchLimits()
 HEADER = '[sequence]\nname = "t"\ndescription = ""\n'
@@ -30,6 +32,10 @@ def test_a_good_file_loads(tmp_path):
         """
         [[steps]]
         type = "hydraulics"
+        level = "low"
+
+        [[steps]]
+        type = "hydraulics"
         level = "high"
 
         [[steps]]
@@ -40,8 +46,8 @@ def test_a_good_file_loads(tmp_path):
     )
     sequence = load_sequence(path, LIMITS)
     assert sequence.name == "t" and sequence.source == str(path)
-    assert sequence.steps[1] == SineDwell(40.0, 2.0)
-    assert isinstance(sequence.steps[1].freq_hz, int)  # TOML integers are numbers too
+    assert sequence.steps[2] == SineDwell(40.0, 2.0)
+    assert isinstance(sequence.steps[2].freq_hz, int)  # TOML integers are numbers too
 
 
 DWELL = '[[steps]]\ntype = "tare"\n\n[[steps]]\ntype = "sine_dwell"\nfreq_hz = 40\n'
@@ -217,3 +223,22 @@ def test_a_file_without_steps_is_refused(text):
     with pytest.raises(SequenceError) as info:
         parse_sequence(text, "nosteps.toml", LIMITS)
     assert info.value.key == "steps" and "at least one [[steps]] table" in info.value.message
+
+
+def test_a_toml_error_names_the_key_in_its_table_arrays_of_tables_indexed():
+    """One reading of tomllib's errors for every TOML file of the product (sequences, bench
+    configurations, answers files)."""
+    text = (
+        '[source]\nname = "x"\n[[runs]]\n[[runs.points]]\nb = 1\n'
+        "[[runs]]\n[[runs.points]]\n[[runs.points]]\nc = 1  # x\nc = 2\n"
+    )
+    with pytest.raises(tomllib.TOMLDecodeError) as refused:
+        tomllib.loads(text)
+    assert toml_error_where(text, str(refused.value)) == (
+        "runs[1].points[1].c",
+        "line 10: duplicate key: it is already defined above in the same table (Cannot overwrite a value)",
+    )
+    assert toml_error_where("a = \n", "Invalid value (at line 1, column 5)") == (
+        "a",
+        "line 1: not valid TOML: Invalid value",
+    )

@@ -16,6 +16,7 @@ from pathlib import Path
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt, Sequence
 from sequences.errors import problems_text
+from sequences.toml_text import toml_error_where, toml_value
 from simulators.world import SimulatedOperator
 
 
@@ -37,11 +38,15 @@ def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool
     at that prompt), then the prompts the file does not answer, in the sequence's order."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
     except OSError as exc:
         raise AnswersError([f"{path}: cannot read the answers file: {exc.strerror or exc}"]) from None
+    except UnicodeDecodeError as exc:
+        raise AnswersError([f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}"]) from None
     except tomllib.TOMLDecodeError as exc:
-        raise AnswersError([f"{path}: not valid TOML: {exc}"]) from None
+        key, reason = toml_error_where(text, str(exc))
+        raise AnswersError([f"{path}: {key + ': ' if key else ''}{reason}"]) from None
     prompts = {step.id: step for step in sequence.steps if isinstance(step, Prompt)}
     answers: dict[str, float | str | bool] = {}
     problems = []
@@ -55,7 +60,7 @@ def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool
             )
             continue
         try:
-            answers[prompt_id] = prompt.check_answer(value)
+            answers[prompt_id] = prompt.check_answer(_typed(prompt, value))
         except AnswerError as exc:
             problems.append(f"{path}: {exc}; allowed:{prompt_hint(prompt)}")
             continue
@@ -72,6 +77,37 @@ def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool
     if problems:
         raise AnswersError(problems)
     return answers
+
+
+#: The words a confirmation takes in an answers file besides ``true`` and ``false``, in any case.
+FILE_CONFIRM_WORDS = ("yes", "no")
+
+
+def _typed(prompt: Prompt, value: object) -> object:
+    """``value`` if its TOML type is the one the prompt's answer takes in a file (a number for a
+    number, a boolean or "yes" / "no" for a confirmation, a string for a choice), else
+    :class:`AnswerError` saying which type: a file states its answers, it is not typed text (the
+    terminal's "2.4" or "y"), and a sequence file refuses a string where a number belongs too."""
+    shown = toml_value(value) if isinstance(value, bool | int | float | str) else repr(value)
+    if prompt.answer == "number" and (isinstance(value, bool) or not isinstance(value, int | float)):
+        unquote = " (write the number without quotes)" if isinstance(value, str) else ""
+        raise AnswerError(f"{prompt.id}: {shown} is {_toml_type(value)}, not a number{unquote}")
+    if prompt.answer == "confirm" and not (
+        isinstance(value, bool) or (isinstance(value, str) and value.strip().lower() in FILE_CONFIRM_WORDS)
+    ):
+        raise AnswerError(f'{prompt.id}: {shown} is not a confirmation: true or false (or "yes" / "no")')
+    if prompt.answer == "choice" and not isinstance(value, str):
+        raise AnswerError(f"{prompt.id}: {shown} is {_toml_type(value)}, not one of the choices (a string)")
+    return value
+
+
+def _toml_type(value: object) -> str:
+    for kind, name in ((bool, "a boolean"), (str, "a string"), (int, "an integer"), (float, "a float")):
+        if isinstance(value, kind):
+            return name
+    return (
+        "an array" if isinstance(value, list) else "a table" if isinstance(value, dict) else "a date or time"
+    )
 
 
 class FileAnswers:

@@ -19,6 +19,7 @@ from bench.app.answers import FileAnswers
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.progress import DoneBefore
 from bench.app.recorder import Recorder
+from bench.app.resume_check import check_resume
 from bench.app.simulated import UNPACED_BACKLOG_S, SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig, load_bench_config
@@ -32,6 +33,7 @@ from bench.engine.interlocks import standard_interlocks
 from bench.models.parameters import WfsSensor
 from bench.store import CampaignWriter, open_campaign
 from drivers.actuator import ActuatorClient
+from drivers.errors import LinkError
 from drivers.wfs_frame import Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_transform import LoadProcessor
@@ -150,13 +152,33 @@ def open_bench(
         operator = operator or TerminalOperator()
         actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
-        actuator.connect(config.actuator.heartbeat_period_s, config.actuator.watchdog_ms)
+        try:
+            actuator.connect(config.actuator.heartbeat_period_s, config.actuator.watchdog_ms)
+        except (LinkError, OSError) as exc:
+            raise DeviceUnreachableError(config, "actuator", host, port, exc) from exc
         reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
         stack.enter_context(reader)
         if not reader.wait_connected(5.0):
-            raise ConnectionError(f"cannot open the WFS port {wfs_url}: {reader.last_error}")
+            raise DeviceUnreachableError(config, "wfs", wfs_url, None, reader.last_error)
         reader.set_rate(config.wfs.rate_hz)
         yield BenchDevices(actuator, reader, operator, lab)
+
+
+class DeviceUnreachableError(ConnectionError):
+    """A device of the bench could not be opened: the message names the configuration file and the
+    keys that say where the device is, the address tried and why it failed."""
+
+    def __init__(
+        self, config: BenchConfig, device: str, where: str, port: int | None, cause: object
+    ) -> None:
+        if device == "wfs":
+            keys, what = "wfs.device", f"the WFS acquisition at {where}"
+        elif config.actuator.transport == "rtu":
+            keys, what = "actuator.device", f"the actuator controller at {config.actuator.device}"
+        else:
+            keys, what = "actuator.host, actuator.port", f"the actuator controller at {where}:{port}"
+        origin = f"{config.source}: {keys}: " if not config.simulated else ""
+        super().__init__(f"{origin}cannot reach {what}: {cause}")
 
 
 def _client(config: BenchConfig, host: str, port: int) -> ActuatorClient:
@@ -287,7 +309,11 @@ def _check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> _ResumeFr
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
             " or write to another file"
         )
-    return _ResumeFromFile(out_path) if resume else None
+    if not resume:
+        return None
+    with open_campaign(out_path) as campaign:
+        check_resume(campaign, plan.sequence, plan.config)
+    return _ResumeFromFile(out_path)
 
 
 def held_runs(plan: CampaignPlan, out_path: Path) -> set[str]:

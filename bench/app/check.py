@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from bench.app.durations import bench_time_text, duration_text
+from bench.app.durations import sequence_estimate_text
 from bench.config import BenchConfig
 from bench.dry_run import DryRun
 from sequences import DwellGrid, FreeRun, HammerTest, Prompt, Sequence, SineDwell, Sweep
@@ -47,10 +47,7 @@ def check_lines(sequence: Sequence, config: BenchConfig, dry: DryRun) -> list[st
     """The check's report, refusals last."""
     lines = [f"sequence {sequence.name} ({sequence.source}) on the {config.kind} bench ({config.source})"]
     lines += [f"  {step_line(i, step)}" for i, step in enumerate(sequence.steps)]
-    lines.append(
-        f"{sequence.points()} points; {bench_time_text(sequence.estimated_duration_s)},"
-        f" about {duration_text(sequence.estimated_duration_with_operator_s)} with the operator's answers"
-    )
+    lines.append(sequence_estimate_text(sequence))
     if dry.points:
         for quantity, unit, limit in (
             ("actuator_force_n", "N", config.limits.force_n),

@@ -78,6 +78,7 @@ class Progress:
         self._sample_rate_hz = 0.0
         self._pressure_bar: float | None = None
         self._shown = False  # a live line is on the screen
+        self._asking = False  # a prompt waits for its answer: its question owns the terminal's line
         self._last_draw_s = -math.inf
 
     # -- figures ----------------------------------------------------------------------------
@@ -121,7 +122,7 @@ class Progress:
             self.stream.write("\r\x1b[K")
             self._shown = False
         self.stream.write(text + "\n")
-        if self.live and self.point is not None:
+        if self.live and self.point is not None and not self._asking:
             self._draw()
         self.stream.flush()
 
@@ -162,8 +163,21 @@ class Progress:
                 self._show(self.point or "", at_amplitude=True)
                 return
         due = self.clock() - self._last_draw_s >= REDRAW_PERIOD_S
-        if self.live and self.point is not None and due:
+        if self.live and self.point is not None and due and not self._asking:
             self._draw()
+
+    def _asked(self, event: ev.PromptAsked) -> None:
+        """The bench waits for the operator: the status says so, on a line of its own (live: ended
+        with a newline, so that the question starts a line of its own and no redraw overwrites the
+        answer being typed until it is given)."""
+        self.point, self.at_amplitude = f"waiting for the operator: prompt {event.prompt_id}", None
+        if self.live:
+            self._draw()
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown, self._asking = False, True
+        else:
+            self.line(f"progress: {self.status()}")
 
     def __call__(self, event: ev.Event) -> None:
         match event:
@@ -181,15 +195,18 @@ class Progress:
             case ev.PointStarted():
                 what = [f"{event.freq_hz:g} Hz", f"{event.amplitude_mm:.3g} mm", *self._pressure_text()]
                 self._show(f"{event.run_id} point {event.index}: {', '.join(what)}", at_amplitude=False)
+            case ev.PromptAsked():
+                self._asked(event)
+            case ev.PromptAnswered():
+                self._asking = False
             case ev.GridRefined():  # an adaptive grid's added points: the sequence counts its coarse ones
                 self.total_points += len(event.added)
             case ev.PointDone():
-                if event.status == "done":
-                    self.points_done += 1
-                if self.live:
+                self.points_done += event.status == "done"
+                if self.live and not self._asking:
                     self._draw()
             case ev.SequenceFinished():
-                self.point = None
+                self.point, self._asking = None, False
                 if self.live and self._shown:
                     self.stream.write("\r\x1b[K")
                     self._shown = False

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from bench.app.durations import bench_time_text
+from bench.app.durations import estimate_text
 from bench.engine import events as ev
 
 
@@ -24,10 +24,10 @@ class RunLog:
     def line(event: ev.Event) -> str | None:  # noqa: PLR0911 - one line per event type
         match event:
             case ev.SequenceStarted():
-                return (
-                    f"sequence {event.sequence_name}: {event.total_points} points,"
-                    f" {bench_time_text(event.estimated_duration_s)}"
+                estimate = estimate_text(
+                    event.total_points, event.estimated_duration_s, event.estimated_with_operator_s
                 )
+                return f"sequence {event.sequence_name}: {estimate}"
             case ev.RunStarted():
                 return f"run {event.run_id} ({event.kind})"
             case ev.PointDone():

@@ -32,7 +32,7 @@ from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
-from drivers.errors import LinkError
+from drivers.errors import CommandRejectedError, LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
@@ -125,6 +125,10 @@ class RecordedRun:
     samples: int = 0
 
 
+#: The reason an abort records unless its requester gives its own.
+ABORT_REASON = "aborted by the operator"
+
+
 class RunStoppedError(Exception):
     """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
 
@@ -194,6 +198,7 @@ class Engine:
         self._pause = threading.Event()
         self._resume = threading.Event()
         self._abort = threading.Event()
+        self._abort_reason = ABORT_REASON
         self._estop = threading.Event()
         self.conditions: dict[str, Any] = {}
 
@@ -212,8 +217,10 @@ class Engine:
         self._pause.clear()
         self._resume.set()
 
-    def request_abort(self) -> None:
-        """Taper out and end the sequence as aborted; the data recorded so far is kept."""
+    def request_abort(self, reason: str = ABORT_REASON) -> None:
+        """Taper out and end the sequence as aborted, ``reason`` recorded with the run (who or what
+        asked: the operator, a signal); the data recorded so far is kept."""
+        self._abort_reason = reason
         self._abort.set()
         self._resume.set()
 
@@ -282,12 +289,18 @@ class Engine:
         run, and the outcome says how and why."""
         self._pause.clear()
         self._abort.clear()
+        self._abort_reason = ABORT_REASON
         self._estop.clear()
         self.conditions = {"bench": self.bench_kind}
         self.machine.fire(Trigger.START)
         self.bus.publish(
             ev.SequenceStarted(
-                sequence.name, sequence_text, config_text, sequence.points(), sequence.estimated_duration_s
+                sequence.name,
+                sequence_text,
+                config_text,
+                sequence.points(),
+                sequence.estimated_duration_s,
+                sequence.estimated_duration_with_operator_s,
             )
         )
         status, reason = "complete", ""
@@ -300,7 +313,9 @@ class Engine:
         except RunStoppedError as stop:
             status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
         except LinkError as exc:
-            status, reason = "failed", f"link error: {exc}"
+            # a refused command is the controller's answer ("controller refused ..."), not a link fault
+            refused = isinstance(exc, CommandRejectedError)
+            status, reason = "failed", str(exc) if refused else f"link error: {exc}"
             self._defensive_stop()
             self._force_state(Trigger.INTERLOCK)
         except BaseException as exc:  # a crash (or Ctrl-C) still stops the actuator and marks the end
@@ -693,9 +708,11 @@ class Engine:
             self._abort_now()
         self.machine.fire(Trigger.RESUME)
 
-    def _abort_now(self, reason: str = "aborted by the operator") -> NoReturn:
-        """End the sequence as aborted, with a taper; as e-stopped if an e-stop came first (an
-        e-stop pressed while a prompt waited, say, and the prompt then left unanswered)."""
+    def _abort_now(self, reason: str | None = None) -> NoReturn:
+        """End the sequence as aborted, with a taper (``reason`` by default the requested abort's);
+        as e-stopped if an e-stop came first (an e-stop pressed while a prompt waited, say, and the
+        prompt then left unanswered)."""
+        reason = reason or self._abort_reason
         if self._estop.is_set():
             raise RunStoppedError(RunState.ESTOPPED, "e-stop")
         self._force_state(Trigger.ABORT)

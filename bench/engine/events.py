@@ -30,6 +30,7 @@ class SequenceStarted:
     config_text: str
     total_points: int
     estimated_duration_s: float
+    estimated_with_operator_s: float | None = None  # with the operator's answers (prompts, blows)
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sequences.toml_text import toml_error_where
+
 #: Units a column may be given in: unit -> (the SI unit of the schema's channel, factor to it).
 UNITS: dict[str, tuple[str, float]] = {
     "N": ("N", 1.0),
@@ -171,7 +173,7 @@ def load_mapping(path: str | Path) -> ImportMapping:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise MappingError(path, [("", f"not valid TOML: {exc}")]) from None
+        raise MappingError(path, [toml_error_where(text, str(exc))]) from None
     r = _Reader(path)
     r.keys(data, "", _TOP_KEYS)
     source = r.table(data, "source")

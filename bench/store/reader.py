@@ -10,6 +10,7 @@ sliced from the run's channels by its sample positions.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -77,17 +78,27 @@ class Event:
 def open_campaign(path: str | Path) -> CampaignFile:
     """Open and check the campaign file at ``path``; close it with ``close()`` or a ``with`` block."""
     path = Path(path)
+    if path.is_dir():
+        raise StoreError(path, "", "a directory, not a campaign file (an HDF5 file, docs/hdf5.md)")
     try:
         file = h5py.File(path, "r")
     except FileNotFoundError as err:
         raise StoreError(path, "", "no such file") from err
     except OSError as err:
-        raise StoreError(path, "", f"not a readable HDF5 file ({err})") from err
+        raise StoreError(path, "", f"not a readable HDF5 file ({_hdf5_reason(err)})") from err
     try:
         return CampaignFile(file, path)
     except BaseException:
         file.close()
         raise
+
+
+def _hdf5_reason(err: OSError) -> str:
+    """The reason of an HDF5 open error for a person: the system's message where HDF5 quotes one
+    (without its dump of the read: buffer address, sizes, offsets), else HDF5's own."""
+    text = str(err)
+    quoted = re.search(r"error message = '([^']*)'", text)
+    return quoted[1] if quoted else text.splitlines()[0]
 
 
 @contextmanager

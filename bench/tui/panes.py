@@ -15,6 +15,7 @@ from textual.widgets import DataTable, Input, Label, OptionList, Static
 
 from bench.app.campaign import CampaignPlan
 from bench.app.check import step_line
+from bench.app.durations import sequence_estimate_text
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
 from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun
@@ -100,10 +101,7 @@ class SequencePane(Vertical):
         s = plan.sequence
         lines = [f"[b]{s.name}[/b] ({s.source}) on the {plan.config.kind} bench: [green]valid[/green]"]
         lines += [f"  {step_line(i, step)}" for i, step in enumerate(s.steps)]
-        lines.append(
-            f"{s.points()} points; estimated {s.estimated_duration_s / 60:.1f} min of bench time,"
-            f" {s.estimated_duration_with_operator_s / 60:.1f} min with the operator's answers"
-        )
+        lines.append(sequence_estimate_text(s))
         lines.append("[b]g[/b]: start this sequence")
         self.query_one("#seq-report", Static).update("\n".join(lines))
 
