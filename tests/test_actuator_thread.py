@@ -107,3 +107,28 @@ def test_late_replies_to_start_and_stop_are_settled_by_the_status():
             assert InterlockFlag.WATCHDOG not in lab.bench.controller.flags
         finally:
             actuator.close()
+
+
+def test_a_late_reply_to_a_setpoint_write_writes_the_setpoint_again_and_start_goes_through():
+    """The first register write of a setpoint is acknowledged after the client's timeout: the
+    client cannot tell whether it landed, so the whole setpoint is written once more (the same
+    values: the controller ends as after one write) and the excitation then starts at it."""
+    with SimulatedLab() as lab:
+        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
+        try:
+            actuator.connect()
+            actuator.set_hydraulics("low")
+            actuator.set_hydraulics("high")
+            writes = lab.server.writes_received
+            lab.server.faults.delay_next, lab.server.faults.delay_s = 1, LATE_S
+            actuator.configure(DwellSetpoint(freq_hz=12.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.2))
+            assert lab.server.faults.delay_next == 0, "a setpoint write's reply was the late one"
+            assert lab.server.writes_received > writes + 1, "the setpoint was written again"
+            actuator.start()
+            wait_until(
+                lambda: actuator.read_status().status.state is ControllerState.RUNNING, 10.0, "the excitation"
+            )
+            assert lab.bench.controller.setpoints["frequency_hz"] == pytest.approx(12.0)
+            actuator.stop()
+        finally:
+            actuator.close()

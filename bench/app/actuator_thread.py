@@ -121,7 +121,15 @@ class ThreadedActuator:
         return ControllerReadback(self._call(self._client.read_status()))
 
     def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
-        self._call(self._client.configure(setpoint))
+        """Write the setpoint; when a reply came too late to tell whether its writes took effect,
+        write the whole setpoint once more. Unlike a command, a setpoint is a set of register
+        values written while the actuator is at rest: writing the same values again leaves the
+        controller as one write would, and only a completed write lets START through."""
+        try:
+            self._call(self._client.configure(setpoint))
+        except CommandOutcomeUnknownError as exc:
+            log.warning("setpoint: %s; written again", exc)
+            self._call(self._client.configure(setpoint))
 
     def start(self) -> None:
         self._settled("start", self._client.start(), lambda state: state in MOVING_STATES)
