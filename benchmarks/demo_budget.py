@@ -38,7 +38,7 @@ from bench.app.analyze import analyze_campaign
 from bench.models.setup import BenchSetup
 from bench.report.figures import write_figures
 from bench.store import CampaignWriter, ChannelSpec
-from benchmarks.demo_speed import CAMPAIGN_LINE, excitation_s
+from benchmarks.demo_speed import command_time_s, excitation_s
 from benchmarks.timing import best_time_s
 from drivers.wfs_frame import encode, new_frames
 from drivers.wfs_stream import StreamParser
@@ -48,22 +48,6 @@ from simulators.plant import PlantSimulator, SensorRealism
 TARGET_SPEEDUP = 100.0
 READ_SIZE_BYTES = 4096
 RATE_HZ = 1000.0
-
-
-def command_time_s(out_dir: Path) -> tuple[float, float]:
-    """Wall time of the whole demo command and of its campaign (its own line), in seconds."""
-    start = time.perf_counter()
-    run = subprocess.run(
-        [sys.executable, "-m", "bench.cli", "demo", "--out", str(out_dir)],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    whole_s = time.perf_counter() - start
-    campaign = CAMPAIGN_LINE.search(run.stdout)
-    if campaign is None:
-        raise SystemExit(f"the demo printed no campaign line:\n{run.stdout[-2000:]}")
-    return whole_s, float(campaign["wall"])
 
 
 def import_time_s() -> float:

@@ -47,6 +47,23 @@ def excitation_s(path: Path) -> tuple[float, float]:
     return recorded, within
 
 
+def command_time_s(out_dir: Path) -> tuple[float, float]:
+    """Wall time of the whole demo command (a fresh interpreter) and of its campaign (the demo's
+    own line), in seconds."""
+    start = time.perf_counter()
+    run = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "demo", "--out", str(out_dir)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    whole_s = time.perf_counter() - start
+    campaign = CAMPAIGN_LINE.search(run.stdout)
+    if campaign is None:
+        raise SystemExit(f"the demo printed no campaign line:\n{run.stdout[-2000:]}")
+    return whole_s, float(campaign["wall"])
+
+
 def plant_time_s(sample_time_s: float) -> float:
     """Wall time of the plant alone simulating ``sample_time_s`` of one dwell at 1 kHz output (s)."""
     plant = PlantSimulator(BenchSetup.paper_shaker(2.5), SensorRealism(seed=1))
@@ -59,18 +76,7 @@ def main() -> None:
     args = parser.parse_args()
     for _ in range(args.repeats):
         with tempfile.TemporaryDirectory() as tmp:
-            start = time.perf_counter()
-            run = subprocess.run(
-                [sys.executable, "-m", "bench.cli", "demo", "--out", tmp],
-                capture_output=True,
-                text=True,
-                check=True,
-            )
-            command_s = time.perf_counter() - start
-            campaign = CAMPAIGN_LINE.search(run.stdout)
-            if campaign is None:
-                raise SystemExit(f"the demo printed no campaign line:\n{run.stdout[-2000:]}")
-            campaign_s = float(campaign["wall"])
+            command_s, campaign_s = command_time_s(Path(tmp))
             recorded_s, within_s = excitation_s(Path(tmp) / "campaign.h5")
         plant_s = plant_time_s(recorded_s)
         print(
