@@ -5,6 +5,9 @@ settled by the controller's state, not failed (nor re-sent)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import pytest
 
 from bench.app.actuator_thread import ThreadedActuator
@@ -50,85 +53,76 @@ def test_reset_after_a_lost_link_reconnects_and_restarts_the_heartbeat():
 LATE_S = 2 * DEFAULT_TIMEOUT_S
 
 
+@contextmanager
+def quiet_actuator(lab: SimulatedLab) -> Iterator[ThreadedActuator]:
+    """The actuator connected without a heartbeat: the next request after a call is the test's own."""
+    actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
+    try:
+        actuator.connect()
+        yield actuator
+    finally:
+        actuator.close()
+
+
 def test_a_late_hydraulics_reply_is_settled_by_the_status():
     """The write lands but its acknowledgement comes after the timeout: the outcome is unknown to
     the client, the status read after it shows the commanded state, so the command stands; it went
     to the controller once (never re-sent)."""
-    with SimulatedLab() as lab:
-        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
-        try:
-            actuator.connect()  # no heartbeat: the next request is the command's write
-            actuator.set_hydraulics("low")
-            writes = lab.server.writes_received
-            lab.server.faults.delay_next, lab.server.faults.delay_s = 1, LATE_S
-            actuator.set_hydraulics("high")
-            assert lab.server.faults.delay_next == 0, "the command's reply was the late one"
-            assert actuator.read_status().status.state is ControllerState.HYDRAULICS_HIGH
-            assert lab.server.writes_received == writes + 1
-        finally:
-            actuator.close()
+    with SimulatedLab() as lab, quiet_actuator(lab) as actuator:
+        actuator.set_hydraulics("low")
+        writes = lab.server.writes_received
+        lab.server.faults.delay_next, lab.server.faults.delay_s = 1, LATE_S
+        actuator.set_hydraulics("high")
+        assert lab.server.faults.delay_next == 0, "the command's reply was the late one"
+        assert actuator.read_status().status.state is ControllerState.HYDRAULICS_HIGH
+        assert lab.server.writes_received == writes + 1
 
 
 def test_a_late_reply_to_a_refused_hydraulics_command_names_the_state():
     """A late reply whose write did not take effect (refused): the outcome stays an error, typed
     as unknown and naming the state the controller reads, not a call that took too long."""
-    with SimulatedLab() as lab:
-        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
-        try:
-            actuator.connect()
-            actuator.set_hydraulics("low")
-            faults = lab.server.faults
-            faults.delay_next, faults.delay_s, faults.exception_next = 1, LATE_S, 1
-            with pytest.raises(CommandOutcomeUnknownError, match=r"hydraulics high: .*reads hydraulics_low"):
-                actuator.set_hydraulics("high")
-            assert actuator.read_status().status.state is ControllerState.HYDRAULICS_LOW
-        finally:
-            actuator.close()
+    with SimulatedLab() as lab, quiet_actuator(lab) as actuator:
+        actuator.set_hydraulics("low")
+        faults = lab.server.faults
+        faults.delay_next, faults.delay_s, faults.exception_next = 1, LATE_S, 1
+        with pytest.raises(CommandOutcomeUnknownError, match=r"hydraulics high: .*reads hydraulics_low"):
+            actuator.set_hydraulics("high")
+        assert actuator.read_status().status.state is ControllerState.HYDRAULICS_LOW
 
 
 def test_late_replies_to_start_and_stop_are_settled_by_the_status():
     """START whose acknowledgement comes late: the controller moves, so it started; STOP likewise:
     it tapers (the watchdog, armed at power-up with 1.5 s and unfed here, has not tripped)."""
-    with SimulatedLab() as lab:
-        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
-        try:
-            actuator.connect()
-            actuator.set_hydraulics("low")
-            actuator.set_hydraulics("high")
-            actuator.configure(DwellSetpoint(freq_hz=10.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.5))
-            faults = lab.server.faults
-            faults.delay_next, faults.delay_s = 1, LATE_S
-            actuator.start()
-            assert actuator.read_status().status.state is ControllerState.RUNNING
-            faults.delay_next = 1
-            actuator.stop()
-            assert faults.delay_next == 0, "the stop's reply was the late one"
-            assert actuator.read_status().status.state is not ControllerState.RUNNING
-            assert InterlockFlag.WATCHDOG not in lab.bench.controller.flags
-        finally:
-            actuator.close()
+    with SimulatedLab() as lab, quiet_actuator(lab) as actuator:
+        actuator.set_hydraulics("low")
+        actuator.set_hydraulics("high")
+        actuator.configure(DwellSetpoint(freq_hz=10.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.5))
+        faults = lab.server.faults
+        faults.delay_next, faults.delay_s = 1, LATE_S
+        actuator.start()
+        assert actuator.read_status().status.state is ControllerState.RUNNING
+        faults.delay_next = 1
+        actuator.stop()
+        assert faults.delay_next == 0, "the stop's reply was the late one"
+        assert actuator.read_status().status.state is not ControllerState.RUNNING
+        assert InterlockFlag.WATCHDOG not in lab.bench.controller.flags
 
 
 def test_a_late_reply_to_a_setpoint_write_writes_the_setpoint_again_and_start_goes_through():
     """The first register write of a setpoint is acknowledged after the client's timeout: the
     client cannot tell whether it landed, so the whole setpoint is written once more (the same
     values: the controller ends as after one write) and the excitation then starts at it."""
-    with SimulatedLab() as lab:
-        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(*lab.address), heartbeat=False)
-        try:
-            actuator.connect()
-            actuator.set_hydraulics("low")
-            actuator.set_hydraulics("high")
-            writes = lab.server.writes_received
-            lab.server.faults.delay_next, lab.server.faults.delay_s = 1, LATE_S
-            actuator.configure(DwellSetpoint(freq_hz=12.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.2))
-            assert lab.server.faults.delay_next == 0, "a setpoint write's reply was the late one"
-            assert lab.server.writes_received > writes + 1, "the setpoint was written again"
-            actuator.start()
-            wait_until(
-                lambda: actuator.read_status().status.state is ControllerState.RUNNING, 10.0, "the excitation"
-            )
-            assert lab.bench.controller.setpoints["frequency_hz"] == pytest.approx(12.0)
-            actuator.stop()
-        finally:
-            actuator.close()
+    with SimulatedLab() as lab, quiet_actuator(lab) as actuator:
+        actuator.set_hydraulics("low")
+        actuator.set_hydraulics("high")
+        writes = lab.server.writes_received
+        lab.server.faults.delay_next, lab.server.faults.delay_s = 1, LATE_S
+        actuator.configure(DwellSetpoint(freq_hz=12.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.2))
+        assert lab.server.faults.delay_next == 0, "a setpoint write's reply was the late one"
+        assert lab.server.writes_received > writes + 1, "the setpoint was written again"
+        actuator.start()
+        wait_until(
+            lambda: actuator.read_status().status.state is ControllerState.RUNNING, 10.0, "the excitation"
+        )
+        assert lab.bench.controller.setpoints["frequency_hz"] == pytest.approx(12.0)
+        actuator.stop()
