@@ -49,3 +49,10 @@ tmux send-keys -t "$session" 2.5 Enter              # the pressure read on the g
 wait_for 120 "runs of the open file" "finished" "smoke-s010-sweep"   # the Results screen
 tmux capture-pane -p -t "$session"
 tmux send-keys -t "$session" q
+# the UI closes the campaign file as it quits: wait for its session to end (at most 30 s)
+for _ in $(seq 150); do
+    tmux has-session -t "$session" 2>/dev/null || exit 0
+    sleep 0.2
+done
+echo "the UI did not quit within 30 s" >&2
+exit 1
