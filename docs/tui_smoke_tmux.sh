@@ -48,11 +48,15 @@ wait_for 60 "pressure read on the gauge" "then Enter"
 tmux send-keys -t "$session" 2.5 Enter              # the pressure read on the gauge
 wait_for 120 "runs of the open file" "finished" "smoke-s010-sweep"   # the Results screen
 tmux capture-pane -p -t "$session"
-tmux send-keys -t "$session" q
-# the UI closes the campaign file as it quits: wait for its session to end (at most 30 s)
-for _ in $(seq 150); do
-    tmux has-session -t "$session" 2>/dev/null || exit 0
-    sleep 0.2
+# q quits once the sequence has ended (the last run's analysis may still be finishing: the UI then
+# says so and q is pressed again); the UI closes the campaign file as it quits: wait for its
+# session to end (at most 30 s)
+for _ in $(seq 30); do
+    tmux send-keys -t "$session" q 2>/dev/null || true
+    for _ in $(seq 5); do
+        tmux has-session -t "$session" 2>/dev/null || exit 0
+        sleep 0.2
+    done
 done
 echo "the UI did not quit within 30 s" >&2
 exit 1

@@ -94,7 +94,7 @@ class WfsBenchApp(App):
         Binding("p", "pause", "Pause", priority=True),
         Binding("r", "resume", "Resume", priority=True),
         Binding("a", "abort", "Abort", priority=True),
-        Binding("q", "quit", "Quit"),
+        Binding("q", "quit", "Quit", priority=True),
     ]
 
     def __init__(self, config_path: Path | None = None, out_path: Path = Path("campaign.h5")) -> None:
@@ -146,12 +146,13 @@ class WfsBenchApp(App):
         )
 
     def show_banner(self, text: str) -> None:
-        banner = self.query_one("#banner", Static)
+        """Say ``text`` in the main screen's banner (a dialog open above it leaves it in view)."""
+        banner = self.screen_stack[0].query_one("#banner", Static)
         banner.update(text)
         banner.add_class("shown")
 
     def clear_banner(self) -> None:
-        self.query_one("#banner", Static).remove_class("shown")
+        self.screen_stack[0].query_one("#banner", Static).remove_class("shown")
 
     # -- keys -----------------------------------------------------------------------------------
 
@@ -166,8 +167,8 @@ class WfsBenchApp(App):
             return self.pane == "sequence" and self.plan is not None and engine is not None and not running
         if action in ("pause", "resume", "abort"):  # from dialogs too, but never while typing
             return running and state in ACTIVE and not self._typing()
-        if action == "quit":
-            return not running
+        if action == "quit":  # from a prompt's dialog too; the help dialog's q closes it
+            return not self._typing() and not isinstance(self.screen, HelpDialog)
         return True
 
     def _typing(self) -> bool:
@@ -189,6 +190,13 @@ class WfsBenchApp(App):
             return
         self.show_banner("E-STOP: the actuator is stopped; x on the Bench screen (F2) resets")
         self.refresh_bindings()
+
+    async def action_quit(self) -> None:
+        """Quit once no sequence runs; while one does, say what to do instead of ignoring the key."""
+        if self.session.running.is_set():
+            self.show_banner("a sequence is under way: a aborts it (with a taper); q quits once it has ended")
+            return
+        self.exit()
 
     def action_pane(self, pane: str) -> None:
         self.query_one(ContentSwitcher).current = pane

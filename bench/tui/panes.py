@@ -99,10 +99,13 @@ class SequencePane(Vertical):
 
     def show_plan(self, plan: CampaignPlan) -> None:
         s = plan.sequence
-        lines = [f"[b]{s.name}[/b] ({s.source}) on the {plan.config.kind} bench: [green]valid[/green]"]
+        # what to do next comes first: a long sequence's steps run below the pane's visible rows
+        lines = [
+            f"[b]{s.name}[/b] ({s.source}) on the {plan.config.kind} bench: [green]valid[/green]",
+            sequence_estimate_text(s),
+            "[b]g[/b]: start this sequence",
+        ]
         lines += [f"  {step_line(i, step)}" for i, step in enumerate(s.steps)]
-        lines.append(sequence_estimate_text(s))
-        lines.append("[b]g[/b]: start this sequence")
         self.query_one("#seq-report", Static).update("\n".join(lines))
 
     def show_error(self, path: str, error: str) -> None:

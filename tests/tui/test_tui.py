@@ -262,6 +262,25 @@ async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
         assert not recorded.of(ev.PromptAnswered)
 
 
+async def test_q_while_a_sequence_runs_says_so_and_quits_nothing(app: WfsBenchApp) -> None:
+    """q with the sequence waiting at a prompt: the banner says how to end it, the UI stays; once
+    the sequence is aborted, q quits."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await check_smoke(pilot, app)
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")
+        await pilot.press("q")
+        banner = app.screen_stack[0]
+        await until(pilot, lambda: "sequence is under way" in text_of(banner, "#banner"), "the banner")
+        assert app.is_running and isinstance(app.screen, PromptDialog)
+        await pilot.press("a")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        await until(pilot, lambda: not app.session.running.is_set(), "the session idle")
+        await pilot.press("q")
+        await until(pilot, lambda: not app.is_running, "the UI to quit")
+
+
 async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> None:
     """F12 during a point: the simulated controller reads back e-stop over Modbus TCP at once; x
     (confirmed) resets, and the sequence runs again."""
