@@ -114,7 +114,7 @@ def _check(args: argparse.Namespace) -> int:
 
     try:
         config = load_bench_config(Path(args.bench) if args.bench else None)
-        sequence = load_sequence(Path(args.sequence), config.limits)
+        sequence = load_sequence(Path(args.sequence), config.limits, config.channels)
     except (SequenceError, ConfigError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID

@@ -19,10 +19,21 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.engine.channels import FrameChannels
 from drivers.errors import RegisterMapError
 from drivers.register_map import RegisterMap, load_register_map
 from drivers.setpoints import SoftLimits
 from drivers.wfs_frame import FRAME_SIZE
+from sequences.channels import (
+    AUX_ROLES,
+    DEFAULT_AUX_INPUTS,
+    ENGINE_ROLES,
+    AuxInput,
+    Channel,
+    ChannelSet,
+    Role,
+    role_of_standard_name,
+)
 from sequences.errors import problems_text
 from sequences.limits import BenchLimits
 from sequences.ranges import range_problem
@@ -33,6 +44,11 @@ ACTUATOR_TRANSPORTS = ("simulated", "tcp", "rtu")
 WFS_TRANSPORTS = ("simulated", "serial")
 TARE_POLICIES = ("before_each_run", "once", "never")
 TYRE_MODELS = (1, 2, 3)
+#: What each role the engine needs is needed for, as a refusal says it.
+_ROLE_NEEDS = {
+    Role.BENCH_DISPLACEMENT: "the amplitude control and the displacement interlock",
+    Role.PLATE_FORCE: "the force interlock and the contact force",
+}
 #: Bits on the serial line per byte (8N1: start, 8 data, stop): a frame rate must fit the baud rate.
 _BITS_PER_BYTE = 10
 
@@ -108,23 +124,6 @@ class Masses:
 
 
 @dataclass(frozen=True)
-class AuxChannel:
-    """What an auxiliary analog input carries: its recorded name, unit and scale (unit per raw unit)."""
-
-    name: str
-    unit: str
-    scale: float = 1.0
-
-
-DEFAULT_AUX = (
-    AuxChannel("z_base_m", "m"),
-    AuxChannel("f_plate_n", "N"),
-    AuxChannel("a_hub_m_s2", "m/s^2"),
-    AuxChannel("aux3", "V"),
-)
-
-
-@dataclass(frozen=True)
 class Specimen:
     """What stands on the bench, for the dry run's model and the simulated world: the tyre model
     (the paper's 1, 2 or 3), whether the tyre is non-linear, the state before the first prompt
@@ -157,7 +156,7 @@ class BenchConfig:
     interlocks: Interlocks = field(default_factory=Interlocks)
     calibration: Calibration = field(default_factory=Calibration)
     masses: Masses = field(default_factory=Masses)
-    aux: tuple[AuxChannel, ...] = DEFAULT_AUX
+    aux: tuple[AuxInput, ...] = DEFAULT_AUX_INPUTS
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
     source: str = "<default>"
@@ -176,6 +175,11 @@ class BenchConfig:
             min_taper_s=lim.min_taper_s,
             max_duration_s=lim.max_step_s,
         )
+
+    @property
+    def channels(self) -> ChannelSet:
+        """The channels a run on this bench records, each with its role."""
+        return FrameChannels(self.aux).recorded
 
     @property
     def simulated(self) -> bool:
@@ -197,7 +201,7 @@ class BenchConfig:
             toml_table("[limits]", limits),
             toml_table("[calibration]", _as_dict(self.calibration)),
             toml_table("[masses]", _as_dict(self.masses)),
-            toml_table("[aux]", {f"aux{i}": _as_dict(ch) for i, ch in enumerate(self.aux)}),
+            toml_table("[aux]", {f"aux{i}": _aux_entry(a) for i, a in enumerate(self.aux)}),
             toml_table("[specimen]", _as_dict(self.specimen)),
             toml_table("[simulation]", _as_dict(self.simulation)),
         ]
@@ -229,6 +233,18 @@ def measured_bench(config: BenchConfig) -> dict[str, object]:
 
 def _as_dict(value: object) -> dict[str, object]:
     return {f.name: getattr(value, f.name) for f in fields(value)}
+
+
+def _aux_entry(aux: AuxInput) -> dict[str, object]:
+    """An aux input as its ``[aux.auxN]`` table."""
+    c = aux.channel
+    return {
+        "name": c.name,
+        "unit": c.unit,
+        "scale": aux.scale,
+        "role": c.role.value,
+        "description": c.description,
+    }
 
 
 #: Per kind, the limits of the simulated benches where they differ from BenchLimits' defaults.
@@ -498,26 +514,49 @@ class _Reader:
             }
         )
 
-    def aux(self, data: dict) -> tuple[AuxChannel, ...]:
-        names = tuple(f"aux{i}" for i in range(len(DEFAULT_AUX)))
+    def aux(self, data: dict) -> tuple[AuxInput, ...]:
+        """The aux inputs: each one's recorded name, unit, scale, role (by default the simulated
+        bench's wiring) and description. The roles the engine needs must each be played by one
+        input, and no input may take another role's standard name."""
+        names = tuple(f"aux{i}" for i in range(len(DEFAULT_AUX_INPUTS)))
         t = self.table(data, "aux", names)
-        channels = []
-        for name, default in zip(names, DEFAULT_AUX, strict=True):
-            entry = self.table(t, name, ("name", "unit", "scale")) if name in t else {}
-            key = f"aux.{name}"
-            channel = AuxChannel(
-                self.text(entry, key, "name", default.name),
-                self.text(entry, key, "unit", default.unit),
-                self.number(entry, key, "scale", default.scale),
+        inputs = []
+        for name, default in zip(names, DEFAULT_AUX_INPUTS, strict=True):
+            entry = self.table(t, name, ("name", "unit", "scale", "role", "description")) if name in t else {}
+            key, d = f"aux.{name}", default.channel
+            roles = tuple(r.value for r in AUX_ROLES)
+            channel = Channel(
+                self.text(entry, key, "name", d.name),
+                self.text(entry, key, "unit", d.unit),
+                self.text(entry, key, "description", d.description),
+                role=Role(self.text(entry, key, "role", d.role.value, roles)),
             )
             if not re.fullmatch(r"[a-z][a-z0-9_]*", channel.name):
                 self.add(f"{key}.name", f"{channel.name!r} must be lower case letters, digits and _")
-            channels.append(channel)
-        seen = [c.name for c in channels]
+            taken = role_of_standard_name(channel.name)
+            if taken not in (None, channel.role):
+                self.add(
+                    f"{key}.name",
+                    f"{channel.name!r} is the standard name of the {taken.value} role: give this input"
+                    f" role = {taken.value!r} or another name",
+                )
+            inputs.append(AuxInput(channel, self.number(entry, key, "scale", default.scale)))
+        seen = [a.channel.name for a in inputs]
         for i, c in enumerate(seen):
             if seen.index(c) < i:
                 self.add(f"aux.{names[i]}.name", f"{c!r} is already the name of {names[seen.index(c)]}")
-        return tuple(channels)
+        for role in AUX_ROLES:
+            players = [n for n, a in zip(names, inputs, strict=True) if a.channel.role is role]
+            if role is not Role.SPARE and len(players) > 1:
+                self.add(f"aux.{players[1]}.role", f"{role.value} is already the role of {players[0]}")
+        for role in ENGINE_ROLES:
+            if not any(a.channel.role is role for a in inputs):
+                self.add(
+                    "aux",
+                    f"no input has the role {role.value}, which every run needs ({_ROLE_NEEDS[role]}):"
+                    f" set role = {role.value!r} in the [aux.auxN] table of the input that carries it",
+                )
+        return tuple(inputs)
 
     def specimen(self, data: dict) -> Specimen:
         d = Specimen()

@@ -37,11 +37,12 @@ import numpy as np
 from bench.app.analyze import analyze_campaign
 from bench.models.setup import BenchSetup
 from bench.report.figures import write_figures
-from bench.store import CampaignWriter, ChannelSpec
+from bench.store import CampaignWriter
 from benchmarks.demo_speed import command_time_s, excitation_s
 from benchmarks.timing import best_time_s
 from drivers.wfs_frame import encode, new_frames
 from drivers.wfs_stream import StreamParser
+from sequences.channels import Channel
 from simulators.bench_sim import UNPACED_BLOCK_S
 from simulators.plant import PlantSimulator, SensorRealism
 
@@ -101,13 +102,13 @@ def line_time_s(n_frames: int) -> tuple[float, float]:
     return encode_s, best_time_s(parse, repeats=1)
 
 
-def _runs(path: Path) -> Iterator[tuple[list[ChannelSpec], dict[str, np.ndarray]]]:
+def _runs(path: Path) -> Iterator[tuple[list[Channel], dict[str, np.ndarray]]]:
     """Each run's channel specifications and samples, read with h5py."""
     with h5py.File(path, "r") as f:
         for run in f["runs"].values():
             datasets = run["channels"]
             specs = [
-                ChannelSpec(name, str(d.attrs.get("unit", "")), d.dtype.str.lstrip("<>|="))
+                Channel(name, str(d.attrs.get("unit", "")), d.dtype.str.lstrip("<>|="))
                 for name, d in datasets.items()
             ]
             yield specs, {name: d[()] for name, d in datasets.items()}

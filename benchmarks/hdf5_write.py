@@ -30,22 +30,23 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.store import CampaignWriter, ChannelSpec
+from bench.store import CampaignWriter
+from sequences.channels import Channel
 
 FRAME_RATE_HZ = 1000.0
 BLOCK = 100
 CHANNELS = (
-    ChannelSpec("sample", "1", "u4"),
-    ChannelSpec("seq", "1", "u4"),
-    *(ChannelSpec(name, "N", "f4") for name in ("fx_wfs_n", "fy_wfs_n", "fz_wfs_n")),
-    *(ChannelSpec(name, "N m", "f4") for name in ("mx_wfs_n_m", "my_wfs_n_m", "mz_wfs_n_m")),
-    ChannelSpec("angle_rad", "rad"),
-    ChannelSpec("speed_rad_s", "rad/s"),
-    ChannelSpec("z_base_m", "m"),
-    ChannelSpec("f_plate_n", "N"),
-    ChannelSpec("a_hub_m_s2", "m/s^2"),
-    ChannelSpec("aux3", "V"),
-    ChannelSpec("status", "1", "u2"),
+    Channel("sample", "1", dtype="u4"),
+    Channel("seq", "1", dtype="u4"),
+    *(Channel(name, "N", dtype="f4") for name in ("fx_wfs_n", "fy_wfs_n", "fz_wfs_n")),
+    *(Channel(name, "N m", dtype="f4") for name in ("mx_wfs_n_m", "my_wfs_n_m", "mz_wfs_n_m")),
+    Channel("angle_rad", "rad"),
+    Channel("speed_rad_s", "rad/s"),
+    Channel("z_base_m", "m"),
+    Channel("f_plate_n", "N"),
+    Channel("a_hub_m_s2", "m/s^2"),
+    Channel("aux3", "V"),
+    Channel("status", "1", dtype="u2"),
 )
 
 

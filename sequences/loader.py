@@ -14,11 +14,12 @@ import re
 import tomllib
 from pathlib import Path
 
+from sequences.channels import ChannelSet
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
 from sequences.steps import STEP_TYPES, AdaptiveDwell, DwellGrid, FreeRun, Sequence, Step, step_fields
 from sequences.toml_text import toml_error_where, toml_table
-from sequences.validation import check_sequence_header, check_steps
+from sequences.validation import check_channels, check_sequence_header, check_steps
 
 _TOP_KEYS = ("sequence", "steps")
 _HEADER_KEYS = ("name", "description")
@@ -27,8 +28,9 @@ _DERIVED_KEYS = frozenset({"requested_amplitude_mm", "amplitude_limited_by"})
 _STEP_INDEX = re.compile(r"^steps\[(\d+)\]")
 
 
-def load_sequence(path: str | Path, limits: BenchLimits) -> Sequence:
-    """Read, check and build the sequence in ``path``; :class:`SequenceError` lists every problem."""
+def load_sequence(path: str | Path, limits: BenchLimits, channels: ChannelSet | None = None) -> Sequence:
+    """Read, check and build the sequence in ``path``; :class:`SequenceError` lists every problem.
+    Given the bench's recorded ``channels``, the channels the steps name or need are checked too."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -36,10 +38,12 @@ def load_sequence(path: str | Path, limits: BenchLimits) -> Sequence:
         raise SequenceError(str(path), "", f"cannot read the sequence file: {exc.strerror or exc}") from exc
     except UnicodeDecodeError as exc:
         raise SequenceError(str(path), "", f"not UTF-8 text: {exc.reason} at byte {exc.start}") from exc
-    return parse_sequence(text, str(path), limits)
+    return parse_sequence(text, str(path), limits, channels)
 
 
-def parse_sequence(text: str, source: str, limits: BenchLimits) -> Sequence:
+def parse_sequence(
+    text: str, source: str, limits: BenchLimits, channels: ChannelSet | None = None
+) -> Sequence:
     """Check and build a sequence from TOML ``text``; ``source`` names it in errors."""
     try:
         data = tomllib.loads(text)
@@ -76,6 +80,8 @@ def parse_sequence(text: str, source: str, limits: BenchLimits) -> Sequence:
             if step is not None:
                 steps.append((index, step))
         problems += check_steps(steps, limits, source)
+        if channels is not None:
+            problems += check_channels(steps, channels, source)
     if problems:
         raise SequenceError.of(sorted(problems, key=_file_order))
     return Sequence(name, description, tuple(step for _, step in steps), source)

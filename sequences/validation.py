@@ -14,6 +14,7 @@ import numbers
 import re
 from collections.abc import Iterable
 
+from sequences.channels import ChannelSet, Role
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
 from sequences.ranges import fmt_number as _fmt
@@ -53,15 +54,61 @@ _DWELL_TIMING = (
 )
 
 
-def validate(sequence: Sequence, limits: BenchLimits) -> None:
-    """Raise :class:`SequenceError` with every problem of ``sequence`` under ``limits``."""
+def validate(sequence: Sequence, limits: BenchLimits, channels: ChannelSet | None = None) -> None:
+    """Raise :class:`SequenceError` with every problem of ``sequence`` under ``limits`` and, given
+    the bench's recorded ``channels``, every channel a step needs that the bench does not record."""
     problems = check_sequence_header(sequence.name, sequence.description, sequence.source)
     if not isinstance(sequence.steps, tuple | list) or not sequence.steps:
         problems.append(Problem(sequence.source, "steps", "a sequence needs at least one step"))
     else:
         problems += check_steps(enumerate(sequence.steps), limits, sequence.source)
+        if channels is not None:
+            problems += check_channels(enumerate(sequence.steps), channels, sequence.source)
     if problems:
         raise SequenceError.of(problems)
+
+
+#: Roles the analysis of a run with the wheel needs beyond those every run needs (the
+#: hub-acceleration compensation of dwells and sweeps).
+_ANALYSIS_ROLES = {
+    SineDwell: (Role.HUB_ACCELERATION,),
+    DwellGrid: (Role.HUB_ACCELERATION,),
+    Sweep: (Role.HUB_ACCELERATION,),
+}
+
+
+def check_channels(steps: Iterable[tuple[int, Step]], channels: ChannelSet, source: str) -> list[Problem]:
+    """The channels the ``(index, step)`` pairs name or need that a bench recording ``channels``
+    lacks: an adaptive grid's ``output`` and ``input`` (a recorded name, or a role's standard name
+    such as ``f_plate_n`` for the bench's plate-force channel), and the roles the analysis of each
+    run needs."""
+    problems = []
+    for index, step in steps:
+        key = f"steps[{index}]"
+        adaptive = getattr(step, "adaptive", None)
+        if isinstance(adaptive, AdaptiveDwell):
+            for name in ("output", "input"):
+                channel = getattr(adaptive, name)
+                if isinstance(channel, str) and channels.resolve(channel) is None:
+                    problems.append(
+                        Problem(
+                            source,
+                            f"{key}.adaptive.{name}",
+                            f"the bench records no channel {channel!r}"
+                            f" (it records {', '.join(channels.names)})",
+                        )
+                    )
+        for role in _ANALYSIS_ROLES.get(type(step), ()):
+            if not channels.bound(role):
+                problems.append(
+                    Problem(
+                        source,
+                        key,
+                        f"its analysis needs a channel with the role {role.value}, and no channel of the"
+                        f" bench has it (the bench configuration's [aux.auxN] role)",
+                    )
+                )
+    return problems
 
 
 def check_sequence_header(name: object, description: object, source: str) -> list[Problem]:

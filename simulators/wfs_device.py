@@ -42,7 +42,15 @@ import serial
 
 from drivers.wfs_capture import MAX_CAPTURE_SAMPLES, encode_capture
 from drivers.wfs_commands import UNKNOWN, Reply, parse_command
-from drivers.wfs_frame import FORCE_FIELDS, FRAME_DTYPE, FRAME_SIZE, PROTOCOL_VERSION, Status, encode
+from drivers.wfs_frame import (
+    AUX_FIELDS,
+    FORCE_FIELDS,
+    FRAME_DTYPE,
+    FRAME_SIZE,
+    PROTOCOL_VERSION,
+    Status,
+    encode,
+)
 from drivers.wfs_transform import rotate_to_wheel_frame
 from simulators.bench_sim import BenchBlock, SimulatedBench
 from simulators.capture_trigger import BASELINE_SAMPLES, HISTORY_SAMPLES, CaptureTrigger
@@ -110,6 +118,10 @@ class DigitalInputs:
         return data[: n_out * factor : factor]
 
 
+#: The simulated bench's wiring of the aux inputs: displacement, plate force, hub acceleration, open.
+DEFAULT_AUX_WIRING = ("z_base_m", "f_plate_n", "a_hub_m_s2", None)
+
+
 class WfsDevice:
     """A WFS acquisition on a serial link, fed blocks by the bench runner (a :class:`BenchSink`).
 
@@ -128,8 +140,12 @@ class WfsDevice:
         speed_rad_s: float = 0.0,
         angle_rad: float = 0.0,
         boot: int = 1,
+        aux_wiring: tuple[str | None, ...] = DEFAULT_AUX_WIRING,
     ) -> None:
+        """``aux_wiring``: the bench channel each aux input (aux0..aux3) carries, None for an input
+        left open (it reads 0)."""
         self.link = link
+        self.aux_wiring = aux_wiring
         self.bench = bench
         self.baudrate = baudrate
         self.faults = faults or ByteFaults(seed=seed)
@@ -311,10 +327,10 @@ class WfsDevice:
             frames[name] = out[:, i]
         frames["angle_rad"] = angle
         frames["speed_rad_s"] = self.speed_rad_s
-        frames["aux0"] = ch["z_base_m"]
-        frames["aux1"] = ch["f_plate_n"]
-        frames["aux2"] = ch["a_hub_m_s2"]
-        aux = np.column_stack([frames[f"aux{i}"] for i in range(4)])
+        for field, channel in zip(AUX_FIELDS, self.aux_wiring, strict=True):
+            if channel is not None:
+                frames[field] = ch[channel]
+        aux = np.column_stack([frames[field] for field in AUX_FIELDS])
         with np.errstate(invalid="ignore"):  # a NaN is no overload: it is an ADC fault
             overload = (np.abs(loads) > LOAD_RANGE) * (1 << np.arange(6))
             aux_overload = np.any(np.abs(aux) > AUX_RANGE, axis=1)

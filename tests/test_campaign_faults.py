@@ -97,9 +97,9 @@ def _run_with_fault(
     return FaultRun(campaign, hook.injection, timeline, outcome, path, trips_s)
 
 
-def _check_file(path, status, reason_words, done_before):
+def _check_file(path, status, reason_words, done_before, displacement="z_base_m"):
     """The run in the file: ``status``, a reason naming the cause, the points done before the
-    fault, and readable samples."""
+    fault, and readable samples of the ``displacement`` channel."""
     with open_campaign(path) as campaign:
         (run,) = campaign.runs
         assert run.status == status
@@ -107,7 +107,7 @@ def _check_file(path, status, reason_words, done_before):
             assert word in run.reason.lower(), run.reason
         assert run.finished
         assert sorted(run.completed_point_indices()) == list(range(done_before))
-        z = run.channels["z_base_m"]
+        z = run.channels[displacement]
         assert run.n_samples > 0 and np.all(np.isfinite(z))
         return run.n_samples, [e for e in run.events if e.kind == "interlock"]
 

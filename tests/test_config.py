@@ -29,7 +29,7 @@ def test_shipped_configurations_are_the_simulated_defaults(kind):
 def test_no_configuration_is_the_simulated_shaker():
     config = load_bench_config(None)
     assert config == default_bench_config("shaker") and config.kind == "shaker"
-    assert [c.name for c in config.aux[:3]] == ["z_base_m", "f_plate_n", "a_hub_m_s2"]
+    assert [a.channel.name for a in config.aux[:3]] == ["z_base_m", "f_plate_n", "a_hub_m_s2"]
     assert np.array_equal(config.calibration.matrix_array(), np.eye(6))
     assert config.actuator.load_register_map().protocol_version == 1
 
@@ -82,7 +82,7 @@ def test_a_real_bench_with_its_own_register_map(tmp_path):
     assert config.actuator.register_map == tmp_path / "maps" / "lab.toml"
     assert (config.actuator.host, config.actuator.port) == ("10.0.0.5", 1502)
     assert config.wfs.device == "/dev/ttyUSB1" and not config.simulated
-    assert config.aux[3].name == "f_post_n" and config.aux[3].scale == 2.5
+    assert config.aux[3].channel.name == "f_post_n" and config.aux[3].scale == 2.5
     assert config.calibration.tare == "once"
 
 
@@ -147,7 +147,23 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ),
         ('[aux]\naux4 = { name = "x" }\n', "aux.aux4", "unknown key; allowed: aux0, aux1, aux2, aux3"),
         ('[aux]\naux1 = { name = "Plate Force" }\n', "aux.aux1.name", "lower case letters"),
-        ('[aux]\naux3 = { name = "z_base_m" }\n', "aux.aux3.name", "already the name of aux0"),
+        ('[aux]\naux3 = { name = "z_base_m" }\n', "aux.aux3.name", "standard name of the bench_displacement"),
+        (
+            '[aux]\naux0 = { name = "z_table_m" }\naux3 = { name = "z_table_m" }\n',
+            "aux.aux3.name",
+            "already the name of aux0",
+        ),
+        (
+            '[aux]\naux2 = { name = "f_second_n", role = "plate_force" }\n',
+            "aux.aux2.role",
+            "already the role of aux1",
+        ),
+        (
+            '[aux]\naux1 = { name = "f_spare_n", role = "spare" }\n',
+            "aux",
+            "no input has the role plate_force",
+        ),
+        ('[aux]\naux0 = { role = "wheel" }\n', "aux.aux0.role", "is not one of"),
         ("[specimen]\ntyre_model = 4\n", "specimen.tyre_model", "allowed 1 <= tyre_model <= 3"),
         ('[specimen]\nnonlinear = "yes"\n', "specimen.nonlinear", "expected true or false"),
         ("[simulation]\nseed = 1.5\n", "simulation.seed", "expected an integer"),

@@ -12,11 +12,12 @@ import h5py
 import numpy as np
 
 from bench.analysis.records import DEFAULT_SETTLE_S
-from bench.store import CampaignWriter, ChannelSpec, PointRow, open_campaign
+from bench.store import CampaignWriter, PointRow, open_campaign
 from bench.store.schema import OPTIONAL_POINT_FIELDS
+from sequences.channels import Channel
 from tests.test_store_errors import FS_HZ, write_by_hand
 
-CHANNELS = [ChannelSpec(name, "SI") for name in ("z_base_m", "f_plate_n", "fz_wfs_n", "a_hub_m_s2")]
+CHANNELS = [Channel(name, "SI") for name in ("z_base_m", "f_plate_n", "fz_wfs_n", "a_hub_m_s2")]
 
 
 def _same(a: PointRow, b: PointRow) -> bool:

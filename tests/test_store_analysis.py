@@ -20,7 +20,8 @@ from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, simulate_dwells, simulate_hammer
-from bench.store import CampaignWriter, ChannelSpec, PointRow, open_campaign
+from bench.store import CampaignWriter, PointRow, open_campaign
+from sequences.channels import Channel
 
 SENSOR_MASS_KG = 3.82
 
@@ -55,7 +56,7 @@ def stored(tmp_path_factory):
             kind="free_run",
             step={"type": "free_run"},
             conditions={"wheel_fitted": False},
-            channels=(ChannelSpec("z_base_m", "m"), ChannelSpec("f_plate_n", "N")),
+            channels=(Channel("z_base_m", "m"), Channel("f_plate_n", "N")),
             sample_rate_hz=free_run[0].sample_rate_hz,
         )
         _store_dwells(run, free_run)
@@ -66,7 +67,7 @@ def stored(tmp_path_factory):
             kind="hammer",
             step={"type": "hammer"},
             conditions={},
-            channels=tuple(ChannelSpec(name, "N") for name in hammer.channels),
+            channels=tuple(Channel(name, "N") for name in hammer.channels),
             sample_rate_hz=hammer.sample_rate_hz,
         )
         run.append(hammer.channels)

@@ -17,14 +17,15 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.store import CampaignWriter, ChannelSpec, StoreError, open_campaign
+from bench.store import CampaignWriter, StoreError, open_campaign
+from sequences.channels import Channel
 
 FS_HZ = 1000.0  # chunks of 1000 samples with the default flush interval of 1 s
 CHANNELS = (
-    ChannelSpec("sample", "1", "u4", "acquisition sample index"),
-    ChannelSpec("fz_wfs_n", "N", "f4", "vertical WFS force"),
-    ChannelSpec("status", "1", "u2", "frame status bits"),
-    ChannelSpec("noise", "1", "u4", "white noise: gzip makes its chunks longer"),
+    Channel("sample", "1", "acquisition sample index", "u4"),
+    Channel("fz_wfs_n", "N", "vertical WFS force", "f4"),
+    Channel("status", "1", "frame status bits", "u2"),
+    Channel("noise", "1", "white noise: gzip makes its chunks longer", "u4"),
 )
 
 

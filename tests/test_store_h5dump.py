@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.store import CampaignWriter, ChannelSpec, PointRow
+from bench.store import CampaignWriter, PointRow
+from sequences.channels import Channel, Role
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "hdf5.md"
 H5DUMP = shutil.which("h5dump")
@@ -149,11 +150,11 @@ def dumped(tmp_path_factory) -> dict[str, DumpedObject]:
     )
     writer.add_event("answer", "2.4 bar", value=2.4)
     channels = [
-        ChannelSpec("sample", "1", "u4"),
-        ChannelSpec("seq", "1", "u4"),
-        ChannelSpec("fz_wfs_n", "N"),
-        ChannelSpec("z_base_m", "m"),
-        ChannelSpec("status", "1", "u2"),
+        Channel("sample", "1", dtype="u4"),
+        Channel("seq", "1", dtype="u4"),
+        Channel("fz_wfs_n", "N", role=Role.WFS_FZ),
+        Channel("z_base_m", "m", role=Role.BENCH_DISPLACEMENT),
+        Channel("status", "1", dtype="u2"),
     ]
     run = writer.begin_run(
         "001",

@@ -24,23 +24,24 @@ ROOT = Path(__file__).resolve().parents[1]
 if __name__ == "__main__":
     sys.path.insert(0, str(ROOT))
 
-from bench.store import CampaignWriter, ChannelSpec, PointRow, open_campaign  # noqa: E402
+from bench.store import CampaignWriter, PointRow, open_campaign  # noqa: E402
+from sequences.channels import Channel  # noqa: E402
 
 FS_HZ = 1000.0
 BLOCK = 100  # samples per block: 0.1 s at 1 kHz, as the WFS reader delivers them
 POINT = 1000  # samples per point
 CHANNELS = (
-    ChannelSpec("sample", "1", "u4", "acquisition sample index"),
-    ChannelSpec("seq", "1", "u4", "frame sequence counter"),
-    *(ChannelSpec(f"{name}_wfs_n", "N", "f4", f"WFS {name}") for name in ("fx", "fy", "fz")),
-    *(ChannelSpec(f"{name}_wfs_n_m", "N m", "f4", f"WFS {name}") for name in ("mx", "my", "mz")),
-    ChannelSpec("angle_rad", "rad", "f4", "wheel angle"),
-    ChannelSpec("speed_rad_s", "rad/s", "f4", "wheel speed"),
-    ChannelSpec("z_base_m", "m", "f4", "aux0: bench displacement"),
-    ChannelSpec("f_plate_n", "N", "f4", "aux1: plate force"),
-    ChannelSpec("a_hub_m_s2", "m/s^2", "f4", "aux2: hub acceleration"),
-    ChannelSpec("aux3", "V", "f4", "aux3: spare"),
-    ChannelSpec("status", "1", "u2", "status bits"),
+    Channel("sample", "1", "acquisition sample index", "u4"),
+    Channel("seq", "1", "frame sequence counter", "u4"),
+    *(Channel(f"{name}_wfs_n", "N", f"WFS {name}", "f4") for name in ("fx", "fy", "fz")),
+    *(Channel(f"{name}_wfs_n_m", "N m", f"WFS {name}", "f4") for name in ("mx", "my", "mz")),
+    Channel("angle_rad", "rad", "wheel angle", "f4"),
+    Channel("speed_rad_s", "rad/s", "wheel speed", "f4"),
+    Channel("z_base_m", "m", "aux0: bench displacement", "f4"),
+    Channel("f_plate_n", "N", "aux1: plate force", "f4"),
+    Channel("a_hub_m_s2", "m/s^2", "aux2: hub acceleration", "f4"),
+    Channel("aux3", "V", "aux3: spare", "f4"),
+    Channel("status", "1", "status bits", "u2"),
 )
 
 

@@ -10,17 +10,18 @@ import numpy as np
 import pytest
 
 from bench.analysis.records import WHEEL_CHANNELS, fit_dwell_record
-from bench.store import CampaignWriter, ChannelSpec, PointRow, StoreError, open_campaign
+from bench.store import CampaignWriter, PointRow, StoreError, open_campaign
 from bench.store.schema import SCHEMA_NAME, SCHEMA_VERSION
+from sequences.channels import Channel
 
 FS_HZ = 1000.0
 CHANNELS = (
-    ChannelSpec("sample", "1", "u4", "acquisition sample index"),
-    ChannelSpec("z_base_m", "m", "f4", "bench displacement (aux0)"),
-    ChannelSpec("f_plate_n", "N", "f4", "plate force (aux1)"),
-    ChannelSpec("fz_wfs_n", "N", "f4", "vertical WFS force"),
-    ChannelSpec("a_hub_m_s2", "m/s^2", "f4", "hub acceleration (aux2)"),
-    ChannelSpec("status", "1", "u2", "frame status bits"),
+    Channel("sample", "1", "acquisition sample index", "u4"),
+    Channel("z_base_m", "m", "bench displacement (aux0)", "f4"),
+    Channel("f_plate_n", "N", "plate force (aux1)", "f4"),
+    Channel("fz_wfs_n", "N", "vertical WFS force", "f4"),
+    Channel("a_hub_m_s2", "m/s^2", "hub acceleration (aux2)", "f4"),
+    Channel("status", "1", "frame status bits", "u2"),
 )
 # dwells: (frequency Hz, amplitude mm); each 0.5 s taper, 2 s hold, 0.5 s taper
 DWELLS = ((5.0, 2.0), (12.5, 2.0), (31.0, 1.0))
@@ -340,7 +341,7 @@ def test_sweep_and_hammer_records_take_their_point_and_step(campaign):
     run.append(_dwell_block(3000, 1.0, 2.0))
     run.add_point(PointRow(0, math.nan, 2.0, 1000, 1000, 4000, 4000))
     run.finish("complete")
-    hammer_channels = (ChannelSpec("fz_wfs_n", "N"), ChannelSpec("f_hammer_n", "N"))
+    hammer_channels = (Channel("fz_wfs_n", "N"), Channel("f_hammer_n", "N"))
     run = writer.begin_run(
         "h",
         kind="hammer",

@@ -16,13 +16,15 @@ import numpy as np
 
 from bench.analysis.dwell import DwellFit, fit_dwell
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
+from sequences.channels import Role, standard_name
 
-#: The bench's channel names (as the simulated plant and the acquisition name them).
-DISPLACEMENT = "z_base_m"
-PLATE_FORCE = "f_plate_n"
-WFS_FORCE = "fz_wfs_n"
-HUB_ACCELERATION = "a_hub_m_s2"
-HAMMER_FORCE = "f_hammer_n"
+#: The channels the analysis reads, by their roles' standard names (a file recorded under a lab's
+#: own names is read back under these: :mod:`sequences.channels`).
+DISPLACEMENT = standard_name(Role.BENCH_DISPLACEMENT)
+PLATE_FORCE = standard_name(Role.PLATE_FORCE)
+WFS_FORCE = standard_name(Role.WFS_FZ)
+HUB_ACCELERATION = standard_name(Role.HUB_ACCELERATION)
+HAMMER_FORCE = standard_name(Role.HAMMER_FORCE)
 
 #: Channels of a dwell or sweep with a wheel on the bench, and of a free run (no wheel).
 WHEEL_CHANNELS = (DISPLACEMENT, PLATE_FORCE, WFS_FORCE, HUB_ACCELERATION)

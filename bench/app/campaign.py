@@ -26,7 +26,7 @@ from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
-from bench.engine.channels import AuxInput, FrameChannels
+from bench.engine.channels import FrameChannels
 from bench.engine.contracts import Operator
 from bench.engine.engine import Engine, EngineTiming, SyncBits, is_measurement
 from bench.engine.interlocks import standard_interlocks
@@ -85,7 +85,7 @@ def plan_sequence(
     """Check a sequence built in Python (or loaded) against ``config``: the same validation as a
     sequence file gets, then the dry run. The texts recorded with the campaign default to the
     sequence and configuration written out as TOML."""
-    validate(sequence, config.limits)
+    validate(sequence, config.limits, config.channels)
     refusals = dry_run(sequence, config).refusals
     if refusals:
         raise PlanRefusedError("\n".join(str(r) for r in refusals))
@@ -137,6 +137,7 @@ def open_bench(
                         specimen_mounted=config.specimen.wheel_fitted,
                         tyre_model=config.specimen.tyre_model,
                         nonlinear=config.specimen.nonlinear,
+                        aux_roles=tuple(a.channel.role for a in config.aux),
                     )
                 )
             )
@@ -168,9 +169,7 @@ class DeviceUnreachableError(ConnectionError):
     """A device of the bench could not be opened: the message names the configuration file and the
     keys that say where the device is, the address tried and why it failed."""
 
-    def __init__(
-        self, config: BenchConfig, device: str, where: str, port: int | None, cause: object
-    ) -> None:
+    def __init__(self, config: BenchConfig, device: str, where: str, port: int | None, cause: object) -> None:
         if device == "wfs":
             keys, what = "wfs.device", f"the WFS acquisition at {where}"
         elif config.actuator.transport == "rtu":
@@ -198,17 +197,16 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
     """The engine on ``devices`` with the configured channels, interlocks and tare policy (and a
     short backlog on the unpaced simulated bench, which waits for the engine)."""
     unpaced = devices.lab is not None and not devices.lab.settings.paced
-    channels = FrameChannels(
-        aux=[AuxInput(a.name, a.unit, a.scale) for a in config.aux],
-        loads=LoadProcessor(matrix=config.calibration.matrix_array()),
-    )
+    channels = FrameChannels(config.aux, LoadProcessor(matrix=config.calibration.matrix_array()))
     return Engine(
         devices.actuator,
         devices.acquisition,
         devices.operator,
         channels=channels,
         interlocks=standard_interlocks(
-            displacement_limit_mm=config.limits.stroke_mm, force_limit_n=config.limits.force_n
+            channels.recorded,
+            displacement_limit_mm=config.limits.stroke_mm,
+            force_limit_n=config.limits.force_n,
         ),
         sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
         sample_rate_hz=float(config.wfs.rate_hz),

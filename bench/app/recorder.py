@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from bench.engine import events as ev
-from bench.store import CampaignWriter, ChannelSpec, PointRow, RunWriter
+from bench.store import CampaignWriter, PointRow, RunWriter
 
 
 class Recorder:
@@ -61,7 +61,7 @@ class Recorder:
             kind=event.kind,
             step=event.step,
             conditions=event.conditions,
-            channels=[ChannelSpec(c.name, c.unit, c.dtype, c.description) for c in event.channels],
+            channels=event.channels,
             sample_rate_hz=event.sample_rate_hz,
         )
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from bench.models.benches import TyreModel
 from bench.models.setup import BenchSetup
 from sequences import Prompt
+from sequences.channels import DEFAULT_AUX_INPUTS, Role, standard_name
 from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
@@ -33,7 +34,8 @@ class SimulatedLabSettings:
     """``kind``: "shaker" or "four_post"; ``paced``: real time (a dry run one can watch) or as fast
     as the engine drains the WFS; ``seed``: sensor noise; what stands on the bench at power-up: the
     tyre pressure, whether the wheel (car) is mounted, the tyre model (1-3, None: the world's
-    default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing)."""
+    default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing);
+    ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's)."""
 
     kind: str = "shaker"
     paced: bool = False
@@ -43,6 +45,11 @@ class SimulatedLabSettings:
     tyre_model: int | None = None
     nonlinear: bool = True
     wheel_speed_rad_s: float = 0.0
+    aux_roles: tuple[Role, ...] = tuple(a.channel.role for a in DEFAULT_AUX_INPUTS)
+
+
+#: The bench signals the simulated plant gives the WFS's aux inputs, by role.
+SIMULATED_SIGNALS = (Role.BENCH_DISPLACEMENT, Role.PLATE_FORCE, Role.HUB_ACCELERATION)
 
 
 class SimulatedLab:
@@ -65,7 +72,10 @@ class SimulatedLab:
         )
         self.operator = SimulatedOperator(self.world)
         self.link = PtyLink()
-        self.device = WfsDevice(self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s)
+        wiring = tuple(standard_name(role) if role in SIMULATED_SIGNALS else None for role in s.aux_roles)
+        self.device = WfsDevice(
+            self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s, aux_wiring=wiring
+        )
         self.runner = BenchRunner(self.bench, paced=s.paced)
         self.runner.sinks.append(self.device)
         self.server = ControllerServer(self.bench)

@@ -2,21 +2,21 @@
 
 Every frame is kept as it came (sequence counter, sample clock, status bits, the six raw loads in
 the sensor's rotating frame, wheel angle and speed) and, beside it, the loads calibrated, tared and
-rotated to the non-rotating wheel frame, and the aux inputs under the names the bench configuration
-gives them (by default the bench displacement ``z_base_m``, the plate force ``f_plate_n`` and the
-hub acceleration ``a_hub_m_s2``). Channel names carry their unit.
+rotated to the non-rotating wheel frame, and the aux inputs as the bench configuration wires them
+(:class:`~sequences.channels.AuxInput`: by default the bench displacement ``z_base_m``, the plate
+force ``f_plate_n`` and the hub acceleration ``a_hub_m_s2``, each with its role). Channel names
+carry their unit.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from bench.engine.events import ChannelSpec
 from drivers.wfs_frame import AUX_FIELDS, FORCE_FIELDS
 from drivers.wfs_transform import LoadProcessor, loads_of
+from sequences.channels import DEFAULT_AUX_INPUTS, STANDARD_CHANNELS, AuxInput, Channel, ChannelSet, Role
 
 _LOAD_UNITS = ("N", "N", "N", "N m", "N m", "N m")
 _LOAD_SUFFIX = ("n", "n", "n", "nm", "nm", "nm")
@@ -24,52 +24,51 @@ WHEEL_LOADS = tuple(f"{name}_wfs_{suffix}" for name, suffix in zip(FORCE_FIELDS,
 RAW_LOADS = tuple(f"{name}_raw_{suffix}" for name, suffix in zip(FORCE_FIELDS, _LOAD_SUFFIX, strict=True))
 
 
-@dataclass(frozen=True)
-class AuxInput:
-    """What one aux input carries: channel name (unit in the name), unit, scale from the frame's
-    value to the unit, description."""
-
-    name: str
-    unit: str
-    scale: float = 1.0
-    description: str = ""
-
-
-DEFAULT_AUX = (
-    AuxInput("z_base_m", "m", 1.0, "bench (post) displacement"),
-    AuxInput("f_plate_n", "N", 1.0, "bench (post) plate force, load cell under the plate"),
-    AuxInput("a_hub_m_s2", "m/s^2", 1.0, "hub acceleration, vertical"),
-    AuxInput("aux3", "V", 1.0, "spare input"),
-)
+def _wheel_load(name: str, unit: str, field: str) -> Channel:
+    """A calibrated load in the wheel frame; Fz is the WFS's vertical force the analysis uses."""
+    fz = STANDARD_CHANNELS[Role.WFS_FZ]
+    if name == fz.name:
+        return fz
+    return Channel(name, unit, f"{field} in the non-rotating wheel frame, calibrated and tared")
 
 
 class FrameChannels:
     """Turns blocks of frames into the recorded columns; owns the calibration and the host tare."""
 
-    def __init__(self, aux: Sequence[AuxInput] = DEFAULT_AUX, loads: LoadProcessor | None = None) -> None:
+    def __init__(
+        self, aux: Sequence[AuxInput] = DEFAULT_AUX_INPUTS, loads: LoadProcessor | None = None
+    ) -> None:
         if len(aux) != len(AUX_FIELDS):
             raise ValueError(f"{len(AUX_FIELDS)} aux inputs must be described, got {len(aux)}")
         self.aux = tuple(aux)
         self.loads = loads or LoadProcessor()
-
-    def specs(self) -> tuple[ChannelSpec, ...]:
-        """The recorded channels, in recording order."""
-        return (
-            ChannelSpec("seq", "", "frame sequence counter (link accounting)", "u4"),
-            ChannelSpec("sample", "", "acquisition sample index since the stream started", "u4"),
-            ChannelSpec("status", "", "frame status bits (overloads, ADC fault, tare, sync inputs)", "u2"),
-            *(
-                ChannelSpec(name, unit, f"{field} in the sensor's rotating frame, as received")
-                for name, unit, field in zip(RAW_LOADS, _LOAD_UNITS, FORCE_FIELDS, strict=True)
-            ),
-            ChannelSpec("angle_rad", "rad", "wheel angle about the wheel axis"),
-            ChannelSpec("speed_rad_s", "rad/s", "wheel speed"),
-            *(
-                ChannelSpec(name, unit, f"{field} in the non-rotating wheel frame, calibrated and tared")
-                for name, unit, field in zip(WHEEL_LOADS, _LOAD_UNITS, FORCE_FIELDS, strict=True)
-            ),
-            *(ChannelSpec(a.name, a.unit, a.description) for a in self.aux),
+        self.recorded = ChannelSet(
+            (
+                Channel("seq", "", "frame sequence counter (link accounting)", "u4"),
+                Channel("sample", "", "acquisition sample index since the stream started", "u4"),
+                Channel("status", "", "frame status bits (overloads, ADC fault, tare, sync inputs)", "u2"),
+                *(
+                    Channel(name, unit, f"{field} in the sensor's rotating frame, as received")
+                    for name, unit, field in zip(RAW_LOADS, _LOAD_UNITS, FORCE_FIELDS, strict=True)
+                ),
+                Channel("angle_rad", "rad", "wheel angle about the wheel axis"),
+                Channel("speed_rad_s", "rad/s", "wheel speed"),
+                *(
+                    _wheel_load(name, unit, field)
+                    for name, unit, field in zip(WHEEL_LOADS, _LOAD_UNITS, FORCE_FIELDS, strict=True)
+                ),
+                *(a.channel for a in self.aux),
+            )
         )
+
+    @property
+    def displacement(self) -> str:
+        """The bench displacement's channel: amplitudes and spans are measured on it."""
+        return self.recorded.name_of(Role.BENCH_DISPLACEMENT)
+
+    def specs(self) -> tuple[Channel, ...]:
+        """The recorded channels, in recording order."""
+        return self.recorded.channels
 
     def columns(self, frames: np.ndarray) -> Mapping[str, np.ndarray]:
         """The recorded columns of a block of frames (``FRAME_DTYPE``)."""
@@ -87,5 +86,5 @@ class FrameChannels:
         for i, name in enumerate(WHEEL_LOADS):
             out[name] = wheel[:, i].astype(np.float32)
         for field, aux in zip(AUX_FIELDS, self.aux, strict=True):
-            out[aux.name] = (frames[field].astype(np.float64) * aux.scale).astype(np.float32)
+            out[aux.channel.name] = (frames[field].astype(np.float64) * aux.scale).astype(np.float32)
         return out

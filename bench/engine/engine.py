@@ -18,7 +18,7 @@ import re
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, NoReturn
 
 import numpy as np
@@ -49,14 +49,15 @@ from sequences import (
     Tare,
     step_fields,
 )
+from sequences.channels import STANDARD_CHANNELS, Role
 
 log = logging.getLogger(__name__)
 
-DISPLACEMENT = "z_base_m"
 #: The recorded kind of a run, by the kind of its step (a single dwell is a grid of one point).
 RUN_KIND = {"sine_dwell": "dwell_grid"}
-HAMMER_CHANNEL = ev.ChannelSpec(
-    "fz_wfs_n", "N", "Fz of the bare sensor, triggered capture at the converter rate"
+HAMMER_CHANNEL = replace(
+    STANDARD_CHANNELS[Role.WFS_FZ],
+    description="Fz of the bare sensor, triggered capture at the converter rate",
 )
 
 #: The bench condition a prompt's answer establishes, by the prompt's action: (name, value), where a
@@ -423,15 +424,18 @@ class Engine:
 
         A resumed run skips the grid's done points; its refinement starts from the points measured
         since the resume."""
-        plan = grid.adaptive
-        recorded = {spec.name for spec in self.channels.specs()}
-        missing = [name for name in (plan.output, plan.input, DISPLACEMENT) if name not in recorded]
-        if missing:
+        recorded = self.channels.recorded
+        output, input_ = recorded.resolve(grid.adaptive.output), recorded.resolve(grid.adaptive.input)
+        if output is None or input_ is None:
+            missing = [
+                name for name in (grid.adaptive.output, grid.adaptive.input) if not recorded.resolve(name)
+            ]
             raise RunStoppedError(
                 RunState.INTERLOCKED,
                 f"adaptive grid: the bench records no channel {', '.join(missing)}"
-                f" (it has {sorted(recorded)})",
+                f" (it has {', '.join(recorded.names)})",
             )
+        plan = replace(grid.adaptive, output=output, input=input_)
         coarse = len(grid.freqs_hz)
         added_index = max(coarse * len(grid.amplitudes_mm), max(held.done_points, default=-1) + 1)
         with _RunRecording(self, run_id, grid, held.samples) as run:
@@ -599,7 +603,9 @@ class Engine:
                 mean_mm=self._mean(dwell.mean_mm),
             )
             watch = (
-                None if plan is None else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, DISPLACEMENT)
+                None
+                if plan is None
+                else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, self.channels.displacement)
             )
             point = _PointPlan(index, dwell, requested, added_reason)
             try:
@@ -830,7 +836,7 @@ class _RunRecording:
         columns = self.engine.channels.columns(block.frames)
         gaps = tuple((g.index, g.missing) for g in block.gaps)
         self.engine.bus.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, gaps))
-        self.displacement.append(np.asarray(columns[DISPLACEMENT], dtype=float))
+        self.displacement.append(np.asarray(columns[self.engine.channels.displacement], dtype=float))
         self.samples += len(block.frames)
         self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
         return columns

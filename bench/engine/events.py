@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from bench.engine.states import RunState, Trigger
+from sequences.channels import Channel
 
 log = logging.getLogger(__name__)
 
@@ -41,16 +42,6 @@ class StateChanged:
 
 
 @dataclass(frozen=True)
-class ChannelSpec:
-    """One recorded channel: its name (unit in the name), unit and what it is."""
-
-    name: str
-    unit: str
-    description: str
-    dtype: str = "f4"
-
-
-@dataclass(frozen=True)
 class RunStarted:
     """A measurement step (dwell grid, free run, sweep, hammer test) begins recording as ``run_id``."""
 
@@ -58,7 +49,7 @@ class RunStarted:
     kind: str
     step: Mapping[str, Any]
     conditions: Mapping[str, Any]
-    channels: tuple[ChannelSpec, ...]
+    channels: tuple[Channel, ...]
     sample_rate_hz: float
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from bench.engine.contracts import ControllerStatus
 from drivers.wfs_frame import Status
+from sequences.channels import ChannelSet, Role
 
 _OVERLOAD_BITS = {
     Status.OVERLOAD_FX: "Fx",
@@ -90,11 +91,13 @@ class ChannelLimit:
         return None
 
 
-def displacement_limit(limit_mm: float, channel: str = "z_base_m") -> ChannelLimit:
+def displacement_limit(limit_mm: float, channel: str) -> ChannelLimit:
+    """|bench displacement| (``channel``, m) beyond ``limit_mm``."""
     return ChannelLimit("displacement limit", channel, limit_mm / 1e3, "m")
 
 
-def force_limit(limit_n: float, channel: str = "f_plate_n") -> ChannelLimit:
+def force_limit(limit_n: float, channel: str) -> ChannelLimit:
+    """|plate force| (``channel``, N) beyond ``limit_n``."""
     return ChannelLimit("force limit", channel, limit_n, "N")
 
 
@@ -134,16 +137,22 @@ class SerialLinkLost:
 
 
 def standard_interlocks(
-    *, displacement_limit_mm: float, force_limit_n: float, serial_timeout_s: float = 0.5
+    channels: ChannelSet,
+    *,
+    displacement_limit_mm: float,
+    force_limit_n: float,
+    serial_timeout_s: float = 0.5,
 ) -> tuple[Interlock, ...]:
-    """The interlocks every run is guarded by."""
+    """The interlocks every run is guarded by, the channel limits on the channels that play the
+    bench displacement and the plate force (UnboundRoleError when none does: nothing may run
+    without them)."""
     return (
         ActuatorLinkLost(),
         ControllerInterlock(),
         SerialLinkLost(serial_timeout_s),
         WfsOverload(),
-        displacement_limit(displacement_limit_mm),
-        force_limit(force_limit_n),
+        displacement_limit(displacement_limit_mm, channels.name_of(Role.BENCH_DISPLACEMENT)),
+        force_limit(force_limit_n, channels.name_of(Role.PLATE_FORCE)),
     )
 
 

@@ -35,8 +35,9 @@ from bench.store.csv_mapping import (
     SweepFile,
     mapping_error,
 )
-from bench.store.schema import ChannelSpec, PointRow
+from bench.store.schema import PointRow
 from bench.store.writer import CampaignWriter
+from sequences.channels import Channel, role_of_standard_name
 
 #: Largest deviation of one time step from the mean step, relative, before a time column is refused.
 TIME_STEP_TOLERANCE = 0.01
@@ -339,7 +340,12 @@ def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMappin
     if m.tyre_pressure_bar is not None:
         conditions["tyre_pressure_bar"] = m.tyre_pressure_bar
     channels = [
-        ChannelSpec(c.channel, c.si_unit, description=f"CSV column {c.column!r} x {c.scale:g}")
+        Channel(
+            c.channel,
+            c.si_unit,
+            f"CSV column {c.column!r} x {c.scale:g}",
+            role=role_of_standard_name(c.channel),
+        )
         for c in mapping.channels
     ]
     writer = campaign.begin_run(

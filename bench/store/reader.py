@@ -32,7 +32,8 @@ from bench.analysis.records import (
 )
 from bench.store import schema as s
 from bench.store.results import read_tree
-from bench.store.schema import ChannelSpec, PointRow, StoreError
+from bench.store.schema import PointRow, StoreError
+from sequences.channels import Channel, Role, standard_name
 
 #: Channels each kind of run needs for its analysis records.
 REQUIRED_CHANNELS = {
@@ -110,6 +111,19 @@ def _reading(path: Path, where: str) -> Iterator[None]:
         raise StoreError(path, where, f"unreadable ({err})") from err
 
 
+def _channel_role(path: Path, dataset: h5py.Dataset) -> Role | None:
+    """A channel's ``role`` attribute (files without it, written before roles were recorded, name
+    their channels by the roles' standard names)."""
+    if "role" not in dataset.attrs:
+        return None
+    text = _attr(path, dataset, "role", str)
+    try:
+        return Role(text)
+    except ValueError:
+        roles = ", ".join(r.value for r in Role)
+        raise StoreError(path, f"{dataset.name}@role", f"{text!r} is not a role ({roles})") from None
+
+
 def _attr(path: Path, obj: h5py.HLObject, name: str, kind: type) -> Any:
     where = f"{obj.name}@{name}"
     if name not in obj.attrs:
@@ -182,10 +196,16 @@ class CampaignFile:
 
 
 class _Channels(Mapping[str, np.ndarray]):
-    """A run's channels by name, each read from the file when asked for (its first ``n`` samples)."""
+    """A run's channels by their names in the file, each read from the file when asked for (its
+    first ``n`` samples). :meth:`slice` names them as the analysis does: a channel recorded under a
+    lab's own name with a role is given the role's standard name (``f_loadcell_n`` playing the
+    plate force becomes ``f_plate_n``)."""
 
-    def __init__(self, path: Path, datasets: Mapping[str, h5py.Dataset], n: int) -> None:
+    def __init__(
+        self, path: Path, datasets: Mapping[str, h5py.Dataset], n: int, specs: tuple[Channel, ...]
+    ) -> None:
         self._path, self._datasets, self._n = path, datasets, n
+        self.analysis_names = {spec.name: _analysis_name(spec) for spec in specs}
 
     def __getitem__(self, name: str) -> np.ndarray:
         ds = self._datasets[name]
@@ -199,11 +219,19 @@ class _Channels(Mapping[str, np.ndarray]):
         return len(self._datasets)
 
     def slice(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Samples ``start`` to ``stop`` of every channel, by the analysis's names."""
         out = {}
         for name, ds in self._datasets.items():
             with _reading(self._path, ds.name):
-                out[name] = ds[start:stop]
+                out[self.analysis_names[name]] = ds[start:stop]
         return out
+
+
+def _analysis_name(spec: Channel) -> str:
+    """The name the analysis knows ``spec`` by: its role's standard name, else its own."""
+    if spec.role is None or spec.role is Role.SPARE:
+        return spec.name
+    return standard_name(spec.role)
 
 
 class RunView:
@@ -233,7 +261,7 @@ class RunView:
             raise StoreError(
                 path, f"{where}/{s.CHANNELS}", f"channels of a finished run differ in length: {lengths}"
             )
-        self.channels = _Channels(path, datasets, self.n_samples)
+        self.channels = _Channels(path, datasets, self.n_samples, self.channel_specs)
         self.points = _read_points(path, _member(path, group, s.POINTS, h5py.Dataset), self.n_samples)
         self.events = _read_events(path, _member(path, group, s.EVENTS, h5py.Dataset))
         self.link_counters = {
@@ -256,8 +284,15 @@ class RunView:
                 raise StoreError(self.path, f"{where}@sample_rate_hz", f"{rate} Hz differs from the run's")
             unit = _attr(self.path, item, "unit", str)
             description = _attr(self.path, item, "description", str)
-            specs.append(ChannelSpec(name, unit, item.dtype.str[1:], description))
+            role = _channel_role(self.path, item)
+            specs.append(Channel(name, unit, description, item.dtype.str[1:], role))
             datasets[name] = item
+        analysis = [_analysis_name(spec) for spec in specs]
+        for spec, known_as in zip(specs, analysis, strict=True):
+            if analysis.count(known_as) > 1:
+                raise StoreError(
+                    self.path, f"{group.name}/{spec.name}", f"two channels are the {known_as} of the run"
+                )
         self.channel_specs = tuple(specs)
         return datasets
 
@@ -297,7 +332,8 @@ class RunView:
     def _require(self, kinds: tuple[str, ...], what: str) -> None:
         if self.kind not in kinds:
             raise StoreError(self.path, f"/{s.RUNS}/{self.run_id}@kind", f"a {self.kind} run has no {what}")
-        missing = [c for c in REQUIRED_CHANNELS[self.kind] if c not in self.channels]
+        recorded = set(self.channels.analysis_names.values())
+        missing = [c for c in REQUIRED_CHANNELS[self.kind] if c not in recorded]
         if missing:
             raise StoreError(
                 self.path,

@@ -106,17 +106,6 @@ class StoreError(ValueError):
 
 
 @dataclass(frozen=True, slots=True)
-class ChannelSpec:
-    """One recorded channel: its name (units in it, e.g. ``fz_wfs_n``), unit, on-disk dtype
-    (one of :data:`CHANNEL_DTYPES`) and a description a reader of the file understands."""
-
-    name: str
-    unit: str
-    dtype: str = "f4"
-    description: str = ""
-
-
-@dataclass(frozen=True, slots=True)
 class PointRow:
     """One attempt at one point of a run (a dwell, a sweep, a hammer blow): a row of ``points``.
 

@@ -42,7 +42,8 @@ from h5py import h5s, h5t, h5z
 from bench.store import schema as s
 from bench.store.reader import open_campaign
 from bench.store.results import as_mapping, write_tree
-from bench.store.schema import ChannelSpec, PointRow, StoreError
+from bench.store.schema import PointRow, StoreError
+from sequences.channels import Channel
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
 
@@ -144,7 +145,7 @@ class CampaignWriter:
         kind: str,
         step: Mapping[str, Any],
         conditions: Mapping[str, Any],
-        channels: Sequence[ChannelSpec],
+        channels: Sequence[Channel],
         sample_rate_hz: float,
         resumes: str | None = None,
     ) -> RunWriter:
@@ -202,6 +203,8 @@ class CampaignWriter:
             ds.attrs.update(
                 {"unit": spec.unit, "description": spec.description, "sample_rate_hz": float(sample_rate_hz)}
             )
+            if spec.role is not None:
+                ds.attrs["role"] = spec.role.value
         _create_table(group, s.POINTS, s.POINT_DTYPE)
         _create_table(group, s.EVENTS, s.EVENT_DTYPE)
         group.create_group(s.LINK)
@@ -630,7 +633,7 @@ def _filtered_chunk(chunk: np.ndarray) -> bytes:
     return zlib.compress(shuffled, s.GZIP_LEVEL)
 
 
-def _check_channels(path: Path, where: str, channels: Sequence[ChannelSpec]) -> None:
+def _check_channels(path: Path, where: str, channels: Sequence[Channel]) -> None:
     names = [c.name for c in channels]
     if not names:
         raise StoreError(path, where, "a run needs at least one channel")

@@ -373,7 +373,7 @@ class WfsBenchApp(App):
             state_line = self.query_one("#state", Static)
         except NoMatches:  # the app is closing: its widgets go before its timer stops
             return
-        state_line.update(f"{self.bench_name}   [b]{state}[/b]")
+        state_line.update(f"[b]{state}[/b]   {self.bench_name}")  # the state first: it never wraps away
         trace = self.session.trace
         if self.pane == "run":
             run = self.query_one(RunPane)

@@ -40,12 +40,14 @@ from bench.engine.engine import Engine
 from bench.engine.states import RunState
 from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
+from sequences.channels import ChannelSet, Role, standard_name
 
 log = logging.getLogger(__name__)
 
 #: The live channels the UI plots and shows (wheel-frame Fz, plate force, displacement, hub
 #: acceleration), by recorded channel name.
-LIVE_CHANNELS = ("fz_wfs_n", "f_plate_n", "z_base_m", "a_hub_m_s2")
+#: The roles shown live, each under its standard name whatever the bench calls its channel.
+LIVE_ROLES = (Role.WFS_FZ, Role.PLATE_FORCE, Role.BENCH_DISPLACEMENT, Role.HUB_ACCELERATION)
 #: How long the controller status may go unread while no sequence runs (s).
 STATUS_PERIOD_S = 0.5
 
@@ -138,22 +140,26 @@ class LiveTrace:
     """The last ``window_s`` seconds of the live channels, written by the engine's thread and read
     by the UI's; the UI decimates what it draws."""
 
-    def __init__(self, sample_rate_hz: float, window_s: float = 5.0) -> None:
+    def __init__(self, sample_rate_hz: float, channels: ChannelSet, window_s: float = 5.0) -> None:
+        """``channels``: the bench's recorded channels; the live roles are read from theirs."""
         self.sample_rate_hz = sample_rate_hz
         self._n = max(1, int(sample_rate_hz * window_s))
         self._lock = threading.Lock()
-        self._data = {name: np.zeros(self._n, dtype=np.float64) for name in LIVE_CHANNELS}
+        self._sources = {
+            standard_name(role): channels.name_of(role) for role in LIVE_ROLES if channels.bound(role)
+        }
+        self._data = {standard_name(role): np.zeros(self._n, dtype=np.float64) for role in LIVE_ROLES}
         self._filled = 0
         self.samples_seen = 0
 
     def append(self, columns: dict[str, np.ndarray]) -> None:
-        present = [name for name in LIVE_CHANNELS if name in columns]
+        present = [name for name, source in self._sources.items() if source in columns]
         if not present:
             return
-        n = len(columns[present[0]])
+        n = len(columns[self._sources[present[0]]])
         with self._lock:
             for name in present:
-                block = np.asarray(columns[name], dtype=np.float64)[-self._n :]
+                block = np.asarray(columns[self._sources[name]], dtype=np.float64)[-self._n :]
                 buf = self._data[name]
                 buf[: self._n - len(block)] = buf[len(block) :]
                 buf[self._n - len(block) :] = block
@@ -254,7 +260,7 @@ class BenchSession:
                 if devices.lab is not None:
                     self.operator.world = devices.lab.operator
                 self.engine = build_engine(self.config, devices)
-                self.trace = LiveTrace(float(self.config.wfs.rate_hz))
+                self.trace = LiveTrace(float(self.config.wfs.rate_hz), self.config.channels)
                 self.engine.bus.subscribe(self._on_event)
                 where = "simulated lab" if devices.lab is not None else self.config.source
                 self.post(BenchOpened(f"{self.config.kind} bench ({where})", self._interlock_names()))

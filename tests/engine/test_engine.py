@@ -43,7 +43,9 @@ def make_engine(bench: FakeBench, *, clock=None, force_limit_n: float = 20_000.0
         bench,
         Answers(),
         channels=FrameChannels(),
-        interlocks=standard_interlocks(displacement_limit_mm=15.0, force_limit_n=force_limit_n),
+        interlocks=standard_interlocks(
+            FrameChannels().recorded, displacement_limit_mm=15.0, force_limit_n=force_limit_n
+        ),
         sync_bits=SyncBits(ACTIVE_BIT, HOLD_BIT),
         sample_rate_hz=RATE_HZ,
         amplitude_control=AmplitudeControl(tolerance=0.02, max_corrections=3),
