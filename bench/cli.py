@@ -25,15 +25,12 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import (
-        DeviceUnreachableError,
-        PlanRefusedError,
-        done_in_file,
-        plan_campaign,
-        run_campaign,
-    )
+    from bench.app.devices import DeviceUnreachableError
     from bench.app.interrupts import RunInterrupts
+    from bench.app.plan import PlanRefusedError, plan_campaign
     from bench.app.progress import DoneBefore, Progress
+    from bench.app.resume import done_in_file
+    from bench.app.run import run_campaign
     from bench.app.run_log import RunLog
     from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
@@ -125,7 +122,7 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _import_csv(args: argparse.Namespace) -> int:
-    from bench.app.campaign import software_version
+    from bench.app.version import software_version
     from bench.config import ConfigError, default_bench_config, load_bench_config
     from bench.store import StoreError
     from bench.store.csv_import import CsvError, ImportLimits, import_campaign
@@ -243,7 +240,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
-        from bench.app.campaign import software_version
+        from bench.app.version import software_version
 
         print(f"wfsbench {software_version()}")
         parser.exit(0)

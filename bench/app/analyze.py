@@ -19,11 +19,9 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
-from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ
-from bench.app.post_run import RunAnalyser, replay_campaign
+from bench.app.post_run import RunAnalyser, initial_knowledge, replay_campaign
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
 from bench.engine.engine import RUN_ID
-from bench.models.parameters import WfsSensor
 from bench.store import add_results, open_campaign
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
@@ -78,8 +76,7 @@ def analyze_campaign(
             source = config.source
         masses = config.masses
         if knowledge is None:
-            sensor = WfsSensor(mass_kg=masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ)
-            knowledge = CampaignKnowledge(sensor=sensor, wheel_mass_kg=masses.wheel_below_sensor_kg)
+            knowledge = initial_knowledge(config)
         runs = tuple(replay_campaign(campaign, RunAnalyser(knowledge)))
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None
