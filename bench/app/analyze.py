@@ -21,12 +21,13 @@ from pathlib import Path
 from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
 from bench.app.post_run import RunAnalyser, initial_knowledge, replay_campaign
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
-from bench.engine.engine import RUN_ID
+from bench.engine.run_ids import RUN_ID
 from bench.store import add_results, open_campaign
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
-#: A run id as the engine gives it (``Engine.run_id``): ``<sequence>-s<step, 3 digits>-<kind>``.
+
+
 class CampaignFileError(ValueError):
     """The file is no campaign file, or its contents cannot be analysed; the message names the
     file and what is wrong."""
