@@ -1,19 +1,21 @@
-"""The ``wfsbench`` command line: a small front door to the links and the simulated bench."""
+"""The ``wfsbench`` command line: a small front door to the links and the simulated bench.
+
+Each subcommand imports what it needs when it runs, so that the offline commands (``check``,
+``analyze``, ``report``, ``import-csv``) and ``--help`` / ``--version`` start without loading the
+device clients (pymodbus, pyserial), the simulators or the run engine
+(``benchmarks/cli_startup.py`` measures it, ``tests/test_cli_imports.py`` keeps it so).
+"""
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import sys
 import time
 from pathlib import Path
 from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
-from drivers.actuator import ActuatorClient
 from drivers.errors import LinkError
-from drivers.wfs_reader import WfsReader
-from simulators.serve import serve  # the CLI is a composition root: it may know the simulators
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
@@ -25,15 +27,12 @@ EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
-    from bench.app.campaign import (
-        DeviceUnreachableError,
-        PlanRefusedError,
-        done_in_file,
-        plan_campaign,
-        run_campaign,
-    )
+    from bench.app.devices import DeviceUnreachableError
     from bench.app.interrupts import RunInterrupts
+    from bench.app.plan import PlanRefusedError, plan_campaign
     from bench.app.progress import DoneBefore, Progress
+    from bench.app.resume import done_in_file
+    from bench.app.run import run_campaign
     from bench.app.run_log import RunLog
     from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
@@ -125,7 +124,7 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _import_csv(args: argparse.Namespace) -> int:
-    from bench.app.campaign import software_version
+    from bench.app.version import software_version
     from bench.config import ConfigError, default_bench_config, load_bench_config
     from bench.store import StoreError
     from bench.store.csv_import import CsvError, ImportLimits, import_campaign
@@ -170,6 +169,10 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _sim_serve(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from simulators.serve import serve  # the CLI is a composition root: it may know the simulators
+
     asyncio.run(serve(args.host, args.port, paced=not args.fast, seed=args.seed, ready=_announce))
     return 0
 
@@ -182,6 +185,8 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
     """Live values and link counters, one line per ``--interval`` seconds of samples; with
     ``--duration``, ``duration / interval`` lines (rounded), so exactly that much of the stream. The
     intervals are counted in frames at the rate the device reports, not by the wall clock."""
+    from drivers.wfs_reader import WfsReader
+
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
         if not reader.wait_connected(5):
             print(f"error: cannot open the WFS port {args.port}: {reader.last_error}", file=sys.stderr)
@@ -212,7 +217,15 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
     return 0
 
 
-async def _actuator_status(args: argparse.Namespace) -> int:
+def _actuator_status(args: argparse.Namespace) -> int:
+    import asyncio
+
+    return asyncio.run(_read_actuator_status(args))
+
+
+async def _read_actuator_status(args: argparse.Namespace) -> int:
+    from drivers.actuator import ActuatorClient
+
     if args.serial:
         client = ActuatorClient.rtu(args.serial, baudrate=args.baudrate)
     else:
@@ -243,7 +256,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
-        from bench.app.campaign import software_version
+        from bench.app.version import software_version
 
         print(f"wfsbench {software_version()}")
         parser.exit(0)
@@ -324,7 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
     link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
     status.add_argument("--host", default="127.0.0.1")
     status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
-    status.set_defaults(run=lambda a: asyncio.run(_actuator_status(a)))
+    status.set_defaults(run=_actuator_status)
     add_analysis_commands(sub)
     return parser
 

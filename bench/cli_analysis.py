@@ -24,7 +24,6 @@ EXIT_NOT_STORED = 4
 
 def _analyze(args: argparse.Namespace) -> int:
     from bench.app.analyze import CampaignFileError, analyze_campaign, store_reanalysis
-    from bench.report.json_out import analysis_json_text
     from bench.store import StoreError
 
     path = Path(args.file)
@@ -40,6 +39,8 @@ def _analyze(args: argparse.Namespace) -> int:
         print(f"error: results not stored: {exc}", file=sys.stderr)
         code = EXIT_NOT_STORED
     if args.json:
+        from bench.report.json_out import analysis_json_text
+
         print(analysis_json_text(analysis, names))
         return code
     for run in analysis.runs:

@@ -24,12 +24,13 @@ import dataclasses
 import time
 from pathlib import Path
 
-from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, plan_sequence, run_campaign
-from bench.app.post_run import CampaignKnowledge
+from bench.app.plan import plan_sequence
+from bench.app.post_run import CampaignKnowledge, initial_knowledge
 from bench.app.report import write_report
+from bench.app.run import run_campaign
 from bench.config import default_bench_config
 from bench.models.benches import TyreModel
-from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre, WfsSensor
+from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre
 from bench.report.text import summary_lines
 from bench.store import open_campaign
 from sequences import load_sequence, shipped_file
@@ -61,12 +62,7 @@ def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
         path = shipped_file(name)
         plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text(), config.to_toml())
         if knowledge is None:
-            knowledge = CampaignKnowledge(
-                sensor=WfsSensor(
-                    mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ
-                ),
-                wheel_mass_kg=config.masses.wheel_below_sensor_kg,
-            )
+            knowledge = initial_knowledge(config)
         outcome = run_campaign(plan, out, knowledge=knowledge)
         if outcome.status != "complete":
             raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")

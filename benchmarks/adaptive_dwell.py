@@ -34,7 +34,8 @@ from bench.analysis.interpolation import GridError, grid_error
 from bench.analysis.plate_mass import shaker_frfs
 from bench.analysis.records import WHEEL_CHANNELS, fit_dwell_record
 from bench.analysis.runs import analyse_free_run
-from bench.app import campaign as app
+from bench.app import run as app_run
+from bench.app.plan import plan_sequence
 from bench.config import Simulation, default_bench_config
 from bench.models.setup import BenchSetup
 from bench.store import open_campaign
@@ -81,12 +82,12 @@ def run_campaign(name: str, *, paced: bool = False) -> Campaign:
     sequence = load_sequence(path, config.limits)
     if paced:
         sequence = one_grid(sequence, "2.5 bar", 2.0)
-    plan = app.plan_sequence(sequence, config)
+    plan = plan_sequence(sequence, config)
     grids = [s for s in sequence.steps if isinstance(s, DwellGrid)]
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "campaign.h5"
         start = time.perf_counter()
-        outcome = app.run_campaign(plan, out)
+        outcome = app_run.run_campaign(plan, out)
         wall_s = time.perf_counter() - start
         assert outcome.status == "complete", outcome
         errors, excitation, attempts, points = {}, 0.0, 0, 0

@@ -21,7 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.app import campaign as app
+from bench.app import run as app_run
+from bench.app.plan import plan_sequence
 from bench.config import default_bench_config
 from bench.engine import events as ev
 from bench.models.setup import BenchSetup
@@ -61,21 +62,21 @@ def main() -> None:
 
     config = default_bench_config(args.kind)
     path = shipped_file(args.sequence)
-    plan = app.plan_sequence(load_sequence(path, config.limits), config, path.read_text())
+    plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text())
     timed: list[TimedActuator] = []
-    build = app.build_engine
+    build = app_run.build_engine
 
     def build_timed(config, devices):
         devices.actuator = TimedActuator(devices.actuator)
         timed.append(devices.actuator)
         return build(config, devices)
 
-    app.build_engine = build_timed
+    app_run.build_engine = build_timed
     points: list[ev.PointDone] = []
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "campaign.h5"
         start = time.perf_counter()
-        outcome = app.run_campaign(
+        outcome = app_run.run_campaign(
             plan, out, subscribers=(lambda e: points.append(e) if isinstance(e, ev.PointDone) else None,)
         )
         wall_s = time.perf_counter() - start

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import ClassVar
 
-from bench.app.campaign import plan_campaign
+from bench.app.plan import plan_campaign
 from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.tui import panes

@@ -12,7 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench.app.campaign import plan_sequence, run_campaign
+from bench.app.plan import plan_sequence
+from bench.app.run import run_campaign
 from bench.app.run_log import RunLog
 from bench.config import default_bench_config
 from sequences import DwellGrid, FreeRun, Hydraulics, Prompt, Sequence

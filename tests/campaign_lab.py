@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.app.campaign import BenchDevices, build_engine, open_bench
+from bench.app.devices import BenchDevices, open_bench
+from bench.app.engine_build import build_engine
 from bench.app.recorder import Recorder
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
@@ -213,7 +214,7 @@ class LabCampaign:
 @contextlib.contextmanager
 def lab_campaign(config: BenchConfig, sequence: Sequence, path: Path) -> Iterator[LabCampaign]:
     """Open the simulated lab of ``config``, build its engine as the application does
-    (:func:`bench.app.campaign.build_engine`) with the recorder writing ``path``; the caller adds
+    (:func:`bench.app.engine_build.build_engine`) with the recorder writing ``path``; the caller adds
     its hooks and starts the run. The engine's thread is joined before the lab closes."""
     with (
         open_bench(config) as devices,

@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 
 from bench.analysis.runs import ShakerCampaignResult, analyse_shaker_campaign
-from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, plan_sequence, run_campaign
-from bench.app.post_run import CampaignKnowledge, shaker_result_at
+from bench.app.plan import plan_sequence
+from bench.app.post_run import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, CampaignKnowledge, shaker_result_at
+from bench.app.run import run_campaign
 from bench.config import default_bench_config
 from bench.models.parameters import Suspension, WfsSensor
 from bench.models.setup import BenchSetup

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.app.campaign import plan_campaign, run_campaign
+from bench.app.plan import plan_campaign
+from bench.app.run import run_campaign
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_REFUSED, main
 from bench.config import load_bench_config
 from bench.store import open_campaign

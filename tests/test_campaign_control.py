@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import math
 
-from bench.app.campaign import plan_sequence, run_campaign
+from bench.app.plan import plan_sequence
+from bench.app.run import run_campaign
 from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.store import open_campaign
@@ -59,7 +60,7 @@ def test_amplitude_control_brings_60_to_70_hz_within_tolerance(tmp_path):
     """The simulated servo-hydraulic actuator (finite oil-column stiffness, valve flow limit) misses
     2 mm by more than the 2 % tolerance somewhere in 60-70 Hz with the wheel fitted; the engine
     corrects the command and repeats the point until the displacement channel shows 2 mm within 2 %.
-    Run through :func:`bench.app.campaign.run_campaign`, dry run included."""
+    Run through :func:`bench.app.run.run_campaign`, dry run included."""
     sequence = grid_sequence((60.0, 65.0, 70.0), amplitude_mm=2.0)
     plan = plan_sequence(sequence, bench_config(tmp_path))
     assert plan.config.specimen.wheel_fitted

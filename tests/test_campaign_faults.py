@@ -1,7 +1,7 @@
 """Faults mid-run over the real transports: a force interlock, the controller's e-stop button, the
 Modbus link lost, the serial link lost.
 
-Each campaign is the engine the application builds (:func:`bench.app.campaign.build_engine`) on the
+Each campaign is the engine the application builds (:func:`bench.app.engine_build.build_engine`) on the
 simulated lab, recording into a campaign file. The fault is placed mid-point by WFS sample counts
 (:class:`tests.campaign_lab.AtHold`); when the actuator came to rest is read block by block on the
 bench's own clock (:class:`tests.campaign_lab.ControllerTimeline`). Each test then checks the

@@ -22,8 +22,9 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.app.campaign import done_in_file, plan_campaign
+from bench.app.plan import plan_campaign
 from bench.app.progress import DoneBefore
+from bench.app.resume import done_in_file
 from bench.engine.amplitude import achieved_amplitude_mm
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench

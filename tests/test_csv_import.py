@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.app.campaign import plan_campaign, run_campaign
+from bench.app.plan import plan_campaign
 from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
+from bench.app.run import run_campaign
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign

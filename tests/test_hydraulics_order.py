@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import struct
 
-from bench.app.campaign import build_engine, open_bench
+from bench.app.devices import open_bench
+from bench.app.engine_build import build_engine
 from bench.cli import EXIT_INVALID
 from bench.config import default_bench_config
 from drivers.register_map import Command, ErrorCode

@@ -506,7 +506,7 @@ def test_ctrl_c_before_the_devices_open_ends_the_command_without_a_traceback(tmp
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("bench.app.campaign.plan_campaign", interrupted)
+    monkeypatch.setattr("bench.app.plan.plan_campaign", interrupted)
     out = tmp_path / "c.h5"
     assert main(["run", str(SMOKE), "--out", str(out)]) == EXIT_STOPPED
     assert capsys.readouterr().err == "interrupted: nothing moved\n"

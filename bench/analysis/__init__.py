@@ -21,21 +21,30 @@ script or a notebook. The top-level API turns whole recorded runs into typed res
 - :mod:`~bench.analysis.hammer`: sensor eigenfrequency, damping ratio and stiffness.
 - :mod:`~bench.analysis.quarter_car_fit`: quarter car above the sensor from a four-post sweep.
 - :mod:`~bench.analysis.compensation`: hub-acceleration and model-based compensation.
+
+The top-level names are loaded when first used, not when the package is imported: the store's
+reader needs only :mod:`~bench.analysis.records`, and the commands that merely read a campaign file
+(or fail to) should not pay for the estimators and their scipy modules.
 """
 
-from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
-from bench.analysis.runs import (
-    FourPostResult,
-    FreeRunResult,
-    ShakerAmplitudeResult,
-    ShakerCampaignResult,
-    analyse_four_post,
-    analyse_free_run,
-    analyse_hammer,
-    analyse_shaker_campaign,
-)
-from bench.analysis.validation import AnalysisInputError
+import importlib
+from typing import TYPE_CHECKING
 
+#: The package's top-level names and the module each is defined in.
+_PUBLIC = {
+    "AnalysisInputError": "bench.analysis.validation",
+    "DwellRecord": "bench.analysis.records",
+    "FourPostResult": "bench.analysis.runs",
+    "FreeRunResult": "bench.analysis.runs",
+    "HammerRecord": "bench.analysis.records",
+    "ShakerAmplitudeResult": "bench.analysis.runs",
+    "ShakerCampaignResult": "bench.analysis.runs",
+    "SweepRecord": "bench.analysis.records",
+    "analyse_four_post": "bench.analysis.runs",
+    "analyse_free_run": "bench.analysis.runs",
+    "analyse_hammer": "bench.analysis.runs",
+    "analyse_shaker_campaign": "bench.analysis.runs",
+}
 __all__ = [
     "AnalysisInputError",
     "DwellRecord",
@@ -50,3 +59,29 @@ __all__ = [
     "analyse_hammer",
     "analyse_shaker_campaign",
 ]
+
+if TYPE_CHECKING:
+    from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+    from bench.analysis.runs import (
+        FourPostResult,
+        FreeRunResult,
+        ShakerAmplitudeResult,
+        ShakerCampaignResult,
+        analyse_four_post,
+        analyse_free_run,
+        analyse_hammer,
+        analyse_shaker_campaign,
+    )
+    from bench.analysis.validation import AnalysisInputError
+
+
+def __getattr__(name: str) -> object:
+    if name not in _PUBLIC:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_PUBLIC])

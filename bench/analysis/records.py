@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bench.analysis.dwell import DwellFit, fit_dwell
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 from sequences.channels import Role, standard_name
+
+if TYPE_CHECKING:
+    from bench.analysis.dwell import DwellFit
 
 #: The channels the analysis reads, by their roles' standard names (a file recorded under a lab's
 #: own names is read back under these: :mod:`sequences.channels`).
@@ -166,6 +169,10 @@ def fit_dwell_record(
     record: DwellRecord, required: Sequence[str], *, settle_s: float = DEFAULT_SETTLE_S
 ) -> DwellFit:
     """Fit the ``required`` channels of a dwell over its hold, ``settle_s`` after the hold begins."""
+    # the fit's scipy modules load here, not with the record types: the store's reader, and the
+    # commands that only read a campaign file, need the types alone
+    from bench.analysis.dwell import fit_dwell
+
     if not (np.isfinite(record.freq_hz) and record.freq_hz > 0):
         raise AnalysisInputError(f"{record.label}: frequency must be positive")
     if not (np.isfinite(record.amplitude_m) and record.amplitude_m > 0):

@@ -10,6 +10,9 @@ or the defaults when the file holds none.
 :func:`store_reanalysis` writes what the analysis found beside the raw data under new result names
 (``<name>-reanalysis-<n>``, ``n`` one more than any earlier re-analysis of the file): the raw data
 and every earlier result stay as they were.
+
+The file is opened before the estimators are loaded: a missing or foreign file is refused without
+the cost of importing the analysis (``benchmarks/cli_startup.py``).
 """
 
 from __future__ import annotations
@@ -17,18 +20,19 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
-from bench.app.campaign import DEFAULT_SENSOR_EIGENFREQUENCY_HZ
-from bench.app.post_run import RunAnalyser, replay_campaign
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
-from bench.engine.engine import RUN_ID
-from bench.models.parameters import WfsSensor
+from bench.engine.run_ids import RUN_ID
 from bench.store import add_results, open_campaign
+
+if TYPE_CHECKING:
+    from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
-#: A run id as the engine gives it (``Engine.run_id``): ``<sequence>-s<step, 3 digits>-<kind>``.
+
+
 class CampaignFileError(ValueError):
     """The file is no campaign file, or its contents cannot be analysed; the message names the
     file and what is wrong."""
@@ -72,14 +76,16 @@ def analyze_campaign(
     if config is not None and knowledge is not None:
         raise ValueError("give a configuration or a knowledge, not both: the knowledge holds its masses")
     with open_campaign(path) as campaign:
+        from bench.analysis.campaign import CampaignAnalysis
+        from bench.app.post_run import RunAnalyser, initial_knowledge, replay_campaign
+
         if config is None:
             config, source = _stored_config(path, campaign.config_toml, campaign.config_name)
         else:
             source = config.source
         masses = config.masses
         if knowledge is None:
-            sensor = WfsSensor(mass_kg=masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ)
-            knowledge = CampaignKnowledge(sensor=sensor, wheel_mass_kg=masses.wheel_below_sensor_kg)
+            knowledge = initial_knowledge(config)
         runs = tuple(replay_campaign(campaign, RunAnalyser(knowledge)))
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None

@@ -19,7 +19,8 @@ it never stops the campaign.
 :class:`RunAnalyser` analyses one run with what the runs before it established;
 :func:`replay_campaign` takes a file's complete runs through it in order. The subscriber
 :class:`PostRunAnalysis` replays the runs a file holds already when it starts, then analyses each
-run as it completes; ``wfsbench analyze`` (:mod:`bench.app.analyze`) replays a whole file.
+run as it completes; ``wfsbench analyze`` (:mod:`bench.app.analyze`) replays a whole file. Both
+start from :func:`initial_knowledge` unless they are given what earlier runs established.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from bench.analysis.runs import (
     analyse_shaker_campaign,
 )
 from bench.analysis.validation import AnalysisInputError
+from bench.config import BenchConfig
 from bench.engine import events as ev
 from bench.models.parameters import WfsSensor
 from bench.report.text import summary_lines
@@ -47,6 +49,18 @@ log = logging.getLogger(__name__)
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
+#: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
+#: sensor rings at about 2.2 kHz).
+DEFAULT_SENSOR_EIGENFREQUENCY_HZ = 2200.0
+
+
+def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
+    """What a campaign knows before its first run: the configuration's masses and the sensor's
+    assumed eigenfrequency."""
+    return CampaignKnowledge(
+        sensor=WfsSensor(mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+        wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+    )
 
 
 class PostRunAnalysis:

@@ -10,11 +10,14 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bench.analysis.campaign import CampaignKnowledge
-from bench.app.analyze import CampaignAnalysis, analyze_campaign
+from bench.app.analyze import analyze_campaign
 from bench.report.figures import FigureFile, write_figures
 from bench.report.html import report_html
+
+if TYPE_CHECKING:
+    from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
 
 REPORT_PAGE = "report.html"
 

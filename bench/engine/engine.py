@@ -14,7 +14,6 @@ event; storage, analysis and displays are subscribers.
 from __future__ import annotations
 
 import logging
-import re
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -31,6 +30,7 @@ from bench.engine.interlocks import Interlock, Observation, first_trip
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
+from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from drivers.errors import CommandRejectedError, LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
@@ -70,10 +70,6 @@ CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
     "car_off_posts": ("car_on_posts", False),
     "set_damper": ("damper", None),
 }
-
-
-#: A run id as :meth:`Engine.run_id` writes it: ``<sequence>-s<step index>-<step kind>``.
-RUN_ID = re.compile(r"^(?P<sequence>.+)-s(?P<step>[0-9]{3,})-(?P<kind>[a-z_]+)$")
 
 
 @dataclass(frozen=True)
@@ -353,9 +349,8 @@ class Engine:
     def run_id(sequence: Sequence, index: int) -> str:
         """The run id of a measurement step: the sequence's name, the step's position and kind, so
         that runs of several sequences share a campaign file and a resume finds its runs again
-        (:data:`RUN_ID` reads them back)."""
-        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", sequence.name) or "sequence"
-        return f"{name}-s{index:03d}-{sequence.steps[index].kind}"
+        (:data:`bench.engine.run_ids.RUN_ID` reads them back)."""
+        return run_id(sequence, index)
 
     def _execute(self, sequence: Sequence, index: int, resume: ResumePlan | None) -> None:
         step = sequence.steps[index]

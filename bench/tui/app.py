@@ -20,7 +20,7 @@ from textual.css.query import NoMatches
 from textual.message import Message
 from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
 
-from bench.app.campaign import CampaignPlan
+from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
 from bench.engine.states import ACTIVE
 from bench.store import StoreError

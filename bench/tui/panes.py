@@ -13,9 +13,9 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Input, Label, OptionList, Static
 
-from bench.app.campaign import CampaignPlan
 from bench.app.check import step_line
 from bench.app.durations import sequence_estimate_text
+from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
 from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun

@@ -23,17 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.app.campaign import (
-    BenchDevices,
-    CampaignPlan,
-    build_engine,
-    held_runs,
-    initial_knowledge,
-    open_bench,
-    plan_campaign,
-    run_on_engine,
-)
-from bench.app.post_run import CampaignKnowledge
+from bench.app.devices import BenchDevices, open_bench
+from bench.app.engine_build import build_engine
+from bench.app.plan import CampaignPlan, plan_campaign
+from bench.app.post_run import CampaignKnowledge, initial_knowledge
+from bench.app.resume import held_runs
+from bench.app.run import run_on_engine
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
 from bench.engine.engine import Engine

@@ -1,0 +1,45 @@
+"""Building the run engine on an opened bench: channels, interlocks, sync bits and tare policy.
+
+:func:`build_engine` turns the bench configuration into the :class:`~bench.engine.engine.Engine`'s
+settings (the recorded channels and the calibration matrix, the host-side interlocks from the
+bench's limits, the controller's sync bits in the WFS status word, the amplitude control's command
+limit) and gives it the devices :func:`bench.app.devices.open_bench` opened. Front ends that keep
+the bench open between sequences (the terminal UI) build the engine once; a command-line run builds
+it for its one sequence (:mod:`bench.app.run`).
+"""
+
+from __future__ import annotations
+
+from bench.app.devices import BenchDevices
+from bench.app.simulated import UNPACED_BACKLOG_S
+from bench.config import BenchConfig
+from bench.engine.amplitude import AmplitudeControl
+from bench.engine.channels import FrameChannels
+from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.interlocks import standard_interlocks
+from drivers.wfs_frame import Status
+from drivers.wfs_transform import LoadProcessor
+
+
+def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
+    """The engine on ``devices`` with the configured channels, interlocks and tare policy (and a
+    short backlog on the unpaced simulated bench, which waits for the engine)."""
+    unpaced = devices.lab is not None and not devices.lab.settings.paced
+    channels = FrameChannels(config.aux, LoadProcessor(matrix=config.calibration.matrix_array()))
+    return Engine(
+        devices.actuator,
+        devices.acquisition,
+        devices.operator,
+        channels=channels,
+        interlocks=standard_interlocks(
+            channels.recorded,
+            displacement_limit_mm=config.limits.stroke_mm,
+            force_limit_n=config.limits.force_n,
+        ),
+        sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
+        sample_rate_hz=float(config.wfs.rate_hz),
+        amplitude_control=AmplitudeControl(max_command_mm=config.soft_limits.max_amplitude_mm),
+        tare=config.calibration.tare,
+        bench_kind=config.kind,
+        timing=EngineTiming(backlog_s=UNPACED_BACKLOG_S) if unpaced else EngineTiming(),
+    )

@@ -1,0 +1,64 @@
+"""Planning a campaign: a sequence checked against the bench before anything is opened.
+
+:func:`plan_campaign` loads the bench configuration and the sequence file, validates the sequence
+against the bench's limits and dry-runs it on the bench model (:mod:`bench.dry_run`);
+:func:`plan_sequence` does the same for a sequence built in Python. The resulting
+:class:`CampaignPlan` is what every run takes (:mod:`bench.app.run`): a plan that does not stand is
+refused here, so nothing is opened or moved for it. Planning needs neither the devices nor the
+engine, so ``wfsbench check`` and the front ends can plan without loading them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from bench.config import BenchConfig, load_bench_config
+from bench.dry_run import dry_run
+from sequences import Sequence, dump_sequence, load_sequence, validate
+
+
+class PlanRefusedError(ValueError):
+    """The dry run refused the sequence on this bench; nothing was opened or moved."""
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """A validated sequence on a configured bench, with the texts that produced them."""
+
+    config: BenchConfig
+    config_text: str
+    sequence: Sequence
+    sequence_text: str
+
+
+def plan_campaign(
+    sequence_path: Path, config_path: Path | None = None, *, realtime: bool = False
+) -> CampaignPlan:
+    """Load and check everything before anything is opened: SequenceError / ConfigError name the
+    file and the key; PlanRefusedError lists every point the dry run refuses. ``realtime`` paces the
+    simulated bench in real time (the configuration's ``simulation.paced``; no effect on hardware)."""
+    config = load_bench_config(config_path)
+    if realtime:
+        config = replace(config, simulation=replace(config.simulation, paced=True))
+    sequence = load_sequence(sequence_path, config.limits)
+    config_text = Path(config_path).read_text() if config_path else config.to_toml()
+    return plan_sequence(sequence, config, Path(sequence_path).read_text(), config_text)
+
+
+def plan_sequence(
+    sequence: Sequence, config: BenchConfig, sequence_text: str | None = None, config_text: str | None = None
+) -> CampaignPlan:
+    """Check a sequence built in Python (or loaded) against ``config``: the same validation as a
+    sequence file gets, then the dry run. The texts recorded with the campaign default to the
+    sequence and configuration written out as TOML."""
+    validate(sequence, config.limits, config.channels)
+    refusals = dry_run(sequence, config).refusals
+    if refusals:
+        raise PlanRefusedError("\n".join(str(r) for r in refusals))
+    return CampaignPlan(
+        config,
+        config_text if config_text is not None else config.to_toml(),
+        sequence,
+        sequence_text if sequence_text is not None else dump_sequence(sequence),
+    )

@@ -1,0 +1,110 @@
+"""What a campaign file holds already, read before a sequence runs into it: the target check and
+the resume plan.
+
+A sequence runs into a new file, or beside the runs of other sequences in an existing one; a file
+that holds runs of this very sequence takes it only as a resume. :func:`check_target` refuses a file
+that cannot take the sequence before anything is opened and, when resuming, checks that the file
+recorded the same sequence and bench (:func:`bench.app.resume_check.check_resume`) and gives the
+engine its :class:`ResumeFromFile` plan (the complete runs and points to skip). :func:`held_runs`
+lets a front end ask before it starts; :func:`done_in_file` tells the progress display what a
+resume has done already.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from bench.app.plan import CampaignPlan
+from bench.app.progress import DoneBefore
+from bench.app.resume_check import check_resume
+from bench.engine.engine import Engine, is_measurement
+from bench.store import open_campaign
+from sequences import DwellGrid, FreeRun, SineDwell
+
+
+class ResumeFromFile:
+    """The engine's resume plan, read from the campaign file being resumed."""
+
+    def __init__(self, path: Path) -> None:
+        with open_campaign(path) as campaign:
+            self._runs = {
+                run.run_id: (run.status, run.completed_point_indices(), run.n_samples)
+                for run in campaign.runs
+            }
+
+    def run_complete(self, run_id: str) -> bool:
+        return run_id in self._runs and self._runs[run_id][0] == "complete"
+
+    def completed_points(self, run_id: str) -> set[int]:
+        return set(self._runs[run_id][1]) if run_id in self._runs else set()
+
+    def recorded_samples(self, run_id: str) -> int:
+        return self._runs[run_id][2] if run_id in self._runs else 0
+
+
+def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFromFile | None:
+    """Refuse a campaign file that cannot take the sequence (before anything is opened); the resume
+    plan when resuming."""
+    existing = _run_ids(out_path)
+    if existing is None and resume:
+        raise ValueError(f"{out_path}: no campaign file to resume")
+    if existing and not resume and existing & _planned_runs(plan):
+        raise ValueError(
+            f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
+            " or write to another file"
+        )
+    if not resume:
+        return None
+    with open_campaign(out_path) as campaign:
+        check_resume(campaign, plan.sequence, plan.config)
+    return ResumeFromFile(out_path)
+
+
+def held_runs(plan: CampaignPlan, out_path: Path) -> set[str]:
+    """The runs of ``plan``'s sequence that the campaign file ``out_path`` holds already (none when
+    there is no file; StoreError when the file is no campaign file): a new start into it must
+    resume them."""
+    return (_run_ids(Path(out_path)) or set()) & _planned_runs(plan)
+
+
+def _planned_runs(plan: CampaignPlan) -> set[str]:
+    return {
+        Engine.run_id(plan.sequence, i) for i, step in enumerate(plan.sequence.steps) if is_measurement(step)
+    }
+
+
+def done_in_file(plan: CampaignPlan, out_path: Path) -> DoneBefore:
+    """The points of ``plan``'s sequence that the campaign file ``out_path`` holds done already and
+    their estimated duration (a complete sweep or hammer run counts whole); nothing when there is no
+    file."""
+    if not Path(out_path).exists():
+        return DoneBefore()
+    steps = {
+        Engine.run_id(plan.sequence, i): step
+        for i, step in enumerate(plan.sequence.steps)
+        if is_measurement(step)
+    }
+    points, estimated_s = 0, 0.0
+    with open_campaign(out_path) as campaign:
+        for run in campaign.runs:
+            step = steps.get(run.run_id)
+            if step is None:
+                continue
+            done = run.completed_point_indices()
+            points += len(done)
+            if isinstance(step, SineDwell | DwellGrid | FreeRun):
+                dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+                # an adaptive grid's added points are beyond its planned dwells and its estimate
+                estimated_s += sum(dwells[i].duration_s for i in done if i < len(dwells))
+            elif run.status == "complete":
+                estimated_s += step.estimated_duration_s
+    return DoneBefore(points, estimated_s)
+
+
+def _run_ids(path: Path) -> set[str] | None:
+    """The run ids of the campaign file at ``path``, None when there is no file (StoreError when
+    the file is no campaign file)."""
+    if not path.exists():
+        return None
+    with open_campaign(path) as campaign:
+        return {run.run_id for run in campaign.runs}
