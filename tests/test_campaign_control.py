@@ -82,8 +82,8 @@ def test_amplitude_control_brings_60_to_70_hz_within_tolerance(tmp_path):
     assert max(first_errors.values()) > TOLERANCE, f"nothing to correct: {first_errors}"
     for p in points:
         if p.attempt == 1:
-            assert math.isnan(p.corrected_amplitude_mm)  # the first attempt commands the target
+            assert p.commanded_amplitude_mm == p.amplitude_mm  # the first attempt commands the target
         else:  # a repetition commands a corrected amplitude, recorded
-            assert math.isfinite(p.corrected_amplitude_mm) and p.corrected_amplitude_mm != p.amplitude_mm
+            assert math.isfinite(p.commanded_amplitude_mm) and p.commanded_amplitude_mm != p.amplitude_mm
         if p.status == "repeated":
             assert abs(p.achieved_amplitude_mm / p.amplitude_mm - 1) > TOLERANCE

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from bench.app.run_log import RunLog
 from bench.engine import events as ev
 
@@ -14,12 +16,33 @@ def test_points_added_by_the_refinement_are_logged_with_their_reason() -> None:
 
 
 def test_an_adaptive_point_shows_its_verdict_and_uncertainty_a_fixed_one_does_not() -> None:
-    fixed = ev.PointDone("run", 3, 1, "done", 40.0, 2.0, 2.0, 2.0, 1.99, 0, 300, 1500, 1800)
-    adaptive = ev.PointDone(
-        "run", 9, 1, "done", 40.6, 2.0, 2.0, 2.0, 1.99, 0, 300, 800, 1100,
-        verdict="target", settle_s=0.3, measure_start_sample=500,
-        magnitude_uncertainty_pct=0.41, phase_uncertainty_deg=0.24,
-    )  # fmt: skip
+    fixed = ev.PointDone(
+        3,
+        40.0,
+        2.0,
+        0,
+        300,
+        1500,
+        1800,
+        status="done",
+        attempt=1,
+        requested_amplitude_mm=2.0,
+        commanded_amplitude_mm=2.0,
+        achieved_amplitude_mm=1.99,
+        run_id="run",
+    )
+    adaptive = replace(
+        fixed,
+        index=9,
+        freq_hz=40.6,
+        hold_end_sample=800,
+        end_sample=1100,
+        verdict="target",
+        settle_s=0.3,
+        measure_start_sample=500,
+        magnitude_uncertainty_pct=0.41,
+        phase_uncertainty_deg=0.24,
+    )
     assert RunLog.line(fixed) == "  point 3 at 40 Hz: done, commanded 2.000 mm, achieved 1.990 mm"
     assert RunLog.line(adaptive) == (
         "  point 9 at 40.6 Hz: done, commanded 2.000 mm, achieved 1.990 mm; target, u 0.41 % / 0.24 deg"

@@ -326,7 +326,21 @@ def _feed(progress: Progress, clock: FakeClock) -> None:
     progress(ev.PointStarted("seq-s002-dwell_grid", 0, 1, 10.0, 2.0, {"tyre_pressure_bar": 2.5}))
     clock.now_s += 1.0
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
-    done = ev.PointDone("seq-s002-dwell_grid", 0, 1, "done", 10.0, 2.0, 2.0, 2.0, 2.0, 0, 10, 200, 250)
+    done = ev.PointDone(
+        0,
+        10.0,
+        2.0,
+        0,
+        10,
+        200,
+        250,
+        status="done",
+        attempt=1,
+        requested_amplitude_mm=2.0,
+        commanded_amplitude_mm=2.0,
+        achieved_amplitude_mm=2.0,
+        run_id="seq-s002-dwell_grid",
+    )
     progress(done)
     progress.line("  point 0 at 10 Hz: done")
     progress(ev.PointStarted("seq-s002-dwell_grid", 1, 1, 30.0, 1.5, {"tyre_pressure_bar": 2.5}))
@@ -365,7 +379,23 @@ def test_the_eta_goes_by_the_points_once_the_estimated_duration_is_spent():
     progress(ev.RunStarted("seq-s002-dwell_grid", "dwell_grid", {}, {}, (), 100.0))
     clock.now_s += 1.0
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
-    progress(ev.PointDone("seq-s002-dwell_grid", 0, 1, "done", 10.0, 2.0, 2.0, 2.0, 2.0, 0, 10, 200, 250))
+    progress(
+        ev.PointDone(
+            0,
+            10.0,
+            2.0,
+            0,
+            10,
+            200,
+            250,
+            status="done",
+            attempt=1,
+            requested_amplitude_mm=2.0,
+            commanded_amplitude_mm=2.0,
+            achieved_amplitude_mm=2.0,
+            run_id="seq-s002-dwell_grid",
+        )
+    )
     assert math.isclose(progress.eta_s, 3.0)  # 3 points to go at 1 wall second per point, not 0
 
 

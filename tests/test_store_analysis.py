@@ -20,8 +20,9 @@ from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, simulate_dwells, simulate_hammer
-from bench.store import CampaignWriter, PointRow, open_campaign
+from bench.store import CampaignWriter, open_campaign
 from sequences.channels import Channel
+from sequences.points import PointAttempt
 
 SENSOR_MASS_KG = 3.82
 
@@ -39,7 +40,9 @@ def _store_dwells(run, records: list[DwellRecord]) -> None:
             run.append({name: record.channels[name][i : i + 100] for name in ("z_base_m", "f_plate_n")})
         hold_start, hold_end = (start + round(t * record.sample_rate_hz) for t in record.hold_s)
         run.add_point(
-            PointRow(index, record.freq_hz, 1e3 * record.amplitude_m, start, hold_start, hold_end, start + n)
+            PointAttempt(
+                index, record.freq_hz, 1e3 * record.amplitude_m, start, hold_start, hold_end, start + n
+            )
         )
 
 
@@ -71,7 +74,7 @@ def stored(tmp_path_factory):
             sample_rate_hz=hammer.sample_rate_hz,
         )
         run.append(hammer.channels)
-        run.add_point(PointRow(0, math.nan, math.nan, 0, 0, run.samples, run.samples))
+        run.add_point(PointAttempt(0, math.nan, math.nan, 0, 0, run.samples, run.samples))
         run.finish("complete")
     return path, free_run, hammer
 

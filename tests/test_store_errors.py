@@ -126,7 +126,7 @@ def test_a_file_written_by_another_writer_gives_its_records(tmp_path):
     [
         ({"schema": "nexus"}, "/@schema", "is 'nexus', not a 'wfs-bench campaign' file"),
         ({"schema": None}, "/@schema", "is None"),
-        ({"schema_version": 2}, "/@schema_version", "is 2; this software reads version 1"),
+        ({"schema_version": 3}, "/@schema_version", "is 3; this software reads versions 1 and 2"),
         ({"schema_version": "1"}, "/@schema_version", "must be a number"),
         ({"sequence_name": None}, "/@sequence_name", "missing attribute"),
         ({"step": "{type: grid"}, "/runs/a@step", "not valid JSON"),

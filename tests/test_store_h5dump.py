@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.store import CampaignWriter, PointRow
+from bench.store import CampaignWriter
 from sequences.channels import Channel, Role
+from sequences.points import PointAttempt
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "hdf5.md"
 H5DUMP = shutil.which("h5dump")
@@ -174,7 +175,7 @@ def dumped(tmp_path_factory) -> dict[str, DumpedObject]:
             "status": np.zeros(n, dtype=np.uint16),
         }
     )
-    run.add_point(PointRow(0, 5.0, 1.0, 0, 100, 1900, 2000))
+    run.add_point(PointAttempt(0, 5.0, 1.0, 0, 100, 1900, 2000))
     run.add_event("state", "running")
     run.set_link_counters({"frames_ok": n, "gaps": 0})
     run.finish("complete")
@@ -208,5 +209,5 @@ def test_parser_reads_what_it_is_checked_on(dumped):
     )
     assert dumped["/@schema_version"] == DumpedObject("attribute", "i8", "scalar")
     assert dumped["/runs/001/results/free_run/fit/freqs_hz"].dtype == "f8"
-    assert dumped["/runs/001/points"].dtype.startswith("compound(index:i4 freq_hz:f8")
+    assert dumped["/runs/001/points"].dtype.startswith("compound(index:i8 freq_hz:f8")
     assert len(dumped) > 40

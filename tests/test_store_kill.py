@@ -24,8 +24,9 @@ ROOT = Path(__file__).resolve().parents[1]
 if __name__ == "__main__":
     sys.path.insert(0, str(ROOT))
 
-from bench.store import CampaignWriter, PointRow, open_campaign  # noqa: E402
+from bench.store import CampaignWriter, open_campaign  # noqa: E402
 from sequences.channels import Channel  # noqa: E402
+from sequences.points import PointAttempt  # noqa: E402
 
 FS_HZ = 1000.0
 BLOCK = 100  # samples per block: 0.1 s at 1 kHz, as the WFS reader delivers them
@@ -90,7 +91,9 @@ def write_until_killed(path: Path) -> None:
             report(f"event {run.samples}")
         if run.samples % POINT == 0:
             index = run.samples // POINT - 1
-            run.add_point(PointRow(index, 10.0, 1.0, start + BLOCK - POINT, start - 800, start, run.samples))
+            run.add_point(
+                PointAttempt(index, 10.0, 1.0, start + BLOCK - POINT, start - 800, start, run.samples)
+            )
             report(f"done {index}")
 
 
@@ -164,7 +167,7 @@ def test_killed_writer_leaves_a_readable_file_short_of_at_most_one_second(tmp_pa
         run = writer.continue_run("001-grid")
         start = run.samples
         run.append(expected(start, POINT))
-        run.add_point(PointRow(next_index, 10.0, 1.0, start, start + 100, start + POINT, start + POINT))
+        run.add_point(PointAttempt(next_index, 10.0, 1.0, start, start + 100, start + POINT, start + POINT))
         run.finish("complete")
     with open_campaign(path) as campaign:
         (run,) = campaign.runs

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from bench.analysis.records import WHEEL_CHANNELS, fit_dwell_record
-from bench.store import CampaignWriter, PointRow, StoreError, open_campaign
+from bench.store import CampaignWriter, StoreError, open_campaign
 from bench.store.schema import SCHEMA_NAME, SCHEMA_VERSION
 from sequences.channels import Channel
+from sequences.points import PointAttempt
 
 FS_HZ = 1000.0
 CHANNELS = (
@@ -59,7 +60,7 @@ def _write_grid(writer: CampaignWriter, run_id: str = "001-grid", *, block: int 
         for i in range(0, len(columns["sample"]), block):
             run.append({k: v[i : i + block] for k, v in columns.items()})
         n_taper = round(TAPER_S * FS_HZ)
-        row = PointRow(
+        row = PointAttempt(
             index=index,
             freq_hz=f,
             amplitude_mm=a,
@@ -68,7 +69,7 @@ def _write_grid(writer: CampaignWriter, run_id: str = "001-grid", *, block: int 
             hold_end_sample=run.samples - n_taper,
             end_sample=run.samples,
             requested_amplitude_mm=a,
-            corrected_amplitude_mm=a * 1.01,
+            commanded_amplitude_mm=a * 1.01,
             achieved_amplitude_mm=a * 0.99,
             note=f"dwell {index}",
             verdict="target",
@@ -188,7 +189,7 @@ def test_unfinished_run_reads_incomplete_and_continues_with_each_point_once(camp
     )
     first = _dwell_block(0, *DWELLS[0])
     run.append(first)
-    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     run.append(_dwell_block(3000, *DWELLS[1]) | {})  # point 1 interrupted before it was marked done
     writer.close()  # the writer stops without finish()
 
@@ -204,9 +205,9 @@ def test_unfinished_run_reads_incomplete_and_continues_with_each_point_once(camp
     run = writer.continue_run("001-grid")
     assert run.samples == 6000
     with pytest.raises(StoreError, match="point 0 is done already"):
-        run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+        run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     run.append(_dwell_block(6000, *DWELLS[1]))
-    run.add_point(PointRow(1, 12.5, 2.0, 6000, 6500, 8500, 9000, attempt=2))
+    run.add_point(PointAttempt(1, 12.5, 2.0, 6000, 6500, 8500, 9000, attempt=2))
     run.finish("complete")
     writer.close()
 
@@ -225,7 +226,7 @@ def test_a_run_that_ended_early_continues_and_keeps_how_it_had_ended(campaign):
         "001-grid", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ
     )
     run.append(_dwell_block(0, *DWELLS[0]))
-    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     run.finish("aborted", "aborted by the operator")  # Ctrl-C: a tapered stop, the run marked
     writer.close()
 
@@ -234,7 +235,7 @@ def test_a_run_that_ended_early_continues_and_keeps_how_it_had_ended(campaign):
     with open_campaign(path) as f:  # open again until it finishes
         assert (f.runs[0].status, f.runs[0].reason, f.runs[0].finished) == ("incomplete", "", "")
     run.append(_dwell_block(3000, *DWELLS[1]))
-    run.add_point(PointRow(1, 12.5, 2.0, 3000, 3500, 5500, 6000))
+    run.add_point(PointAttempt(1, 12.5, 2.0, 3000, 3500, 5500, 6000))
     run.finish("complete")
     with pytest.raises(StoreError, match="is complete; only a run that did not complete can be resumed"):
         writer.continue_run("001-grid")
@@ -261,7 +262,7 @@ def test_a_new_run_resumes_an_incomplete_one_without_repeating_its_points(campai
         "001-grid", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ
     )
     run.append(_dwell_block(0, *DWELLS[0]))
-    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     writer.close()
 
     writer = CampaignWriter.open_append(path)
@@ -276,9 +277,9 @@ def test_a_new_run_resumes_an_incomplete_one_without_repeating_its_points(campai
     )
     with pytest.raises(StoreError, match="point 0 is done already"):
         run.append(_dwell_block(0, *DWELLS[0]))
-        run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+        run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     run.append(_dwell_block(3000, *DWELLS[1]))
-    run.add_point(PointRow(1, 12.5, 2.0, 3000, 3500, 5500, 6000))
+    run.add_point(PointAttempt(1, 12.5, 2.0, 3000, 3500, 5500, 6000))
     run.finish("complete")
     with pytest.raises(StoreError, match="resumed already"):
         writer.continue_run("001-grid")
@@ -312,7 +313,7 @@ def test_writer_refuses_bad_blocks_and_rows_naming_the_place(campaign):
     with pytest.raises(
         StoreError, match=r"/runs/r1/points: point 0: samples start 0 .* recorded 3000 do not hold"
     ):
-        run.add_point(PointRow(0, 5.0, 1.0, 0, 10, 20, 3001))
+        run.add_point(PointAttempt(0, 5.0, 1.0, 0, 10, 20, 3001))
     with pytest.raises(StoreError, match="still being written"):
         writer.begin_run("r2", kind="sweep", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ)
     run.finish("aborted", "operator abort")
@@ -339,7 +340,7 @@ def test_sweep_and_hammer_records_take_their_point_and_step(campaign):
     )
     run.append(_dwell_block(0, 1.0, 2.0))
     run.append(_dwell_block(3000, 1.0, 2.0))
-    run.add_point(PointRow(0, math.nan, 2.0, 1000, 1000, 4000, 4000))
+    run.add_point(PointAttempt(0, math.nan, 2.0, 1000, 1000, 4000, 4000))
     run.finish("complete")
     hammer_channels = (Channel("fz_wfs_n", "N"), Channel("f_hammer_n", "N"))
     run = writer.begin_run(
@@ -352,7 +353,7 @@ def test_sweep_and_hammer_records_take_their_point_and_step(campaign):
     )
     ring = np.exp(-np.arange(3000) / 300.0) * np.sin(2 * np.pi * 2200 * np.arange(3000) / 1e4)
     run.append({"fz_wfs_n": ring, "f_hammer_n": np.zeros(3000)})
-    run.add_point(PointRow(0, math.nan, math.nan, 0, 0, 3000, 3000))
+    run.add_point(PointAttempt(0, math.nan, math.nan, 0, 0, 3000, 3000))
     run.finish("complete")
     writer.close()
 
@@ -411,7 +412,7 @@ def test_flush_cadence_is_one_second_of_samples_or_of_wall_time(tmp_path):
     run.append({"z_base_m": np.zeros(1)})  # one second of samples: flushed
     assert run.durable_samples == 1000
     run.append({"z_base_m": np.zeros(10)})
-    run.add_point(PointRow(0, 1.0, 1.0, 0, 0, 1010, 1010))
+    run.add_point(PointAttempt(0, 1.0, 1.0, 0, 0, 1010, 1010))
     clock.now_s = 0.999
     assert not writer.flush_if_due()
     clock.now_s = 1.0  # one second of wall time: flushed, but a partial chunk waits for the run's end
@@ -439,7 +440,7 @@ def test_a_continued_run_that_resumes_another_keeps_the_whole_chain_once(campaig
         "a", kind="dwell_grid", step={}, conditions={}, channels=CHANNELS, sample_rate_hz=FS_HZ
     )
     run.append(_dwell_block(0, *DWELLS[0]))
-    run.add_point(PointRow(0, 5.0, 2.0, 0, 500, 2500, 3000))
+    run.add_point(PointAttempt(0, 5.0, 2.0, 0, 500, 2500, 3000))
     writer.close()
     with CampaignWriter.open_append(path) as writer:
         run = writer.begin_run(
@@ -452,14 +453,14 @@ def test_a_continued_run_that_resumes_another_keeps_the_whole_chain_once(campaig
             resumes="a",
         )
         run.append(_dwell_block(0, *DWELLS[1]))
-        run.add_point(PointRow(1, 12.5, 2.0, 0, 500, 2500, 3000))
+        run.add_point(PointAttempt(1, 12.5, 2.0, 0, 500, 2500, 3000))
     with CampaignWriter.open_append(path) as writer:
         run = writer.continue_run("b")
         run.append(_dwell_block(3000, *DWELLS[2]))
         for index in (0, 1):  # done in "a" and in "b" before the interruption
             with pytest.raises(StoreError, match=f"point {index} is done already"):
-                run.add_point(PointRow(index, 31.0, 1.0, 3000, 3500, 5500, 6000))
-        run.add_point(PointRow(2, 31.0, 1.0, 3000, 3500, 5500, 6000))
+                run.add_point(PointAttempt(index, 31.0, 1.0, 3000, 3500, 5500, 6000))
+        run.add_point(PointAttempt(2, 31.0, 1.0, 3000, 3500, 5500, 6000))
         run.finish("complete")
     with open_campaign(path) as f:
         assert f.run("b").completed_point_indices() == {0, 1, 2}

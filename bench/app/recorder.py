@@ -9,10 +9,8 @@ unrecorded.
 
 from __future__ import annotations
 
-import math
-
 from bench.engine import events as ev
-from bench.store import CampaignWriter, PointRow, RunWriter
+from bench.store import CampaignWriter, RunWriter
 
 
 class Recorder:
@@ -83,31 +81,7 @@ class Recorder:
         run.append({name: column[position:] for name, column in event.columns.items()})
 
     def _point(self, event: ev.PointDone) -> None:
-        commanded = event.commanded_amplitude_mm
-        self._open_run(event.run_id).add_point(
-            PointRow(
-                index=event.index,
-                freq_hz=event.freq_hz,
-                amplitude_mm=event.target_amplitude_mm,
-                start_sample=event.start_sample,
-                hold_start_sample=event.hold_start_sample,
-                hold_end_sample=event.hold_end_sample,
-                end_sample=event.end_sample,
-                status=event.status,
-                attempt=event.attempt,
-                requested_amplitude_mm=event.requested_amplitude_mm,
-                corrected_amplitude_mm=commanded if commanded != event.target_amplitude_mm else math.nan,
-                achieved_amplitude_mm=event.achieved_amplitude_mm,
-                settled=event.verdict != "not settled",
-                note=event.note,
-                verdict=event.verdict,
-                settle_s=event.settle_s,
-                measure_start_sample=event.measure_start_sample,
-                magnitude_uncertainty_pct=event.magnitude_uncertainty_pct,
-                phase_uncertainty_deg=event.phase_uncertainty_deg,
-                added_reason=event.added_reason,
-            )
-        )
+        self._open_run(event.run_id).add_point(event)  # the event is the point attempt the file records
 
     def _event(self, kind: str, text: str, **fields: object) -> None:
         """An event of the run being recorded, or of the campaign between runs."""

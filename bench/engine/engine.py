@@ -486,19 +486,18 @@ class Engine:
         its start on resume)."""
         self.bus.publish(
             ev.PointDone(
-                run_id,
                 0,
-                attempt,
-                status,
                 step.start_hz,
                 step.amplitude_mm,
-                step.amplitude_mm,
-                step.amplitude_mm,
-                float("nan"),
                 span.start,
                 span.hold_start,
                 span.hold_end,
                 span.end,
+                status=status,
+                attempt=attempt,
+                requested_amplitude_mm=step.amplitude_mm,
+                commanded_amplitude_mm=step.amplitude_mm,
+                run_id=run_id,
             )
         )
 
@@ -536,19 +535,7 @@ class Engine:
                 trigger = samples + capture.pre_trigger_samples
                 self.bus.publish(
                     ev.PointDone(
-                        run_id,
-                        blow,
-                        1,
-                        "done",
-                        0.0,
-                        0.0,
-                        0.0,
-                        0.0,
-                        float("nan"),
-                        samples,
-                        trigger,
-                        samples + n,
-                        samples + n,
+                        blow, 0.0, 0.0, samples, trigger, samples + n, samples + n, run_id=run_id
                     )
                 )
                 samples += n
@@ -664,22 +651,22 @@ class Engine:
             }
         self.bus.publish(
             ev.PointDone(
-                run.run_id,
                 point.index,
-                attempt,
-                status,
                 point.dwell.freq_hz,
                 point.dwell.amplitude_mm,
-                point.requested_mm,
-                command_mm,
-                achieved_mm,
                 span.start,
                 span.hold_start,
                 span.hold_end,
                 span.end,
-                note,
+                status=status,
+                attempt=attempt,
+                requested_amplitude_mm=point.requested_mm,
+                commanded_amplitude_mm=command_mm,
+                achieved_amplitude_mm=achieved_mm,
+                note=note,
                 added_reason=point.added_reason,
                 **adaptive,
+                run_id=run.run_id,
             )
         )
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from bench.engine.states import RunState, Trigger
 from sequences.channels import Channel
+from sequences.points import PointAttempt
 
 log = logging.getLogger(__name__)
 
@@ -78,37 +79,13 @@ class PointStarted:
     conditions: Mapping[str, Any]
 
 
-@dataclass(frozen=True)
-class PointDone:
-    """One attempt at a point ended. ``status``: "done" (kept), "repeated" (amplitude off: tried
-    again with a corrected command) or "interrupted" (a pause stopped it: repeated on resume).
-    Sample indices count this run's recorded frames (see :class:`bench.engine.points.ExcitationSpan`).
+@dataclass(frozen=True, slots=True)
+class PointDone(PointAttempt):
+    """One attempt at a point of run ``run_id`` ended: the :class:`~sequences.points.PointAttempt`
+    as the campaign file records it (its status "done", "repeated" or "interrupted"; sample indices
+    count this run's recorded frames, :class:`bench.engine.points.ExcitationSpan`)."""
 
-    An adaptive dwell (:mod:`bench.engine.online`) adds its ``verdict`` ("target", "max length" or
-    "not settled"; empty for fixed timing), the hold time when it settled (``settle_s``), the run
-    sample where its measured part begins (``measure_start_sample``, -1 when none), the FRF point's
-    standard uncertainties, and for a point the refinement added, why (``added_reason``)."""
-
-    run_id: str
-    index: int
-    attempt: int
-    status: str
-    freq_hz: float
-    target_amplitude_mm: float  # the step's amplitude (after any bench-limit crossover)
-    requested_amplitude_mm: float  # the grid's nominal amplitude
-    commanded_amplitude_mm: float  # sent in this attempt (differs from the target once corrected)
-    achieved_amplitude_mm: float  # on the displacement channel over the hold (NaN: not measured)
-    start_sample: int
-    hold_start_sample: int
-    hold_end_sample: int
-    end_sample: int
-    note: str = ""
-    verdict: str = ""
-    settle_s: float = float("nan")
-    measure_start_sample: int = -1
-    magnitude_uncertainty_pct: float = float("nan")
-    phase_uncertainty_deg: float = float("nan")
-    added_reason: str = ""
+    run_id: str = field(kw_only=True)
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ records. Names, versions and dtypes live in :mod:`bench.store.schema`.
 """
 
 from bench.store.reader import CampaignFile, Event, RunView, open_campaign
-from bench.store.schema import SCHEMA_NAME, SCHEMA_VERSION, PointRow, StoreError
+from bench.store.schema import SCHEMA_NAME, SCHEMA_VERSION, StoreError
 from bench.store.writer import CampaignWriter, RunWriter, add_results
 
 __all__ = [
@@ -15,7 +15,6 @@ __all__ = [
     "CampaignFile",
     "CampaignWriter",
     "Event",
-    "PointRow",
     "RunView",
     "RunWriter",
     "StoreError",

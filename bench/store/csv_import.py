@@ -35,9 +35,9 @@ from bench.store.csv_mapping import (
     SweepFile,
     mapping_error,
 )
-from bench.store.schema import PointRow
 from bench.store.writer import CampaignWriter
 from sequences.channels import Channel, role_of_standard_name
+from sequences.points import PointAttempt
 
 #: Largest deviation of one time step from the mean step, relative, before a time column is refused.
 TIME_STEP_TOLERANCE = 0.01
@@ -360,12 +360,12 @@ def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMappin
     writer.finish("complete")
 
 
-def _point(index: int, f: DwellFile | SweepFile, start: int, n: int, rate_hz: float) -> PointRow:
+def _point(index: int, f: DwellFile | SweepFile, start: int, n: int, rate_hz: float) -> PointAttempt:
     if isinstance(f, SweepFile):
-        return PointRow(0, f.start_hz, f.amplitude_mm, start, start, start + n, start + n)
+        return PointAttempt(0, f.start_hz, f.amplitude_mm, start, start, start + n, start + n)
     hold_start = start + round(f.hold_start_s * rate_hz)
     hold_end = start + (n if f.hold_end_s is None else round(f.hold_end_s * rate_hz))
-    return PointRow(
+    return PointAttempt(
         index,
         f.freq_hz,
         f.amplitude_mm,

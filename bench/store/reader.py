@@ -13,7 +13,7 @@ import math
 import re
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
@@ -32,8 +32,9 @@ from bench.analysis.records import (
 )
 from bench.store import schema as s
 from bench.store.results import read_tree
-from bench.store.schema import PointRow, StoreError
+from bench.store.schema import StoreError
 from sequences.channels import Channel, Role, standard_name
+from sequences.points import PointAttempt, Verdict
 
 #: Channels each kind of run needs for its analysis records.
 REQUIRED_CHANNELS = {
@@ -111,6 +112,26 @@ def _reading(path: Path, where: str) -> Iterator[None]:
         raise StoreError(path, where, f"unreadable ({err})") from err
 
 
+#: Python type of each :class:`PointAttempt` field, by its annotation.
+_FIELD_TYPES = {f.name: {"int": int, "float": float, "str": str}[f.type] for f in fields(PointAttempt)}
+
+
+def _point_values(row: np.void, names: tuple[str, ...]) -> dict[str, Any]:
+    """A points-table row as :class:`PointAttempt` fields; a version-1 row's ``corrected_amplitude_mm``
+    (NaN: the step's amplitude was sent) and ``settled`` are read as the command sent and the verdict."""
+    values: dict[str, Any] = {
+        name: _text(row[name]) if kind is str else kind(row[name])
+        for name, kind in _FIELD_TYPES.items()
+        if name in names
+    }
+    if "commanded_amplitude_mm" not in names:
+        corrected = float(row["corrected_amplitude_mm"])
+        values["commanded_amplitude_mm"] = corrected if math.isfinite(corrected) else values["amplitude_mm"]
+    if "settled" in names and not bool(row["settled"]) and not values.get("verdict"):
+        values["verdict"] = Verdict.NOT_SETTLED
+    return values
+
+
 def _channel_role(path: Path, dataset: h5py.Dataset) -> Role | None:
     """A channel's ``role`` attribute (files without it, written before roles were recorded, name
     their channels by the roles' standard names)."""
@@ -164,9 +185,10 @@ class CampaignFile:
             if schema != s.SCHEMA_NAME:
                 raise StoreError(path, "/@schema", f"is {schema!r}, not a {s.SCHEMA_NAME!r} file")
             version = _attr(path, file, "schema_version", int)
-            if version != s.SCHEMA_VERSION:
+            if version not in s.READABLE_VERSIONS:
+                readable = " and ".join(map(str, s.READABLE_VERSIONS))
                 raise StoreError(
-                    path, "/@schema_version", f"is {version}; this software reads version {s.SCHEMA_VERSION}"
+                    path, "/@schema_version", f"is {version}; this software reads versions {readable}"
                 )
             self.schema_version = version
             info = {name: _attr(path, file, name, str) for name in _ROOT_TEXT_ATTRS}
@@ -175,7 +197,7 @@ class CampaignFile:
             self.sequence_name, self.sequence_toml = info["sequence_name"], info["sequence_toml"]
             self.events = _read_events(path, _member(path, file, s.EVENTS, h5py.Dataset))
             runs = _member(path, file, s.RUNS, h5py.Group)
-            self.runs = tuple(RunView(path, runs[run_id], self.run) for run_id in runs)
+            self.runs = tuple(RunView(path, runs[run_id], self.run, version) for run_id in runs)
         self._by_id = {run.run_id: run for run in self.runs}
 
     def run(self, run_id: str) -> RunView:
@@ -237,7 +259,9 @@ def _analysis_name(spec: Channel) -> str:
 class RunView:
     """One checked run: attributes, channel specs, points, events; samples read on demand."""
 
-    def __init__(self, path: Path, group: h5py.Group, lookup: Callable[[str], RunView]) -> None:
+    def __init__(
+        self, path: Path, group: h5py.Group, lookup: Callable[[str], RunView], schema_version: int
+    ) -> None:
         self.path, self._lookup = path, lookup
         where = group.name
         self.run_id = where.rsplit("/", 1)[-1]
@@ -262,7 +286,8 @@ class RunView:
                 path, f"{where}/{s.CHANNELS}", f"channels of a finished run differ in length: {lengths}"
             )
         self.channels = _Channels(path, datasets, self.n_samples, self.channel_specs)
-        self.points = _read_points(path, _member(path, group, s.POINTS, h5py.Dataset), self.n_samples)
+        points = _member(path, group, s.POINTS, h5py.Dataset)
+        self.points = _read_points(path, points, self.n_samples, schema_version)
         self.events = _read_events(path, _member(path, group, s.EVENTS, h5py.Dataset))
         self.link_counters = {
             k: v.item() if isinstance(v, np.generic) else v
@@ -325,7 +350,7 @@ class RunView:
         them."""
         return frozenset(p.index for run in self._chain() for p in run.points if p.status == "done")
 
-    def _done_points(self) -> list[tuple[RunView, PointRow]]:
+    def _done_points(self) -> list[tuple[RunView, PointAttempt]]:
         done = [(run, p) for run in self._chain() for p in run.points if p.status == "done"]
         return sorted(done, key=lambda item: item[1].index)
 
@@ -363,7 +388,7 @@ class RunView:
             records.append(record)
         return records
 
-    def _single_point(self, index: int) -> tuple[RunView, PointRow]:
+    def _single_point(self, index: int) -> tuple[RunView, PointAttempt]:
         for run, p in self._done_points():
             if p.index == index:
                 return run, p
@@ -396,11 +421,9 @@ class RunView:
         return HammerRecord(run.sample_rate_hz, run.channels.slice(p.start_sample, p.end_sample))
 
 
-def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[PointRow, ...]:
+def _read_points(path: Path, table: h5py.Dataset, n_samples: int, version: int) -> tuple[PointAttempt, ...]:
     names = () if table.dtype.names is None else table.dtype.names
-    missing = [
-        name for name in s.POINT_DTYPE.names if name not in names and name not in s.OPTIONAL_POINT_FIELDS
-    ]
+    missing = [name for name in s.required_point_fields(version) if name not in names]
     if missing:
         raise StoreError(path, table.name, f"points table lacks field(s) {', '.join(missing)}")
     with _reading(path, table.name):
@@ -408,29 +431,7 @@ def _read_points(path: Path, table: h5py.Dataset, n_samples: int) -> tuple[Point
     points = []
     for i, row in enumerate(rows):
         where = f"{table.name}[{i}]"
-        optional = {
-            name: (_text(row[name]) if isinstance(default, str) else type(default)(row[name]))
-            if name in names
-            else default
-            for name, default in s.OPTIONAL_POINT_FIELDS.items()
-        }
-        p = PointRow(
-            index=int(row["index"]),
-            freq_hz=float(row["freq_hz"]),
-            amplitude_mm=float(row["amplitude_mm"]),
-            start_sample=int(row["start_sample"]),
-            hold_start_sample=int(row["hold_start_sample"]),
-            hold_end_sample=int(row["hold_end_sample"]),
-            end_sample=int(row["end_sample"]),
-            status=_text(row["status"]),
-            attempt=int(row["attempt"]),
-            requested_amplitude_mm=float(row["requested_amplitude_mm"]),
-            corrected_amplitude_mm=float(row["corrected_amplitude_mm"]),
-            achieved_amplitude_mm=float(row["achieved_amplitude_mm"]),
-            settled=bool(row["settled"]),
-            note=_text(row["note"]),
-            **optional,
-        )
+        p = PointAttempt(**_point_values(row, names))
         if p.status not in s.POINT_STATUSES:
             raise StoreError(path, f"{where}.status", f"{p.status!r} is not one of {s.POINT_STATUSES}")
         order = (p.start_sample, p.hold_start_sample, p.hold_end_sample, p.end_sample)

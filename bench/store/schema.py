@@ -10,15 +10,19 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
 
+from sequences.points import PointAttempt, PointStatus
+
 SCHEMA_NAME = "wfs-bench campaign"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+#: Versions the reader reads: 1 differs in two points-table columns (:data:`VERSION_1_POINT_FIELDS`).
+READABLE_VERSIONS = (1, 2)
 
 #: Oldest and newest HDF5 file-format versions the writer may use. The low bound 1.8 keeps the
 #: superblock at version 2, which has no "open for write" flag: a file whose writer was killed
@@ -52,36 +56,16 @@ FINISH_STATUSES = ("complete", "aborted", "interlocked", "e-stopped", "failed")
 #: Status of a run that was begun and not finished: running now, or its writer died.
 INCOMPLETE = "incomplete"
 CHANNEL_DTYPES = ("f4", "u4", "u2")
-POINT_STATUSES = ("done", "repeated", "interrupted", "aborted")
+POINT_STATUSES = tuple(PointStatus)
 
 _STR = h5py.string_dtype("utf-8")
 
-POINT_DTYPE = np.dtype(
-    [
-        ("index", "<i4"),
-        ("freq_hz", "<f8"),
-        ("amplitude_mm", "<f8"),
-        ("requested_amplitude_mm", "<f8"),
-        ("corrected_amplitude_mm", "<f8"),
-        ("achieved_amplitude_mm", "<f8"),
-        ("attempt", "<i4"),
-        ("start_sample", "<i8"),
-        ("hold_start_sample", "<i8"),
-        ("hold_end_sample", "<i8"),
-        ("end_sample", "<i8"),
-        ("status", _STR),
-        ("settled", "u1"),
-        ("note", _STR),
-        ("verdict", _STR),
-        ("settle_s", "<f8"),
-        ("measure_start_sample", "<i8"),
-        ("magnitude_uncertainty_pct", "<f8"),
-        ("phase_uncertainty_deg", "<f8"),
-        ("added_reason", _STR),
-    ]
-)
-#: Points-table fields of adaptive dwells, added after the first files were written: a reader takes
-#: a table without them, with these values.
+#: numpy type of a points-table column, by the type of the :class:`PointAttempt` field it holds.
+_COLUMN_TYPES = {"int": "<i8", "float": "<f8", "str": _STR}
+#: The points table: one column per field of :class:`~sequences.points.PointAttempt`, same names.
+POINT_DTYPE = np.dtype([(f.name, _COLUMN_TYPES[f.type]) for f in fields(PointAttempt)])
+#: Points-table fields of adaptive dwells, added to version-1 files after the first were written:
+#: a reader takes a version-1 table without them, with these values.
 OPTIONAL_POINT_FIELDS: dict[str, object] = {
     "verdict": "",
     "settle_s": math.nan,
@@ -90,6 +74,18 @@ OPTIONAL_POINT_FIELDS: dict[str, object] = {
     "phase_uncertainty_deg": math.nan,
     "added_reason": "",
 }
+#: Version 1 stored ``corrected_amplitude_mm`` (NaN when the command was the step's amplitude) and
+#: ``settled`` where version 2 stores ``commanded_amplitude_mm`` and the verdict alone.
+VERSION_1_POINT_FIELDS = ("corrected_amplitude_mm", "settled")
+
+
+def required_point_fields(version: int) -> tuple[str, ...]:
+    """The columns a points table of schema ``version`` must have."""
+    if version >= 2:
+        return POINT_DTYPE.names
+    kept = (n for n in POINT_DTYPE.names if n not in OPTIONAL_POINT_FIELDS and n != "commanded_amplitude_mm")
+    return (*kept, *VERSION_1_POINT_FIELDS)
+
 
 EVENT_DTYPE = np.dtype(
     [("time_unix_s", "<f8"), ("sample", "<i8"), ("kind", _STR), ("text", _STR), ("fields", _STR)]
@@ -103,44 +99,6 @@ class StoreError(ValueError):
     def __init__(self, path: str | Path, where: str, message: str) -> None:
         self.path, self.where, self.message = str(path), where, message
         super().__init__(f"{self.path}: {where}: {message}" if where else f"{self.path}: {message}")
-
-
-@dataclass(frozen=True, slots=True)
-class PointRow:
-    """One attempt at one point of a run (a dwell, a sweep, a hammer blow): a row of ``points``.
-
-    ``index`` is the point's position in its step (the n-th dwell of a grid); a point repeated by
-    the amplitude control or by a pause has one row per ``attempt``, the last one ``"done"``.
-    ``amplitude_mm`` is the step's amplitude as the sequence commands it, ``requested_amplitude_mm``
-    the grid's nominal amplitude when a bench limit lowered it, ``corrected_amplitude_mm`` what the
-    amplitude control sent instead, ``achieved_amplitude_mm`` what the displacement channel showed
-    (NaN when not applicable). Sample positions index this run's recorded arrays:
-    ``start_sample <= hold_start_sample <= hold_end_sample <= end_sample`` (end exclusive).
-    An adaptive dwell adds its ``verdict``, ``settle_s`` (hold time when it settled),
-    ``measure_start_sample`` (where its measured part begins, within the hold; -1 when none), the FRF
-    point's standard uncertainties and, for a point the refinement added, ``added_reason``.
-    """
-
-    index: int
-    freq_hz: float
-    amplitude_mm: float
-    start_sample: int
-    hold_start_sample: int
-    hold_end_sample: int
-    end_sample: int
-    status: str = "done"
-    attempt: int = 1
-    requested_amplitude_mm: float = math.nan
-    corrected_amplitude_mm: float = math.nan
-    achieved_amplitude_mm: float = math.nan
-    settled: bool = True
-    note: str = ""
-    verdict: str = ""
-    settle_s: float = math.nan
-    measure_start_sample: int = -1
-    magnitude_uncertainty_pct: float = math.nan
-    phase_uncertainty_deg: float = math.nan
-    added_reason: str = ""
 
 
 def to_json(value: Mapping[str, Any], *, path: str | Path, where: str) -> str:

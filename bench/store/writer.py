@@ -42,8 +42,9 @@ from h5py import h5s, h5t, h5z
 from bench.store import schema as s
 from bench.store.reader import open_campaign
 from bench.store.results import as_mapping, write_tree
-from bench.store.schema import PointRow, StoreError
+from bench.store.schema import StoreError
 from sequences.channels import Channel
+from sequences.points import PointAttempt
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
 
@@ -120,7 +121,14 @@ class CampaignWriter:
         """Reopen a campaign file to resume it; the file is checked by the reader first, so a file
         that does not follow the schema is refused before anything is written to it."""
         path = Path(path)
-        open_campaign(path).close()
+        with open_campaign(path) as campaign:
+            if campaign.schema_version != s.SCHEMA_VERSION:
+                raise StoreError(
+                    path,
+                    "/@schema_version",
+                    f"is {campaign.schema_version}: this software adds runs to version {s.SCHEMA_VERSION}"
+                    " files only (it reads the file; record into a new campaign file)",
+                )
         try:
             file = h5py.File(path, "r+")
         except OSError as err:
@@ -392,7 +400,7 @@ class RunWriter:
         self._samples += n
         self._campaign.flush_if_due()
 
-    def add_point(self, row: PointRow) -> None:
+    def add_point(self, row: PointAttempt) -> None:
         """Add one row to the points table. A point index can be ``"done"`` once only in a step
         (this run and the runs it resumes); its sample positions must lie in what was recorded.
         The row goes to the file with the flush that writes its last sample, never before."""

@@ -166,7 +166,7 @@ class RunPane(Vertical):
             str(event.index),
             f"{event.freq_hz:g}",
             event.status,
-            f"{event.target_amplitude_mm:.3f}",
+            f"{event.amplitude_mm:.3f}",
             f"{event.commanded_amplitude_mm:.3f}",
             achieved,
             event.added_reason,

@@ -107,7 +107,7 @@ def test_amplitude_control_corrects_a_servo_that_falls_short_and_records_every_a
     assert at_10[0].achieved_amplitude_mm == pytest.approx(1.8, rel=1e-3)
     assert at_10[1].commanded_amplitude_mm == pytest.approx(2.0 / 0.9, rel=1e-3)
     assert at_10[1].achieved_amplitude_mm == pytest.approx(2.0, rel=0.02)
-    assert all(p.target_amplitude_mm == 2.0 for p in at_10)
+    assert all(p.amplitude_mm == 2.0 for p in at_10)
 
 
 def test_a_pause_interrupts_the_point_which_is_repeated_on_resume():

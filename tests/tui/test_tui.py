@@ -382,7 +382,20 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
         app.post_message(SessionMessage(ev.SequenceStarted("adaptive", "", "", 9, 60.0)))
         app.post_message(SessionMessage(ev.GridRefined(run_id, 2.0, ((40.8, "model peak"),))))
         done = ev.PointDone(
-            run_id, 9, 1, "done", 40.8, 2.0, 2.0, 2.0, 2.0, 0, 100, 900, 1000, added_reason="model peak"
+            9,
+            40.8,
+            2.0,
+            0,
+            100,
+            900,
+            1000,
+            status="done",
+            attempt=1,
+            requested_amplitude_mm=2.0,
+            commanded_amplitude_mm=2.0,
+            achieved_amplitude_mm=2.0,
+            added_reason="model peak",
+            run_id=run_id,
         )
         app.post_message(SessionMessage(done))
         await pilot.press("f4")
@@ -495,7 +508,6 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
 
 
-
 async def test_a_file_that_is_no_campaign_file_is_named_once(tmp_path: Path) -> None:
     out = tmp_path / "not.h5"
     out.write_text("not HDF5\n")
@@ -565,8 +577,6 @@ async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenc
             "smoke-s010-sweep": "complete",
         }
         assert campaign.run("smoke-s003-free_run").completed_point_indices() == {0, 1, 2}
-
-
 
 
 async def test_g_into_a_file_that_is_no_campaign_file_says_so_and_starts_nothing(tmp_path: Path) -> None:
