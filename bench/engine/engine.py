@@ -888,13 +888,23 @@ class _RunRecording:
                 e.sample_rate_hz,
             )
         )
+        try:
+            self._start_stream()
+        except BaseException as exc:  # the run began: it ends too, with the sequence's ending
+            if self._subscription is not None:
+                self._subscription.close()
+            e._run_finished(self.run_id, e._run_ended(exc))
+            raise
+        return self
+
+    def _start_stream(self) -> None:
+        e = self.engine
         if e.tare == "before_each_run":
             e.acquisition.tare()
         backlog = max(1, round(e.timing.backlog_s * e.sample_rate_hz))
         self._subscription = e.acquisition.subscribe(lossless=True, max_frames=backlog)
         e.acquisition.start_stream()
         self._last_frame_s = e._clock()
-        return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
         """End the run: the sequence's ending first, if the run did not complete (the actuator
