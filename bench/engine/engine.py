@@ -163,7 +163,7 @@ class RunStoppedError(Exception):
 
 
 #: What ends a sequence without being a crash: raised on by :meth:`Engine.run` only when it is not one.
-ENDING_ERRORS = (RunStoppedError, LimitError, LinkError)
+_ENDING_ERRORS = (RunStoppedError, LimitError, LinkError)
 #: The endings that stop the actuator with a taper first (the end of the sequence left it at rest,
 #: and an e-stop has gone to the controller already).
 _STOPS_ACTUATOR = frozenset({Trigger.STOPPED, Trigger.INTERLOCK, Trigger.FAIL})
@@ -307,10 +307,10 @@ class Engine:
 
     def reset(self) -> None:
         """Release an interlock, an e-stop or a failed sequence once the cause is cleared. Returns
-        once the controller
-        has come to rest at hydraulics low: out of an e-stop it tapers first and refuses commands
-        meanwhile (its status is read every ``status_period_s``). A controller still moving after
-        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was.
+        once the controller has come to rest at hydraulics low: out of an e-stop it tapers first and
+        refuses commands meanwhile (its status is read every ``status_period_s``). A controller
+        still moving after ``reset_timeout_s`` raises TimeoutError and leaves the engine where it
+        was.
 
         The controller is sent its reset when it holds an interlock or e-stop of its own, or when
         its link was lost (the reset reconnects). A stop the engine made alone (its own interlock,
@@ -348,12 +348,13 @@ class Engine:
         aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
         says how and why. A crash (or Ctrl-C) still stops the actuator and ends the sequence
         ``failed``, then is raised on."""
-        self.conditions = {"bench": self.bench_kind}
-        self._abort_reason = ABORT_REASON
-        self._outcome = None
-        self._sequence_thread = threading.get_ident()
+        if self._sequence_thread is not None:
+            raise TransitionRefusedError(f"start is not allowed while {self.state.value}: a sequence runs")
+        self._sequence_thread = threading.get_ident()  # before the start: its change is published here
         try:
             self._fire(Trigger.START)
+            self.conditions = {"bench": self.bench_kind}
+            self._outcome = None
             self.bus.publish(
                 ev.SequenceStarted(
                     sequence.name,
@@ -368,12 +369,13 @@ class Engine:
                 self._execute_all(sequence, resume)
             except BaseException as exc:
                 outcome = self._sequence_finished(self._end(exc))
-                if not isinstance(exc, ENDING_ERRORS):
+                if not isinstance(exc, _ENDING_ERRORS):
                     raise
                 return outcome
             return self._sequence_finished(self._end(None))
         finally:
             self._sequence_thread = None
+            self._abort_reason = ABORT_REASON
             self._publish_changes()  # what another thread requested after the loop last looked
 
     def _execute_all(self, sequence: Sequence, resume: ResumePlan | None) -> None:
