@@ -26,18 +26,18 @@ COLUMNS = (
     "finish",
 )
 TABLE = """
-idle         idle  low   -     run   -      -      -     -     -     estop -     -     -     -
-low          idle  low   high  run   -      -      -     -     -     estop -     -     -     -
-high         idle  low   high  run   -      -      -     -     -     estop -     -     -     -
-running      -     -     -     -     pausing -     -     abort -     estop ilock failed -    done
-pausing      -     -     -     -     -      paused run   abort -     estop ilock failed -    done
-paused       -     -     -     -     -      -      run   abort -     estop ilock failed -    -
-aborting     -     -     -     -     -      -      -     -     ended estop ilock failed -    done
-aborted      idle  low   high  run   -      -      -     -     -     estop -     -     -     -
-estopped     -     -     -     -     -      -      -     -     -     estop -     -     low   -
-interlocked  -     -     -     -     -      -      -     -     -     estop -     -     low   -
-failed       -     -     -     -     -      -      -     -     -     estop -     -     low   -
-finished     idle  low   high  run   -      -      -     -     -     estop -     -     -     -
+idle         idle  low  -     run  -        -       -    -         -        estop  -      -       -    -
+low          idle  low  high  run  -        -       -    -         -        estop  -      -       -    -
+high         idle  low  high  run  -        -       -    -         -        estop  -      -       -    -
+running      -     -    -     -    pausing  -       -    aborting  -        estop  ilock  failed  -    done
+pausing      -     -    -     -    -        paused  run  aborting  -        estop  ilock  failed  -    done
+paused       -     -    -     -    -        -       run  aborting  -        estop  ilock  failed  -    -
+aborting     -     -    -     -    -        -       -    -         aborted  estop  ilock  failed  -    done
+aborted      idle  low  high  run  -        -       -    -         -        estop  -      -       -    -
+estopped     -     -    -     -    -        -       -    -         -        estop  -      -       low  -
+interlocked  -     -    -     -    -        -       -    -         -        estop  -      -       low  -
+failed       -     -    -     -    -        -       -    -         -        estop  -      -       low  -
+finished     idle  low  high  run  -        -       -    -         -        estop  -      -       -    -
 """
 NAMES = {
     "idle": RunState.IDLE,
@@ -47,9 +47,7 @@ NAMES = {
     "running": RunState.RUNNING,
     "pausing": RunState.PAUSING,
     "paused": RunState.PAUSED,
-    "abort": RunState.ABORTING,
     "aborting": RunState.ABORTING,
-    "ended": RunState.ABORTED,
     "aborted": RunState.ABORTED,
     "estop": RunState.ESTOPPED,
     "estopped": RunState.ESTOPPED,
