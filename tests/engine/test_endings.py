@@ -7,10 +7,16 @@ reason, that every state change went through the table and was published, and th
 left where a reset (for an e-stop, an interlock or a failure) and then a new run are allowed: the
 same sequence, its cause cleared, runs again to its end.
 
-The moment is the same for every ending of a kind: the third block of frames of the step's first
-excitation; for the hammer test, the arming of its first capture (the strike prompt follows, the
-second blow's checkpoint then acts); for a prompt, its answer; for a hydraulics or tare step, its
-command. Combinations left out, and why, are in :data:`EXCLUDED`.
+A request (pause, abort, e-stop) or a fault behind an interlock comes at the same moment for every
+ending of a kind: the third block of frames of the step's first excitation; for the hammer test,
+the arming of its first capture (the strike prompt follows, the second blow's checkpoint then
+acts); for a prompt, its answer; for a hydraulics or tare step, its command. A failing command is
+due at a given call of it (the second point's START of a grid: mid-step), and the soft limits
+refuse the steps' 3 mm points (a grid's second amplitude: mid-step). Combinations left out, and
+why, are in :data:`EXCLUDED`. The cases run on the test's thread, in the engine's order, with a
+counting clock: no sleep, no wall time. The two tests at the end make requests from other threads:
+the pause and resume each waited for; the e-stop coming before or while the engine waits paused,
+which ends the sequence alike.
 """
 
 from __future__ import annotations
