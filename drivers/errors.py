@@ -1,7 +1,8 @@
-"""The typed errors of the hardware links.
+"""The typed errors of the hardware links, and the soft limits' refusal.
 
-Every failure a caller may want to react to differently has its own class: a limit violation
-(nothing was sent), a timeout, a device exception reply, a lost connection, a protocol mismatch, a
+Every failure a caller may want to react to differently has its own class: a setpoint outside the
+soft limits (:class:`LimitError`: nothing was sent; a refusal, not a fault of a link), and under
+:class:`LinkError` a timeout, a device exception reply, a lost connection, a protocol mismatch, a
 malformed register map or command reply.
 """
 
@@ -9,15 +10,18 @@ from __future__ import annotations
 
 
 class LinkError(Exception):
-    """Base of every error raised by the drivers."""
+    """Base of every error of a link to a device (every driver error but :class:`LimitError`)."""
 
 
 class RegisterMapError(LinkError):
     """A register-map file is malformed; the message names the file and the key."""
 
 
-class LimitError(LinkError, ValueError):
-    """A setpoint lies outside the bench's soft limits; nothing was written."""
+class LimitError(ValueError):
+    """A setpoint lies outside the bench's soft limits; nothing was written.
+
+    A refusal of the software's own, not a fault of a link: it is no :class:`LinkError`, so that a
+    caller reports it as the refusal it is."""
 
 
 class LinkTimeoutError(LinkError, TimeoutError):

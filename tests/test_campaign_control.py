@@ -39,7 +39,8 @@ def test_pause_mid_point_repeats_the_point_on_resume_and_loses_or_doubles_none(t
     assert outcome.status == "complete", outcome.reason
     assert hook.injection is not None
     states = [(e.old, e.new) for e in campaign.of(ev.StateChanged)]
-    assert (RunState.RUNNING, RunState.PAUSED) in states and (RunState.PAUSED, RunState.RUNNING) in states
+    assert (RunState.RUNNING, RunState.PAUSING) in states and (RunState.PAUSING, RunState.PAUSED) in states
+    assert (RunState.PAUSED, RunState.RUNNING) in states
 
     with open_campaign(path) as f:
         (run,) = f.runs

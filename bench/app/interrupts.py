@@ -5,12 +5,12 @@ second asks for an e-stop.
 SIGINT (Ctrl-C), SIGTERM (``kill``, a service manager stopping the command) and SIGHUP (the terminal
 or its tmux session closed) are handled alike, so that no signal leaves the actuator running until
 the controller's watchdog trips. The handler never raises into the engine's loop while it runs: it
-only sets the engine's requests, which the loop honours at once (an excitation under way is tapered
+only makes the engine's requests, which the loop honours at once (an excitation under way is tapered
 out). Two exceptions: before the engine exists nothing moves yet, so the signal ends the command as
 Python's KeyboardInterrupt would; and while a terminal read of a prompt's answer blocks
 (:meth:`RunInterrupts.interruptible`), the signal is taken as no answer, which aborts the sequence
-the same way. The e-stop is sent from a thread of its own, since the handler runs on the engine's
-thread, which may be inside a state change. After a hang-up the terminal is gone: standard output
+the same way. Both requests are made from a thread of their own, since the handler runs on the
+engine's thread, which may be inside a state change. After a hang-up the terminal is gone: standard output
 and error, where they were that terminal, are sent to ``/dev/null`` so that the run's last lines
 cannot fail it.
 """
@@ -46,6 +46,7 @@ class RunInterrupts:
         self.engine: Engine | None = None
         self.count = 0
         self._reading = False
+        self._abort_thread: threading.Thread | None = None
         self._estop_thread: threading.Thread | None = None
         self._previous: dict[signal.Signals, object] = {}
 
@@ -72,8 +73,9 @@ class RunInterrupts:
     def __exit__(self, *exc: object) -> None:
         for signum, previous in self._previous.items():
             signal.signal(signum, previous)
-        if self._estop_thread is not None:
-            self._estop_thread.join(10.0)
+        for thread in (self._abort_thread, self._estop_thread):
+            if thread is not None:
+                thread.join(10.0)
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
@@ -85,7 +87,10 @@ class RunInterrupts:
         again = "Ctrl-C" if signum == signal.SIGINT else "a second signal"
         if self.count == 1:
             tell(f"{word}: stopping with a taper, the run marked aborted ({again} again: e-stop)")
-            self.engine.request_abort(reason)
+            self._abort_thread = threading.Thread(
+                target=self.engine.request_abort, args=(reason,), name="signal-abort"
+            )
+            self._abort_thread.start()
             if self._reading:
                 raise AnswerError(f"{word} while waiting for the answer")
         elif self._estop_thread is None:

@@ -6,19 +6,22 @@ grid is one *point*. A point is located in the acquisition's samples by the cont
 outputs (:mod:`bench.engine.points`), so lengths are counted in samples and the wall clock serves
 only timeouts and watchdogs. Between points lies the checkpoint where a pause takes effect.
 
-Requests come from other threads (front ends) and only set flags, except the e-stop, which is sent
-to the controller at once from the requesting thread. Everything the engine does is published as an
-event; storage, analysis and displays are subscribers.
+Requests come from other threads (front ends) and fire their transition at once: a pause or an
+abort request is a state of the table (pausing, aborting) until the loop has acted on it, and the
+e-stop is also sent to the controller from the requesting thread. The loop reads the state, never a
+flag of its own. However a sequence ends, :meth:`Engine._end` ends it. Everything the engine does is
+published as an event; storage, analysis and displays are subscribers.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Self
 
 import numpy as np
 
@@ -32,7 +35,7 @@ from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
-from drivers.errors import CommandRejectedError, LinkError
+from drivers.errors import CommandRejectedError, LimitError, LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
@@ -127,12 +130,67 @@ ABORT_REASON = "aborted by the operator"
 
 
 class RunStoppedError(Exception):
-    """The sequence cannot go on: ``state`` is the engine state it ended in, ``reason`` why."""
+    """The sequence cannot go on: ``trigger`` is the ending the transition table is to apply, ``reason``
+    why, ``interlock`` the event published once the table has applied an interlock. Raised where the
+    loop sees the cause; :meth:`Engine._end` applies it."""
 
-    def __init__(self, state: RunState, reason: str) -> None:
+    def __init__(self, trigger: Trigger, reason: str, interlock: ev.InterlockTripped | None = None) -> None:
         super().__init__(reason)
-        self.state = state
+        self.trigger = trigger
         self.reason = reason
+        self.interlock = interlock
+
+    @classmethod
+    def abort(cls, reason: str) -> Self:
+        """An abort: requested, or the engine's own (a declined prompt)."""
+        return cls(Trigger.STOPPED, reason)
+
+    @classmethod
+    def estop(cls) -> Self:
+        return cls(Trigger.ESTOP, "e-stop")
+
+    @classmethod
+    def interlock_tripped(cls, tripped: ev.InterlockTripped) -> Self:
+        return cls(Trigger.INTERLOCK, f"{tripped.name}: {tripped.reason}", tripped)
+
+    @classmethod
+    def fail(cls, reason: str) -> Self:
+        """A sequence the engine cannot run on this bench (an unsupported step, a missing channel)."""
+        return cls(Trigger.FAIL, reason)
+
+
+#: What ends a sequence without being a crash: raised on by :meth:`Engine.run` only when it is not one.
+_ENDING_ERRORS = (RunStoppedError, LimitError, LinkError)
+#: The endings that stop the actuator with a taper first (the end of the sequence left it at rest,
+#: and an e-stop has gone to the controller already).
+_STOPS_ACTUATOR = frozenset({Trigger.STOPPED, Trigger.INTERLOCK, Trigger.FAIL})
+
+
+@dataclass(frozen=True)
+class _Ending:
+    """The trigger that ends a sequence, why, and the interlock event to publish once applied."""
+
+    trigger: Trigger
+    reason: str
+    interlock: ev.InterlockTripped | None = None
+
+
+def _ending_of(error: BaseException | None) -> _Ending:
+    """How the sequence ends, from what stopped its loop: nothing (it ran to its end), a stop the
+    engine decided, a setpoint the soft limits refused (nothing was written), a command the
+    controller refused (its answer, "controller refused ..."), a fault of a link, or a crash."""
+    match error:
+        case None:
+            return _Ending(Trigger.FINISH, "")
+        case RunStoppedError():
+            return _Ending(error.trigger, error.reason, error.interlock)
+        case LimitError():
+            return _Ending(Trigger.FAIL, f"setpoint refused by the soft limits: {error}")
+        case CommandRejectedError():
+            return _Ending(Trigger.FAIL, str(error))
+        case LinkError():
+            return _Ending(Trigger.FAIL, f"link error: {error}")
+    return _Ending(Trigger.FAIL, f"{type(error).__name__}: {error}")
 
 
 @dataclass(frozen=True)
@@ -191,12 +249,11 @@ class Engine:
         self.tare = tare
         self.bench_kind = bench_kind
         self._clock = clock
-        self.machine = StateMachine(on_change=self._state_changed)
-        self._pause = threading.Event()
-        self._resume = threading.Event()
-        self._abort = threading.Event()
+        self.machine = StateMachine()
         self._abort_reason = ABORT_REASON
-        self._estop = threading.Event()
+        self._outcome: RunOutcome | None = None  # how the sequence under way ended, once it has
+        self._sequence_thread: int | None = None  # the thread running a sequence, while one runs
+        self._publishing = threading.Lock()
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -205,31 +262,33 @@ class Engine:
     def state(self) -> RunState:
         return self.machine.state
 
-    def request_pause(self) -> None:
-        """Pause at the next checkpoint; the point under way is stopped (tapered) and repeated."""
-        self._resume.clear()
-        self._pause.set()
+    # The requests return whether the table took them: a request the present state does not allow
+    # (a pause while nothing runs, a second abort) changes nothing, as a front end racing the end of
+    # a sequence expects.
 
-    def request_resume(self) -> None:
-        self._pause.clear()
-        self._resume.set()
+    def request_pause(self) -> bool:
+        """Pause: ``pausing`` until the point under way is stopped (tapered, to be repeated on
+        resume), then ``paused`` at the checkpoint."""
+        return self._request(Trigger.PAUSE)
 
-    def request_abort(self, reason: str = ABORT_REASON) -> None:
-        """Taper out and end the sequence as aborted, ``reason`` recorded with the run (who or what
-        asked: the operator, a signal); the data recorded so far is kept."""
+    def request_resume(self) -> bool:
+        """Go on from ``paused``, or withdraw a pause still ``pausing``."""
+        return self._request(Trigger.RESUME)
+
+    def request_abort(self, reason: str = ABORT_REASON) -> bool:
+        """Taper out and end the sequence as aborted (``aborting`` meanwhile), ``reason`` recorded
+        with the run (who or what asked: the operator, a signal); the data recorded so far is kept."""
+        if not self.machine.allows(Trigger.ABORT):
+            return False
         self._abort_reason = reason
-        self._abort.set()
-        self._resume.set()
+        return self._request(Trigger.ABORT)
 
     def request_estop(self) -> None:
-        """E-stop now: the controller is told from this thread, without waiting for the loop."""
-        self._estop.set()
-        self._resume.set()
-        try:
-            self.actuator.estop()
-        finally:
-            if self.machine.allows(Trigger.ESTOP):
-                self.machine.fire(Trigger.ESTOP)
+        """E-stop now: the table shows it first, then the controller is told from this thread,
+        without waiting for the loop. In that order, a controller the loop sees e-stopped is the
+        e-stop's doing, not an interlock."""
+        self._request(Trigger.ESTOP)
+        self.actuator.estop()
 
     def set_hydraulics(self, level: str) -> None:
         """Switch the hydraulics while no sequence runs (refused while one does)."""
@@ -241,13 +300,14 @@ class Engine:
         if not self.machine.allows(trigger):
             raise RuntimeError(f"hydraulics {level} is not allowed while {self.state.value}")
         self.actuator.set_hydraulics(level)
-        self.machine.fire(trigger)
+        self._fire(trigger)
 
     def reset(self) -> None:
-        """Release an interlock or e-stop once the cause is cleared. Returns once the controller
-        has come to rest at hydraulics low: out of an e-stop it tapers first and refuses commands
-        meanwhile (its status is read every ``status_period_s``). A controller still moving after
-        ``reset_timeout_s`` raises TimeoutError and leaves the engine where it was.
+        """Release an interlock, an e-stop or a failed sequence once the cause is cleared. Returns
+        once the controller has come to rest at hydraulics low: out of an e-stop it tapers first and
+        refuses commands meanwhile (its status is read every ``status_period_s``). A controller
+        still moving after ``reset_timeout_s`` raises TimeoutError and leaves the engine where it
+        was.
 
         The controller is sent its reset when it holds an interlock or e-stop of its own, or when
         its link was lost (the reset reconnects). A stop the engine made alone (its own interlock,
@@ -269,8 +329,7 @@ class Engine:
             time.sleep(self.timing.status_period_s)  # the controller tells no event: read it again
         if not needs_reset:
             self.actuator.set_hydraulics("low")
-        self._force_state(Trigger.RESET)  # a controller's own interlock may come while the engine rests
-        self._estop.clear()
+        self._request(Trigger.RESET)  # a controller's own interlock may come while the engine rests
 
     # -- the sequence -------------------------------------------------------------------------
 
@@ -282,46 +341,49 @@ class Engine:
         config_text: str = "",
         resume: ResumePlan | None = None,
     ) -> RunOutcome:
-        """Run ``sequence`` to its end or until stopped. Nothing a device raises escapes: it ends the
-        run, and the outcome says how and why."""
-        self._pause.clear()
-        self._abort.clear()
-        self._abort_reason = ABORT_REASON
-        self._estop.clear()
-        self.conditions = {"bench": self.bench_kind}
-        self.machine.fire(Trigger.START)
-        self.bus.publish(
-            ev.SequenceStarted(
-                sequence.name,
-                sequence_text,
-                config_text,
-                sequence.points(),
-                sequence.estimated_duration_s,
-                sequence.estimated_duration_with_operator_s,
-            )
-        )
-        status, reason = "complete", ""
+        """Run ``sequence`` to its end or until stopped (refused unless the engine is ready: at rest,
+        aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
+        says how and why. A crash (or Ctrl-C) still stops the actuator and ends the sequence
+        ``failed``, then is raised on."""
+        if self._sequence_thread is not None:
+            raise TransitionRefusedError(f"start is not allowed while {self.state.value}: a sequence runs")
+        self._sequence_thread = threading.get_ident()  # before the start: its change is published here
         try:
-            if self.tare == "once":
-                self.acquisition.tare()
-            for index in self._steps_to_run(sequence, resume):
-                self._execute(sequence, index, resume)
-            self.machine.fire(Trigger.FINISH)
-        except RunStoppedError as stop:
-            status, reason = RUN_STATUS.get(stop.state, "failed"), stop.reason
-        except LinkError as exc:
-            # a refused command is the controller's answer ("controller refused ..."), not a link fault
-            refused = isinstance(exc, CommandRejectedError)
-            status, reason = "failed", str(exc) if refused else f"link error: {exc}"
-            self._defensive_stop()
-            self._force_state(Trigger.INTERLOCK)
-        except BaseException as exc:  # a crash (or Ctrl-C) still stops the actuator and marks the end
-            self._defensive_stop()
-            self._force_state(Trigger.INTERLOCK)
-            self.bus.publish(ev.SequenceFinished("failed", f"{type(exc).__name__}: {exc}"))
-            raise
-        self.bus.publish(ev.SequenceFinished(status, reason))
-        return RunOutcome(status, reason)
+            self._fire(Trigger.START)
+            self.conditions = {"bench": self.bench_kind}
+            self._outcome = None
+            self.bus.publish(
+                ev.SequenceStarted(
+                    sequence.name,
+                    sequence_text,
+                    config_text,
+                    sequence.points(),
+                    sequence.estimated_duration_s,
+                    sequence.estimated_duration_with_operator_s,
+                )
+            )
+            try:
+                self._execute_all(sequence, resume)
+            except BaseException as exc:
+                outcome = self._sequence_finished(self._end(exc))
+                if not isinstance(exc, _ENDING_ERRORS):
+                    raise
+                return outcome
+            return self._sequence_finished(self._end(None))
+        finally:
+            self._sequence_thread = None
+            self._abort_reason = ABORT_REASON
+            self._publish_changes()  # what another thread requested after the loop last looked
+
+    def _execute_all(self, sequence: Sequence, resume: ResumePlan | None) -> None:
+        if self.tare == "once":
+            self.acquisition.tare()
+        for index in self._steps_to_run(sequence, resume):
+            self._execute(sequence, index, resume)
+
+    def _sequence_finished(self, outcome: RunOutcome) -> RunOutcome:
+        self.bus.publish(ev.SequenceFinished(outcome.status, outcome.reason))
+        return outcome
 
     def _steps_to_run(self, sequence: Sequence, resume: ResumePlan | None) -> list[int]:
         """Step indices to execute. On resume, a prompt and its steps up to the next prompt are
@@ -372,9 +434,7 @@ class Engine:
                 held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
                 self._measure(run_id, step, held)
         else:
-            raise RunStoppedError(
-                RunState.INTERLOCKED, f"step {index}: {type(step).__name__} is not supported"
-            )
+            raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
 
     def _measure(self, run_id: str, step: object, held: RecordedRun) -> None:
         if isinstance(step, Sweep):
@@ -390,10 +450,10 @@ class Engine:
         try:
             answer = self.operator.answer(prompt)
         except AnswerError as exc:
-            self._abort_now(f"no valid answer to prompt {prompt.id!r}: {exc}")
+            raise RunStoppedError.abort(f"no valid answer to prompt {prompt.id!r}: {exc}") from exc
         if prompt.answer == "confirm" and answer is False:
             self.bus.publish(ev.PromptAnswered(prompt.id, prompt.text, answer, prompt.unit))
-            self._abort_now(f"the operator declined: {prompt.text}")
+            raise RunStoppedError.abort(f"the operator declined: {prompt.text}")
         self.conditions[prompt.id] = answer
         if prompt.action in CONDITION_OF_ACTION:
             name, value = CONDITION_OF_ACTION[prompt.action]
@@ -425,10 +485,9 @@ class Engine:
             missing = [
                 name for name in (grid.adaptive.output, grid.adaptive.input) if not recorded.resolve(name)
             ]
-            raise RunStoppedError(
-                RunState.INTERLOCKED,
+            raise RunStoppedError.fail(
                 f"adaptive grid: the bench records no channel {', '.join(missing)}"
-                f" (it has {', '.join(recorded.names)})",
+                f" (it has {', '.join(recorded.names)})"
             )
         plan = replace(grid.adaptive, output=output, input=input_)
         coarse = len(grid.freqs_hz)
@@ -540,12 +599,11 @@ class Engine:
                 )
                 samples += n
         except BaseException as exc:
-            outcome = run_outcome(exc)
+            outcome = self._run_ended(exc)
             raise
         finally:
             if started:
-                counters = self.acquisition.link_counters()
-                self.bus.publish(ev.RunFinished(run_id, outcome.status, outcome.reason, counters))
+                self._run_finished(run_id, outcome)
 
     def _point(
         self,
@@ -673,40 +731,77 @@ class Engine:
     def _mean(self, step_mean_mm: float) -> float:
         return step_mean_mm or float(self.conditions.get("mean_mm", 0.0))
 
-    # -- checkpoints, stops -------------------------------------------------------------------
+    # -- checkpoints ----------------------------------------------------------------------------
 
     def _checkpoint(self) -> None:
-        """Between points: honour an e-stop, an abort or a pause request."""
-        if self._estop.is_set():
-            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
-        if self._abort.is_set():
-            self._abort_now()
-        if self._pause.is_set():
+        """Between points: an e-stop or an abort ends the sequence, a pause waits here."""
+        self._stop_if_requested()
+        if self.state is RunState.PAUSING:
             self._wait_paused()
 
-    def _wait_paused(self) -> None:
-        """At rest between points until resumed (or aborted / e-stopped)."""
-        if not self._pause.is_set():
-            return
-        self.machine.fire(Trigger.PAUSE)
-        self._resume.wait()
-        if self._estop.is_set():
-            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
-        if self._abort.is_set():
-            self._abort_now()
-        self.machine.fire(Trigger.RESUME)
+    def _stop_if_requested(self) -> None:
+        """End the sequence if the table shows it e-stopped or aborting (another thread's request)."""
+        self._publish_changes()
+        state = self.state
+        if state is RunState.ESTOPPED:
+            raise RunStoppedError.estop()
+        if state is RunState.ABORTING:
+            raise RunStoppedError.abort(self._abort_reason)
 
-    def _abort_now(self, reason: str | None = None) -> NoReturn:
-        """End the sequence as aborted, with a taper (``reason`` by default the requested abort's);
-        as e-stopped if an e-stop came first (an e-stop pressed while a prompt waited, say, and the
-        prompt then left unanswered)."""
-        reason = reason or self._abort_reason
-        if self._estop.is_set():
-            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
-        self._force_state(Trigger.ABORT)
-        self._defensive_stop()
-        self.machine.fire(Trigger.STOPPED)
-        raise RunStoppedError(RunState.ABORTED, reason)
+    def _wait_paused(self) -> None:
+        """At rest at the checkpoint until resumed; an abort or e-stop meanwhile ends the sequence.
+        A pause withdrawn before the checkpoint (resumed while pausing) goes straight on."""
+        if self._request(Trigger.CHECKPOINT):
+            self.machine.wait_while(RunState.PAUSED)
+        self._stop_if_requested()
+
+    # -- the ending -----------------------------------------------------------------------------
+
+    def _end(self, error: BaseException | None) -> RunOutcome:
+        """End the sequence under way: the one place that does. ``error`` is what stopped its loop
+        (None: it ran to its end). Stops the actuator with a taper unless nothing moves (the end
+        of the sequence) or the controller has its e-stop, fires the ending's trigger into the
+        table, and records the outcome: the status of the state the table lands in, and why. An
+        e-stop that came first ends the sequence e-stopped whatever stopped the loop.
+
+        Called again for the same sequence (a run that ends ends the sequence, which then reports
+        the same), it returns the outcome recorded."""
+        if self._outcome is not None:
+            return self._outcome
+        ending = _ending_of(error)
+        if ending.trigger in _STOPS_ACTUATOR:
+            self._defensive_stop()
+        state = self._apply_ending(ending.trigger)
+        outcome = RunOutcome(RUN_STATUS[state], "e-stop" if state is RunState.ESTOPPED else ending.reason)
+        self._outcome = outcome  # recorded before any subscriber runs: one that raises changes nothing
+        self._publish_changes()
+        if state is RunState.INTERLOCKED and ending.interlock is not None:
+            self.bus.publish(ending.interlock)
+        return outcome
+
+    def _apply_ending(self, trigger: Trigger) -> RunState:
+        """Fire the ending's ``trigger``; the state it leads to. An abort the engine decides itself
+        (a declined prompt) is fired as its request first. The table refuses an ending only when an
+        e-stop of another thread came first."""
+        if self.state is not RunState.ESTOPPED:
+            if trigger is Trigger.STOPPED:
+                with contextlib.suppress(TransitionRefusedError):  # refused: requested already
+                    self.machine.fire(Trigger.ABORT)
+            try:
+                return self.machine.fire(trigger)
+            except TransitionRefusedError:
+                if self.state is not RunState.ESTOPPED:
+                    raise
+        return RunState.ESTOPPED
+
+    def _run_ended(self, error: BaseException | None) -> RunOutcome:
+        """How a run (a measurement step) ended: complete, or the sequence's ending (a run that does
+        not complete ends the sequence)."""
+        return RunOutcome("complete") if error is None else self._end(error)
+
+    def _run_finished(self, run_id: str, outcome: RunOutcome) -> None:
+        counters = self.acquisition.link_counters()
+        self.bus.publish(ev.RunFinished(run_id, outcome.status, outcome.reason, counters))
 
     def _defensive_stop(self) -> None:
         """Taper the actuator out; a link error here is logged (the watchdog stops the controller)."""
@@ -715,21 +810,38 @@ class Engine:
         except LinkError as exc:
             log.warning("stop not confirmed (%s); the controller's watchdog tapers it out", exc)
 
-    def _force_state(self, trigger: Trigger) -> None:
-        if self.machine.allows(trigger):
-            self.machine.fire(trigger)
+    # -- the table ------------------------------------------------------------------------------
 
-    def _state_changed(self, old: RunState, new: RunState, trigger: Trigger) -> None:
-        self.bus.publish(ev.StateChanged(old, new, trigger))
+    def _fire(self, trigger: Trigger) -> RunState:
+        """Fire ``trigger`` (refused: TransitionRefusedError) and publish the change."""
+        new = self.machine.fire(trigger)
+        self._publish_changes()
+        return new
 
+    def _request(self, trigger: Trigger) -> bool:
+        """Fire ``trigger`` if the present state allows it; whether it did."""
+        try:
+            self._fire(trigger)
+        except TransitionRefusedError:
+            return False
+        return True
 
-def run_outcome(exc: BaseException | None) -> RunOutcome:
-    """How a run ended, from what ended it: nothing, a stop (its state and reason), or an error."""
-    if exc is None:
-        return RunOutcome("complete")
-    if isinstance(exc, RunStoppedError):
-        return RunOutcome(RUN_STATUS.get(exc.state, "failed"), exc.reason)
-    return RunOutcome("failed", f"{type(exc).__name__}: {exc}")
+    def _publish_changes(self) -> None:
+        """Publish the table's changes as StateChanged events, in the order they were made.
+
+        While a sequence runs they are published on its thread only, as every other event: a change
+        another thread requested is published at the loop's next look (within a block of frames).
+        A change made while changes are being published (a subscriber's request) follows them."""
+        if self._sequence_thread not in (None, threading.get_ident()):
+            return
+        while self.machine.has_changes():
+            if not self._publishing.acquire(blocking=False):
+                return  # the thread publishing now publishes this change too
+            try:
+                for change in self.machine.take_changes():
+                    self.bus.publish(ev.StateChanged(*change))
+            finally:
+                self._publishing.release()
 
 
 def is_measurement(step: object) -> bool:
@@ -766,25 +878,35 @@ class _RunRecording:
                 e.sample_rate_hz,
             )
         )
+        try:
+            self._start_stream()
+        except BaseException as exc:  # the run began: it ends too, with the sequence's ending
+            if self._subscription is not None:
+                self._subscription.close()
+            e._run_finished(self.run_id, e._run_ended(exc))
+            raise
+        return self
+
+    def _start_stream(self) -> None:
+        e = self.engine
         if e.tare == "before_each_run":
             e.acquisition.tare()
         backlog = max(1, round(e.timing.backlog_s * e.sample_rate_hz))
         self._subscription = e.acquisition.subscribe(lossless=True, max_frames=backlog)
         e.acquisition.start_stream()
         self._last_frame_s = e._clock()
-        return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        e = self.engine
-        outcome = run_outcome(exc)
+        """End the run: the sequence's ending first, if the run did not complete (the actuator
+        stopped before the stream), then the stream stopped and the run's end published."""
+        outcome = self.engine._run_ended(exc)
         try:
             self._stop_stream()
         except LinkError as stop_error:
             log.warning("stopping the WFS stream failed: %s", stop_error)
         finally:
             self._subscription.close()
-            counters = e.acquisition.link_counters()
-            e.bus.publish(ev.RunFinished(self.run_id, outcome.status, outcome.reason, counters))
+            self.engine._run_finished(self.run_id, outcome)
 
     def _stop_stream(self) -> None:
         """Stop the stream and record every frame sent before it stopped.
@@ -849,8 +971,9 @@ class _RunRecording:
 
         ``watch`` follows an adaptive dwell's hold block by block: once it is done the excitation is
         stopped with its taper (the hold ends where the controller's hold output falls). A pause
-        request stops it with a taper and raises :class:`_PointInterruptedError` once it is at rest;
-        an abort tapers it out and ends the run; an e-stop or a tripped interlock ends the run."""
+        request (the table ``pausing``) stops it with a taper and raises
+        :class:`_PointInterruptedError` once it is at rest; an abort (``aborting``) tapers it out and
+        ends the run; an e-stop or a tripped interlock ends the run."""
         e = self.engine
         e.actuator.configure(setpoint)
         e.actuator.start()
@@ -861,7 +984,7 @@ class _RunRecording:
         start_deadline = self.elapsed_samples + round(e.timing.start_timeout_s * e.sample_rate_hz)
         overrun = round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
         end_deadline: int | None = None  # in elapsed samples, once the start is seen
-        stopping: str | None = None
+        stopping = False  # tapered out early, on a pause or an abort request
         while not tracker.ended:
             columns = self._next_columns()
             first = self.samples - len(columns.get("status", ()))
@@ -870,13 +993,15 @@ class _RunRecording:
                 end_deadline = self.elapsed_samples - (self.samples - tracker.start) + overrun
             if watch is not None and not watch.done:
                 watch.feed(first, columns, tracker.hold_start, tracker.hold_end)
-                if watch.done and stopping is None:
+                if watch.done and not stopping:
                     e._defensive_stop()
-            if e._estop.is_set():
-                raise RunStoppedError(RunState.ESTOPPED, "e-stop")
+            e._publish_changes()
+            state = e.state
+            if state is RunState.ESTOPPED:
+                raise RunStoppedError.estop()
             self._guard(columns)
-            if stopping is None and (e._abort.is_set() or e._pause.is_set()):
-                stopping = "abort" if e._abort.is_set() else "pause"
+            if not stopping and state in (RunState.PAUSING, RunState.ABORTING):
+                stopping = True
                 e._defensive_stop()
             elapsed = self.elapsed_samples
             if not tracker.started and e._clock() > start_deadline_s and elapsed > start_deadline:
@@ -886,9 +1011,8 @@ class _RunRecording:
         # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
         # excitation early: its status, read now, tells that from the planned end
         self._guard({}, read_status=True)
-        if stopping == "abort":
-            e._abort_now()
-        if stopping == "pause":
+        if stopping:  # ended by an abort (or an e-stop since); else paused, or resumed meanwhile
+            e._stop_if_requested()
             raise _PointInterruptedError(tracker.span)
         return tracker.span
 
@@ -924,15 +1048,10 @@ class _RunRecording:
         if tripped is not None:
             self._trip(*tripped)
 
-    def _trip(self, name: str, reason: str) -> None:
-        """Stop the actuator with a taper, publish the interlock and end the run. An e-stop
-        requested meanwhile ends it as e-stopped instead: its request is set before the stop is
-        sent, so a controller seen e-stopped after the loop last looked at the request (the
-        operator's thread sent it in between) is the e-stop's doing, not an interlock."""
-        e = self.engine
-        if e._estop.is_set():
-            raise RunStoppedError(RunState.ESTOPPED, "e-stop")
-        e._defensive_stop()
-        e.bus.publish(ev.InterlockTripped(name, reason, self.run_id))
-        e._force_state(Trigger.INTERLOCK)
-        raise RunStoppedError(RunState.INTERLOCKED, f"{name}: {reason}")
+    def _trip(self, name: str, reason: str) -> NoReturn:
+        """End the run on a tripped interlock: the ending stops the actuator with a taper and
+        publishes the interlock. An e-stop requested meanwhile ends it as e-stopped instead: the
+        table shows the e-stop before it is sent, so a controller seen e-stopped after the loop last
+        looked at the state (the operator's thread sent it in between) is the e-stop's doing, not
+        an interlock."""
+        raise RunStoppedError.interlock_tripped(ev.InterlockTripped(name, reason, self.run_id))

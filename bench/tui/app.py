@@ -342,6 +342,7 @@ class WfsBenchApp(App):
             case ev.StateChanged() if p.new.value == "hydraulics low" and p.old.value in (
                 "e-stopped",
                 "interlocked",
+                "failed",
             ):
                 self.tripped.clear()
                 self.failure = None

@@ -360,7 +360,7 @@ class BenchSession:
 
     def _reset_hint(self) -> str:
         """What the technician does next when the engine was left stopped."""
-        if self.engine.state in (RunState.INTERLOCKED, RunState.ESTOPPED):
+        if self.engine.state in (RunState.INTERLOCKED, RunState.ESTOPPED, RunState.FAILED):
             return f" (the bench is {self.engine.state.value}: x on the Bench screen, F2, resets)"
         return ""
 

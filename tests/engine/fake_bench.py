@@ -9,14 +9,16 @@ so the amplitude control has an error to correct.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from drivers.errors import ConnectionLostError
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
-from drivers.wfs_frame import FRAME_DTYPE
+from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from drivers.wfs_capture import Capture
+from drivers.wfs_frame import FRAME_DTYPE, Status
 
 ACTIVE_BIT = 1 << 9
 HOLD_BIT = 1 << 10
@@ -52,7 +54,18 @@ class FakeBench:
     link_down: bool = False
     silent: bool = False  # the WFS stops sending (a pulled serial cable)
     on_block: Callable[[FakeBench], None] | None = None  # a test's hook, called before each block
+    # a test's hook, called as a command (configure, start, set_hydraulics, tare, start_stream,
+    # arm_capture, wait_capture) begins, with the command's name
+    on_call: Callable[[FakeBench, str], None] | None = None
+    # command name -> (the call that fails, counted from 1, and the error it raises)
+    faults: dict[str, tuple[int, Exception]] = field(default_factory=dict)
+    calls: Counter = field(default_factory=Counter)
+    soft_limits: SoftLimits | None = None  # configure refuses what these refuse, as the client does
+    overload: bool = False  # the WFS reports Fz beyond its range
+    offset_m: float = 0.0  # added to the displacement (a drifted actuator)
+    stuck_active: bool = False  # the controller's active output stays up
     _wave: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    _capture: tuple[float, int, int] = (0.0, 0, 1)
     _seq: int = 0
     _sample: int = 0
 
@@ -64,11 +77,15 @@ class FakeBench:
         return FakeStatus(len(self._wave) > 0, reason, self._sample)
 
     def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+        self._command("configure")
         self._check_link()
+        if self.soft_limits is not None:
+            setpoint.registers(self.soft_limits)
         self.log.append(f"configure {setpoint}")
         self.setpoint = setpoint
 
     def start(self) -> None:
+        self._command("start")
         self._check_link()
         self.log.append("start")
         self._wave = self._excitation(self.setpoint)
@@ -87,6 +104,7 @@ class FakeBench:
         self._wave = np.zeros((0, 2))
 
     def set_hydraulics(self, level: str) -> None:
+        self._command("set_hydraulics")
         self.log.append(f"hydraulics {level}")
         self.hydraulics = level
 
@@ -100,6 +118,24 @@ class FakeBench:
     def _check_link(self) -> None:
         if self.link_down:
             raise ConnectionLostError("fake link down")
+
+    def _command(self, name: str) -> None:
+        """Count the command, call the test's hook, and raise the error due at this call."""
+        self.calls[name] += 1
+        if self.on_call is not None:
+            self.on_call(self, name)
+        call, error = self.faults.get(name, (0, None))
+        if call == self.calls[name]:
+            raise error
+
+    def clear_faults(self) -> None:
+        """The cause of a stop cleared, and the actuator at rest (as before a reset)."""
+        self.link_down = self.silent = self.overload = self.stuck_active = False
+        self.offset_m = 0.0
+        self.soft_limits = None
+        self.faults.clear()
+        self.on_block = self.on_call = None
+        self._wave = np.zeros((0, 2))
 
     def _excitation(self, sp: DwellSetpoint | SweepSetpoint) -> np.ndarray:
         """(displacement m, hold flag) per sample of the whole excitation."""
@@ -130,6 +166,7 @@ class FakeBench:
         pass
 
     def start_stream(self) -> None:
+        self._command("start_stream")
         self.log.append("stream start")
         self.streaming = True
         self._sample = 0
@@ -139,7 +176,23 @@ class FakeBench:
         self.streaming = False
 
     def tare(self) -> None:
+        self._command("tare")
         self.log.append("tare")
+
+    def arm_capture(self, trigger_level_n: float, pre_trigger_s: float, length_s: float) -> tuple[int, int]:
+        self._command("arm_capture")
+        self.log.append("arm capture")
+        self._capture = (trigger_level_n, round(pre_trigger_s * self.rate_hz), round(length_s * self.rate_hz))
+        return self._capture[1], self._capture[2]
+
+    def wait_capture(self, timeout_s: float) -> Capture:
+        """The armed capture: a blow's decaying ring at its trigger."""
+        self._command("wait_capture")
+        level, pre, n = self._capture
+        t = np.arange(n - pre) / self.rate_hz
+        ring = 10 * level * np.exp(-50 * t) * np.cos(2 * np.pi * 200 * t)
+        samples = np.concatenate([np.zeros(pre), ring])
+        return Capture(samples, self.rate_hz, pre, level, 0.0)
 
     def link_counters(self) -> dict[str, int]:
         return {"frames_ok": self._seq}
@@ -159,7 +212,11 @@ class FakeBench:
         status[: len(take)][take[:, 1] > 0] |= HOLD_BIT
         frames["seq"] = np.arange(self._seq, self._seq + self.block)
         frames["sample"] = np.arange(self._sample, self._sample + self.block)
-        frames["aux0"] = z
+        if self.stuck_active:
+            status |= ACTIVE_BIT
+        if self.overload:
+            status |= int(Status.OVERLOAD_FZ)
+        frames["aux0"] = z + self.offset_m
         frames["aux1"] = self.force_per_m * z
         frames["fz"] = 0.5 * self.force_per_m * z
         frames["status"] = status

@@ -136,7 +136,13 @@ def test_a_pause_interrupts_the_point_which_is_repeated_on_resume():
         (2, "done"),
     ]
     states = [e.new for e in of(seen, ev.StateChanged)]
-    assert states == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING, RunState.FINISHED]
+    assert states == [
+        RunState.RUNNING,
+        RunState.PAUSING,
+        RunState.PAUSED,
+        RunState.RUNNING,
+        RunState.FINISHED,
+    ]
     assert bench.log.count("stop") == 1
 
 
@@ -576,7 +582,13 @@ def test_a_pause_interrupts_a_sweep_which_is_repeated_from_its_start_on_resume(t
         outcome = engine.run(sequence(Hydraulics("high"), sweep_step()))
     assert (outcome.status, outcome.reason) == ("complete", "")
     states = [e.new for e in of(seen, ev.StateChanged)]
-    assert states == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING, RunState.FINISHED]
+    assert states == [
+        RunState.RUNNING,
+        RunState.PAUSING,
+        RunState.PAUSED,
+        RunState.RUNNING,
+        RunState.FINISHED,
+    ]
     interrupted, done = of(seen, ev.PointDone)
     assert (interrupted.status, interrupted.attempt) == ("interrupted", 1)
     assert (done.status, done.attempt) == ("done", 2)
@@ -654,7 +666,7 @@ def test_a_reset_after_a_stop_the_controller_did_not_see_returns_the_engine_to_h
     bench.refuse_high = fault == "refused command"
     outcome = engine.run(sequence(Hydraulics("high"), grid()))
     assert outcome.status == ("failed" if fault == "refused command" else "interlocked")
-    assert engine.state is RunState.INTERLOCKED
+    assert engine.state is (RunState.FAILED if fault == "refused command" else RunState.INTERLOCKED)
     engine.reset()
     assert engine.state is RunState.HYDRAULICS_LOW
     assert bench.hydraulics == "low" and "reset" not in bench.log

@@ -487,7 +487,7 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         assert finished(recorded).status == "failed"
         assert "HYDRAULICS_HIGH" in finished(recorded).reason
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
-        assert app.session.engine.state is RunState.INTERLOCKED
+        assert app.session.engine.state is RunState.FAILED
         assert "x on the Bench screen" in text_of(app, "#banner")
 
         await pilot.press("f2")
