@@ -53,11 +53,10 @@ from sequences import (
     step_fields,
 )
 from sequences.channels import STANDARD_CHANNELS, Role
+from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
 
-#: The recorded kind of a run, by the kind of its step (a single dwell is a grid of one point).
-RUN_KIND = {"sine_dwell": "dwell_grid"}
 HAMMER_CHANNEL = replace(
     STANDARD_CHANNELS[Role.WFS_FZ],
     description="Fz of the bare sensor, triggered capture at the converter rate",
@@ -871,7 +870,7 @@ class _RunRecording:
         e.bus.publish(
             ev.RunStarted(
                 self.run_id,
-                RUN_KIND.get(self.step.kind, self.step.kind),
+                RunKind.of_step(self.step.kind),
                 step_fields(self.step),
                 dict(e.conditions),
                 e.channels.specs(),

@@ -15,6 +15,8 @@ import enum
 import threading
 from collections import deque
 
+from sequences.runs import RunStatus
+
 Change = tuple["RunState", "RunState", "Trigger"]
 
 
@@ -86,11 +88,11 @@ TRANSITIONS: dict[tuple[RunState, Trigger], RunState] = {
 ACTIVE = frozenset(_UNDER_WAY)
 #: states a sequence can end in, with the run status recorded for each
 RUN_STATUS = {
-    S.FINISHED: "complete",
-    S.ABORTED: "aborted",
-    S.ESTOPPED: "e-stopped",
-    S.INTERLOCKED: "interlocked",
-    S.FAILED: "failed",
+    S.FINISHED: RunStatus.COMPLETE,
+    S.ABORTED: RunStatus.ABORTED,
+    S.ESTOPPED: RunStatus.ESTOPPED,
+    S.INTERLOCKED: RunStatus.INTERLOCKED,
+    S.FAILED: RunStatus.FAILED,
 }
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sequences.runs import RunKind
 from sequences.toml_text import toml_error_where
 
 #: Units a column may be given in: unit -> (the SI unit of the schema's channel, factor to it).
@@ -35,7 +36,8 @@ UNITS: dict[str, tuple[str, float]] = {
 CHANNEL_SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_nm", "N m"), ("_n", "N"), ("_m", "m"))
 #: The channel that the CSV's time column is: seconds.
 TIME_UNIT = "s"
-RUN_KINDS = ("free_run", "dwell_grid", "sweep")
+#: The kinds of run a CSV export can hold (a hammer capture is not imported).
+IMPORTED_KINDS = (RunKind.FREE_RUN, RunKind.DWELL_GRID, RunKind.SWEEP)
 SWEEP_LAWS = ("linear", "log")
 
 _TOP_KEYS = ("source", "csv", "time", "channels", "runs")
@@ -346,7 +348,7 @@ class _Reader:
             if not isinstance(run, dict):
                 self.add(where, "expected a table")
                 continue
-            kind = self.choice(run, f"{where}.kind", RUN_KINDS, None)
+            kind = self.choice(run, f"{where}.kind", IMPORTED_KINDS, None)
             run_id = self.string(run, f"{where}.id", f"{name}-r{i:03d}-{kind}")
             pressure = run.get("tyre_pressure_bar")
             if pressure is not None:

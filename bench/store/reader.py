@@ -35,6 +35,7 @@ from bench.store.results import read_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel, Role, standard_name
 from sequences.points import PointAttempt, Verdict
+from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
 #: Channels each kind of run needs for its analysis records.
 REQUIRED_CHANNELS = {
@@ -269,9 +270,9 @@ class RunView:
         self.kind, self.status, self.reason = text["kind"], text["status"], text["reason"]
         self.started, self.finished = text["started"], text["finished"]
         self.resumes, self.resumed_by = text["resumes"] or None, text["resumed_by"] or None
-        if self.kind not in s.RUN_KINDS:
-            raise StoreError(path, f"{where}@kind", f"{self.kind!r} is not one of {', '.join(s.RUN_KINDS)}")
-        if self.status not in (*s.FINISH_STATUSES, s.INCOMPLETE):
+        if self.kind not in RUN_KINDS:
+            raise StoreError(path, f"{where}@kind", f"{self.kind!r} is not one of {', '.join(RUN_KINDS)}")
+        if self.status not in (*FINISH_STATUSES, RunStatus.INCOMPLETE):
             raise StoreError(path, f"{where}@status", f"{self.status!r} is not a run status")
         self.step = s.from_json(text["step"], path=path, where=f"{where}@step")
         self.conditions = s.from_json(text["conditions"], path=path, where=f"{where}@conditions")
@@ -281,7 +282,7 @@ class RunView:
         datasets = self._channel_datasets(_member(path, group, s.CHANNELS, h5py.Group))
         lengths = {name: ds.shape[0] for name, ds in datasets.items()}
         self.n_samples = min(lengths.values(), default=0)
-        if self.status != s.INCOMPLETE and len(set(lengths.values())) > 1:
+        if self.status != RunStatus.INCOMPLETE and len(set(lengths.values())) > 1:
             raise StoreError(
                 path, f"{where}/{s.CHANNELS}", f"channels of a finished run differ in length: {lengths}"
             )

@@ -51,10 +51,6 @@ EVENTS = "events"
 LINK = "link"
 RESULTS = "results"
 
-RUN_KINDS = ("dwell_grid", "free_run", "sweep", "hammer")
-FINISH_STATUSES = ("complete", "aborted", "interlocked", "e-stopped", "failed")
-#: Status of a run that was begun and not finished: running now, or its writer died.
-INCOMPLETE = "incomplete"
 CHANNEL_DTYPES = ("f4", "u4", "u2")
 POINT_STATUSES = tuple(PointStatus)
 

@@ -45,6 +45,7 @@ from bench.store.results import as_mapping, write_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel
 from sequences.points import PointAttempt
+from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
 
@@ -170,8 +171,8 @@ class CampaignWriter:
             raise StoreError(self.path, where, f"run id {run_id!r} cannot name an HDF5 group")
         if run_id in self._file[s.RUNS]:
             raise StoreError(self.path, where, "exists already: continue it or give a new run id")
-        if kind not in s.RUN_KINDS:
-            raise StoreError(self.path, where, f"kind {kind!r} is not one of {', '.join(s.RUN_KINDS)}")
+        if kind not in RUN_KINDS:
+            raise StoreError(self.path, where, f"kind {kind!r} is not one of {', '.join(RUN_KINDS)}")
         if not (np.isfinite(sample_rate_hz) and sample_rate_hz > 0):
             raise StoreError(self.path, where, f"sample rate {sample_rate_hz} Hz must be positive")
         _check_channels(self.path, where, channels)
@@ -184,8 +185,8 @@ class CampaignWriter:
         group = self._file[s.RUNS].create_group(run_id, track_order=True)
         group.attrs.update(
             {
-                "kind": kind,
-                "status": s.INCOMPLETE,
+                "kind": str(kind),  # the plain word: HDF5 stores no str subclass
+                "status": str(RunStatus.INCOMPLETE),
                 "reason": "",
                 "started": _now_iso(),
                 "finished": "",
@@ -237,7 +238,7 @@ class CampaignWriter:
         for dataset in group[s.CHANNELS].values():  # before anything changes
             _check_pipeline(self.path, dataset)
         ended = {"status": str(group.attrs["status"]), "reason": str(group.attrs["reason"])}
-        group.attrs.update({"status": s.INCOMPLETE, "reason": "", "finished": ""})
+        group.attrs.update({"status": str(RunStatus.INCOMPLETE), "reason": "", "finished": ""})
         lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
         usable = min(lengths.values(), default=0)
         for name, length in lengths.items():
@@ -246,7 +247,7 @@ class CampaignWriter:
         _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
         _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
         self._run = RunWriter(self, group, done_before=done)
-        if ended["status"] == s.INCOMPLETE:
+        if ended["status"] == RunStatus.INCOMPLETE:
             self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
         else:
             self._run.add_event(
@@ -472,11 +473,11 @@ class RunWriter:
     def finish(self, status: str, reason: str = "") -> None:
         """End the run with ``status`` (one of :data:`~bench.store.schema.FINISH_STATUSES`) and why."""
         self._check_open(self._group.name)
-        if status not in s.FINISH_STATUSES:
+        if status not in FINISH_STATUSES:
             raise StoreError(
-                self._campaign.path, self._group.name, f"status {status!r} not one of {s.FINISH_STATUSES}"
+                self._campaign.path, self._group.name, f"status {status!r} not one of {FINISH_STATUSES}"
             )
-        self._group.attrs.update({"status": status, "reason": reason, "finished": _now_iso()})
+        self._group.attrs.update({"status": str(status), "reason": reason, "finished": _now_iso()})
         self.is_open = False
         self._campaign._run_closed(self)
 

@@ -1,0 +1,39 @@
+"""What a run is and how it ended, declared once: the engine records them, the campaign file stores
+them as run attributes (``kind``, ``status``), the reader, the analysis and the front ends read them.
+Both are string enums, so a stored or printed value is the plain word (``dwell_grid``, ``complete``).
+"""
+
+from __future__ import annotations
+
+import enum
+
+
+class RunKind(enum.StrEnum):
+    """The measurement a run records (a single sine dwell is recorded as a grid of one point)."""
+
+    DWELL_GRID = "dwell_grid"
+    FREE_RUN = "free_run"
+    SWEEP = "sweep"
+    HAMMER = "hammer"
+
+    @classmethod
+    def of_step(cls, step_kind: str) -> RunKind:
+        """The kind of the run a measurement step of kind ``step_kind`` records."""
+        return cls.DWELL_GRID if step_kind == "sine_dwell" else cls(step_kind)
+
+
+class RunStatus(enum.StrEnum):
+    """How a run ended, or ``incomplete`` while it runs (or when its writer died)."""
+
+    COMPLETE = "complete"
+    ABORTED = "aborted"
+    INTERLOCKED = "interlocked"
+    ESTOPPED = "e-stopped"
+    FAILED = "failed"
+    INCOMPLETE = "incomplete"
+
+
+#: Every kind, as plain words (``"sweep" in RUN_KINDS``).
+RUN_KINDS = tuple(RunKind)
+#: The statuses a run can end with.
+FINISH_STATUSES = tuple(status for status in RunStatus if status is not RunStatus.INCOMPLETE)
