@@ -4,8 +4,8 @@ One file describes one bench (format in ``docs/configuration.md``). Nothing conf
 simulated shaker bench: ``load_bench_config(None)``. Every key is checked when the file is read,
 and every problem found is reported together in one :class:`ConfigError` naming the file and the
 key, so a bad configuration never reaches a device. The configuration gives the sequences their
-:class:`~sequences.limits.BenchLimits` and the actuator client its
-:class:`~drivers.setpoints.SoftLimits`.
+:class:`~sequences.limits.BenchLimits`, the one limit envelope the validation, the dry run, the
+actuator client and the interlocks all check against.
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ import numpy as np
 from bench.engine.channels import FrameChannels
 from drivers.errors import RegisterMapError
 from drivers.register_map import RegisterMap, load_register_map
-from drivers.setpoints import SoftLimits
 from drivers.wfs_frame import FRAME_SIZE
 from sequences.channels import (
     AUX_ROLES,
@@ -35,7 +34,7 @@ from sequences.channels import (
     role_of_standard_name,
 )
 from sequences.errors import problems_text
-from sequences.limits import BenchLimits
+from sequences.limits import INTERLOCKS_ABOVE, BenchLimits
 from sequences.ranges import range_problem
 from sequences.toml_text import toml_error_where, toml_table, toml_value
 
@@ -93,14 +92,6 @@ class WfsConfig:
 
 
 @dataclass(frozen=True)
-class Interlocks:
-    """Thresholds written to the controller, which trips on them (above the sequences' limits)."""
-
-    displacement_mm: float = 30.0
-    force_n: float = 20_000.0
-
-
-@dataclass(frozen=True)
 class Calibration:
     """The 6x6 calibration/crosstalk matrix of the raw channels and when to tare."""
 
@@ -153,28 +144,12 @@ class BenchConfig:
     actuator: ActuatorConfig = field(default_factory=ActuatorConfig)
     wfs: WfsConfig = field(default_factory=WfsConfig)
     limits: BenchLimits = field(default_factory=BenchLimits)
-    interlocks: Interlocks = field(default_factory=Interlocks)
     calibration: Calibration = field(default_factory=Calibration)
     masses: Masses = field(default_factory=Masses)
     aux: tuple[AuxInput, ...] = DEFAULT_AUX_INPUTS
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
     source: str = "<default>"
-
-    @property
-    def soft_limits(self) -> SoftLimits:
-        """The actuator client's envelope: the sequences' limits and the controller's interlocks."""
-        lim = self.limits
-        return SoftLimits(
-            max_amplitude_mm=lim.stroke_mm,
-            min_frequency_hz=lim.min_freq_hz,
-            max_frequency_hz=lim.max_freq_hz,
-            max_mean_mm=lim.stroke_mm,
-            displacement_limit_mm=self.interlocks.displacement_mm,
-            force_limit_n=self.interlocks.force_n,
-            min_taper_s=lim.min_taper_s,
-            max_duration_s=lim.max_step_s,
-        )
 
     @property
     def channels(self) -> ChannelSet:
@@ -192,8 +167,6 @@ class BenchConfig:
         actuator = {f.name: getattr(self.actuator, f.name) for f in fields(ActuatorConfig)}
         actuator["register_map"] = str(actuator["register_map"]) if self.actuator.register_map else None
         limits = {name: getattr(self.limits, name) for name in BenchLimits.__slots__}
-        limits["displacement_interlock_mm"] = self.interlocks.displacement_mm
-        limits["force_interlock_n"] = self.interlocks.force_n
         tables = [
             [f"kind = {toml_value(self.kind)}"],
             toml_table("[actuator]", actuator),
@@ -252,9 +225,14 @@ KIND_DEFAULTS: dict[str, dict[str, object]] = {
     "shaker": {},
     "four_post": {
         "limits": BenchLimits(
-            stroke_mm=40.0, velocity_mm_s=1000.0, acceleration_m_s2=300.0, force_n=20_000.0, max_freq_hz=50.0
+            stroke_mm=40.0,
+            velocity_mm_s=1000.0,
+            acceleration_m_s2=300.0,
+            force_n=20_000.0,
+            max_freq_hz=50.0,
+            displacement_interlock_mm=45.0,
+            force_interlock_n=25_000.0,
         ),
-        "interlocks": Interlocks(displacement_mm=45.0, force_n=25_000.0),
         "masses": Masses(plate_kg=15.0),
     },
 }
@@ -385,13 +363,12 @@ class _Reader:
         kind = self.text(data, "", "kind", "shaker", BENCH_KINDS)
         base = default_bench_config(kind)
         actuator, wfs = self.actuator(data), self.wfs(data)
-        limits, interlocks = self.limits(data, base)
+        limits = self.limits(data, base)
         config = BenchConfig(
             kind=kind,
             actuator=actuator,
             wfs=wfs,
             limits=limits,
-            interlocks=interlocks,
             calibration=self.calibration(data),
             masses=self.masses(data, base.masses),
             aux=self.aux(data),
@@ -459,9 +436,10 @@ class _Reader:
         rate_hz = self.number(t, "wfs", "rate_hz", d.rate_hz, lo=100, hi=max(100, line_max_hz), integer=True)
         return WfsConfig(transport, device, baudrate, rate_hz)
 
-    def limits(self, data: dict, base: BenchConfig) -> tuple[BenchLimits, Interlocks]:
-        names = (*BenchLimits.__slots__, "displacement_interlock_mm", "force_interlock_n")
-        t = self.table(data, "limits", names)
+    def limits(self, data: dict, base: BenchConfig) -> BenchLimits:
+        """The ``[limits]`` table: every :class:`BenchLimits` field, positive; the frequency range in
+        order; the controller's interlock thresholds above the host's stroke and force limits."""
+        t = self.table(data, "limits", BenchLimits.__slots__)
         values = {
             name: self.number(t, "limits", name, getattr(base.limits, name), lo=0, lo_open=True)
             for name in BenchLimits.__slots__
@@ -469,20 +447,11 @@ class _Reader:
         if values["min_freq_hz"] >= values["max_freq_hz"]:
             self.add("limits.max_freq_hz", f"{values['max_freq_hz']:g} Hz is not above min_freq_hz")
             values["max_freq_hz"] = values["min_freq_hz"] * 2
-        interlocks = Interlocks(
-            self.number(
-                t,
-                "limits",
-                "displacement_interlock_mm",
-                base.interlocks.displacement_mm,
-                lo=values["stroke_mm"],
-                lo_open=True,
-            ),
-            self.number(
-                t, "limits", "force_interlock_n", base.interlocks.force_n, lo=values["force_n"], lo_open=True
-            ),
-        )
-        return BenchLimits(**values), interlocks
+        for interlock, limit in INTERLOCKS_ABOVE:
+            values[interlock] = self.check(
+                f"limits.{interlock}", values[interlock], values[limit] * 1.5, lo=values[limit], lo_open=True
+            )
+        return BenchLimits(**values)
 
     def calibration(self, data: dict) -> Calibration:
         d = Calibration()

@@ -2,7 +2,7 @@
 
 Typed operations on top of the register map. Safety rules kept here:
 
-- every setpoint is checked against the bench's soft limits before anything is written;
+- every setpoint is checked against the bench's limit envelope before anything is written;
 - START is sent only after a configure that completed (a failed configure may leave the controller
   with a half-written setpoint);
 - raw register writes are private: every setpoint goes through the checked operations;
@@ -58,7 +58,8 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
 _Code = TypeVar("_Code", ControllerState, ErrorCode)
@@ -106,7 +107,7 @@ class ActuatorClient:
         self,
         modbus: ModbusBaseClient,
         register_map: RegisterMap,
-        limits: SoftLimits,
+        limits: BenchLimits,
         read_attempts: int = DEFAULT_READ_ATTEMPTS,
         timeout_s: float = DEFAULT_TIMEOUT_S,
         *,
@@ -132,7 +133,7 @@ class ActuatorClient:
         port: int,
         *,
         register_map: RegisterMap | None = None,
-        limits: SoftLimits | None = None,
+        limits: BenchLimits | None = None,
         timeout_s: float = DEFAULT_TIMEOUT_S,
         read_attempts: int = DEFAULT_READ_ATTEMPTS,
         on_link_lost: Callable[[str], None] | None = None,
@@ -142,7 +143,7 @@ class ActuatorClient:
         return cls(
             modbus,
             register_map or load_register_map(),
-            limits or SoftLimits(),
+            limits or BenchLimits(),
             read_attempts,
             timeout_s,
             on_link_lost=on_link_lost,
@@ -155,7 +156,7 @@ class ActuatorClient:
         *,
         baudrate: int = 115200,
         register_map: RegisterMap | None = None,
-        limits: SoftLimits | None = None,
+        limits: BenchLimits | None = None,
         timeout_s: float = DEFAULT_TIMEOUT_S,
         read_attempts: int = DEFAULT_READ_ATTEMPTS,
         on_link_lost: Callable[[str], None] | None = None,
@@ -167,7 +168,7 @@ class ActuatorClient:
         return cls(
             modbus,
             register_map or load_register_map(),
-            limits or SoftLimits(),
+            limits or BenchLimits(),
             read_attempts,
             timeout_s,
             on_link_lost=on_link_lost,
@@ -343,12 +344,12 @@ class ActuatorClient:
         await self.command(Command.HYDRAULICS_HIGH)
 
     async def configure(self, setpoint: DwellSetpoint | SweepSetpoint, channel_mask: int = ALL_POSTS) -> None:
-        """Check ``setpoint`` against the soft limits, then write it with the interlock thresholds."""
-        self.limits.check_interlock()  # LimitError before anything is written
-        values = setpoint.registers(self.limits)  # idem
+        """Check ``setpoint`` against the bench's limits (LimitError before anything is written), then
+        write it with the controller's interlock thresholds."""
+        values = setpoint.registers(self.limits)
         values["channel_mask"] = channel_mask
-        values["displacement_limit_mm"] = self.limits.displacement_limit_mm
-        values["force_limit_n"] = self.limits.force_limit_n
+        values["displacement_limit_mm"] = self.limits.displacement_interlock_mm
+        values["force_limit_n"] = self.limits.force_interlock_n
         self._configured = False
         try:
             await self._write(values)

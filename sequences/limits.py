@@ -1,4 +1,7 @@
-"""The bench's envelope a sequence is validated against before anything moves.
+"""The bench's limit envelope, declared once: what a sequence is validated against before anything
+moves, what the dry run checks the bench model's loads against, what the actuator client checks
+every setpoint against before it writes one (and writes to the controller as its interlock
+thresholds), and what the engine's interlocks trip on.
 
 The bench configuration provides one :class:`BenchLimits`; the defaults are those of the simulated
 shaker bench. Kinematic limits (stroke, velocity, acceleration, frequency range, timing) are checked
@@ -16,6 +19,10 @@ from dataclasses import dataclass
 TYRE_PRESSURE_RANGE_BAR = (0.5, 4.5)
 
 
+#: Each controller interlock threshold and the host limit it must lie above.
+INTERLOCKS_ABOVE = (("displacement_interlock_mm", "stroke_mm"), ("force_interlock_n", "force_n"))
+
+
 @dataclass(frozen=True, slots=True)
 class BenchLimits:
     """Peak values a step may demand of the bench.
@@ -29,6 +36,9 @@ class BenchLimits:
     - ``min_taper_s``: the shortest taper the controller accepts; ``max_step_s``: the longest
       excitation one setpoint may ask for (the controller's dwell/sweep duration registers).
     - ``max_capture_s``: the longest triggered capture the WFS acquisition can buffer (hammer test).
+    - ``displacement_interlock_mm``, ``force_interlock_n``: the thresholds the controller trips its
+      own interlock on (written with every setpoint), above ``stroke_mm`` and ``force_n``, which the
+      engine's host-side interlocks trip on.
     """
 
     stroke_mm: float = 25.0
@@ -41,6 +51,8 @@ class BenchLimits:
     min_taper_s: float = 0.1
     max_step_s: float = 3600.0
     max_capture_s: float = 2.0
+    displacement_interlock_mm: float = 30.0
+    force_interlock_n: float = 20_000.0
 
     def __post_init__(self) -> None:
         for name in self.__slots__:
@@ -51,6 +63,12 @@ class BenchLimits:
                 raise ValueError(f"BenchLimits.{name} must be > 0, got {value}")
         if self.min_freq_hz >= self.max_freq_hz:
             raise ValueError(f"BenchLimits: min_freq_hz {self.min_freq_hz} >= max_freq_hz {self.max_freq_hz}")
+        for interlock, limit in INTERLOCKS_ABOVE:
+            if getattr(self, interlock) <= getattr(self, limit):
+                raise ValueError(
+                    f"BenchLimits: {interlock} {getattr(self, interlock)} must be above {limit}"
+                    f" {getattr(self, limit)} (the controller's trip lies beyond the host's)"
+                )
 
 
 def peak_velocity_mm_s(freq_hz: float, amplitude_mm: float) -> float:

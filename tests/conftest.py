@@ -6,7 +6,7 @@ import pytest
 
 import bench as _wfs_bench  # noqa: F401 - first: it sets the BLAS thread limit before numpy loads
 from drivers.actuator import ActuatorClient
-from drivers.setpoints import SoftLimits
+from sequences.limits import BenchLimits
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 
@@ -34,7 +34,7 @@ async def controller(bench):
 @pytest.fixture
 async def client(controller):
     host, port = controller.address
-    client = ActuatorClient.tcp(host, port, limits=SoftLimits(), timeout_s=0.3)
+    client = ActuatorClient.tcp(host, port, limits=BenchLimits(), timeout_s=0.3)
     await client.connect()
     # the watchdog is armed at power-up; tests that are not about it run with it off (as a lab may
     # set it), so that a loaded machine cannot trip a dwell that no heartbeat keeps alive

@@ -32,7 +32,8 @@ from drivers.register_map import (
     default_map_path,
     load_register_map,
 )
-from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from sequences.limits import BenchLimits
 from simulators.bench_sim import SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
@@ -104,17 +105,20 @@ async def test_out_of_limit_setpoints_refused_before_anything_is_written(client,
 
 
 @pytest.mark.parametrize(
-    "limits",
-    [SoftLimits(force_limit_n=-100.0), SoftLimits(displacement_limit_mm=-1.0), SoftLimits(force_limit_n=0.0)],
+    ("changes", "words"),
+    [
+        ({"force_interlock_n": -100.0}, "force_interlock_n must be > 0"),
+        ({"displacement_interlock_mm": -1.0}, "displacement_interlock_mm must be > 0"),
+        ({"force_interlock_n": 0.0}, "force_interlock_n must be > 0"),
+        ({"force_interlock_n": 10_000.0}, "force_interlock_n 10000.0 must be above force_n"),
+    ],
 )
-async def test_negative_or_zero_interlock_limits_are_refused_before_anything_is_written(
-    client, controller, limits
-):
-    client.limits = limits
-    before = controller.writes_received
-    with pytest.raises(LimitError):
-        await client.configure(DWELL)
-    assert controller.writes_received == before
+def test_negative_zero_or_low_interlock_thresholds_cannot_reach_a_client(changes, words):
+    """The thresholds the client writes with every setpoint come from the bench's limits, which
+    refuse a negative or zero one (the controller would refuse it, and 0 means its hardware limit)
+    and one below the host's own limit."""
+    with pytest.raises(ValueError, match=words):
+        BenchLimits(**changes)
 
 
 async def test_a_mask_with_no_existing_post_is_refused_by_the_controller(client):
@@ -302,7 +306,6 @@ async def test_estop_freezes_and_needs_a_reset(client):
 
 
 async def test_displacement_limit_trips_the_interlock(client, controller):
-    client.limits = SoftLimits(displacement_limit_mm=15.0)
     await _arm(client)
     await client.configure(DWELL)
     # a lab limit set directly on the controller, below the running amplitude

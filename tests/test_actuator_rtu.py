@@ -15,7 +15,8 @@ import pytest
 
 from drivers.actuator import ActuatorClient
 from drivers.register_map import ControllerState
-from drivers.setpoints import DwellSetpoint, SoftLimits
+from drivers.setpoints import DwellSetpoint
+from sequences.limits import BenchLimits
 from simulators.controller_server import ControllerServer
 from tests.waiting import async_wait_until, wait_until
 
@@ -44,7 +45,7 @@ async def rtu_client(bench, pty_pair):
     device, host = pty_pair
     server = ControllerServer(bench)
     await server.serve_rtu(device, baudrate=115200)
-    client = ActuatorClient.rtu(host, baudrate=115200, limits=SoftLimits(), timeout_s=0.5)
+    client = ActuatorClient.rtu(host, baudrate=115200, limits=BenchLimits(), timeout_s=0.5)
     yield client
     await client.close()
     await server.close()

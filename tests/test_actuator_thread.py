@@ -15,14 +15,15 @@ from bench.app.simulated import SimulatedLab, SimulatedLabSettings
 from drivers.actuator import DEFAULT_TIMEOUT_S, ActuatorClient
 from drivers.errors import CommandOutcomeUnknownError
 from drivers.register_map import ControllerState, InterlockFlag
-from drivers.setpoints import DwellSetpoint, SoftLimits
+from drivers.setpoints import DwellSetpoint
+from sequences.limits import BenchLimits
 from tests.waiting import wait_until
 
 
 def test_reset_after_a_lost_link_reconnects_and_restarts_the_heartbeat():
     with SimulatedLab(SimulatedLabSettings(paced=True)) as lab:
         host, port = lab.address
-        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(host, port, limits=SoftLimits()))
+        actuator = ThreadedActuator(lambda: ActuatorClient.tcp(host, port, limits=BenchLimits()))
         try:
             actuator.connect(heartbeat_period_s=0.05, watchdog_ms=1200)
             assert actuator.link_fault() is None

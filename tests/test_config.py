@@ -40,18 +40,20 @@ def test_the_written_configuration_reads_back_equal(kind):
     assert parse_bench_config(config.to_toml(), "<default>") == config
 
 
-def test_soft_limits_follow_the_limits_and_interlocks():
+def test_the_limits_are_one_envelope_for_sequences_client_and_interlocks():
     config = parse_bench_config(
         "[limits]\nstroke_mm = 10\nmax_freq_hz = 80\n"
         "displacement_interlock_mm = 12\nforce_interlock_n = 18000\n",
         "lab.toml",
     )
-    soft = config.soft_limits
-    assert (soft.max_amplitude_mm, soft.max_mean_mm, soft.max_frequency_hz) == (10, 10, 80)
-    assert (soft.displacement_limit_mm, soft.force_limit_n) == (12, 18000)
-    DwellSetpoint(80.0, 10.0, 1.0).registers(soft)
+    limits = config.limits
+    assert (limits.stroke_mm, limits.max_freq_hz) == (10, 80)
+    assert (limits.displacement_interlock_mm, limits.force_interlock_n) == (12, 18000)
+    DwellSetpoint(80.0, 10.0, 1.0).registers(limits)
     with pytest.raises(LimitError):
-        DwellSetpoint(80.0, 10.5, 1.0).registers(soft)
+        DwellSetpoint(80.0, 10.5, 1.0).registers(limits)
+    with pytest.raises(LimitError, match="stroke"):
+        DwellSetpoint(10.0, 6.0, 1.0, mean_mm=5.0).registers(limits)  # |mean| + amplitude > stroke
 
 
 def test_a_real_bench_with_its_own_register_map(tmp_path):

@@ -130,7 +130,7 @@ def test_smoke_runs_in_seconds():
         ("paper_four_post.toml", "four_post"),
     ],
 )
-def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
+def test_every_shipped_setpoint_passes_the_drivers_limits(name, kind):
     """What the sequence validator accepts, the actuator client's own check accepts too."""
     config = default_bench_config(kind)
     sequence = load_sequence(shipped_file(name), config.limits)
@@ -145,14 +145,14 @@ def test_every_shipped_setpoint_passes_the_drivers_soft_limits(name, kind):
                 step.taper_in_s,
                 step.taper_out_s,
                 step.mean_mm,
-            ).registers(config.soft_limits)
+            ).registers(config.limits)
             continue
         adaptive = getattr(step, "adaptive", None)
         for d in step.dwells():
             hold_s = d.hold_s if adaptive is None else adaptive.max_hold_s
             DwellSetpoint(
                 d.freq_hz, d.amplitude_mm, hold_s, d.taper_in_s, d.taper_out_s, d.mean_mm
-            ).registers(config.soft_limits)
+            ).registers(config.limits)
 
 
 @pytest.mark.parametrize(

@@ -6,9 +6,10 @@ import pytest
 
 from drivers.errors import LimitError
 from drivers.register_map import WaveformCode
-from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from sequences.limits import BenchLimits
 
-LIMITS = SoftLimits(max_amplitude_mm=5.0, max_frequency_hz=70.0, displacement_limit_mm=8.0)
+LIMITS = BenchLimits(stroke_mm=5.0, max_freq_hz=70.0, displacement_interlock_mm=8.0)
 
 
 def test_valid_dwell_gives_register_values():

@@ -14,12 +14,13 @@ from bench.models.setup import BenchSetup
 from drivers.actuator import ActuatorClient
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LinkTimeoutError
 from drivers.register_map import Command, ControllerState, InterlockFlag, WaveformCode
-from drivers.setpoints import DwellSetpoint, SoftLimits
+from drivers.setpoints import DwellSetpoint
 from drivers.wfs_commands import Reply, format_command, parse_reply
 from drivers.wfs_frame import FRAME_SIZE, Status
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from drivers.wfs_transform import LoadProcessor
+from sequences.limits import BenchLimits
 from simulators.bench_sim import PACED_BLOCK_S, BenchBlock, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
@@ -157,7 +158,7 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
     runner.start()
     server = ControllerServer(bench)
     host, port = await server.serve_tcp("127.0.0.1", 0)
-    client = ActuatorClient.tcp(host, port, limits=SoftLimits())
+    client = ActuatorClient.tcp(host, port, limits=BenchLimits())
     reader = WfsReader(link.open_host)
     reader.start()
     rate_hz = bench.output_rate_hz

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from drivers.actuator import ActuatorClient
-from drivers.setpoints import DwellSetpoint, SoftLimits
+from drivers.setpoints import DwellSetpoint
 from drivers.wfs_frame import Status
 from drivers.wfs_reader import SampleBlock, Subscription, WfsReader
 from drivers.wfs_transform import LoadProcessor
+from sequences.limits import BenchLimits
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.function_generator import AMPLITUDE_HOLD, EXCITATION_ACTIVE, sync_flags
@@ -108,7 +109,7 @@ async def test_a_modbus_dwell_shows_its_hold_in_the_frames_and_the_wheel_loads_m
     runner.start()
     server = ControllerServer(bench)
     host, port = await server.serve_tcp("127.0.0.1", 0)
-    client = ActuatorClient.tcp(host, port, limits=SoftLimits())
+    client = ActuatorClient.tcp(host, port, limits=BenchLimits())
     reader = WfsReader(link.open_host)
     reader.start()
     sub = reader.subscribe(lossless=True, max_frames=10**9)  # the reader never waits for the test

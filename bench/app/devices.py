@@ -115,7 +115,7 @@ def _client(config: BenchConfig, host: str, port: int) -> ActuatorClient:
     a = config.actuator
     common = {
         "register_map": a.load_register_map(),
-        "limits": config.soft_limits,
+        "limits": config.limits,
         "timeout_s": a.timeout_s,
         "read_attempts": a.read_attempts,
     }

@@ -17,6 +17,7 @@ import numpy as np
 from bench.engine.contracts import ControllerStatus
 from drivers.wfs_frame import Status
 from sequences.channels import ChannelSet, Role
+from sequences.limits import BenchLimits
 
 _OVERLOAD_BITS = {
     Status.OVERLOAD_FX: "Fx",
@@ -137,22 +138,19 @@ class SerialLinkLost:
 
 
 def standard_interlocks(
-    channels: ChannelSet,
-    *,
-    displacement_limit_mm: float,
-    force_limit_n: float,
-    serial_timeout_s: float = 0.5,
+    channels: ChannelSet, limits: BenchLimits, *, serial_timeout_s: float = 0.5
 ) -> tuple[Interlock, ...]:
-    """The interlocks every run is guarded by, the channel limits on the channels that play the
-    bench displacement and the plate force (UnboundRoleError when none does: nothing may run
-    without them)."""
+    """The interlocks every run is guarded by: the channel limits trip at the bench's stroke and
+    plate force (``limits.stroke_mm``, ``limits.force_n``, below the controller's own interlock
+    thresholds) on the channels that play the bench displacement and the plate force
+    (UnboundRoleError when none does: nothing may run without them)."""
     return (
         ActuatorLinkLost(),
         ControllerInterlock(),
         SerialLinkLost(serial_timeout_s),
         WfsOverload(),
-        displacement_limit(displacement_limit_mm, channels.name_of(Role.BENCH_DISPLACEMENT)),
-        force_limit(force_limit_n, channels.name_of(Role.PLATE_FORCE)),
+        displacement_limit(limits.stroke_mm, channels.name_of(Role.BENCH_DISPLACEMENT)),
+        force_limit(limits.force_n, channels.name_of(Role.PLATE_FORCE)),
     )
 
 

@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.errors import ConnectionLostError
-from drivers.setpoints import DwellSetpoint, SoftLimits, SweepSetpoint
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from drivers.wfs_capture import Capture
 from drivers.wfs_frame import FRAME_DTYPE, Status
+from sequences.limits import BenchLimits
 
 ACTIVE_BIT = 1 << 9
 HOLD_BIT = 1 << 10
@@ -60,7 +61,7 @@ class FakeBench:
     # command name -> (the call that fails, counted from 1, and the error it raises)
     faults: dict[str, tuple[int, Exception]] = field(default_factory=dict)
     calls: Counter = field(default_factory=Counter)
-    soft_limits: SoftLimits | None = None  # configure refuses what these refuse, as the client does
+    limits: BenchLimits | None = None  # configure refuses what these refuse, as the client does
     overload: bool = False  # the WFS reports Fz beyond its range
     offset_m: float = 0.0  # added to the displacement (a drifted actuator)
     stuck_active: bool = False  # the controller's active output stays up
@@ -79,8 +80,8 @@ class FakeBench:
     def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
         self._command("configure")
         self._check_link()
-        if self.soft_limits is not None:
-            setpoint.registers(self.soft_limits)
+        if self.limits is not None:
+            setpoint.registers(self.limits)
         self.log.append(f"configure {setpoint}")
         self.setpoint = setpoint
 
@@ -132,7 +133,7 @@ class FakeBench:
         """The cause of a stop cleared, and the actuator at rest (as before a reset)."""
         self.link_down = self.silent = self.overload = self.stuck_active = False
         self.offset_m = 0.0
-        self.soft_limits = None
+        self.limits = None
         self.faults.clear()
         self.on_block = self.on_call = None
         self._wave = np.zeros((0, 2))

@@ -36,7 +36,6 @@ from bench.engine.engine import Engine, EngineTiming, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
 from drivers.errors import CommandRejectedError, LimitError, LinkError, LinkTimeoutError
-from drivers.setpoints import SoftLimits
 from sequences import (
     AdaptiveDwell,
     DwellGrid,
@@ -49,11 +48,12 @@ from sequences import (
     Sweep,
     Tare,
 )
+from sequences.limits import BenchLimits
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench
 
 RATE_HZ = 1000.0
 #: soft limits the steps' 3 mm points lie beyond (their 1 mm points do not)
-SOFT_LIMITS = SoftLimits(max_amplitude_mm=2.5)
+SOFT_LIMITS = BenchLimits(stroke_mm=2.5, displacement_interlock_mm=15.0)
 #: the plate force per metre of displacement the adaptive grid's FRF needs (2 mm: 200 N, far below
 #: the 20 kN force limit)
 PLATE_N_PER_M = 1e5
@@ -212,7 +212,8 @@ def make_case(kind: Kind) -> Case:
         operator,
         channels=FrameChannels(),
         interlocks=standard_interlocks(
-            FrameChannels().recorded, displacement_limit_mm=15.0, force_limit_n=20_000.0
+            FrameChannels().recorded,
+            BenchLimits(stroke_mm=15.0, force_n=20_000.0, force_interlock_n=25_000.0),
         ),
         sync_bits=SyncBits(ACTIVE_BIT, HOLD_BIT),
         sample_rate_hz=RATE_HZ,
@@ -290,7 +291,7 @@ def failing(device: str) -> Ending:
 
 
 def refuse_setpoints(case: Case) -> None:
-    case.bench.soft_limits = SOFT_LIMITS
+    case.bench.limits = SOFT_LIMITS
 
 
 def decline_next_confirmation(case: Case) -> None:

@@ -21,6 +21,7 @@ from bench.store import CampaignWriter, open_campaign
 from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_stream import Gap
 from sequences import AnswerError, DwellGrid, FreeRun, Hydraulics, Prompt, Sequence, Sweep
+from sequences.limits import BenchLimits
 from tests.engine.fake_bench import ACTIVE_BIT, HOLD_BIT, FakeBench, FakeBlock, FakeStatus
 
 RATE_HZ = 1000.0
@@ -45,7 +46,8 @@ def make_engine(bench: FakeBench, *, clock=None, force_limit_n: float = 20_000.0
         Answers(),
         channels=FrameChannels(),
         interlocks=standard_interlocks(
-            FrameChannels().recorded, displacement_limit_mm=15.0, force_limit_n=force_limit_n
+            FrameChannels().recorded,
+            BenchLimits(stroke_mm=15.0, force_n=force_limit_n, force_interlock_n=2 * force_limit_n),
         ),
         sync_bits=SyncBits(ACTIVE_BIT, HOLD_BIT),
         sample_rate_hz=RATE_HZ,
