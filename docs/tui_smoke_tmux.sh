@@ -46,7 +46,8 @@ wait_for 60 "Fit the wheel" "y: done"
 tmux send-keys -t "$session" y
 wait_for 60 "pressure read on the gauge" "then Enter"
 tmux send-keys -t "$session" 2.5 Enter              # the pressure read on the gauge
-wait_for 120 "runs of the open file" "finished" "smoke-s010-sweep"   # the Results screen
+# the Results screen, once it shows the grid's analysis (it arrives after the runs are listed)
+wait_for 120 "runs of the open file" "finished" "smoke-s010-sweep" "Model 2 selected" "valid band 2 mm compensated"
 tmux capture-pane -p -t "$session"
 # q quits once the sequence has ended (the last run's analysis may still be finishing: the UI then
 # says so and q is pressed again); the UI closes the campaign file as it quits: wait for its

@@ -129,6 +129,9 @@ class ThreadedActuator:
             self._call(self._client.configure(setpoint))
         except CommandOutcomeUnknownError as exc:
             log.warning("setpoint: %s; written again", exc)
+            # the late reply is still on its way: a status read (its retries drain a reply that is
+            # not its own) waits it out, so the second write's reply is not queued behind it
+            self.read_status()
             self._call(self._client.configure(setpoint))
 
     def start(self) -> None:
