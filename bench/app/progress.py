@@ -23,6 +23,7 @@ import numpy as np
 
 from bench.engine import events as ev
 from drivers.wfs_frame import Status
+from sequences.points import PointStatus
 
 #: Shortest interval (s, wall clock) between two redraws of the live line.
 REDRAW_PERIOD_S = 0.2
@@ -202,7 +203,7 @@ class Progress:
             case ev.GridRefined():  # an adaptive grid's added points: the sequence counts its coarse ones
                 self.total_points += len(event.added)
             case ev.PointDone():
-                self.points_done += event.status == "done"
+                self.points_done += event.status == PointStatus.DONE
                 if self.live and not self._asking:
                     self._draw()
             case ev.SequenceFinished():

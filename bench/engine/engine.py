@@ -53,6 +53,7 @@ from sequences import (
     step_fields,
 )
 from sequences.channels import STANDARD_CHANNELS, Role
+from sequences.points import PointStatus
 from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
@@ -531,10 +532,10 @@ class Engine:
                 try:
                     span = run.excite(setpoint, planned_s=step.duration_s)
                 except _PointInterruptedError as interrupted:
-                    self._publish_sweep(run_id, step, attempt, "interrupted", interrupted.span)
+                    self._publish_sweep(run_id, step, attempt, PointStatus.INTERRUPTED, interrupted.span)
                     self._wait_paused()
                     continue
-                self._publish_sweep(run_id, step, attempt, "done", span)
+                self._publish_sweep(run_id, step, attempt, PointStatus.DONE, span)
                 return
 
     def _publish_sweep(
@@ -653,7 +654,7 @@ class Engine:
                 )
             except _PointInterruptedError as interrupted:
                 self._publish_point(
-                    run, point, attempt, "interrupted", command_mm=command_mm, span=interrupted.span
+                    run, point, attempt, PointStatus.INTERRUPTED, command_mm=command_mm, span=interrupted.span
                 )
                 self._wait_paused()
                 continue
@@ -665,7 +666,7 @@ class Engine:
             if gains is not None:
                 gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
-            status = "done" if decision.keep else "repeated"
+            status = PointStatus.DONE if decision.keep else PointStatus.REPEATED
             self._publish_point(
                 run,
                 point,

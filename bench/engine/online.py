@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sequences import AdaptiveDwell
+from sequences.points import Verdict
 
 #: Standard uncertainties of the difference that the settling test allows on top of its tolerance.
 SETTLE_SIGMAS = 3.0
@@ -64,7 +65,7 @@ class DwellVerdict:
 
     @property
     def settled(self) -> bool:
-        return self.verdict != "not settled"
+        return self.verdict != Verdict.NOT_SETTLED
 
 
 @dataclass(frozen=True)
@@ -162,7 +163,7 @@ class OnlineDwell:
             )
             enough = measured >= MEASURE_CYCLES * self.cycle - 0.5
             if targets and enough and self.held >= self.min_hold:
-                self._result = ("target", fit)
+                self._result = (Verdict.TARGET, fit)
                 return
         if self.held >= self.max_hold:
             self.finish()
@@ -220,9 +221,9 @@ class OnlineDwell:
         last = len(self._bounds) - 1
         first = self._measure_from
         if first is not None:
-            self._result = ("max length", self._fit(first, last) if first < last else None)
+            self._result = (Verdict.MAX_LENGTH, self._fit(first, last) if first < last else None)
         else:
-            self._result = ("not settled", self._fit(self._boundary(self.held / 2), last))
+            self._result = (Verdict.NOT_SETTLED, self._fit(self._boundary(self.held / 2), last))
 
     def verdict(self) -> DwellVerdict:
         """The verdict and its figures (the dwell is finished first if it is not done)."""

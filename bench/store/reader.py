@@ -34,7 +34,7 @@ from bench.store import schema as s
 from bench.store.results import read_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel, Role, standard_name
-from sequences.points import PointAttempt, Verdict
+from sequences.points import PointAttempt, PointStatus, Verdict
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
 #: Channels each kind of run needs for its analysis records.
@@ -349,10 +349,10 @@ class RunView:
     def completed_point_indices(self) -> frozenset[int]:
         """Indices of the step's points done in this run or in the runs it resumes: a resume skips
         them."""
-        return frozenset(p.index for run in self._chain() for p in run.points if p.status == "done")
+        return frozenset(p.index for run in self._chain() for p in run.points if p.status == PointStatus.DONE)
 
     def _done_points(self) -> list[tuple[RunView, PointAttempt]]:
-        done = [(run, p) for run in self._chain() for p in run.points if p.status == "done"]
+        done = [(run, p) for run in self._chain() for p in run.points if p.status == PointStatus.DONE]
         return sorted(done, key=lambda item: item[1].index)
 
     def _require(self, kinds: tuple[str, ...], what: str) -> None:

@@ -44,7 +44,7 @@ from bench.store.reader import open_campaign
 from bench.store.results import as_mapping, write_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel
-from sequences.points import PointAttempt
+from sequences.points import PointAttempt, PointStatus
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
@@ -411,7 +411,7 @@ class RunWriter:
             raise StoreError(
                 self._campaign.path, where, f"status {row.status!r} not one of {s.POINT_STATUSES}"
             )
-        if row.status == "done" and row.index in self._done:
+        if row.status == PointStatus.DONE and row.index in self._done:
             raise StoreError(self._campaign.path, where, f"point {row.index} is done already")
         order = (
             0,
@@ -430,7 +430,7 @@ class RunWriter:
             )
         record = np.array([tuple(getattr(row, name) for name in s.POINT_DTYPE.names)], dtype=s.POINT_DTYPE)
         self._pending_rows.append(record)
-        if row.status == "done":
+        if row.status == PointStatus.DONE:
             self._done |= {row.index}
         self._campaign.flush_if_due()
 
@@ -720,7 +720,9 @@ def _append_event(
 def _done_indices(points: h5py.Dataset) -> set[int]:
     rows = points[()]
     return {
-        int(i) for i, status in zip(rows["index"], rows["status"], strict=True) if _text(status) == "done"
+        int(i)
+        for i, status in zip(rows["index"], rows["status"], strict=True)
+        if _text(status) == PointStatus.DONE
     }
 
 

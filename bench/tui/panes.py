@@ -20,6 +20,7 @@ from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
 from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun
 from sequences import shipped_files
+from sequences.points import PointStatus
 
 #: Shipped sequence files offered on the sequence screen.
 #: The shipped sequences as listed, the seconds-long smoke check first.
@@ -157,7 +158,7 @@ class RunPane(Vertical):
         return f"{event.run_id}: point added at {event.amplitude_mm:g} mm: {added}"
 
     def point_done(self, event: ev.PointDone) -> None:
-        if event.status == "done":
+        if event.status == PointStatus.DONE:
             self._done += 1
         achieved = f"{event.achieved_amplitude_mm:.3f}" if math.isfinite(event.achieved_amplitude_mm) else "-"
         table = self.query_one("#run-points", DataTable)
