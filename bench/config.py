@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.engine.channels import FrameChannels
+from bench.engine.timing import EngineTiming
 from drivers.errors import RegisterMapError
 from drivers.register_map import RegisterMap, load_register_map
 from drivers.wfs_frame import FRAME_SIZE
@@ -149,6 +150,7 @@ class BenchConfig:
     aux: tuple[AuxInput, ...] = DEFAULT_AUX_INPUTS
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
+    timing: EngineTiming = field(default_factory=EngineTiming)
     source: str = "<default>"
 
     @property
@@ -177,6 +179,7 @@ class BenchConfig:
             toml_table("[aux]", {f"aux{i}": _aux_entry(a) for i, a in enumerate(self.aux)}),
             toml_table("[specimen]", _as_dict(self.specimen)),
             toml_table("[simulation]", _as_dict(self.simulation)),
+            toml_table("[timing]", _as_dict(self.timing)),
         ]
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
@@ -184,11 +187,11 @@ class BenchConfig:
 def measured_bench(config: BenchConfig) -> dict[str, object]:
     """What of ``config`` shapes a measurement, flat by dotted key (``limits.stroke_mm``): everything
     but how the devices are reached (the ``[actuator]`` table, the WFS's transport, device and baud
-    rate), whether the simulated bench is paced and the file's name; ``simulated`` says whether the
-    devices are simulated. Two configurations with equal values measure alike (a resume compares
-    them)."""
+    rate), whether the simulated bench is paced, the engine's timeouts and the file's name;
+    ``simulated`` says whether the devices are simulated. Two configurations with equal values
+    measure alike (a resume compares them)."""
     data = tomllib.loads(config.to_toml())
-    del data["actuator"], data["simulation"]["paced"]
+    del data["actuator"], data["simulation"]["paced"], data["timing"]
     for key in ("transport", "device", "baudrate"):
         del data["wfs"][key]
     flat: dict[str, object] = {"simulated": config.simulated}
@@ -356,7 +359,18 @@ class _Reader:
 
     # ------------------------------------------------------------------ tables
     def config(self, data: dict) -> BenchConfig:
-        top = ("kind", "actuator", "wfs", "limits", "calibration", "masses", "aux", "specimen", "simulation")
+        top = (
+            "kind",
+            "actuator",
+            "wfs",
+            "limits",
+            "calibration",
+            "masses",
+            "aux",
+            "specimen",
+            "simulation",
+            "timing",
+        )
         for name in data:
             if name not in top:
                 self.add(name, f"unknown key; allowed: {', '.join(top)}")
@@ -374,6 +388,7 @@ class _Reader:
             aux=self.aux(data),
             specimen=self.specimen(data),
             simulation=self.simulation(data),
+            timing=self.timing(data),
             source=self.source,
         )
         if self.problems:
@@ -539,6 +554,17 @@ class _Reader:
             ),
             wheel_fitted=self.boolean(t, "specimen", "wheel_fitted", d.wheel_fitted),
             preload_n=self.number(t, "specimen", "preload_n", d.preload_n, lo=0),
+        )
+
+    def timing(self, data: dict) -> EngineTiming:
+        """The ``[timing]`` table: every engine timeout and period, positive (docs/configuration.md)."""
+        t = self.table(data, "timing", tuple(f.name for f in fields(EngineTiming)))
+        d = EngineTiming()
+        return EngineTiming(
+            **{
+                f.name: self.number(t, "timing", f.name, getattr(d, f.name), lo=0, lo_open=True)
+                for f in fields(EngineTiming)
+            }
         )
 
     def simulation(self, data: dict) -> Simulation:

@@ -88,7 +88,7 @@ def open_bench(
             raise DeviceUnreachableError(config, "actuator", host, port, exc) from exc
         reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
         stack.enter_context(reader)
-        if not reader.wait_connected(5.0):
+        if not reader.wait_connected(config.timing.connect_timeout_s):
             raise DeviceUnreachableError(config, "wfs", wfs_url, None, reader.last_error)
         reader.set_rate(config.wfs.rate_hz)
         yield BenchDevices(actuator, reader, operator, lab)

@@ -10,12 +10,14 @@ it for its one sequence (:mod:`bench.app.run`).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from bench.app.devices import BenchDevices
 from bench.app.simulated import UNPACED_BACKLOG_S
 from bench.config import BenchConfig
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.engine import Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from drivers.wfs_frame import Status
 from drivers.wfs_transform import LoadProcessor
@@ -31,11 +33,13 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
         devices.acquisition,
         devices.operator,
         channels=channels,
-        interlocks=standard_interlocks(channels.recorded, config.limits),
+        interlocks=standard_interlocks(
+            channels.recorded, config.limits, serial_timeout_s=config.timing.wfs_silence_s
+        ),
         sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
         sample_rate_hz=float(config.wfs.rate_hz),
         amplitude_control=AmplitudeControl(max_command_mm=config.limits.stroke_mm),
         tare=config.calibration.tare,
         bench_kind=config.kind,
-        timing=EngineTiming(backlog_s=UNPACED_BACKLOG_S) if unpaced else EngineTiming(),
+        timing=replace(config.timing, backlog_s=UNPACED_BACKLOG_S) if unpaced else config.timing,
     )

@@ -35,6 +35,7 @@ from bench.engine.points import ExcitationSpan, SpanTracker
 from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
+from bench.engine.timing import EngineTiming
 from drivers.errors import CommandRejectedError, LimitError, LinkError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from sequences import (
@@ -73,31 +74,6 @@ CONDITION_OF_ACTION: dict[str, tuple[str, object]] = {
     "car_off_posts": ("car_on_posts", False),
     "set_damper": ("damper", None),
 }
-
-
-@dataclass(frozen=True)
-class EngineTiming:
-    """Bounds (s): how long to wait for a block of frames, how often to read the controller's status
-    during an excitation, how long after START the excitation must show on the sync bits (wall
-    time and samples, whichever is later: frames recorded before the START took effect may still
-    be queued), the margin (s of samples) beyond its planned duration after which a started
-    excitation counts as hung (samples received or reported lost count alike), and how long a
-    triggered capture may take to arrive after the blow was asked for (beyond its own length), and
-    how long a reset may take (the controller tapers out of an e-stop before it takes commands).
-
-    ``backlog_s`` (s of samples): how far the acquisition may run ahead of the engine before the
-    reader waits for it. A real acquisition cannot wait (its frames overflow once the serial port's
-    buffer is full), so the default covers the longest stall of the engine; a simulated one that
-    waits for its host needs little, and a short backlog keeps it from simulating rest the engine
-    records while it is busy between points."""
-
-    block_timeout_s: float = 0.05
-    status_period_s: float = 0.2
-    start_timeout_s: float = 5.0
-    end_margin_s: float = 5.0
-    capture_timeout_s: float = 10.0
-    reset_timeout_s: float = 10.0
-    backlog_s: float = 2.0
 
 
 @dataclass(frozen=True)

@@ -32,9 +32,10 @@ import pytest
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.engine import Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
+from bench.engine.timing import EngineTiming
 from drivers.errors import CommandRejectedError, LimitError, LinkError, LinkTimeoutError
 from sequences import (
     AdaptiveDwell,

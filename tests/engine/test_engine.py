@@ -13,10 +13,11 @@ from bench.app.recorder import Recorder
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, EngineTiming, SyncBits
+from bench.engine.engine import Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.run_ids import RUN_ID
 from bench.engine.states import RunState, TransitionRefusedError
+from bench.engine.timing import EngineTiming
 from bench.store import CampaignWriter, open_campaign
 from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_stream import Gap
