@@ -36,6 +36,21 @@ H5DUMP = shutil.which("h5dump")
 SMOKE_ANSWERS = "remove_wheel = true\nfit_wheel = true\npressure = 2.4\n"
 
 
+#: Point 0 of a grid at 10 Hz and 2 mm, done at its first attempt (a progress display's input).
+POINT_0_DONE = ev.PointDone(
+    0,
+    10.0,
+    2.0,
+    0,
+    10,
+    200,
+    250,
+    commanded_amplitude_mm=2.0,
+    achieved_amplitude_mm=2.0,
+    run_id="seq-s002-dwell_grid",
+)
+
+
 def smoke_sequence():
     return load_sequence(SMOKE, load_bench_config(None).limits)
 
@@ -326,22 +341,7 @@ def _feed(progress: Progress, clock: FakeClock) -> None:
     progress(ev.PointStarted("seq-s002-dwell_grid", 0, 1, 10.0, 2.0, {"tyre_pressure_bar": 2.5}))
     clock.now_s += 1.0
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
-    done = ev.PointDone(
-        0,
-        10.0,
-        2.0,
-        0,
-        10,
-        200,
-        250,
-        status="done",
-        attempt=1,
-        requested_amplitude_mm=2.0,
-        commanded_amplitude_mm=2.0,
-        achieved_amplitude_mm=2.0,
-        run_id="seq-s002-dwell_grid",
-    )
-    progress(done)
+    progress(POINT_0_DONE)
     progress.line("  point 0 at 10 Hz: done")
     progress(ev.PointStarted("seq-s002-dwell_grid", 1, 1, 30.0, 1.5, {"tyre_pressure_bar": 2.5}))
 
@@ -379,23 +379,7 @@ def test_the_eta_goes_by_the_points_once_the_estimated_duration_is_spent():
     progress(ev.RunStarted("seq-s002-dwell_grid", "dwell_grid", {}, {}, (), 100.0))
     clock.now_s += 1.0
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 0, {"status": np.zeros(250, np.uint16)}))
-    progress(
-        ev.PointDone(
-            0,
-            10.0,
-            2.0,
-            0,
-            10,
-            200,
-            250,
-            status="done",
-            attempt=1,
-            requested_amplitude_mm=2.0,
-            commanded_amplitude_mm=2.0,
-            achieved_amplitude_mm=2.0,
-            run_id="seq-s002-dwell_grid",
-        )
-    )
+    progress(POINT_0_DONE)
     assert math.isclose(progress.eta_s, 3.0)  # 3 points to go at 1 wall second per point, not 0
 
 
