@@ -128,6 +128,10 @@ class WfsDevice:
     ``boot`` is the number of power-ups so far (kept in the device's non-volatile memory).
     """
 
+    #: :meth:`deliver` waits for the host to drain the link: the bench runner feeds it from a thread
+    #: of its own, so that the bench's clock never waits for the host
+    waits_for_host = True
+
     def __init__(
         self,
         link: DeviceLink,
