@@ -11,9 +11,9 @@ from collections.abc import Mapping
 from typing import Any
 
 #: The deepest nesting of arrays and tables a file may use, the file itself counted as a table (the
-#: formats use a few: a grid's list of frequencies in a step of the steps array is 4). Deeper nesting is refused as the file's error:
-#: tomllib itself fails on a few hundred levels with a RecursionError, and so would any walk of the
-#: parsed data.
+#: formats use a few: a grid's list of frequencies in a step of the steps array is 4). Deeper
+#: nesting is refused as the file's error: tomllib itself fails on a few hundred levels with a
+#: RecursionError, and so would any walk of the parsed data.
 MAX_NESTING = 32
 #: How :func:`load_toml` begins the message of a file nested too deep.
 NESTED_TOO_DEEP = "nested too deep"
