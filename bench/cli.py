@@ -20,7 +20,7 @@ from drivers.errors import LinkError
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
 EXIT_STOPPED = 1  # aborted (a signal too), e-stopped, interlocked or failed: the file holds the data, marked
-EXIT_LINK = 2  # a device could not be reached
+EXIT_LINK = 2  # a device could not be reached, or a device or the campaign file is held by another process
 EXIT_INVALID = 3  # the sequence, configuration, answers or CSV mapping is invalid: nothing opened or moved
 EXIT_REFUSED = 4  # the dry run refused a point: nothing was opened or moved
 
@@ -32,10 +32,11 @@ def _run(args: argparse.Namespace) -> int:
     from bench.app.plan import PlanRefusedError, plan_campaign
     from bench.app.progress import DoneBefore, Progress
     from bench.app.resume import done_in_file
-    from bench.app.run import run_campaign
+    from bench.app.run import hold_campaign_file, run_campaign
     from bench.app.run_log import RunLog
     from bench.app.terminal import TerminalOperator
     from bench.config import ConfigError
+    from bench.locks import InUseError
     from sequences import SequenceError
 
     try:
@@ -52,20 +53,24 @@ def _run(args: argparse.Namespace) -> int:
     log_path = _log_beside(Path(args.out))
     logged_before = log_path.stat().st_size if log_path.exists() else 0
     try:
-        done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
-        progress = Progress(sys.stdout, done_before=done_before)
-        with RunInterrupts() as interrupts:
-            # at real devices without an answers file, the person at the terminal answers
-            asked = answers is None and not plan.config.simulated
-            outcome = run_campaign(
-                plan,
-                Path(args.out),
-                resume=args.resume,
-                operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
-                answers=answers,
-                subscribers=(RunLog(progress.line), progress),
-                on_engine=interrupts.attach,
-            )
+        with hold_campaign_file(Path(args.out)):  # before the file is read: one writer per file
+            done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
+            progress = Progress(sys.stdout, done_before=done_before)
+            with RunInterrupts() as interrupts:
+                # at real devices without an answers file, the person at the terminal answers
+                asked = answers is None and not plan.config.simulated
+                outcome = run_campaign(
+                    plan,
+                    Path(args.out),
+                    resume=args.resume,
+                    operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
+                    answers=answers,
+                    subscribers=(RunLog(progress.line), progress),
+                    on_engine=interrupts.attach,
+                )
+    except InUseError as exc:  # the campaign file or a device is held by another process
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
@@ -126,6 +131,7 @@ def _check(args: argparse.Namespace) -> int:
 def _import_csv(args: argparse.Namespace) -> int:
     from bench.app.version import software_version
     from bench.config import ConfigError, default_bench_config, load_bench_config
+    from bench.locks import InUseError
     from bench.store import StoreError
     from bench.store.csv_import import CsvError, ImportLimits, import_campaign
     from bench.store.csv_mapping import MappingError, load_mapping
@@ -143,6 +149,9 @@ def _import_csv(args: argparse.Namespace) -> int:
         limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, *TYRE_PRESSURE_RANGE_BAR)
         out, version = Path(args.out), software_version()
         import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
+    except InUseError as exc:  # another process writes that file
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
     except (MappingError, CsvError, ConfigError, SequenceError, StoreError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
@@ -185,6 +194,17 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
     """Live values and link counters, one line per ``--interval`` seconds of samples; with
     ``--duration``, ``duration / interval`` lines (rounded), so exactly that much of the stream. The
     intervals are counted in frames at the rate the device reports, not by the wall clock."""
+    from bench import locks
+
+    try:
+        with locks.holding(locks.serial_key(args.port), f"the WFS port {args.port}"):
+            return _monitor(args)
+    except locks.InUseError as exc:  # one master per device: a run, or another monitor, has it
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+
+
+def _monitor(args: argparse.Namespace) -> int:
     from drivers.wfs_reader import WfsReader
 
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
@@ -224,6 +244,21 @@ def _actuator_status(args: argparse.Namespace) -> int:
 
 
 async def _read_actuator_status(args: argparse.Namespace) -> int:
+    from bench import locks
+
+    if args.serial:
+        key, what = locks.serial_key(args.serial), f"the actuator controller's port {args.serial}"
+    else:
+        key, what = locks.tcp_key(args.host, args.port), f"the actuator controller at {args.host}:{args.port}"
+    try:
+        with locks.holding(key, what):  # one master per device: a run that drives it is not disturbed
+            return await _print_actuator_status(args)
+    except locks.InUseError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+
+
+async def _print_actuator_status(args: argparse.Namespace) -> int:
     from drivers.actuator import ActuatorClient
 
     if args.serial:

@@ -37,7 +37,7 @@ from sequences.channels import (
 from sequences.errors import problems_text
 from sequences.limits import INTERLOCKS_ABOVE, BenchLimits
 from sequences.ranges import range_problem
-from sequences.toml_text import toml_error_where, toml_table, toml_value
+from sequences.toml_text import load_toml, toml_error_where, toml_table, toml_value
 
 BENCH_KINDS = ("shaker", "four_post")
 ACTUATOR_TRANSPORTS = ("simulated", "tcp", "rtu")
@@ -263,7 +263,7 @@ def load_bench_config(path: str | Path | None) -> BenchConfig:
 def parse_bench_config(text: str, source: str, base_dir: Path | None = None) -> BenchConfig:
     """Check and build a configuration from TOML ``text``; relative paths are taken from ``base_dir``."""
     try:
-        data = tomllib.loads(text)
+        data = load_toml(text)
     except tomllib.TOMLDecodeError as exc:
         key, reason = toml_error_where(text, str(exc))
         raise ConfigError([f"{source}: {key + ': ' if key else ''}{reason}"]) from None

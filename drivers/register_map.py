@@ -240,6 +240,8 @@ def load_register_map(path: str | Path | None = None) -> RegisterMap:
         raise RegisterMapError(f"{path}: cannot read register map: {exc}") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise RegisterMapError(f"{path}: not valid TOML: {exc}") from exc
+    except RecursionError:  # tomllib recurses per level of nesting
+        raise RegisterMapError(f"{path}: nested too deep: arrays or tables hundreds of levels deep") from None
     return parse_register_map(data, source=str(path))
 
 

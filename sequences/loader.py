@@ -18,7 +18,7 @@ from sequences.channels import ChannelSet
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
 from sequences.steps import STEP_TYPES, AdaptiveDwell, DwellGrid, FreeRun, Sequence, Step, step_fields
-from sequences.toml_text import toml_error_where, toml_table
+from sequences.toml_text import load_toml, toml_error_where, toml_table
 from sequences.validation import check_channels, check_sequence_header, check_steps
 
 _TOP_KEYS = ("sequence", "steps")
@@ -46,7 +46,7 @@ def parse_sequence(
 ) -> Sequence:
     """Check and build a sequence from TOML ``text``; ``source`` names it in errors."""
     try:
-        data = tomllib.loads(text)
+        data = load_toml(text)
     except tomllib.TOMLDecodeError as exc:
         raise _syntax_error(text, source, str(exc)) from None
     if not data:

@@ -1,10 +1,59 @@
-"""Writing the flat TOML the sequence and configuration files use (tomllib only reads)."""
+"""Reading and writing the flat TOML the sequence, configuration, answers and mapping files use:
+:func:`load_toml` is the one way they are read (tomllib, with nesting too deep refused), and
+:func:`toml_error_where` words its errors for a person."""
 
 from __future__ import annotations
 
 import json
 import re
+import tomllib
 from collections.abc import Mapping
+from typing import Any
+
+#: The deepest nesting of arrays and tables a file may use, the file itself counted as a table (the
+#: formats use a few: a grid's list of frequencies in a step of the steps array is 4). Deeper
+#: nesting is refused as the file's error: tomllib itself fails on a few hundred levels with a
+#: RecursionError, and so would any walk of the parsed data.
+MAX_NESTING = 32
+#: How :func:`load_toml` begins the message of a file nested too deep.
+NESTED_TOO_DEEP = "nested too deep"
+
+
+def load_toml(text: str) -> dict[str, Any]:
+    """``tomllib.loads(text)``; arrays or tables nested more than :data:`MAX_NESTING` levels deep
+    raise :class:`tomllib.TOMLDecodeError` saying so (whether tomllib ran out of stack on them or not),
+    so that every reader reports it as the file's error and every walk of the data is shallow."""
+    try:
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise tomllib.TOMLDecodeError(_too_deep()) from None
+    if _depth(data) > MAX_NESTING:
+        raise tomllib.TOMLDecodeError(_too_deep())
+    return data
+
+
+def _too_deep() -> str:
+    return (
+        f"{NESTED_TOO_DEEP}: arrays or tables nested more than {MAX_NESTING} levels deep (the files"
+        " of this software nest a few levels at most)"
+    )
+
+
+def _depth(data: object) -> int:
+    """How deep lists and tables nest in ``data`` (a table of scalars: 1), without recursion."""
+    deepest, stack = 0, [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, dict):
+            children = value.values()
+        elif isinstance(value, list):
+            children = value
+        else:
+            continue
+        deepest = max(deepest, depth)
+        if depth <= MAX_NESTING:  # deeper is refused anyway: no need to look further
+            stack.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def toml_value(value: object) -> str:
@@ -40,6 +89,8 @@ def toml_error_where(text: str, message: str) -> tuple[str, str]:
     Python), "" where no key can be told (the line holds none, or the message names no line)."""
     at = _AT_LINE.search(message)
     reason = _AT_LINE.sub("", message)
+    if reason.startswith(NESTED_TOO_DEEP):
+        return "", reason
     if at is None:
         return "", f"not valid TOML: {reason}"
     line = int(at[1])

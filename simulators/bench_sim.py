@@ -2,8 +2,9 @@
 
 The bench is advanced by the samples it produces: :class:`BenchRunner` advances it block by block,
 either paced to real time or as fast as the streaming WFS device's port drains (backpressure from a
-blocking write; a host that stops draining makes the device drop frames and the bench falls back
-to real time, so the controller's watchdog and tapers keep running). Each block goes from the
+blocking write, never slower than real time; a host that stops draining makes the device drop frames
+and the bench runs on in real time, so the controller's clock, watchdog and tapers keep running:
+the device waits for its host on a thread of its own, never holding the bench up). Each block goes from the
 controller's function generator (the displacement command) through the plant (servo actuator,
 specimen, sensors) to the controller's readbacks and to every sink (the WFS device). A lock keeps
 the controller consistent between the runner thread and the Modbus server's event loop.
@@ -14,6 +15,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -54,7 +56,11 @@ class BenchBlock:
 
 
 class BenchSink(Protocol):
-    """A device fed by the bench (the WFS device)."""
+    """A device fed by the bench (the WFS device).
+
+    A sink whose ``deliver`` may wait for a host (backpressure) says so with a true attribute
+    ``waits_for_host``: the runner then feeds it from a thread of its own (see :class:`BenchRunner`).
+    """
 
     @property
     def paces_bench(self) -> bool:
@@ -197,6 +203,69 @@ class SimulatedBench:
 #: large blocks keep the simulation's overhead per block small when it runs far faster than real time.
 PACED_BLOCK_S = 0.01
 UNPACED_BLOCK_S = 0.2
+#: The most output (s) a sink that waits for its host may hold queued behind the bench: beyond it
+#: the bench waits for that sink. A host that stops draining never gets there (the WFS device drops
+#: what it cannot send within its own 1 s wait); only one draining slower than real time for long does.
+MAX_FEED_BACKLOG_S = 2.0
+#: The most wall-clock time (s) a runner that fell behind its schedule (a stalled host process)
+#: catches up, block after block without waiting.
+MAX_CATCH_UP_S = 0.5
+
+
+class _SinkFeed:
+    """Feeds one sink that waits for its host (``sink.waits_for_host``) from a thread of its own, so
+    that the bench, and the controller's clock with it, never waits for that host. Blocks are
+    delivered in order; ``backlog_s`` is the output queued or being delivered."""
+
+    def __init__(
+        self, sink: BenchSink, changed: threading.Condition, on_error: Callable[[BaseException], None]
+    ) -> None:
+        self.sink = sink
+        self._changed = changed  # the runner's: notified whenever a block has been delivered
+        self._on_error = on_error
+        self._blocks: deque[BenchBlock] = deque()
+        self._busy = False
+        self.backlog_s = 0.0
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name="bench-feed", daemon=True)
+        self._thread.start()
+
+    @property
+    def idle(self) -> bool:
+        """Every block given has been delivered (call with the runner's condition held)."""
+        return not self._blocks and not self._busy
+
+    def put(self, block: BenchBlock) -> None:
+        with self._changed:
+            self._blocks.append(block)
+            self.backlog_s += len(block) / block.rate_hz
+            self._changed.notify_all()
+
+    def stop(self, timeout_s: float) -> None:
+        with self._changed:
+            self._stopping = True
+            self._changed.notify_all()
+        self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        while True:
+            with self._changed:
+                while not self._blocks and not self._stopping:
+                    self._changed.wait()
+                if self._stopping:
+                    return
+                block = self._blocks.popleft()
+                self._busy = True
+            try:
+                self.sink.deliver(block)
+            except Exception as exc:  # a broken sink must be visible, not a silent dead thread
+                self._on_error(exc)
+                return
+            finally:
+                with self._changed:
+                    self._busy = False
+                    self.backlog_s -= len(block) / block.rate_hz
+                    self._changed.notify_all()
 
 
 class BenchRunner:
@@ -207,6 +276,13 @@ class BenchRunner:
     drift). Unpaced: as fast as the streaming sinks accept the blocks; while no sink paces the bench
     (none streams, or their hosts stopped draining), the bench still runs in real time so that the
     controller's tapers and watchdog behave as on a real bench.
+
+    The bench keeps its own time whatever a host does: a sink whose delivery waits for a host (the
+    WFS device's, on a link its host drains: ``waits_for_host``) is fed from a thread of its own, and
+    an unpaced bench waits for it no longer than real time allows, so when the host stops reading
+    (or goes) the controller's clock, its tapers and its watchdog run on in real time. Other sinks
+    are fed on the runner's thread right after each block, and see the controller as the block
+    left it. A waiting sink may fall behind by at most :data:`MAX_FEED_BACKLOG_S`.
     """
 
     def __init__(self, bench: SimulatedBench, *, paced: bool = True, block_s: float | None = None) -> None:
@@ -220,31 +296,96 @@ class BenchRunner:
         self._stop = self._worker.stopping
         self.error: BaseException | None = None
         self.delivering = threading.Event()  # set once the first block reached the sinks (powered up)
+        self._changed = threading.Condition()  # a feed delivered a block, or the runner is stopping
+        self._feeds: dict[int, _SinkFeed] = {}  # id(sink) -> its feed
 
     def start(self) -> None:
         self._worker.start()
 
     def stop(self) -> None:
+        with self._changed:
+            self._stop.set()
+            self._changed.notify_all()
         self._worker.stop()
+        for feed in list(self._feeds.values()):
+            feed.stop(5.0)
+
+    def backlog_s(self, sink: BenchSink) -> float:
+        """How far (s of output) ``sink`` lags behind the bench: queued or being delivered (0 for a
+        sink fed on the runner's thread)."""
+        with self._changed:
+            feed = self._feeds.get(id(sink))
+            return feed.backlog_s if feed is not None else 0.0
+
+    def _failed(self, exc: BaseException) -> None:
+        log.error("bench sink failed: %r", exc)
+        with self._changed:
+            if self.error is None:
+                self.error = exc
+            self._stop.set()
+            self._changed.notify_all()
+
+    def _feed_of(self, sink: BenchSink) -> _SinkFeed | None:
+        if not getattr(sink, "waits_for_host", False):
+            return None
+        feed = self._feeds.get(id(sink))
+        if feed is None:
+            feed = self._feeds[id(sink)] = _SinkFeed(sink, self._changed, self._failed)
+        return feed
+
+    def _wait(
+        self, feeds: list[_SinkFeed], ready: Callable[[_SinkFeed], bool] | None, deadline: float | None
+    ) -> None:
+        """Wait until every feed of ``feeds`` is ``ready`` (checked with their condition held; None:
+        never), the stop, or ``deadline``."""
+        with self._changed:
+            while not self._stop.is_set() and not (ready is not None and all(map(ready, feeds))):
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    return
+                self._changed.wait(left)
 
     def _run(self) -> None:
-        next_due = time.monotonic()
+        next_due = time.monotonic()  # the latest wall-clock time the next block may come
         try:
             while not self._stop.is_set():
                 rate_hz = self.bench.output_rate_hz
                 n_samples = max(1, round(self.block_s * rate_hz))
                 period_s = n_samples / rate_hz
-                if self.paced or not any(s.paces_bench for s in self.sinks):
-                    next_due = max(next_due + period_s, time.monotonic() - 0.5)
-                    delay = next_due - time.monotonic()
-                    if delay > 0 and self._stop.wait(delay):
-                        break
+                sinks = list(self.sinks)
+                feeds = [f for f in map(self._feed_of, sinks) if f is not None]
+                pacing = [self._feeds[id(s)] for s in sinks if s.paces_bench and id(s) in self._feeds]
+                hosted = not self.paced and any(s.paces_bench for s in sinks)
+                # hosted: as fast as the hosts drain, but never slower than real time
+                self._wait(pacing, _idle if hosted else None, next_due)
+                self._wait(feeds, _within_backlog, None)
+                if self._stop.is_set():
+                    break
+                now = time.monotonic()
+                if hosted and now < next_due:
+                    next_due = now + period_s  # ran ahead of real time: the next is due a block on
                 else:
-                    next_due = time.monotonic()
+                    next_due = max(next_due, now - MAX_CATCH_UP_S) + period_s
                 block = self.bench.advance(n_samples)
-                for sink in self.sinks:
-                    sink.deliver(block)
-                self.delivering.set()
+                for sink in sinks:
+                    feed = self._feed_of(sink)
+                    if feed is None:
+                        sink.deliver(block)
+                    else:
+                        feed.put(block)
+                if not self.delivering.is_set():  # powered up once every sink has had a block
+                    self._wait(feeds, _idle, next_due)
+                    with self._changed:
+                        if all(f.idle for f in feeds):
+                            self.delivering.set()
         except Exception as exc:  # a broken bench must be visible, not a silent dead thread
             self.error = exc
             log.exception("bench runner stopped")
+
+
+def _idle(feed: _SinkFeed) -> bool:
+    return feed.idle
+
+
+def _within_backlog(feed: _SinkFeed) -> bool:
+    return feed.backlog_s < MAX_FEED_BACKLOG_S

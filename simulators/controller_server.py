@@ -11,7 +11,8 @@ It serves only what the register map documents (the same TOML the client reads):
 - a malformed MBAP header (protocol id not 0, length outside 2..254) closes the TCP connection.
 
 Requests are served one at a time per connection, in order, each reply carrying its own request's
-transaction id, as a single-threaded controller does. Both register tables are read from the
+transaction id, as a single-threaded controller does; requests that arrive together (pipelined, in
+one TCP segment) are each answered, in order. Both register tables are read from the
 controller model's live state, so every server of one model shows the same values (the values in
 force from power-up on); writes go through the model, which may refuse them (ILLEGAL_VALUE for an
 unknown command or invalid setpoint, DEVICE_BUSY for a command the present state does not allow;
@@ -62,6 +63,8 @@ _TABLE_OF = {
 }
 #: MBAP length field (unit id + PDU): at least a function code, at most a 253-byte PDU
 _MBAP_LENGTH = range(2, 255)
+#: MBAP bytes before the unit id: transaction id, protocol id, length (the length counts from the unit id)
+_MBAP_HEADER_BYTES = 6
 _BITS_PER_BYTE = 10  # 8N1: start bit, 8 data bits, stop bit
 
 
@@ -127,18 +130,43 @@ class _Connection(ServerRequestHandler):
         super().__init__(owner, *args)
         self._pending: deque[tuple[ModbusPDU, tuple | None, int]] = deque()  # request, sender, bytes
         self._serial = asyncio.Lock()
+        self._closing = False  # a malformed header came: nothing more is read
+
+    def datagram_received(self, data: bytes, addr: tuple | None) -> None:
+        """Over TCP, cut the stream into ADUs by their MBAP length and hand each on alone, so that
+        every request of a segment is served (pymodbus decodes one ADU per arrival and drops a
+        buffer beyond one ADU's size); a malformed header closes the connection at once, whatever
+        follows it. On the RTU line (no MBAP, a single master waiting for each reply) pymodbus
+        frames the bytes itself."""
+        if not self.server.mbap:
+            super().datagram_received(data, addr)
+            return
+        if self._closing:
+            return
+        self.recv_buffer += data
+        while len(self.recv_buffer) >= _MBAP_HEADER_BYTES:
+            protocol_id, length = struct.unpack_from(">2xHH", self.recv_buffer)
+            if protocol_id != 0 or length not in _MBAP_LENGTH:
+                log.warning("malformed MBAP header %s: closing the connection", self.recv_buffer[:7].hex(" "))
+                self.recv_buffer = b""
+                self._closing = True  # the requests before it are answered first, nothing after it
+                self.loop.call_soon(lambda: self.loop.create_task(self._close_after_replies()))
+                return
+            size = _MBAP_HEADER_BYTES + length
+            if len(self.recv_buffer) < size:
+                return  # the rest of this ADU comes in a later segment
+            adu, self.recv_buffer = self.recv_buffer[:size], self.recv_buffer[size:]
+            self.callback_data(adu, addr)
 
     def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
-        if self.server.mbap and len(data) >= 7:
-            protocol_id, length = struct.unpack_from(">2xHH", data)
-            if protocol_id != 0 or length not in _MBAP_LENGTH:
-                log.warning("malformed MBAP header %s: closing the connection", data[:7].hex(" "))
-                self.close()
-                return len(data)
         used = super().callback_data(data, addr)
         if self.last_pdu:  # the base class scheduled handle_later for it
             self._pending.append((self.last_pdu, self.last_addr, used))
         return used
+
+    async def _close_after_replies(self) -> None:
+        async with self._serial:  # queued behind the requests that came before the bad header
+            self.close()
 
     def handle_later(self) -> None:
         self.loop.create_task(self._serve(*self._pending.popleft()))

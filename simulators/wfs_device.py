@@ -23,7 +23,8 @@ again, later blocks are only offered briefly, so a host that stops reading never
 (the bench then runs in real time and the controller's watchdog fires).
 
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
-frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart.
+frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart,
+commands ignored (neither carried out nor answered).
 
 Commands are dispatched through a table (:attr:`WfsDevice.commands`), one handler per command name.
 """
@@ -128,6 +129,10 @@ class WfsDevice:
     ``boot`` is the number of power-ups so far (kept in the device's non-volatile memory).
     """
 
+    #: :meth:`deliver` waits for the host to drain the link: the bench runner feeds it from a thread
+    #: of its own, so that the bench's clock never waits for the host
+    waits_for_host = True
+
     def __init__(
         self,
         link: DeviceLink,
@@ -177,6 +182,9 @@ class WfsDevice:
             "RATE?": _no_arguments("RATE", lambda: Reply(True, "RATE", (str(self.rate_hz),))),
             "CAPTURE": self._arm_capture,
         }
+        #: commands received and ignored, neither carried out nor answered (a fault: a device that
+        #: does not answer TARE, say)
+        self.ignored_commands: set[str] = set()
         self._worker = Worker(self._serve_commands, "wfs-device")
         self._stop = self._worker.stopping
         self.frames_sent = 0
@@ -423,6 +431,8 @@ class WfsDevice:
             name, args = parse_command(line)
         except ValueError:
             self._reply(Reply(False, UNKNOWN, ("unknown command",)))
+            return
+        if name in self.ignored_commands:
             return
         self._reply(self.execute(name, args))
 

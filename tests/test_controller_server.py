@@ -145,6 +145,7 @@ async def test_a_write_over_one_server_reads_back_over_another(controller, bench
         struct.pack(">HHHB", TID, 7, 6, 1) + struct.pack(">BHH", 3, 0, 1),  # protocol id 7
         struct.pack(">HHHB", TID, 0, 0, 1),  # length 0
         struct.pack(">HHHB", TID, 0, 300, 1) + b"\x03" * 20,  # length beyond 254
+        struct.pack(">HHHB", TID, 0, 300, 1) + b"\x03" * 299,  # ... with all its bytes following
     ],
 )
 async def test_malformed_mbap_header_closes_the_connection(controller, header):
@@ -153,6 +154,79 @@ async def test_malformed_mbap_header_closes_the_connection(controller, header):
         writer.write(header)
         await writer.drain()
         assert await asyncio.wait_for(reader.read(100), 2.0) == b""  # EOF: the server closed it
+    finally:
+        writer.close()
+
+
+@pytest.mark.parametrize("count", [2, 20, 40, 100])
+async def test_pipelined_requests_in_one_segment_are_all_answered_in_order(controller, count):
+    """Heartbeat writes and reads, sent together in one write: each is answered with its own
+    transaction id, in order, and each read sees the write just before it (served in order)."""
+    requests = []
+    for k in range(count // 2):
+        requests.append(_mbap(struct.pack(">BHH", 6, 3, 100 + k), tid=2 * k + 1))  # heartbeat = 100 + k
+        requests.append(_mbap(struct.pack(">BHH", 3, 3, 1), tid=2 * k + 2))  # read it back
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        writer.write(b"".join(requests))  # one segment on loopback: the server gets them at once
+        await writer.drain()
+        replies = await _read_replies_until(reader, count)
+    finally:
+        writer.close()
+    assert [tid for tid, _ in replies] == list(range(1, count + 1)), f"{len(replies)} of {count} answered"
+    for k in range(count // 2):
+        assert replies[2 * k][1] == struct.pack(">BHH", 6, 3, 100 + k)  # the write's echo
+        assert replies[2 * k + 1][1] == struct.pack(">BBH", 3, 2, 100 + k)
+
+
+async def _read_replies_until(reader: asyncio.StreamReader, wanted: int) -> list[tuple[int, bytes]]:
+    """Up to ``wanted`` replies; fewer if the server closes the connection or says nothing for 5 s."""
+    replies = []
+    for _ in range(wanted):
+        try:
+            header = await asyncio.wait_for(reader.readexactly(7), 5.0)
+        except (asyncio.IncompleteReadError, TimeoutError):
+            break
+        tid, protocol, length, _unit = struct.unpack(">HHHB", header)
+        assert protocol == 0
+        replies.append((tid, await asyncio.wait_for(reader.readexactly(length - 1), 5.0)))
+    return replies
+
+
+async def test_a_request_split_over_segments_is_answered_once_whole(controller):
+    request = _mbap(struct.pack(">BHH", 4, 0, 1))
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        for piece in (request[:3], request[3:9], request[9:]):  # header cut before its length, then PDU
+            writer.write(piece)
+            await writer.drain()
+            await asyncio.sleep(0.01)  # separate segments; the answer waits for the whole request
+        assert await _read_replies_until(reader, 1) == [(TID, bytes([4, 2, 0, 1]))]
+    finally:
+        writer.close()
+
+
+@pytest.mark.parametrize(
+    "malformed",
+    [
+        struct.pack(">HHHB", 2, 0, 300, 1) + bytes(299),  # length beyond 254, its bytes following
+        struct.pack(">HHHB", 2, 0, 1, 1) + struct.pack(">BHH", 3, 0, 1),  # length 1, data following
+        struct.pack(">HHHB", 2, 0, 0xFFFF, 1) + bytes(1000),
+        struct.pack(">HHHB", 2, 5, 6, 1) + struct.pack(">BHH", 3, 0, 1),  # protocol id 5
+    ],
+    ids=["length 300", "length 1", "length 65535", "protocol id 5"],
+)
+async def test_a_malformed_length_after_a_request_closes_the_connection(controller, malformed):
+    """A good request, then a malformed header with data after it, in one segment: the good one is
+    answered, then the connection is closed; what followed the bad header is never served."""
+    good = _mbap(struct.pack(">BHH", 4, 0, 1), tid=1)
+    after = _mbap(struct.pack(">BHH", 4, 0, 1), tid=3)
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        writer.write(good + malformed + after)
+        await writer.drain()
+        assert await _read_replies_until(reader, 3) == [(1, bytes([4, 2, 0, 1]))]
+        assert await asyncio.wait_for(reader.read(100), 5.0) == b""  # EOF: closed by the server
     finally:
         writer.close()
 

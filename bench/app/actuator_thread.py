@@ -93,12 +93,19 @@ class ThreadedActuator:
     # -- life cycle ---------------------------------------------------------------------------
 
     def connect(
-        self, heartbeat_period_s: float = DEFAULT_HEARTBEAT_PERIOD_S, watchdog_ms: int = DEFAULT_WATCHDOG_MS
+        self,
+        heartbeat_period_s: float = DEFAULT_HEARTBEAT_PERIOD_S,
+        watchdog_ms: int = DEFAULT_WATCHDOG_MS,
+        *,
+        check: Callable[[ActuatorStatus], None] | None = None,
     ) -> ActuatorStatus:
         """Connect; with the heartbeat on, beat every ``heartbeat_period_s`` and arm the
-        controller's watchdog with ``watchdog_ms``."""
+        controller's watchdog with ``watchdog_ms``. ``check(status)`` sees the first status before
+        anything is written (the heartbeat included) and may refuse the controller by raising."""
         self._beat = (heartbeat_period_s, watchdog_ms)
         status = self._call(self._client.connect())
+        if check is not None:
+            check(status)
         if self._heartbeat:
             self._call(self._client.start_heartbeat(*self._beat))
         return status

@@ -16,7 +16,7 @@ from pathlib import Path
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt, Sequence
 from sequences.errors import problems_text
-from sequences.toml_text import toml_error_where, toml_value
+from sequences.toml_text import load_toml, toml_error_where, toml_value
 from simulators.world import SimulatedOperator
 
 
@@ -39,7 +39,7 @@ def load_answers(path: Path, sequence: Sequence) -> dict[str, float | str | bool
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
+        data = load_toml(text)
     except OSError as exc:
         raise AnswersError([f"{path}: cannot read the answers file: {exc.strerror or exc}"]) from None
     except UnicodeDecodeError as exc:

@@ -5,8 +5,10 @@
 prompts; on the simulated bench it first starts the in-process simulated lab
 (:mod:`bench.app.simulated`) and connects to it over the same transports. A device that cannot be
 reached raises :class:`DeviceUnreachableError`, naming the configuration's keys and the address
-tried. This is the one module of the run that needs the drivers' clients (pymodbus, pyserial) and the
-simulators; it is imported only when a bench is opened.
+tried; a device another process holds raises :class:`DeviceInUseError` (one master per device:
+:mod:`bench.locks`), a controller found moving :class:`ControllerStateError`, both before anything
+is written to a device. This is the one module of the run that needs the drivers' clients
+(pymodbus, pyserial) and the simulators; it is imported only when a bench is opened.
 """
 
 from __future__ import annotations
@@ -15,14 +17,17 @@ import contextlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
+from bench import locks
 from bench.app.actuator_thread import ThreadedActuator
 from bench.app.answers import FileAnswers
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig
 from bench.engine.contracts import Operator
-from drivers.actuator import ActuatorClient
+from bench.locks import InUseError
+from drivers.actuator import ActuatorClient, ActuatorStatus
 from drivers.errors import LinkError
+from drivers.register_map import MOVING_STATES
 from drivers.wfs_reader import WfsReader
 
 
@@ -77,13 +82,20 @@ def open_bench(
             operator = operator or TargetAnswers(lab.operator)
         else:
             host, port, wfs_url = config.actuator.host, config.actuator.port, config.wfs.device
+            _hold_devices(config, stack)  # before anything is opened, sent or read
             if answers is not None:
                 operator = FileAnswers(answers)
         operator = operator or TerminalOperator()
         actuator = ThreadedActuator(lambda: _client(config, host, port))
         stack.callback(actuator.close)
         try:
-            actuator.connect(config.actuator.heartbeat_period_s, config.actuator.watchdog_ms)
+            actuator.connect(
+                config.actuator.heartbeat_period_s,
+                config.actuator.watchdog_ms,
+                check=lambda status: _expect_at_rest(config, host, port, status),
+            )
+        except ControllerStateError:
+            raise
         except (LinkError, OSError) as exc:
             raise DeviceUnreachableError(config, "actuator", host, port, exc) from exc
         reader = WfsReader.serial(wfs_url, baudrate=config.wfs.baudrate)
@@ -109,6 +121,61 @@ class DeviceUnreachableError(ConnectionError):
             keys, what = "actuator.host, actuator.port", f"the actuator controller at {where}:{port}"
         origin = f"{config.source}: {keys}: " if not config.simulated else ""
         super().__init__(f"{origin}cannot reach {what}: {cause}")
+
+
+class DeviceInUseError(DeviceUnreachableError):
+    """A device of the bench is held by another process (its lock, :mod:`bench.locks`): the message
+    names the configuration's keys, the device and the holder (pid and command line)."""
+
+    def __init__(self, config: BenchConfig, keys: str, cause: InUseError) -> None:
+        self.cause = cause
+        ConnectionError.__init__(self, f"{config.source}: {keys}: {cause}")
+
+
+class ControllerStateError(DeviceUnreachableError):
+    """The actuator controller is in a state the bench is not opened in: it moves (an excitation
+    this program did not start, from another master or a run that ended moments ago)."""
+
+    def __init__(self, config: BenchConfig, where: str, status: ActuatorStatus) -> None:
+        self.status = status
+        origin = "" if config.simulated else f"{config.source}: "
+        state = status.state.name
+        ConnectionError.__init__(
+            self,
+            f"{origin}the actuator controller at {where} is {state}: an excitation runs that this"
+            " program did not start (another program drives the controller, or a run that just ended"
+            " is tapering out); wait until it is at rest, or stop it at the controller, then open the"
+            " bench again. Nothing was written to it",
+        )
+
+
+def _hold_devices(config: BenchConfig, stack: contextlib.ExitStack) -> None:
+    """Take the locks of the WFS port and of the controller (its serial port, or its TCP address)
+    for the life of ``stack``: a device another process holds is refused (:class:`DeviceInUseError`),
+    naming the holder, before this process opens it."""
+    a = config.actuator
+    if a.transport == "rtu":
+        what = f"the actuator controller's port {a.device}"
+        controller = (locks.serial_key(a.device), what, "actuator.device")
+    else:
+        controller = (
+            locks.tcp_key(a.host, a.port),
+            f"the actuator controller at {a.host}:{a.port}",
+            "actuator.host, actuator.port",
+        )
+    wfs = (locks.serial_key(config.wfs.device), f"the WFS port {config.wfs.device}", "wfs.device")
+    for key, what, keys in (wfs, controller):
+        try:
+            stack.enter_context(locks.holding(key, what))
+        except InUseError as exc:
+            raise DeviceInUseError(config, keys, exc) from None
+
+
+def _expect_at_rest(config: BenchConfig, host: str, port: int, status: ActuatorStatus) -> None:
+    """Refuse a controller found moving when the bench opens (:class:`ControllerStateError`)."""
+    if status.state in MOVING_STATES:
+        where = config.actuator.device if config.actuator.transport == "rtu" else f"{host}:{port}"
+        raise ControllerStateError(config, where, status)
 
 
 def _client(config: BenchConfig, host: str, port: int) -> ActuatorClient:

@@ -1,6 +1,7 @@
 """Running a planned sequence into a campaign file: the composition of a run.
 
-:func:`run_campaign` checks the target file (:mod:`bench.app.resume`), opens the bench
+:func:`run_campaign` takes the campaign file's writer lock (one writer per file, :mod:`bench.locks`),
+checks the target file (:mod:`bench.app.resume`), opens the bench
 (:mod:`bench.app.devices`), builds the engine (:mod:`bench.app.engine_build`), subscribes the
 recorder and the post-run analysis, and runs the :class:`~bench.app.plan.CampaignPlan`;
 :func:`run_on_engine` does the same on an engine a front end keeps open between sequences. Nothing
@@ -9,10 +10,12 @@ here plans: a plan is checked before it reaches a run (:mod:`bench.app.plan`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import contextlib
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench import locks
 from bench.app.devices import open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan
@@ -24,6 +27,7 @@ from bench.engine import events as ev
 from bench.engine.contracts import Operator
 from bench.engine.engine import Engine
 from bench.store import CampaignWriter
+from bench.store.schema import CampaignInUseError, campaign_key
 
 
 @dataclass(frozen=True)
@@ -56,14 +60,15 @@ def run_campaign(
     what the campaign established so far (sensor, plate masses, tyres), carried from one sequence to
     the next; by default it starts from the configuration and the runs already in the file."""
     out_path = Path(out_path)
-    resume_plan = check_target(plan, out_path, resume)
-    with open_bench(plan.config, operator, answers) as devices:
-        engine = build_engine(plan.config, devices)
-        if on_engine is not None:
-            on_engine(engine)
-        return _run_on(
-            engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
-        )
+    with hold_campaign_file(out_path):
+        resume_plan = check_target(plan, out_path, resume)
+        with open_bench(plan.config, operator, answers) as devices:
+            engine = build_engine(plan.config, devices)
+            if on_engine is not None:
+                on_engine(engine)
+            return _run_on(
+                engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
+            )
 
 
 def run_on_engine(
@@ -79,10 +84,28 @@ def run_on_engine(
     end that shows and switches the bench between runs). The recorder, the analysis and
     ``subscribers`` are unsubscribed when the sequence ends."""
     out_path = Path(out_path)
-    resume_plan = check_target(plan, out_path, resume)
-    return _run_on(
-        engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
-    )
+    with hold_campaign_file(out_path):
+        resume_plan = check_target(plan, out_path, resume)
+        return _run_on(
+            engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
+        )
+
+
+@contextlib.contextmanager
+def hold_campaign_file(path: Path) -> Iterator[None]:
+    """The campaign file's writer lock for the ``with`` block (:mod:`bench.locks`), taken before the
+    file is read or a device opened: a file another process writes is refused
+    (:class:`~bench.store.schema.CampaignInUseError`, an :class:`~bench.locks.InUseError`) naming it."""
+    key = campaign_key(path)
+    try:
+        locks.acquire(key, f"the campaign file {path}")
+    except locks.InUseError as exc:
+        advice = "write to another file, or wait until it has finished"
+        raise CampaignInUseError(path, exc.holder, advice) from None
+    try:
+        yield
+    finally:
+        locks.release(key)
 
 
 def _run_on(

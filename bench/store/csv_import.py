@@ -18,7 +18,6 @@ import csv
 import math
 import os
 import re
-import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +37,7 @@ from bench.store.csv_mapping import (
 from bench.store.writer import CampaignWriter
 from sequences.channels import Channel, role_of_standard_name
 from sequences.points import PointAttempt
+from sequences.toml_text import load_toml
 
 #: Largest deviation of one time step from the mean step, relative, before a time column is refused.
 TIME_STEP_TOLERANCE = 0.01
@@ -226,7 +226,7 @@ def check_mapped_values(mapping: ImportMapping, runs: list[ImportedRun], limits:
             else:
                 problems += _dwell_problems(f"runs[{i}].points[{j}]", f, table, limits)
     if problems:
-        raise mapping_error(mapping.path, tomllib.loads(mapping.text), problems)
+        raise mapping_error(mapping.path, load_toml(mapping.text), problems)
 
 
 def _frequency_problem(

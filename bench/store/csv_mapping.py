@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from sequences.runs import RunKind
-from sequences.toml_text import toml_error_where
+from sequences.toml_text import load_toml, toml_error_where
 
 #: Units a column may be given in: unit -> (the SI unit of the schema's channel, factor to it).
 UNITS: dict[str, tuple[str, float]] = {
@@ -173,7 +173,7 @@ def load_mapping(path: str | Path) -> ImportMapping:
     if not text.strip():
         raise MappingError(path, [("", "empty file")])
     try:
-        data = tomllib.loads(text)
+        data = load_toml(text)
     except tomllib.TOMLDecodeError as exc:
         raise MappingError(path, [toml_error_where(text, str(exc))]) from None
     r = _Reader(path)

@@ -21,6 +21,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from bench import locks
 from bench.analysis.records import (
     DEFAULT_SETTLE_S,
     FREE_RUN_CHANNELS,
@@ -88,12 +89,20 @@ def open_campaign(path: str | Path) -> CampaignFile:
     except FileNotFoundError as err:
         raise StoreError(path, "", "no such file") from err
     except OSError as err:
+        if _locked(err):
+            holder = locks.holder_of(s.campaign_key(path))
+            raise s.CampaignInUseError(path, holder, "read it once that has finished") from None
         raise StoreError(path, "", f"not a readable HDF5 file ({_hdf5_reason(err)})") from err
     try:
         return CampaignFile(file, path)
     except BaseException:
         file.close()
         raise
+
+
+def _locked(err: OSError) -> bool:
+    """HDF5 refused the file because another process holds its file lock (it is being written)."""
+    return "unable to lock file" in str(err) or "file is already open for write" in str(err)
 
 
 def _hdf5_reason(err: OSError) -> str:

@@ -17,6 +17,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from bench.locks import Holder, InUseError, file_key
 from sequences.points import PointAttempt, PointStatus
 
 SCHEMA_NAME = "wfs-bench campaign"
@@ -95,6 +96,21 @@ class StoreError(ValueError):
     def __init__(self, path: str | Path, where: str, message: str) -> None:
         self.path, self.where, self.message = str(path), where, message
         super().__init__(f"{self.path}: {where}: {message}" if where else f"{self.path}: {message}")
+
+
+class CampaignInUseError(StoreError, InUseError):
+    """The campaign file is being written by another process (``holder``: who, where known; see
+    :mod:`bench.locks`)."""
+
+    def __init__(self, path: str | Path, holder: Holder | None, advice: str) -> None:
+        self.what, self.holder = f"the campaign file {path}", holder
+        by = holder or "another process"
+        StoreError.__init__(self, path, "", f"in use: being written by {by}; {advice}")
+
+
+def campaign_key(path: str | Path) -> str:
+    """The key of a campaign file's writer lock (:mod:`bench.locks`)."""
+    return file_key(path)
 
 
 def to_json(value: Mapping[str, Any], *, path: str | Path, where: str) -> str:

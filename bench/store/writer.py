@@ -39,6 +39,7 @@ import h5py
 import numpy as np
 from h5py import h5s, h5t, h5z
 
+from bench import locks
 from bench.store import schema as s
 from bench.store.reader import open_campaign
 from bench.store.results import as_mapping, write_tree
@@ -90,11 +91,14 @@ class CampaignWriter:
         ``flush_interval_s`` and ``clock`` (wall seconds) set the flush cadence; tests pass a
         simulated clock."""
         path = Path(path)
+        _hold(path, "choose another name")
         try:
             file = h5py.File(path, "x", libver=s.LIBVER, track_order=True, fs_strategy=s.FS_STRATEGY)
         except FileExistsError as err:
+            locks.release(s.campaign_key(path))
             raise StoreError(path, "", "exists already; resume it or choose another name") from err
         except OSError as err:
+            locks.release(s.campaign_key(path))
             raise StoreError(path, "", f"cannot be created ({err})") from err
         attrs = file.attrs
         attrs["schema"] = s.SCHEMA_NAME
@@ -122,19 +126,24 @@ class CampaignWriter:
         """Reopen a campaign file to resume it; the file is checked by the reader first, so a file
         that does not follow the schema is refused before anything is written to it."""
         path = Path(path)
-        with open_campaign(path) as campaign:
-            if campaign.schema_version != s.SCHEMA_VERSION:
-                raise StoreError(
-                    path,
-                    "/@schema_version",
-                    f"is {campaign.schema_version}: this software adds runs to version {s.SCHEMA_VERSION}"
-                    " files only (it reads the file; record into a new campaign file)",
-                )
+        _hold(path, "wait until it has finished")
         try:
-            file = h5py.File(path, "r+")
-        except OSError as err:
-            raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
-        _rebuild_table(file, s.EVENTS, s.EVENT_DTYPE)
+            with open_campaign(path) as campaign:
+                if campaign.schema_version != s.SCHEMA_VERSION:
+                    raise StoreError(
+                        path,
+                        "/@schema_version",
+                        f"is {campaign.schema_version}: this software adds runs to version {s.SCHEMA_VERSION}"
+                        " files only (it reads the file; record into a new campaign file)",
+                    )
+            try:
+                file = h5py.File(path, "r+")
+            except OSError as err:
+                raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
+            _rebuild_table(file, s.EVENTS, s.EVENT_DTYPE)
+        except BaseException:
+            locks.release(s.campaign_key(path))
+            raise
         return cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
 
     def __enter__(self) -> CampaignWriter:
@@ -301,8 +310,11 @@ class CampaignWriter:
 
     def close(self) -> None:
         if self._file.id.valid:
-            self._flush(final=True, sync=True)
-            self._file.close()
+            try:
+                self._flush(final=True, sync=True)
+                self._file.close()
+            finally:
+                locks.release(s.campaign_key(self.path))
         self._run = None
 
     def _check_no_open_run(self, where: str) -> None:
@@ -597,6 +609,23 @@ def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str,
     every name must be new (checked for all before anything is written: a refused re-analysis
     leaves the file as it was). No file may be open for writing by a run at the same time."""
     path = Path(path)
+    _hold(path, "analyse it once that has finished")
+    try:
+        _add_results(path, results)
+    finally:
+        locks.release(s.campaign_key(path))
+
+
+def _hold(path: Path, advice: str) -> None:
+    """Take the campaign file's writer lock (:mod:`bench.locks`; re-entrant in one process, released
+    by the writer's close); :class:`~bench.store.schema.CampaignInUseError` if another process has it."""
+    try:
+        locks.acquire(s.campaign_key(path), f"the campaign file {path}")
+    except locks.InUseError as exc:
+        raise s.CampaignInUseError(path, exc.holder, advice) from None
+
+
+def _add_results(path: Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
     open_campaign(path).close()
     try:
         file = h5py.File(path, "r+")

@@ -1,0 +1,191 @@
+"""One master per device, one writer per campaign file (docs/protocols.md, *One master per device*):
+a second ``wfsbench run`` against the devices a run holds, or into the file it writes, is refused
+naming the holder before it opens, sends or reads anything, and the first run loses nothing; a
+controller found moving when the bench opens is refused before anything is written to it.
+
+The devices are the simulated controller on Modbus TCP and the WFS on a pty, served by this test
+process (:func:`tests.test_campaign_cli.lab_devices`); the runs are ``wfsbench`` processes with a
+bench configuration naming them as real devices. The lock directory is the test's own."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from bench import locks
+from bench.cli import EXIT_COMPLETE, EXIT_LINK
+from bench.store import open_campaign
+from drivers.register_map import Command, ControllerState, WaveformCode
+from tests.test_campaign_cli import ROOT, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+from tests.waiting import wait_until
+
+#: Generous bound for a ``wfsbench`` process to start and reach its dwell on a loaded machine.
+START_TIMEOUT_S = 60.0
+
+#: Hydraulics, then one 10 s dwell: long enough for the second runs to be tried while it runs.
+LONG_DWELL = """\
+[sequence]
+name = "long"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "hydraulics"
+level = "high"
+
+[[steps]]
+type = "sine_dwell"
+freq_hz = 10
+amplitude_mm = 1
+measure_min_s = 10
+
+[[steps]]
+type = "hydraulics"
+level = "off"
+"""
+
+
+@pytest.fixture(autouse=True)
+def lock_dir(tmp_path, monkeypatch):
+    """This test's own lock directory, for itself and the processes it starts."""
+    directory = tmp_path / "locks"
+    monkeypatch.setenv(locks.LOCK_DIR_ENV, str(directory))
+    return directory
+
+
+def _popen_wfsbench(*args: str) -> subprocess.Popen:
+    script = os.path.join(os.path.dirname(sys.executable), "wfsbench")
+    command = [script] if os.path.exists(script) else [sys.executable, "-m", "bench.cli"]
+    return subprocess.Popen(
+        [*command, *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def test_a_second_run_against_the_same_bench_is_refused_and_the_first_loses_nothing(tmp_path, lab_devices):  # noqa: F811
+    server, pty = lab_devices
+    sequence, config = tmp_path / "long.toml", tmp_path / "bench.toml"
+    sequence.write_text(LONG_DWELL)
+    config.write_text(_bench_toml(server, pty))
+    first_out, second_out = tmp_path / "first.h5", tmp_path / "second.h5"
+    first = _popen_wfsbench("run", str(sequence), "--out", str(first_out), "--bench", str(config))
+    try:
+        controller = server.bench.controller
+        wait_until(
+            lambda: controller.state == ControllerState.RUNNING or first.poll() is not None,
+            START_TIMEOUT_S,
+            "the first run's dwell",
+        )
+        assert first.poll() is None, first.communicate()
+        holder = locks.holder_of(locks.serial_key(pty))
+        assert holder is not None and holder.pid == first.pid
+        assert holder.command.startswith(("wfsbench run", "cli.py run")), holder.command
+
+        writes_before = server.writes_received
+        second = wfsbench("run", str(sequence), "--out", str(second_out), "--bench", str(config))
+        assert second.returncode == EXIT_LINK, second.stderr
+        assert second.stderr.startswith(
+            f"error: {config}: wfs.device: the WFS port {pty} is in use by process {first.pid} (wfsbench run"
+        ) or f"is in use by process {first.pid} (cli.py run" in second.stderr, second.stderr
+        assert not second_out.exists()
+
+        same_file = wfsbench("run", str(sequence), "--out", str(first_out), "--bench", str(config))
+        assert same_file.returncode == EXIT_LINK, same_file.stderr
+        assert same_file.stderr.startswith(
+            f"error: {first_out}: in use: being written by process {first.pid} ("
+        ), same_file.stderr
+
+        # neither connected to the controller: the first run's connection is its only one, and
+        # its dwell runs on
+        assert len(server.server.active_connections) == 1
+        assert controller.state == ControllerState.RUNNING
+        stdout, stderr = first.communicate(timeout=START_TIMEOUT_S)
+    finally:
+        if first.poll() is None:
+            first.send_signal(signal.SIGTERM)
+            first.wait(30)
+    assert first.returncode == EXIT_COMPLETE, stdout + stderr
+    assert server.writes_received > writes_before
+    with open_campaign(first_out) as campaign:
+        (run,) = campaign.runs
+        assert run.status == "complete"
+        counters = run.link_counters
+        assert counters["frames_missing"] == 0, counters
+        assert counters["crc_rejects"] == 0 and counters["bytes_discarded"] == 0, counters
+        assert run.n_samples >= 10_000  # the 10 s dwell at 1 kHz
+
+
+def test_a_controller_found_moving_is_refused_before_anything_is_written(tmp_path, lab_devices):  # noqa: F811
+    """Another master (here: the test, through the model) runs an excitation: the run names the
+    state and writes nothing, not even a heartbeat."""
+    server, pty = lab_devices
+    sequence, config = tmp_path / "long.toml", tmp_path / "bench.toml"
+    sequence.write_text(LONG_DWELL)
+    config.write_text(_bench_toml(server, pty))
+    bench = server.bench
+    with bench.lock:
+        ctrl = bench.controller
+        setpoints = {"waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 1.0, "frequency_hz": 5.0}
+        assert ctrl.write_setpoints({**setpoints, "watchdog_ms": 0}) is None
+        for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
+            assert ctrl.command(command) is None
+    run = wfsbench("run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config))
+    assert run.returncode == EXIT_LINK, run.stderr
+    host, port = server.address
+    assert run.stderr.startswith(
+        f"error: {config}: the actuator controller at {host}:{port} is RUNNING: an excitation runs that"
+        " this program did not start"
+    ), run.stderr
+    assert server.writes_received == 0
+    assert ctrl.state == ControllerState.RUNNING  # untouched
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_wfs_monitor_and_actuator_status_are_refused_while_a_process_holds_the_device(tmp_path):
+    """The lock, not the device, refuses them: nothing needs to be served at these addresses."""
+    port = "/dev/null"  # any path: the key is its real path
+    with locks.holding(locks.serial_key(port), f"the WFS port {port}"):
+        monitor = wfsbench("wfs", "monitor", "--port", port, "--duration", "1")
+    assert monitor.returncode == EXIT_LINK
+    assert monitor.stderr.startswith(f"error: the WFS port {port} is in use by process {os.getpid()} (")
+    with locks.holding(locks.tcp_key("127.0.0.1", 1502), "the actuator controller at 127.0.0.1:1502"):
+        status = wfsbench("actuator", "status", "--port", "1502")
+    assert status.returncode == EXIT_LINK
+    assert status.stderr.startswith(
+        f"error: the actuator controller at 127.0.0.1:1502 is in use by process {os.getpid()} ("
+    ), status.stderr
+
+
+def test_a_lock_dies_with_its_process(tmp_path):
+    """kill -9 of the holder frees the device at once: the lock file left behind holds nothing."""
+    key = locks.serial_key(str(tmp_path / "port"))
+    code = (
+        "import sys, time; from bench import locks; "
+        f"locks.acquire({key!r}, 'the WFS port'); print('held', flush=True); time.sleep(60)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(locks.InUseError, match=rf"^the WFS port is in use by process {holder.pid} \("):
+            locks.acquire(key, "the WFS port")
+        holder.kill()
+        holder.wait(30)
+        with locks.holding(key, "the WFS port"):
+            assert locks.holder_of(key) is None  # this process holds it
+    finally:
+        if holder.poll() is None:
+            holder.kill()
+            holder.wait(30)
+
+
+def test_locks_are_reentrant_within_a_process():
+    key = "test:reentrant"
+    with locks.holding(key, "a thing"), locks.holding(key, "a thing"):
+        pass
+    with locks.holding(key, "a thing"):  # released by the last holder: free again
+        pass
