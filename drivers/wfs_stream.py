@@ -78,6 +78,9 @@ _CAP0, _CAP1 = CAPTURE_SYNC_BYTES
 _DOLLAR = REPLY_START[0]
 _CR, _LF = REPLY_END
 _EMPTY = np.zeros(0, FRAME_DTYPE)
+#: the value of an upper-case hex digit by byte (anything else: 4096, which no checksum equals)
+_HEX_VALUE = np.full(256, 4096, np.int32)
+_HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", np.uint8)] = np.arange(16)
 
 
 @dataclass(frozen=True)
@@ -398,6 +401,13 @@ class _Found:
         waiting = fits & ((after == n) | ((after == n - 1) & (padded[after] == _CR)))
         if waiting.any():
             self.undecided.append(int(dollars[np.argmax(waiting)]))
+        if ended.any():  # the checksum of every ended line at once: "*HH" with HH the XOR of the body
+            ends = np.where(ended, after, dollars + 3)
+            star_ok = d[np.maximum(ends - 3, 0)] == ord("*")
+            digits = _HEX_VALUE[d[np.maximum(ends - 2, 0)]] * 16 + _HEX_VALUE[d[np.maximum(ends - 1, 0)]]
+            xor = np.bitwise_xor.accumulate(d)
+            body = xor[np.maximum(ends - 4, 0)] ^ xor[dollars]
+            ended &= star_ok & (digits == body) & (ends - 3 > dollars)
         for p, size in zip(dollars[ended].tolist(), length[ended].tolist(), strict=True):
             try:
                 reply = parse_reply(self.buf[p : p + size])
