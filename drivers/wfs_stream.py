@@ -59,7 +59,7 @@ import numpy as np
 from drivers.errors import MalformedReplyError
 from drivers.wfs_capture import CAPTURE_SYNC_BYTES, HEADER_SIZE, Capture, decode_capture
 from drivers.wfs_commands import MAX_REPLY_LEN, REPLY_END, REPLY_START, Reply, parse_reply
-from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, crc16_rows, valid_at
+from drivers.wfs_frame import FRAME_DTYPE, FRAME_SIZE, SYNC_BYTES, crc16_rows, valid, valid_at
 
 _SEQ_MOD = 1 << 32
 _BOOT_MOD = 1 << 16
@@ -171,13 +171,21 @@ class StreamParser:
             return ParseResult(_EMPTY)
         self._wait_for = 0
         buf = bytes(self._buf)
-        cut, starts, replies, captures = self._scan(buf)
-        del self._buf[:cut]
+        # the common case first: intact frames back to back from the start (a run hides what lies
+        # inside it, so only the bytes after it need the search)
+        lead = 0
+        if len(buf) >= 2 * FRAME_SIZE and buf.startswith(SYNC_BYTES):
+            ok = valid(np.frombuffer(buf, FRAME_DTYPE, count=len(buf) // FRAME_SIZE))
+            lead = len(ok) if ok.all() else int(np.argmin(ok))
+            lead = lead if lead > 1 else 0
+        rest = buf[lead * FRAME_SIZE :] if lead else buf
+        cut, starts, replies, captures = self._scan(rest)
+        del self._buf[: lead * FRAME_SIZE + cut]
+        parts = [np.frombuffer(buf, FRAME_DTYPE, count=lead)] if lead else []
         if len(starts):
-            rows = np.lib.stride_tricks.sliding_window_view(np.frombuffer(buf, np.uint8), FRAME_SIZE)[starts]
-            good = np.ascontiguousarray(rows).view(FRAME_DTYPE).reshape(-1)
-        else:
-            good = _EMPTY
+            rows = np.lib.stride_tricks.sliding_window_view(np.frombuffer(rest, np.uint8), FRAME_SIZE)[starts]
+            parts.append(np.ascontiguousarray(rows).view(FRAME_DTYPE).reshape(-1))
+        good = np.concatenate(parts) if len(parts) > 1 else parts[0].copy() if parts else _EMPTY
         frames, gaps, resyncs = self._account(good)
         return ParseResult(frames, gaps, replies, resyncs, captures)
 
