@@ -71,8 +71,9 @@ class SampleBlock:
     when the port's read returned them), not when a consumer got round to the block. ``unread_s``:
     how long the port went unread before that read (the reader thread busy or held: waiting for a
     full lossless subscription, descheduled); a host stall longer than the port's receive buffer
-    lasts at the line rate (4095 bytes: 44 ms at 921600 baud) loses frames, which the block's gaps
-    count (:attr:`frames_missing`)."""
+    lasts at the line rate (4095 bytes: 44 ms at 921600 baud) loses frames: the first read after it
+    returns what the buffer held, and the gap comes with the first frame after the overrun, in that
+    read's block or the next ones (:attr:`frames_missing`)."""
 
     frames: np.ndarray
     gaps: tuple[Gap, ...] = ()
