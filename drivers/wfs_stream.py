@@ -212,8 +212,10 @@ class StreamParser:
             cut = min(soft)
         if cut == walk.wait_at and walk.wait_size:
             self._wait_for = walk.wait_size
-        # every sync word passed over whose CRC failed; none inside what was taken
-        rejected = found.bad[found.bad < cut]
+        # every sync word passed over: its CRC failed, or its frame could not be complete (something
+        # intact lies inside it); none inside what was taken
+        passed = np.concatenate((found.bad, found.incomplete)) if len(found.incomplete) else found.bad
+        rejected = passed[passed < cut]
         if len(rejected) and walk.hard_spans:
             spans = np.array(walk.hard_spans)
             where = np.searchsorted(spans[:, 0], rejected, side="right") - 1
@@ -369,7 +371,7 @@ class _Found:
         self.buf, self.d, self.n = buf, d, len(d)
         self.events: list[tuple[int, int, int, object]] = []
         self.undecided: list[int] = []
-        self.valid = self.bad = np.zeros(0, np.intp)
+        self.valid = self.bad = self.incomplete = np.zeros(0, np.intp)
 
     def frames(self) -> None:
         """Frames: every sync word whose 64 bytes are in hand has its CRC checked at once; the intact
@@ -380,8 +382,8 @@ class _Found:
         whole = sync[:n_whole]
         ok = valid_at(d, whole) if n_whole else np.zeros(0, bool)
         self.valid, self.bad = whole[ok], whole[~ok]
-        if n_whole < len(sync):
-            self.undecided.append(int(sync[n_whole]))  # a frame not complete yet
+        self.incomplete = sync[n_whole:]
+        self.undecided += self.incomplete.tolist()  # frames not complete yet (the last 63 bytes)
         valid = self.valid
         if len(valid) == 0:
             return
@@ -410,7 +412,7 @@ class _Found:
         if waiting.any():
             self.undecided.append(int(dollars[np.argmax(waiting)]))
         if ended.any():  # the checksum of every ended line at once: "*HH" with HH the XOR of the body
-            ends = np.where(ended, after, dollars + 3)
+            ends = np.where(ended, after, np.minimum(dollars + 3, n - 1))  # any index in range if not ended
             star_ok = d[np.maximum(ends - 3, 0)] == ord("*")
             digits = _HEX_VALUE[d[np.maximum(ends - 2, 0)]] * 16 + _HEX_VALUE[d[np.maximum(ends - 1, 0)]]
             xor = np.bitwise_xor.accumulate(d)
@@ -431,8 +433,7 @@ class _Found:
         if len(found) == 0:
             return
         n_whole = int(np.searchsorted(found, n - HEADER_SIZE, side="right"))
-        if n_whole < len(found):
-            self.undecided.append(int(found[n_whole]))  # a header not complete yet
+        self.undecided += found[n_whole:].tolist()  # headers not complete yet (the last 23 bytes)
         whole = found[:n_whole]
         if n_whole == 0:
             return

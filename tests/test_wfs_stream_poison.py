@@ -202,3 +202,31 @@ def test_a_reply_after_garbage_and_frames_is_handed_on_at_once():
     parser = StreamParser()
     result = parser.feed(encode(sent) + b"$$\x3c" + reply)
     assert np.array_equal(result.frames, sent) and result.replies == [Reply(True, "STOP")]
+
+
+GARBAGE_PIECES = [
+    SYNC_BYTES, CAPTURE_SYNC_BYTES, b"$", b"$OK,STOP*00\r\n", b"$OK,STOP*", b"\r\n", b"*", b"A",
+    Reply(True, "STOP").encode(), b"\xa5", b"\x5a", b"\x3c", b"\xc3", b"\x00",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_any_mix_of_garbage_pieces_split_anywhere_delivers_every_real_frame(seed):
+    """Frames between seeded random garbage made of the pieces every rule looks at (sync words,
+    capture sync words, reply starts and ends, bad and good replies), fed in random chunks."""
+    rng = np.random.default_rng(seed)
+    sent = _frames(300)
+    stream = b"".join(
+        encode(sent[i : i + 1])
+        + b"".join(GARBAGE_PIECES[int(k)] for k in rng.integers(0, len(GARBAGE_PIECES), rng.integers(0, 30)))
+        for i in range(300)
+    )
+    stream += encode(_frames(3, first_seq=300))  # the stream goes on: the last frames are confirmed
+    whole = StreamParser()
+    _feed(whole, stream, None)
+    parser = StreamParser()
+    got, gaps, resyncs, replies = _feed(parser, stream, rng)
+    assert np.array_equal(got[:300], sent) and gaps == [] and resyncs == []
+    assert parser.counters.frames_missing == 0 and parser.counters.frames_rejected == 0
+    assert all(r == Reply(True, "STOP") for r in replies) and replies
+    assert parser.counters == whole.counters  # split anywhere, the same count of everything
