@@ -285,8 +285,11 @@ class PtyLink:
         return sent
 
     def _waiting(self) -> int:
-        """Bytes the host's line discipline holds for it (FIONREAD on the slave)."""
-        return struct.unpack("i", fcntl.ioctl(self._slave_fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+        """Bytes the host's line discipline holds for it (FIONREAD on the slave); OSError while down."""
+        fd = self._slave_fd
+        if fd < 0:
+            raise OSError("pty link is down")
+        return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
 
     def _write_overrunning(self, fd: int, data: bytes) -> int:
         """Put ``data`` on the wire: each byte is due at the host ``byte_s`` after the one before
