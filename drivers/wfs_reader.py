@@ -65,18 +65,34 @@ class SerialLike(Protocol):
 @dataclass(frozen=True)
 class SampleBlock:
     """Consecutive frames as delivered (FRAME_DTYPE array), the gaps and the resynchronisations
-    (device restarts: the sample clock starts over) before some of them."""
+    (device restarts: the sample clock starts over) before some of them.
+
+    ``arrived_s``: when the bytes that completed the block arrived at the host (``time.monotonic()``
+    when the port's read returned them), not when a consumer got round to the block. ``unread_s``:
+    how long the port went unread before that read (the reader thread busy or held: waiting for a
+    full lossless subscription, descheduled); a host stall longer than the port's receive buffer
+    lasts at the line rate (4095 bytes: 44 ms at 921600 baud) loses frames: the first read after it
+    returns what the buffer held, and the gap comes with the first frame after the overrun, in that
+    read's block or the next ones (:attr:`frames_missing`)."""
 
     frames: np.ndarray
     gaps: tuple[Gap, ...] = ()
     resyncs: tuple[Resync, ...] = ()
+    arrived_s: float = 0.0
+    unread_s: float = 0.0
 
     def __len__(self) -> int:
         return len(self.frames)
 
+    @property
+    def frames_missing(self) -> int:
+        """Frames lost before frames of this block (the sum of its gaps)."""
+        return sum(g.missing for g in self.gaps)
+
 
 def merge_blocks(blocks: list[SampleBlock]) -> SampleBlock:
-    """Consecutive blocks as one, the gaps and resyncs re-indexed to the merged frames."""
+    """Consecutive blocks as one, the gaps and resyncs re-indexed to the merged frames; arrived when
+    the last arrived, with the longest time the port went unread before any of them."""
     gaps: list[Gap] = []
     resyncs: list[Resync] = []
     first = 0
@@ -84,7 +100,13 @@ def merge_blocks(blocks: list[SampleBlock]) -> SampleBlock:
         gaps.extend(replace(g, index=g.index + first) for g in block.gaps)
         resyncs.extend(replace(r, index=r.index + first) for r in block.resyncs)
         first += len(block)
-    return SampleBlock(np.concatenate([b.frames for b in blocks]), tuple(gaps), tuple(resyncs))
+    return SampleBlock(
+        np.concatenate([b.frames for b in blocks]),
+        tuple(gaps),
+        tuple(resyncs),
+        arrived_s=blocks[-1].arrived_s,
+        unread_s=max(b.unread_s for b in blocks),
+    )
 
 
 class Subscription:
@@ -208,6 +230,11 @@ class WfsReader:
         self._connected = threading.Event()
         self._thread: threading.Thread | None = None
         self.last_error: str | None = None
+        #: ``time.monotonic()`` when a read of the port last returned bytes (None: none yet)
+        self.last_arrival_s: float | None = None
+        #: the longest the port went unread between two reads since the reader started (s)
+        self.longest_unread_s = 0.0
+        self._read_returned_s: float | None = None
 
     @classmethod
     def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.05, **kwargs) -> WfsReader:
@@ -404,6 +431,8 @@ class WfsReader:
                     self._stop.wait(self.reconnect_interval_s)
                     continue
                 opened_before = True
+            called = time.monotonic()
+            unread = 0.0 if self._read_returned_s is None else called - self._read_returned_s
             try:
                 data = self._read_available(self._port)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
@@ -411,9 +440,13 @@ class WfsReader:
                 self.last_error = f"read failed: {exc}"
                 log.warning("WFS %s; reopening", self.last_error)
                 self._close_port()
+                self._read_returned_s = None
                 continue
+            returned = self._read_returned_s = time.monotonic()
+            self.longest_unread_s = max(self.longest_unread_s, unread)
             if data:
-                self._consume(data)
+                self.last_arrival_s = returned
+                self._consume(data, returned, unread)
 
     def _read_available(self, port: SerialLike) -> bytes:
         """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one
@@ -446,14 +479,16 @@ class WfsReader:
             with contextlib.suppress(serial.SerialException, OSError):
                 port.close()
 
-    def _consume(self, data: bytes) -> None:
-        """Parse ``data``; hand its frames to the subscriptions first, then its replies and captures
-        to whoever awaits them: a command's reply is seen only once the frames that came before it
-        on the line are queued (a host that stops the stream has every frame sent before STOP)."""
+    def _consume(self, data: bytes, arrived_s: float = 0.0, unread_s: float = 0.0) -> None:
+        """Parse ``data`` (arrived at ``arrived_s``, the port unread for ``unread_s`` before); hand its
+        frames to the subscriptions first, then its replies and captures to whoever awaits them: a
+        command's reply is seen only once the frames that came before it on the line are queued (a
+        host that stops the stream has every frame sent before STOP)."""
         with self._lock:
             result = self._parser.feed(data)
         if len(result.frames) or result.gaps or result.resyncs:
-            block = SampleBlock(result.frames, tuple(result.gaps), tuple(result.resyncs))
+            gaps, resyncs = tuple(result.gaps), tuple(result.resyncs)
+            block = SampleBlock(result.frames, gaps, resyncs, arrived_s=arrived_s, unread_s=unread_s)
             with self._subscriptions_lock:
                 subscriptions = sorted(self._subscriptions, key=lambda sub: sub.lossless)  # lossy first
             for sub in subscriptions:

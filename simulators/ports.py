@@ -4,14 +4,26 @@ The in-memory link and the pty link carry the WFS stream; both can be disconnect
 as a USB-serial adapter that is pulled and plugged back: the host's reads fail while the link is
 down and the host reopens the same name afterwards. The pty bridge joins two serial ports for a
 device that opens its port by name (the Modbus RTU server).
+
+**Backpressure or overrun.** By default the device's writes wait while the host lags (the pty's
+kernel buffers, about 16 KiB, then the device's own wait): a simulated bench that runs as fast as
+its host reads needs that. A real UART cannot wait: its bytes arrive at the line rate whether the
+host reads or not, and what finds the host's receive buffer full is lost (an overrun). With
+``rx_buffer_bytes`` the links behave so: the host's buffer holds that many bytes
+(:data:`TTY_RX_BUFFER_BYTES` for a real tty), each byte is due at the host when it would have crossed
+the wire (10 bits per byte at ``baudrate``) and is dropped if the buffer is full then; the dropped
+bytes are counted (``bytes_overrun``) and the host sees the loss as frames missing.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import select
+import struct
 import tempfile
+import termios
 import threading
 import time
 import tty
@@ -19,17 +31,39 @@ from pathlib import Path
 
 import serial
 
+#: The host's receive buffer of a real serial port on Linux, in bytes: the N_TTY line discipline's
+#: read buffer, ``N_TTY_BUF_SIZE`` = 4096 (include/linux/tty.h), of which ``n_tty_receive_buf_common``
+#: (drivers/tty/n_tty.c) keeps one byte free in raw mode, so 4095 bytes wait for the reader (FIONREAD
+#: on a raw pty stops at 4095). Once it is full, a USB-serial adapter's driver throttles (stops
+#: reading the adapter) and the adapter's own FIFO (FT232R: 256 bytes, FT232H: 1 KiB) overruns
+#: within 3-11 ms at 921600 baud: a host that stops reading for longer than 4095 bytes take on the
+#: line (44 ms at 921600 baud; 64 ms of 1 kHz frames) loses bytes.
+TTY_RX_BUFFER_BYTES = 4095
+#: how often a link whose host buffer is full looks again for room (s)
+_OVERRUN_POLL_S = 0.001
+
 
 class _Pipe:
     """A one-way byte pipe with blocking reads (timeout) and a bounded buffer (blocking writes)."""
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int, *, overrun: bool = False) -> None:
         self.capacity = capacity
+        self.overrun = overrun  # a full buffer drops what does not fit instead of waiting
+        self.bytes_overrun = 0
         self.buf = bytearray()
         self.cond = threading.Condition()
         self.closed = False
 
     def write(self, data: bytes, timeout_s: float | None = None) -> int:
+        if self.overrun:
+            with self.cond:
+                if self.closed:
+                    raise serial.SerialException("link is down")
+                room = max(self.capacity - len(self.buf), 0)
+                self.buf += data[:room]
+                self.bytes_overrun += max(len(data) - room, 0)
+                self.cond.notify_all()
+                return len(data)
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         with self.cond:
             sent = 0
@@ -104,15 +138,28 @@ class MemoryEnd:
 
 
 class MemoryLink:
-    """A bidirectional in-memory serial link between a device and a host, for fast unit tests."""
+    """A bidirectional in-memory serial link between a device and a host, for fast unit tests.
 
-    def __init__(self, capacity: int = 65536) -> None:
-        self.capacity = capacity
+    ``rx_buffer_bytes``: the host's receive buffer overruns at that size instead of holding up the
+    device (no wire timing: what does not fit when written is dropped at once)."""
+
+    def __init__(self, capacity: int = 65536, *, rx_buffer_bytes: int | None = None) -> None:
+        self.capacity = capacity if rx_buffer_bytes is None else rx_buffer_bytes
+        self.overrun = rx_buffer_bytes is not None
+        self._overrun_before = 0
         self._lock = threading.Lock()
         self._connect()
 
+    @property
+    def bytes_overrun(self) -> int:
+        """Bytes dropped because the host's receive buffer was full (every connection so far)."""
+        return self._overrun_before + self._to_host.bytes_overrun
+
     def _connect(self) -> None:
-        self._to_host, self._to_device = _Pipe(self.capacity), _Pipe(self.capacity)
+        if hasattr(self, "_to_host"):
+            self._overrun_before += self._to_host.bytes_overrun
+        self._to_host = _Pipe(self.capacity, overrun=self.overrun)
+        self._to_device = _Pipe(self.capacity)
         self.device_end = MemoryEnd(self._to_device, self._to_host, timeout=0.05)
         self._host_taken = False
 
@@ -177,11 +224,22 @@ class PtyLink:
     reconnect creates a fresh pty and moves the link, and the host reopens the same name.
     """
 
-    def __init__(self, link_dir: str | None = None) -> None:
+    def __init__(
+        self, link_dir: str | None = None, *, rx_buffer_bytes: int | None = None, baudrate: int = 921600
+    ) -> None:
+        """``rx_buffer_bytes``: overrun like a UART whose host buffer holds that many bytes (at most
+        :data:`TTY_RX_BUFFER_BYTES`, what a pty's line discipline holds), bytes crossing the wire at
+        ``baudrate``; None: the device waits for the host (backpressure)."""
+        if rx_buffer_bytes is not None and not 0 < rx_buffer_bytes <= TTY_RX_BUFFER_BYTES:
+            raise ValueError(f"rx_buffer_bytes must be 1..{TTY_RX_BUFFER_BYTES}, got {rx_buffer_bytes}")
         self._dir = Path(link_dir) if link_dir else _new_link_dir()
         self.path = str(self._dir / "wfs")
         self.master_fd = -1
         self._slave_fd = -1
+        self.rx_buffer_bytes = rx_buffer_bytes
+        self.byte_s = 10 / baudrate  # 8N1
+        self.bytes_overrun = 0  # dropped because the host's buffer was full
+        self._wire_free_s = 0.0  # when the wire has carried every byte written so far
         self._connect()
 
     def _connect(self) -> None:
@@ -205,10 +263,14 @@ class PtyLink:
         return os.read(fd, size) if ready else b""
 
     def device_write(self, data: bytes, timeout_s: float) -> int:
-        """Write to the host; waits while the pty buffer is full (backpressure), up to ``timeout_s``."""
+        """Write to the host; waits while the pty buffer is full (backpressure), up to ``timeout_s``.
+        With a receive buffer (``rx_buffer_bytes``), bytes the host's buffer has no room for when they
+        arrive are dropped instead (see the module docstring): every byte counts as sent."""
         fd = self.master_fd
         if fd < 0:
             raise OSError("pty link is down")
+        if self.rx_buffer_bytes is not None:
+            return self._write_overrunning(fd, data)
         deadline = time.monotonic() + timeout_s
         sent = 0
         view = memoryview(data)
@@ -221,6 +283,50 @@ class PtyLink:
                 with contextlib.suppress(BlockingIOError):
                     sent += os.write(fd, view[sent:])
         return sent
+
+    def _waiting(self) -> int:
+        """Bytes the host's line discipline holds for it (FIONREAD on the slave); OSError while down."""
+        fd = self._slave_fd
+        if fd < 0:
+            raise OSError("pty link is down")
+        return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+    def _write_overrunning(self, fd: int, data: bytes) -> int:
+        """Put ``data`` on the wire: each byte is due at the host ``byte_s`` after the one before
+        (from when the wire is free); bytes written as soon as the host's buffer has room, and a byte
+        still without room when it is due is dropped (``bytes_overrun``)."""
+        now = time.monotonic()
+        start = max(now, self._wire_free_s)
+        self._wire_free_s = start + len(data) * self.byte_s
+        view = memoryview(data)
+        done = 0  # bytes written or dropped
+        while done < len(data):
+            waiting = self._waiting()
+            room = self.rx_buffer_bytes - waiting
+            if room > 0:
+                try:
+                    written = os.write(fd, view[done : done + room])
+                except BlockingIOError:
+                    written = 0
+                if written:
+                    done += written
+                    self._settle(waiting)
+                    continue
+            # no room: the bytes due by now are lost
+            due = min(len(data), int((time.monotonic() - start) / self.byte_s) + 1)
+            if due > done:
+                self.bytes_overrun += due - done
+                done = due
+                continue
+            time.sleep(max(min(_OVERRUN_POLL_S, start + (done + 1) * self.byte_s - time.monotonic()), 0.0))
+        return len(data)
+
+    def _settle(self, before: int) -> None:
+        """Wait (at most 2 ms) until written bytes reach the line discipline, which the pty does
+        asynchronously (about 10 us), so that the next look at the host's buffer counts them."""
+        deadline = time.monotonic() + 0.002
+        while self._waiting() == before and time.monotonic() < deadline:
+            pass
 
     def disconnect(self) -> None:
         """Close both sides: the host's reads fail, as when an adapter is pulled."""

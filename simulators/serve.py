@@ -11,7 +11,7 @@ from collections.abc import Callable
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.faults import ByteFaults
-from simulators.ports import PtyBridge, PtyLink
+from simulators.ports import TTY_RX_BUFFER_BYTES, PtyBridge, PtyLink
 from simulators.wfs_device import WfsDevice
 
 
@@ -26,7 +26,7 @@ async def serve(
 ) -> None:
     """Serve until SIGINT/SIGTERM; ``ready`` receives the lines announcing the addresses."""
     bench = SimulatedBench.paper_shaker(seed=seed)
-    link = PtyLink()
+    link = PtyLink(rx_buffer_bytes=TTY_RX_BUFFER_BYTES if paced else None)  # paced: overruns as a UART
     rtu_line = PtyBridge("actuator")
     device = WfsDevice(link, bench, seed=seed, faults=ByteFaults(seed=seed, bit_error_rate=bit_error_rate))
     runner = BenchRunner(bench, paced=paced)

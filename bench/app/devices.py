@@ -1,9 +1,10 @@
 """Opening the bench: the configured devices, or the simulated lab when the configuration names none.
 
 :func:`open_bench` connects the actuator controller (Modbus TCP or RTU, on a thread of its own:
-:mod:`bench.app.actuator_thread`) and the WFS acquisition (serial), and chooses who answers the
-prompts; on the simulated bench it first starts the in-process simulated lab
-(:mod:`bench.app.simulated`) and connects to it over the same transports. A device that cannot be
+:mod:`bench.app.actuator_thread`) and the WFS acquisition (serial), brought to a known state (a
+stream left running is stopped, then the configured rate set), and chooses who answers the prompts;
+on the simulated bench it first starts the in-process simulated lab (:mod:`bench.app.simulated`)
+and connects to it over the same transports. A device that cannot be
 reached raises :class:`DeviceUnreachableError`, naming the configuration's keys and the address
 tried; a device another process holds raises :class:`DeviceInUseError` (one master per device:
 :mod:`bench.locks`), a controller found moving :class:`ControllerStateError`, both before anything
@@ -102,8 +103,19 @@ def open_bench(
         stack.enter_context(reader)
         if not reader.wait_connected(config.timing.connect_timeout_s):
             raise DeviceUnreachableError(config, "wfs", wfs_url, None, reader.last_error)
-        reader.set_rate(config.wfs.rate_hz)
+        _known_state(reader, config.wfs.rate_hz)
         yield BenchDevices(actuator, reader, operator, lab)
+
+
+def _known_state(reader: WfsReader, rate_hz: int) -> None:
+    """Bring the WFS acquisition to a known state: not streaming, at the configured rate.
+
+    A stream left running (a run that lost the link before it could stop it, another program) is
+    stopped first: STOP is idempotent, its reply comes behind every frame still in flight (no
+    subscription takes them, so they are dropped), then RATE, which the device refuses while it
+    streams."""
+    reader.stop_stream()
+    reader.set_rate(rate_hz)
 
 
 class DeviceUnreachableError(ConnectionError):

@@ -20,7 +20,7 @@ from sequences.channels import DEFAULT_AUX_INPUTS, Role, standard_name
 from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
-from simulators.ports import PtyLink
+from simulators.ports import TTY_RX_BUFFER_BYTES, PtyLink
 from simulators.wfs_device import WfsDevice
 from simulators.world import SimulatedOperator, SimulatedWorld
 
@@ -71,7 +71,9 @@ class SimulatedLab:
             nonlinear=s.nonlinear,
         )
         self.operator = SimulatedOperator(self.world)
-        self.link = PtyLink()
+        # paced, the link stands in for real hardware: a host that stops reading overruns the
+        # port's receive buffer and loses frames; unpaced, the bench waits for its host instead
+        self.link = PtyLink(rx_buffer_bytes=TTY_RX_BUFFER_BYTES if s.paced else None)
         wiring = tuple(standard_name(role) if role in SIMULATED_SIGNALS else None for role in s.aux_roles)
         self.device = WfsDevice(
             self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s, aux_wiring=wiring

@@ -1,0 +1,89 @@
+"""Opening the bench brings the WFS acquisition to a known state: a stream left running (a run that
+lost the WFS link before it could stop it) is stopped, so the next run's RATE is accepted.
+
+The devices stand outside the run, as a lab's hardware does (``wfsbench sim serve``): the WFS over
+a real pseudo-terminal, the controller on Modbus TCP. Before the fix every later run failed with
+``WFS refused RATE 1000: stop first`` (exit 2)."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+
+import pytest
+
+from bench.app.devices import open_bench
+from bench.config import parse_bench_config
+from simulators.bench_sim import BenchRunner, SimulatedBench
+from simulators.controller_server import ControllerServer
+from simulators.ports import PtyLink
+from simulators.wfs_device import WfsDevice
+from tests.test_campaign_cli import SMOKE, _bench_toml, wfsbench
+from tests.test_run_unattended import SMOKE_ANSWERS
+from tests.waiting import wait_until
+
+
+@pytest.fixture
+def lab():
+    """The controller on 127.0.0.1 and the WFS on a pty, outside the run: ``(server, link, device)``."""
+    bench = SimulatedBench.paper_shaker(seed=1)
+    runner = BenchRunner(bench, paced=True)
+    link = PtyLink()
+    device = WfsDevice(link, bench, seed=1)
+    runner.sinks.append(device)
+    server = ControllerServer(bench)
+    loop = asyncio.new_event_loop()
+    thread = threading.Thread(target=loop.run_forever, name="test-controller", daemon=True)
+    thread.start()
+    device.start()
+    runner.start()
+    try:
+        server.address = asyncio.run_coroutine_threadsafe(server.serve_tcp("127.0.0.1", 0), loop).result(10)
+        yield server, link, device
+    finally:
+        asyncio.run_coroutine_threadsafe(server.close(), loop).result(10)
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(timeout=5)
+        runner.stop()
+        device.stop()
+        link.close()
+        loop.close()
+    assert runner.error is None
+
+
+def _left_streaming(device: WfsDevice) -> None:
+    """What a run that lost the link leaves behind: the device streaming, nobody reading."""
+    device.execute("START", [])
+    before = device.frames_sent
+    wait_until(lambda: device.frames_sent > before + 100, 10, "the stream left running")
+
+
+def test_opening_the_bench_stops_a_stream_left_running(lab, tmp_path):
+    server, link, device = lab
+    _left_streaming(device)
+    config = parse_bench_config(_bench_toml(server, link.path), str(tmp_path / "lab.toml"))
+    with open_bench(config) as devices:
+        assert not device.streaming
+        assert devices.acquisition.rate_hz() == config.wfs.rate_hz
+        # the bench is usable: a stream started now delivers frames counted from sample 0
+        sub = devices.acquisition.subscribe(lossless=True)
+        devices.acquisition.start_stream()
+        block = sub.read_frames(50, timeout_s=10)
+        devices.acquisition.stop_stream()
+        sub.close()
+    assert block.frames["sample"][0] < 50
+
+
+def test_the_run_after_a_wfs_link_loss_works(lab, tmp_path):
+    """The link is pulled and plugged back while the device streams; the next run completes."""
+    server, link, device = lab
+    _left_streaming(device)
+    device.disconnect()  # the adapter pulled: the run that was reading ends, the device streams on
+    device.reconnect()
+    config, answers, out = tmp_path / "lab.toml", tmp_path / "ok.toml", tmp_path / "next.h5"
+    config.write_text(_bench_toml(server, link.path))
+    answers.write_text(SMOKE_ANSWERS)
+    run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out), "--answers", str(answers))
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "stop first" not in run.stdout + run.stderr
+    assert not device.streaming  # the run stopped its stream at its end
