@@ -280,6 +280,19 @@ class WfsReader:
     def wait_connected(self, timeout_s: float) -> bool:
         return self._connected.wait(timeout_s)
 
+    def link_silence_s(self) -> float:
+        """How long (s) no byte has arrived at the port: since the last read that returned bytes, or 0
+        while bytes wait in the port unread (the host is behind: the reader thread was not scheduled,
+        not the link went quiet). Infinite before any byte arrived."""
+        port = self._port
+        try:
+            if port is not None and port.in_waiting > 0:
+                return 0.0
+        except (serial.SerialException, OSError, TypeError, AttributeError):
+            pass  # a port closed under the question: judged by the last arrival
+        arrived = self.last_arrival_s
+        return float("inf") if arrived is None else max(0.0, time.monotonic() - arrived)
+
     def link_counters(self) -> dict[str, int]:
         """The link counters by name (what a run records beside its samples)."""
         return asdict(self.counters)

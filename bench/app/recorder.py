@@ -40,6 +40,13 @@ class Recorder:
                 self._event("state", f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value)
             case ev.InterlockTripped():
                 self._event("interlock", f"{event.name}: {event.reason}", name=event.name)
+            case ev.HostStalled():
+                self._event(
+                    "host stall",
+                    ev.host_stall_text(event),
+                    stalled_s=event.stalled_s,
+                    frames_lost=event.frames_lost,
+                )
             case ev.RunFinished():
                 self._finish(event)
             case ev.AnalysisDone():

@@ -50,6 +50,8 @@ class RunLog:
                 return f"prompt {event.prompt_id}: {event.text} -> {event.answer}{unit}"
             case ev.InterlockTripped():
                 return f"INTERLOCK {event.name}: {event.reason}"
+            case ev.HostStalled():
+                return ev.host_stall_text(event)
             case ev.RunFinished():
                 return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"
             case ev.AnalysisDone():

@@ -130,6 +130,11 @@ class LinkCounted(Protocol):
         """Cumulative link statistics by name (frames ok, missing, CRC rejects, reconnects, ...)."""
         ...
 
+    def link_silence_s(self) -> float:
+        """How long (s) no byte has arrived at the port, judged at the port: 0 while bytes wait there
+        unread (the host is behind, not the link)."""
+        ...
+
 
 class CaptureLike(Protocol):
     """A triggered block of Fz: ``samples_n`` at ``rate_hz``, the trigger at ``pre_trigger_samples``."""

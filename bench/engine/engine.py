@@ -840,7 +840,8 @@ class _RunRecording:
         self.displacement: list[np.ndarray] = []
         self._subscription = None
         self._last_status_s = -np.inf
-        self._last_frame_s = 0.0
+        self._stream_started_s = 0.0
+        self._stall: tuple[float, float, int] | None = None  # open host stall: unread s, arrival, lost
 
     def __enter__(self) -> _RunRecording:
         e = self.engine
@@ -870,7 +871,7 @@ class _RunRecording:
         backlog = max(1, round(e.timing.backlog_s * e.sample_rate_hz))
         self._subscription = e.acquisition.subscribe(lossless=True, max_frames=backlog)
         e.acquisition.start_stream()
-        self._last_frame_s = e._clock()
+        self._stream_started_s = e._clock()
 
     def __exit__(self, exc_type, exc, tb) -> None:
         """End the run: the sequence's ending first, if the run did not complete (the actuator
@@ -882,6 +883,7 @@ class _RunRecording:
             log.warning("stopping the WFS stream failed: %s", stop_error)
         finally:
             self._subscription.close()
+            self._close_host_stall()  # one still open lost nothing: it is published, nothing trips
             self.engine._run_finished(self.run_id, outcome)
 
     def _stop_stream(self) -> None:
@@ -998,8 +1000,43 @@ class _RunRecording:
         block = self._subscription.get_all(e.timing.block_timeout_s)
         if block is None:
             return {}
-        self._last_frame_s = e._clock()
-        return self._record(block)
+        columns = self._record(block)
+        self._follow_host_stall(block)
+        return columns
+
+    def _follow_host_stall(self, block) -> None:
+        """Host stalls, from the blocks' port timing: a block the port went unread ``unread_s``
+        before (the host busy, not the link) opens a stall once that reaches ``host_stall_s``. The
+        frames lost to it show as gaps in that block or in those read right after it (the port
+        first gives the bytes it kept, then what came after the bytes it dropped): the stall takes
+        the gaps of the blocks that arrived within ``host_stall_s`` of its own and is published at
+        its first gap, or once a block arrives later, or at the run's end. Frames lost stop the run."""
+        e = self.engine
+        unread_s = getattr(block, "unread_s", 0.0)
+        arrived_s = getattr(block, "arrived_s", 0.0)
+        lost = sum(g.missing for g in block.gaps)
+        if self._stall is not None and arrived_s - self._stall[1] > e.timing.host_stall_s:
+            self._close_host_stall()
+        if unread_s >= e.timing.host_stall_s:
+            self._close_host_stall()
+            self._stall = (unread_s, arrived_s, 0)
+        if self._stall is not None and lost:
+            self._stall = (self._stall[0], self._stall[1], self._stall[2] + lost)
+            self._close_host_stall()
+
+    def _close_host_stall(self) -> None:
+        """Publish the open host stall, if any; it ends the run when frames were lost to it."""
+        if self._stall is None:
+            return
+        stalled_s, _, lost = self._stall
+        self._stall = None
+        self.engine.bus.publish(ev.HostStalled(self.run_id, stalled_s, lost))
+        if lost:
+            self._trip(
+                "host stalled",
+                f"the host left the WFS port unread for {stalled_s:.2f} s and {lost} frames were lost"
+                " (a busy machine, not the link)",
+            )
 
     def _guard(self, columns: Mapping[str, np.ndarray], *, read_status: bool = False) -> None:
         """Check every interlock; the first that trips stops the actuator and ends the run.
@@ -1014,12 +1051,10 @@ class _RunRecording:
                 controller = e.actuator.read_status()
             except LinkError as exc:
                 log.warning("status read failed: %s", exc)
-        seen = Observation(
-            columns,
-            controller,
-            e.actuator.link_fault(),
-            0.0 if columns else now - self._last_frame_s,
-        )
+        # the link's silence is judged at the port, bounded by this stream's age (bytes of an
+        # earlier stream do not count): bytes waiting there unread are the host's delay
+        silence_s = 0.0 if columns else min(e.acquisition.link_silence_s(), now - self._stream_started_s)
+        seen = Observation(columns, controller, e.actuator.link_fault(), silence_s)
         tripped = first_trip(e.interlocks, seen)
         if tripped is not None:
             self._trip(*tripped)

@@ -113,6 +113,24 @@ class PromptAnswered:
 
 
 @dataclass(frozen=True)
+class HostStalled:
+    """The host left the WFS port unread for ``stalled_s`` seconds during run ``run_id`` (a busy
+    machine, not the link); ``frames_lost`` frames overran the port's buffer meanwhile."""
+
+    run_id: str
+    stalled_s: float
+    frames_lost: int
+
+
+def host_stall_text(event: HostStalled) -> str:
+    """How a log and the campaign file's events say a host stall."""
+    return (
+        f"host stall: the WFS port went unread for {event.stalled_s:.2f} s,"
+        f" {event.frames_lost} frames lost ({event.run_id})"
+    )
+
+
+@dataclass(frozen=True)
 class InterlockTripped:
     name: str
     reason: str
@@ -153,6 +171,7 @@ Event = (
     | GridRefined
     | PromptAsked
     | PromptAnswered
+    | HostStalled
     | InterlockTripped
     | RunFinished
     | AnalysisDone

@@ -36,8 +36,9 @@ class Observation:
 
     ``columns``: the newest samples by channel name (``status`` among them, the frames' status bits),
     empty when none arrived; ``controller``: the last readback, if one was taken;
-    ``actuator_link_fault``: the Modbus link's fault, if any; ``seconds_without_samples``: wall-clock
-    time since the last frame arrived while the acquisition should be streaming (0 otherwise).
+    ``actuator_link_fault``: the Modbus link's fault, if any; ``seconds_without_samples``: how long no
+    byte has arrived at the WFS port while the acquisition should be streaming (0 otherwise, and 0
+    while bytes wait at the port unread: a busy host is not a silent link).
     """
 
     columns: Mapping[str, np.ndarray]

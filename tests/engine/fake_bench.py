@@ -19,6 +19,7 @@ from drivers.errors import ConnectionLostError
 from drivers.setpoints import DwellSetpoint, SweepSetpoint
 from drivers.wfs_capture import Capture
 from drivers.wfs_frame import FRAME_DTYPE, Status
+from drivers.wfs_stream import Gap
 from sequences.limits import BenchLimits
 
 ACTIVE_BIT = 1 << 9
@@ -37,6 +38,7 @@ class FakeBlock:
     frames: np.ndarray
     gaps: tuple = ()
     resyncs: tuple = ()
+    unread_s: float = 0.0
 
 
 @dataclass
@@ -65,6 +67,9 @@ class FakeBench:
     overload: bool = False  # the WFS reports Fz beyond its range
     offset_m: float = 0.0  # added to the displacement (a drifted actuator)
     stuck_active: bool = False  # the controller's active output stays up
+    unread_s: float = 0.0  # the next block's bytes waited this long at the port unread (a host stall)
+    lost_in_stall: int = 0  # frames the next block misses (they overran the port meanwhile)
+    _silent_for_s: float = 0.0  # how long the engine has waited on the silent port
     _wave: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     _capture: tuple[float, int, int] = (0.0, 0, 1)
     _seq: int = 0
@@ -198,11 +203,17 @@ class FakeBench:
     def link_counters(self) -> dict[str, int]:
         return {"frames_ok": self._seq}
 
+    def link_silence_s(self) -> float:
+        """The port's silence: the time the engine has waited on it since it went silent."""
+        return self._silent_for_s
+
     def get_all(self, timeout_s: float) -> FakeBlock | None:
         if self.on_block is not None:
             self.on_block(self)
         if not self.streaming or self.silent:
+            self._silent_for_s += timeout_s if self.silent else 0.0
             return None
+        self._silent_for_s = 0.0
         frames = np.zeros(self.block, dtype=FRAME_DTYPE)
         take = self._wave[: self.block]
         self._wave = self._wave[self.block :]
@@ -223,4 +234,8 @@ class FakeBench:
         frames["status"] = status
         self._seq += self.block
         self._sample += self.block
-        return FakeBlock(frames)
+        stall, self.unread_s = self.unread_s, 0.0
+        lost, self.lost_in_stall = self.lost_in_stall, 0
+        return FakeBlock(
+            frames, (Gap(0, int(frames["seq"][0]) - lost, lost),) if lost else (), unread_s=stall
+        )

@@ -1,0 +1,68 @@
+"""A host stall on the paced simulated bench, over the real transports (Modbus TCP, a pty whose
+receive buffer holds a real tty's 4095 bytes): the engine's thread is held for 2 s mid-point (the
+machine busy with other work), the reader then waits on its full subscription, the port goes
+unread and overruns. The run ends as a host stall with the frames lost counted, recorded in the
+campaign file, never as a lost link. And a port holding unread bytes is not a silent link."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from bench.engine import events as ev
+from bench.store import open_campaign
+from tests.campaign_lab import bench_config, grid_sequence, lab_campaign
+
+STALL_S = 2.0
+#: Paced (the link overruns like hardware) and a short backlog: the engine's subscription fills in
+#: 0.2 s of a stall, the reader then waits and the port's 4095 bytes (64 frames) overrun.
+CONFIG = "[simulation]\npaced = true\n[timing]\nbacklog_s = 0.2\n"
+
+
+def test_a_held_engine_overruns_the_port_and_the_run_ends_as_a_host_stall(tmp_path):
+    config = bench_config(tmp_path, CONFIG)
+    path = tmp_path / "campaign.h5"
+    with lab_campaign(config, grid_sequence((10.0, 12.0), measure_min_s=1.0), path) as campaign:
+        held = threading.Event()
+
+        def hold_once(event: ev.Event) -> None:  # on the engine's thread, as a busy machine would
+            if isinstance(event, ev.PointStarted) and event.index == 1 and not held.is_set():
+                held.set()
+                threading.Event().wait(STALL_S)
+
+        campaign.engine.bus.subscribe(hold_once)
+        campaign.start()
+        outcome = campaign.wait()
+    assert held.is_set()
+    assert outcome.status == "interlocked", outcome
+    assert outcome.reason.startswith("host stalled: "), outcome.reason
+    assert "link lost" not in outcome.reason
+    stalls = campaign.of(ev.HostStalled)
+    assert stalls and stalls[-1].stalled_s >= STALL_S - 0.5 and stalls[-1].frames_lost > 0
+    assert not [t for t in campaign.of(ev.InterlockTripped) if t.name == "WFS link lost"]
+    with open_campaign(path) as f:
+        (run,) = f.runs
+        recorded = [e for e in run.events if e.kind == "host stall"]
+        assert run.status == "interlocked" and run.reason == outcome.reason
+        assert recorded and recorded[-1].fields["frames_lost"] == stalls[-1].frames_lost
+        gaps = sum(e.fields["missing"] for e in run.events if e.kind == "gap")
+        assert gaps >= stalls[-1].frames_lost  # the lost frames are the file's gaps
+
+
+def test_bytes_waiting_unread_at_the_port_are_no_silence(tmp_path):
+    """The reader held (its lossless subscription full) while the paced device goes on sending: the
+    port holds bytes, so the link is not silent however long ago the reader last read."""
+    config = bench_config(tmp_path, CONFIG)
+    with lab_campaign(config, grid_sequence((10.0,)), tmp_path / "c.h5") as campaign:
+        reader = campaign.devices.acquisition
+        subscription = reader.subscribe(lossless=True, max_frames=10)
+        reader.start_stream()
+        try:
+            first = subscription.get(5)
+            assert first is not None
+            threading.Event().wait(0.6)  # the reader waits on the full subscription meanwhile
+            assert time.monotonic() - reader.last_arrival_s > 0.5  # the reader has not read since
+            assert reader.link_silence_s() == 0.0
+        finally:
+            subscription.close()
+            reader.stop_stream()
