@@ -10,10 +10,12 @@ wfsbench=${WFSBENCH:-wfsbench}
 out=${1:-$(mktemp -d)/smoke.h5}
 session=wfsbench-tui-$$
 
-# a tmux server of its own (socket named as the session): another tmux on the machine, its options
-# and its window sizes, cannot change this one's 120 x 40 window
+# a tmux server of its own (socket named as the session): another tmux on the machine and its
+# options cannot change this one's 120 x 40 window
 tmux() { command tmux -L "$session" -f /dev/null "$@"; }
-tmux new-session -d -s "$session" -x 120 -y 40 "$wfsbench tui --out '$out'"
+# COLUMNS and LINES left in the environment (a test runner's worker sets 80 x 24) would override
+# the size of the pane the UI runs in
+tmux new-session -d -s "$session" -x 120 -y 40 "env -u COLUMNS -u LINES $wfsbench tui --out '$out'"
 trap 'tmux kill-server 2>/dev/null || true' EXIT
 
 # wait_for SECONDS PATTERN...: until the screen shows every PATTERN (fixed strings)
