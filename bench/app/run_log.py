@@ -50,7 +50,7 @@ class RunLog:
                 return f"prompt {event.prompt_id}: {event.text} -> {event.answer}{unit}"
             case ev.InterlockTripped():
                 return f"INTERLOCK {event.name}: {event.reason}"
-            case ev.HostStalled():
+            case ev.HostStalled() if event.frames_lost:  # a stall that lost nothing is in the file only
                 return ev.host_stall_text(event)
             case ev.RunFinished():
                 return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"

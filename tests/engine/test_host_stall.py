@@ -44,9 +44,9 @@ def test_a_host_stall_that_lost_frames_stops_the_run_as_a_host_stall_never_a_lin
 
 
 def test_a_short_unread_spell_is_no_stall():
-    """Below ``host_stall_s`` (0.25 s by default) a late read is the ordinary jitter of a busy host."""
+    """Below ``host_stall_s`` (0.05 s by default) a late read is the ordinary jitter of a busy host."""
     bench = FakeBench()
     engine, seen = make_engine(bench)
-    _stall_at_block(bench, seen, unread_s=0.2, lost=0)
+    _stall_at_block(bench, seen, unread_s=0.04, lost=0)
     assert engine.run(sequence(grid())).status == "complete"
     assert not of(seen, ev.HostStalled)
