@@ -6,7 +6,7 @@ from typing import ClassVar
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Input, Label, Static
 
@@ -117,7 +117,7 @@ HELP_TEXT = """\
   F2    Bench: links, hydraulics, interlocks, live values, counters
   F3    Sequence: pick and check a sequence file, start it
   F4    Run: progress, current step, live plots, amplitudes
-  F5    Results: identified parameters, Bode plot, valid bands, past runs
+  F5    Results: the analysis, Bode plot, valid bands, past runs
   ?     this help          q   quit (not while a sequence runs)
 
 [b]Bench[/b]     l / h / o: hydraulics low / high / off    t: tare
@@ -144,10 +144,13 @@ class HelpDialog(ModalScreen[None]):
     BINDINGS: ClassVar[list[Binding]] = [Binding("escape,question_mark,q", "close", "Close")]
 
     def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog", id="help"):
+        with VerticalScroll(classes="dialog", id="help"):  # scrolls with the arrows where it is cut
             yield Label(ESTOP_HINT)
             yield Static(HELP_TEXT, id="help-text")
             yield Label("Escape closes")
+
+    def on_mount(self) -> None:
+        self.query_one("#help", VerticalScroll).focus()
 
     def action_close(self) -> None:
         self.dismiss(None)

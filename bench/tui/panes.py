@@ -72,7 +72,7 @@ class BenchPane(Vertical):
         yield Static("", id="bench-lamps")
         yield Static("", id="bench-values")
         yield Static("", id="bench-counters")
-        yield Label("l / h / o: hydraulics low / high / off    t: tare    x: reset   (each confirmed)")
+        yield Label("l / h / o: hydraulics low / high / off   t: tare   x: reset   (each asks y / n)")
 
     def show_opening(self) -> None:
         self.query_one("#bench-links", Static).update("opening the bench…")

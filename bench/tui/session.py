@@ -450,9 +450,8 @@ class BenchSession:
                 self.post(BenchFault(f"the sequence did not start: {exc}{self._reset_hint()}"))
             else:
                 log.exception("the sequence failed")
-                self.post(
-                    BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}{self._reset_hint()}")
-                )
+                reason = str(exc) or type(exc).__name__  # the plain message, not the class
+                self.post(BenchFault(f"the sequence failed: {reason}{self._reset_hint()}"))
         finally:
             self.running.clear()
         self._post_past_runs()
