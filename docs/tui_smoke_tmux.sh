@@ -9,9 +9,12 @@ set -euo pipefail
 wfsbench=${WFSBENCH:-wfsbench}
 out=${1:-$(mktemp -d)/smoke.h5}
 session=wfsbench-tui-$$
+# a tmux server of its own (its own socket, no configuration): another tmux session on the machine
+# cannot resize the window or share its options
+tmux() { command tmux -L "$session" -f /dev/null "$@"; }
 
 tmux new-session -d -s "$session" -x 120 -y 40 "$wfsbench tui --out '$out'"
-trap 'tmux kill-session -t "$session" 2>/dev/null || true' EXIT
+trap 'tmux kill-server 2>/dev/null || true' EXIT
 
 # wait_for SECONDS PATTERN...: until the screen shows every PATTERN (fixed strings)
 wait_for() {

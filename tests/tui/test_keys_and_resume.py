@@ -10,6 +10,7 @@ from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.tui.app import WfsBenchApp
 from bench.tui.dialogs import FIELD_KEYS, ConfirmDialog, HelpDialog
+from bench.tui.panes import RunPane
 from bench.tui.session import HeldRuns
 from tests.tui.test_tui import (
     FILES,
@@ -65,8 +66,8 @@ async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: W
 
         await pilot.press("f3", "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
+        events_before = len(recorded.of(ev.PointDone))  # before the key: the resumed run starts at once
         await pilot.press("y")
-        events_before = len(recorded.of(ev.PointDone))
         await until(pilot, lambda: len(recorded.of(ev.PointStarted)) > before + 1, "the resumed dwells")
         assert app.pane == "run" and app.focused is None, app.focused
         await until(
@@ -97,6 +98,8 @@ async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: W
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
         done_here = done_points(recorded, events_before)
         assert done_here < 20 - before, "a aborted the sequence before its end"
+        await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
+        assert app.query_one(RunPane)._done == before + done_here
         await until(
             pilot, lambda: f"points {before + done_here}/20" in text_of(app, "#run-progress"), "the count"
         )
