@@ -12,6 +12,8 @@ session=wfsbench-tui-$$
 # a tmux server of its own (its own socket, no configuration): another tmux session on the machine
 # cannot resize the window or share its options
 tmux() { command tmux -L "$session" -f /dev/null "$@"; }
+# the UI takes its size from the terminal, not from COLUMNS / LINES a caller may have set (pytest does)
+unset COLUMNS LINES
 
 tmux new-session -d -s "$session" -x 120 -y 40 "$wfsbench tui --out '$out'"
 trap 'tmux kill-server 2>/dev/null || true' EXIT

@@ -54,7 +54,8 @@ async def until(pilot, condition, what: str) -> None:
 
 
 async def open_app(pilot, app: WfsBenchApp) -> Recorded:
-    await until(pilot, app.session.opened.is_set, "the bench to open")
+    await until(pilot, lambda: app.session.opened.is_set() or app.unopened, "the bench to open")
+    assert app.unopened is None, f"the bench did not open: {app.unopened}"
     recorded = Recorded()
     app.session.engine.bus.subscribe(recorded)
     return recorded
