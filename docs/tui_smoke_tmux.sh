@@ -9,13 +9,13 @@ set -euo pipefail
 wfsbench=${WFSBENCH:-wfsbench}
 out=${1:-$(mktemp -d)/smoke.h5}
 session=wfsbench-tui-$$
-# a tmux server of its own (its own socket, no configuration): another tmux session on the machine
-# cannot resize the window or share its options
-tmux() { command tmux -L "$session" -f /dev/null "$@"; }
-# the UI takes its size from the terminal, not from COLUMNS / LINES a caller may have set (pytest does)
-unset COLUMNS LINES
 
-tmux new-session -d -s "$session" -x 120 -y 40 "$wfsbench tui --out '$out'"
+# a tmux server of its own (socket named as the session): another tmux on the machine and its
+# options cannot change this one's 120 x 40 window
+tmux() { command tmux -L "$session" -f /dev/null "$@"; }
+# COLUMNS and LINES left in the environment (a test runner's worker sets 80 x 24) would override
+# the size of the pane the UI runs in
+tmux new-session -d -s "$session" -x 120 -y 40 "env -u COLUMNS -u LINES $wfsbench tui --out '$out'"
 trap 'tmux kill-server 2>/dev/null || true' EXIT
 
 # wait_for SECONDS PATTERN...: until the screen shows every PATTERN (fixed strings)
