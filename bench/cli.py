@@ -105,7 +105,9 @@ def _tui(args: argparse.Namespace) -> int:
     from bench.tui.app import WfsBenchApp
 
     out = Path(args.out or time.strftime("campaign-%Y%m%d-%H%M%S.h5"))
-    logging.basicConfig(filename=f"{out}.log", level=logging.INFO, force=True)
+    logging.basicConfig(
+        filename=f"{out}.log", level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", force=True
+    )
     WfsBenchApp(Path(args.bench) if args.bench else None, out).run()
     return 0
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import ClassVar
 
+from textual import events
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
@@ -22,7 +23,7 @@ from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
 
 from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
-from bench.engine.states import ACTIVE
+from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError
 from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
 from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane
@@ -30,17 +31,31 @@ from bench.tui.session import (
     BenchFault,
     BenchOpened,
     BenchSession,
+    BenchUnopened,
     CommandFailed,
     ControllerStatus,
     PastRuns,
     PlanChecked,
     PromptRequest,
     RunResult,
+    SequenceLaunched,
 )
 from sequences import shipped_file
 
 #: How often the live values and plots are redrawn (s).
 REFRESH_S = 0.1
+#: The state line's colour of each engine state (others: bold).
+STATE_STYLES = {
+    "running": "bold green",
+    "pausing": "bold yellow",
+    "paused": "bold yellow",
+    "aborting": "bold yellow",
+    "aborted": "bold yellow",
+    "e-stopped": "bold white on red",
+    "interlocked": "bold white on red",
+    "failed": "bold white on red",
+    "not open": "bold white on red",
+}
 PANES = {"bench": "Bench", "sequence": "Sequence", "run": "Run", "results": "Results"}
 
 
@@ -66,7 +81,7 @@ class WfsBenchApp(App):
     #banner.shown { display: block; }
     ContentSwitcher { height: 1fr; }
     ContentSwitcher > * { padding: 0 1; }
-    #seq-shipped { height: 6; }
+    #seq-shipped { height: auto; max-height: 12; }
     #run-plots { height: 12; }
     #run-plots BraillePlot { width: 1fr; height: 12; }
     #results-text { height: 1fr; }
@@ -74,16 +89,21 @@ class WfsBenchApp(App):
     #results-bode BraillePlot { width: 1fr; height: 12; }
     #results-runs { height: auto; max-height: 8; }
     #run-points { height: 1fr; }
-    .dialog { width: 80; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
+    .dialog {
+        width: 84; max-width: 100%; height: auto; max-height: 100%;
+        border: thick $accent; background: $surface; padding: 1 2; overflow-y: auto;
+    }
+    .dialog > Label, .dialog > Static { width: 100%; height: auto; }
     ModalScreen { align: center middle; }
     #prompt-error { height: auto; }
     """
+    # every key of the footer fits 80 columns: the screens' keys are in the top bar, not repeated
     BINDINGS: ClassVar[list[Binding]] = [
-        Binding("f12", "estop", "E-STOP", priority=True),
-        Binding("f2", "pane('bench')", "Bench"),
-        Binding("f3", "pane('sequence')", "Sequence"),
-        Binding("f4", "pane('run')", "Run"),
-        Binding("f5", "pane('results')", "Results"),
+        Binding("f12", "estop", "E-STOP", priority=True, show=False),  # in the top bar, always
+        Binding("f2", "pane('bench')", "Bench", show=False),
+        Binding("f3", "pane('sequence')", "Sequence", show=False),
+        Binding("f4", "pane('run')", "Run", show=False),
+        Binding("f5", "pane('results')", "Results", show=False),
         Binding("question_mark", "help", "Help"),
         Binding("l", "hydraulics('low')", "Hyd. low"),
         Binding("h", "hydraulics('high')", "Hyd. high"),
@@ -91,11 +111,21 @@ class WfsBenchApp(App):
         Binding("t", "tare", "Tare"),
         Binding("x", "reset", "Reset"),
         Binding("g", "start", "Start"),
+        Binding("b", "reopen", "Open the bench again"),
         Binding("p", "pause", "Pause", priority=True),
         Binding("r", "resume", "Resume", priority=True),
         Binding("a", "abort", "Abort", priority=True),
+        # the same from a prompt's text field, where p, r and a are typed (shown in its dialog)
+        Binding("f6", "pause('f6')", "Pause", priority=True, show=False),
+        Binding("f7", "resume('f7')", "Resume", priority=True, show=False),
+        Binding("f8", "abort('f8')", "Abort", priority=True, show=False),
         Binding("q", "quit", "Quit", priority=True),
     ]
+    #: Nothing is focused by default: each pane sets its own focus (:meth:`action_pane`), so that a
+    #: widget of a hidden pane (a text field above all, which takes the printable keys) never
+    #: holds the focus when a dialog closes.
+    AUTO_FOCUS = None
+    ENABLE_COMMAND_PALETTE = False
 
     def __init__(self, config_path: Path | None = None, out_path: Path = Path("campaign.h5")) -> None:
         super().__init__()
@@ -106,6 +136,7 @@ class WfsBenchApp(App):
         self.controller: ControllerStatus | None = None
         self.tripped: dict[str, str] = {}
         self.failure: str | None = None  # why the last sequence failed, until a reset or a start
+        self.unopened: str | None = None  # why the bench could not be opened, until it opens
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
 
     # -- layout ---------------------------------------------------------------------------------
@@ -121,7 +152,7 @@ class WfsBenchApp(App):
             yield SequencePane(id="sequence")
             yield RunPane(id="run")
             yield ResultsPane(id="results")
-        yield Footer()
+        yield Footer(compact=True)
 
     def on_mount(self) -> None:
         self.session.start()
@@ -133,12 +164,18 @@ class WfsBenchApp(App):
         self.session.close()
 
     @property
+    def main(self):
+        """The main screen (the panes), under any dialog open above it: the session's messages
+        reach its panes while a dialog is open."""
+        return self.screen_stack[0]
+
+    @property
     def pane(self) -> str:
-        return self.query_one(ContentSwitcher).current or "bench"
+        return self.main.query_one(ContentSwitcher).current or "bench"
 
     def _show_tabs(self) -> None:
         keys = dict(zip(PANES, ("F2", "F3", "F4", "F5"), strict=True))
-        self.query_one("#tabs", Static).update(
+        self.main.query_one("#tabs", Static).update(
             "  ".join(
                 f"[reverse] {keys[p]} {name} [/reverse]" if p == self.pane else f"{keys[p]} {name}"
                 for p, name in PANES.items()
@@ -147,26 +184,30 @@ class WfsBenchApp(App):
 
     def show_banner(self, text: str) -> None:
         """Say ``text`` in the main screen's banner (a dialog open above it leaves it in view)."""
-        banner = self.screen_stack[0].query_one("#banner", Static)
+        banner = self.main.query_one("#banner", Static)
         banner.update(text)
         banner.add_class("shown")
 
     def clear_banner(self) -> None:
-        self.screen_stack[0].query_one("#banner", Static).remove_class("shown")
+        self.main.query_one("#banner", Static).remove_class("shown")
 
     # -- keys -----------------------------------------------------------------------------------
 
-    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        """Show and allow a pane's keys on its pane only, and only when they can act."""
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:  # noqa: PLR0911
+        """Show and allow a pane's keys on its pane only, and only when they can act; p, r and a
+        wherever a sequence runs (they say why when its state refuses them)."""
         engine = self.session.engine
         running = self.session.running.is_set()
-        state = engine.state if engine else None
         if action in ("hydraulics", "tare", "reset"):
             return self.pane == "bench" and engine is not None and not running
         if action == "start":
             return self.pane == "sequence" and self.plan is not None and engine is not None and not running
-        if action in ("pause", "resume", "abort"):  # from dialogs too, but never while typing
-            return running and state in ACTIVE and not self._typing()
+        if action == "reopen":
+            return self.unopened is not None
+        if action in ("pause", "resume", "abort"):  # from dialogs too; p, r, a never while typing
+            if self._typing() and not parameters:
+                return False
+            return engine is not None and (running or self.pane == "run" or bool(parameters))
         if action == "quit":  # from a prompt's dialog too; the help dialog's q closes it
             return not self._typing() and not isinstance(self.screen, HelpDialog)
         return True
@@ -177,6 +218,26 @@ class WfsBenchApp(App):
         if not isinstance(focused, Input):
             return False
         return focused.screen is not self.screen_stack[0] or self.pane == "sequence"
+
+    def on_key(self, event: events.Key) -> None:
+        """p, r or a that no binding took (nothing runs, on a screen other than Run): say so."""
+        verb = {"p": "pause", "r": "resume", "a": "abort"}.get(event.key)
+        if verb is not None and not self._typing():
+            why = "the bench is not open" if self.session.engine is None else "no sequence is running"
+            self.notify(f"{event.key}: {why}: nothing to {verb}", severity="warning")
+
+    def on_descendant_focus(self, event: events.DescendantFocus) -> None:
+        """A widget of a hidden pane never keeps the focus (it would take keys meant for the app)."""
+        widget, main = event.widget, self.main
+        if widget.screen is not main:
+            return
+        pane = main.query_one(ContentSwitcher).visible_content
+        if pane is not None and pane not in widget.ancestors_with_self:
+            main.set_focus(self._pane_focus())
+
+    def _pane_focus(self):
+        """The widget that takes the keys on the current pane (None: the app takes them all)."""
+        return self.main.query_one("#seq-shipped") if self.pane == "sequence" else None
 
     def action_estop(self) -> None:
         """E-stop from the key handler itself: the controller is told before this returns."""
@@ -199,12 +260,8 @@ class WfsBenchApp(App):
         self.exit()
 
     def action_pane(self, pane: str) -> None:
-        self.query_one(ContentSwitcher).current = pane
-        main = self.screen_stack[0]
-        if pane == "sequence":
-            main.set_focus(self.query_one("#seq-shipped"))
-        else:  # a hidden input keeps no keys
-            main.set_focus(None)
+        self.main.query_one(ContentSwitcher).current = pane
+        self.screen_stack[0].set_focus(self._pane_focus())  # a hidden input keeps no keys
         self._show_tabs()
         self.refresh_bindings()
         self.refresh_live()
@@ -228,17 +285,36 @@ class WfsBenchApp(App):
 
         self.push_screen(ConfirmDialog(question), answered)
 
+    def action_reopen(self) -> None:
+        """Open the bench again after it could not be opened (the configuration is read again)."""
+        if self.session.reopen():
+            self.unopened = None
+            self.clear_banner()
+            self.main.query_one(BenchPane).show_opening()
+            self.refresh_bindings()
+
     def action_start(self) -> None:
         """Start the checked sequence; when the campaign file holds runs of it already, offer to
-        resume them (its complete runs and points skipped, as ``wfsbench run --resume``)."""
+        resume them (its complete runs and points skipped, as ``wfsbench run --resume``), unless
+        every run of it is complete there: then nothing is left to resume, and it says so."""
         plan, out = self.plan, self.session.out_path
         try:
             held = self.session.held_runs(plan)
         except StoreError as exc:
             self.show_banner(f"the sequence did not start: {exc} (quit and give another --out)")
             return
-        if not held:
+        if not held.statuses:
             self._start(plan, resume=False)
+            return
+        name = plan.sequence.name
+        if held.complete:
+            self.notify(
+                f"{out} holds sequence {name!r} complete (its {len(held.statuses)} run(s) all complete):"
+                " nothing to resume; to run it again, quit and give another --out",
+                title="nothing started",
+                severity="warning",
+                timeout=20,
+            )
             return
 
         def answered(yes: bool | None) -> None:
@@ -246,15 +322,18 @@ class WfsBenchApp(App):
                 self._start(plan, resume=True)
             else:
                 self.notify(
-                    f"nothing started: {out} keeps its runs of {plan.sequence.name!r};"
+                    f"nothing started: {out} keeps its runs of {name!r};"
                     " to run it afresh, quit and give another --out",
                     severity="warning",
                 )
 
+        statuses = sorted(set(held.statuses.values()))
+        counts = ", ".join(f"{list(held.statuses.values()).count(s)} {s}" for s in statuses)
         self.push_screen(
             ConfirmDialog(
-                f"{out} holds {len(held)} run(s) of sequence {plan.sequence.name!r} already."
-                " Resume it (its complete runs and points are skipped)?"
+                f"{out} holds {len(held.statuses)} run(s) of sequence {name!r} already ({counts})."
+                " Resume it? Its complete runs and done points are skipped; the prompts before its"
+                " unfinished runs are asked again."
             ),
             answered,
         )
@@ -263,18 +342,53 @@ class WfsBenchApp(App):
         self.clear_banner()
         self.tripped.clear()
         self.failure = None
-        self.query_one(ResultsPane).clear_results()
+        self.main.query_one(ResultsPane).clear_results()
         self.session.start_sequence(plan, resume=resume)
         self.action_pane("run")
 
-    def action_pause(self) -> None:
-        self.session.pause()
+    #: Why a request is refused, by action and engine state (others: "the sequence is <state>").
+    REFUSED: ClassVar[dict[str, dict[RunState, str]]] = {
+        "pause": {
+            RunState.PAUSING: "a pause is requested already: the point under way tapers out, then"
+            " the sequence waits (r resumes)",
+            RunState.PAUSED: "the sequence is paused already: r resumes it, a aborts it",
+            RunState.ABORTING: "the sequence is aborting: nothing to pause",
+        },
+        "resume": {
+            RunState.RUNNING: "the sequence is running, not paused: nothing to resume (p pauses)",
+            RunState.ABORTING: "the sequence is aborting: it cannot resume",
+        },
+        "abort": {RunState.ABORTING: "the sequence is aborting already: the excitation tapers out"},
+    }
 
-    def action_resume(self) -> None:
-        self.session.resume()
+    def _request(self, verb: str, key: str, request) -> None:
+        """p, r or a (or F6, F7, F8): request it of the engine, or say why nothing happens."""
+        engine = self.session.engine
+        if engine is None or not self.session.running.is_set():
+            why = "the bench is not open" if engine is None else "no sequence is running"
+            self.notify(f"{key}: {why}: nothing to {verb}", severity="warning")
+            return
+        if request():
+            if verb == "pause" and isinstance(self.screen, PromptDialog):
+                self.notify("pause requested: it is taken once the prompt is answered")
+            self.refresh_live()
+            return
+        state = engine.state
+        why = self.REFUSED[verb].get(state) or (
+            f"the sequence is {state.value}: nothing to {verb}"
+            if state in ACTIVE
+            else f"the sequence is not under way (state {state.value}): nothing to {verb}"
+        )
+        self.notify(f"{key}: {why}", severity="warning")
 
-    def action_abort(self) -> None:
-        self.session.abort()
+    def action_pause(self, key: str = "p") -> None:
+        self._request("pause", key, self.session.pause)
+
+    def action_resume(self, key: str = "r") -> None:
+        self._request("resume", key, self.session.resume)
+
+    def action_abort(self, key: str = "a") -> None:
+        self._request("abort", key, self.session.abort)
 
     # -- the sequence pane's inputs ---------------------------------------------------------------
 
@@ -288,7 +402,7 @@ class WfsBenchApp(App):
     def _check(self, path: Path) -> None:
         self.plan = None
         self.refresh_bindings()
-        self.query_one(SequencePane).show_checking(str(path))
+        self.main.query_one(SequencePane).show_checking(str(path))
         self.session.check(path)
 
     # -- what the session reports -----------------------------------------------------------------
@@ -296,7 +410,7 @@ class WfsBenchApp(App):
     def on_session_message(self, message: SessionMessage) -> None:
         try:
             self._show(message.payload)
-        except NoMatches:  # the app is closing: its widgets go before the session's last messages
+        except (NoMatches, IndexError):  # the app is closing: its screens go before the last messages
             return
         self.refresh_bindings()
 
@@ -304,6 +418,11 @@ class WfsBenchApp(App):
         match p:
             case BenchOpened():
                 self.bench_name, self.interlock_names = p.description, p.interlocks
+                self.unopened = None
+            case BenchUnopened():
+                self.unopened = p.reason
+                self.show_banner(f"the bench did not open: {p.reason} (b: open it again)")
+                self.main.query_one(BenchPane).show_unopened(p.reason)
             case BenchFault():
                 self.show_banner(p.reason)
             case CommandFailed():
@@ -311,29 +430,31 @@ class WfsBenchApp(App):
             case ControllerStatus():
                 self.controller = p
             case PlanChecked():
-                pane = self.query_one(SequencePane)
+                pane = self.main.query_one(SequencePane)
                 if p.plan is None:
                     pane.show_error(str(p.path), p.error)
                 else:
                     self.plan = p.plan
                     pane.show_plan(p.plan)
-                    if self.pane == "sequence" and self.focused is self.query_one("#seq-path"):
+                    if self.pane == "sequence" and self.focused is self.main.query_one("#seq-path"):
                         # the path is checked: g must start it, not go into the field
-                        self.screen_stack[0].set_focus(self.query_one("#seq-shipped"))
+                        self.screen_stack[0].set_focus(self.main.query_one("#seq-shipped"))
             case PromptRequest():
                 self.push_screen(PromptDialog(p.prompt), self.session.answer)
             case PastRuns():
-                self.query_one(ResultsPane).show_runs(p.runs)
+                self.main.query_one(ResultsPane).show_runs(p.runs)
             case RunResult():
-                self.query_one(ResultsPane).add_result(p.run_id, p.lines, p.bode)
+                self.main.query_one(ResultsPane).add_result(p.run_id, p.lines, p.bode)
+            case SequenceLaunched():
+                self.main.query_one(RunPane).launched(p)
             case ev.SequenceStarted():
-                self.query_one(RunPane).sequence_started(p)
+                self.main.query_one(RunPane).sequence_started(p)
             case ev.PointStarted():
-                self.query_one(RunPane).point_started(p)
+                self.main.query_one(RunPane).point_started(p)
             case ev.GridRefined():
-                self.notify(self.query_one(RunPane).grid_refined(p), title="adaptive grid")
+                self.notify(self.main.query_one(RunPane).grid_refined(p), title="adaptive grid")
             case ev.PointDone():
-                self.query_one(RunPane).point_done(p)
+                self.main.query_one(RunPane).point_done(p)
             case ev.InterlockTripped():
                 self.tripped[p.name] = p.reason
                 self.show_banner(f"INTERLOCK {p.name}: {p.reason}")
@@ -367,23 +488,37 @@ class WfsBenchApp(App):
 
     def refresh_live(self) -> None:
         """Redraw what moves: the state line, and the visible pane's values or plots."""
-        engine = self.session.engine
-        state = engine.state.value if engine else "opening"
-        running = self.session.running.is_set()
         try:
-            state_line = self.query_one("#state", Static)
-        except NoMatches:  # the app is closing: its widgets go before its timer stops
+            self._refresh_live()
+        except (NoMatches, IndexError):  # the app is closing: its widgets go before its timer stops
             return
-        state_line.update(f"[b]{state}[/b]   {self.bench_name}")  # the state first: it never wraps away
+        self.refreshes += 1
+
+    def _state_text(self) -> str:
+        engine = self.session.engine
+        if engine is not None:
+            return engine.state.value
+        return "not open" if self.unopened is not None else "opening"
+
+    def _refresh_live(self) -> None:
+        engine = self.session.engine
+        state = self._state_text()
+        running = self.session.running.is_set()
+        state_line = self.main.query_one("#state", Static)
+        # the state first, in its colour; the bench after it when the line has room for it
+        shown = f"[{STATE_STYLES.get(state, 'bold')}]{state}[/]"
+        if len(state) + 3 + len(self.bench_name) <= state_line.content_region.width:
+            shown += f"   {self.bench_name}"
+        state_line.update(shown)
         trace = self.session.trace
         if self.pane == "run":
-            run = self.query_one(RunPane)
+            run = self.main.query_one(RunPane)
             run.show_progress(state, running)
             if trace is not None:
                 run.show_trace(trace)
-        elif self.pane == "bench" and engine is not None:
+        elif self.pane == "bench" and engine is not None and self.session.devices is not None:
             devices = self.session.devices
-            self.query_one(BenchPane).show(
+            self.main.query_one(BenchPane).show(
                 bench=self.bench_name,
                 engine_state=state,
                 controller=self.controller,
@@ -392,7 +527,7 @@ class WfsBenchApp(App):
                 tripped=self.tripped,
                 failure=self.failure,
                 interlocks=self.interlock_names,
-                values=trace.latest() if trace else {},
+                trace=trace,
+                running=running,
                 counters=devices.acquisition.link_counters(),
             )
-        self.refreshes += 1

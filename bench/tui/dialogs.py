@@ -6,7 +6,7 @@ from typing import ClassVar
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Input, Label, Static
 
@@ -15,6 +15,8 @@ from sequences import AnswerError, Prompt
 
 #: Shown in every dialog: the e-stop key works there too.
 ESTOP_HINT = "[b white on red] F12 E-STOP [/]"
+#: Shown under a prompt's text field, where p, r and a are typed: what acts on the sequence.
+FIELD_KEYS = "F6 pause    F7 resume    F8 abort    Escape: no answer (aborts)"
 
 
 class PromptDialog(ModalScreen[object]):
@@ -47,13 +49,18 @@ class PromptDialog(ModalScreen[object]):
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(ESTOP_HINT)
-            yield Label(f"[b]{self.prompt.text}[/b]", id="prompt-text")
+            yield Static(f"[b]{self.prompt.text}[/b]", id="prompt-text")
             if self.prompt.answer == "confirm":
                 yield Label("y: done / confirmed    n: decline (aborts the sequence)", id="prompt-keys")
+                yield Label("p pause    r resume    a abort", id="prompt-run-keys")
             else:
                 yield Label(f"answer{prompt_hint(self.prompt)}, then Enter", id="prompt-keys")
                 yield Input(placeholder=prompt_hint(self.prompt).strip(), id="prompt-input")
-            yield Static("", id="prompt-error")
+                # p, r and a go into the field: the function keys act on the sequence from here
+                yield Label(FIELD_KEYS, id="prompt-run-keys")
+            error = Static("", id="prompt-error")
+            error.display = False  # until an answer is refused
+            yield error
 
     def on_mount(self) -> None:
         if self.prompt.answer != "confirm":
@@ -69,7 +76,9 @@ class PromptDialog(ModalScreen[object]):
         try:
             value = self.prompt.check_answer(event.value)
         except AnswerError as exc:
-            self.query_one("#prompt-error", Static).update(f"[red]{exc}: try again[/red]")
+            error = self.query_one("#prompt-error", Static)
+            error.update(f"[red]{exc}: try again[/red] (p, r, a type here: F6 pauses, F8 aborts)")
+            error.display = True
             event.input.value = ""
             return
         self.answer(value)
@@ -94,7 +103,7 @@ class ConfirmDialog(ModalScreen[bool]):
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(ESTOP_HINT)
-            yield Label(f"[b]{self.question}[/b]", id="confirm-question")
+            yield Static(f"[b]{self.question}[/b]", id="confirm-question")
             yield Label("y: yes    n: no")
 
     def action_answer(self, yes: bool) -> None:
@@ -108,7 +117,7 @@ HELP_TEXT = """\
   F2    Bench: links, hydraulics, interlocks, live values, counters
   F3    Sequence: pick and check a sequence file, start it
   F4    Run: progress, current step, live plots, amplitudes
-  F5    Results: identified parameters, Bode plot, valid bands, past runs
+  F5    Results: the analysis, Bode plot, valid bands, past runs
   ?     this help          q   quit (not while a sequence runs)
 
 [b]Bench[/b]     l / h / o: hydraulics low / high / off    t: tare
@@ -117,10 +126,11 @@ HELP_TEXT = """\
 [b]Sequence[/b]  Enter on a shipped sequence, or type a file's path and Enter:
           checked and dry-run; g starts it once it is valid
           (a file holding runs of it already: g offers to resume them)
-[b]Run[/b]       p pause   r resume   a abort
+[b]Run[/b]       p pause   r resume   a abort   (F6 / F7 / F8 as well)
 [b]Prompts[/b]   a number: type it and Enter (a bad value is asked again);
           a confirmation: y or n;
-          Escape gives no answer and aborts the sequence
+          Escape gives no answer and aborts the sequence;
+          in a text field p, r, a are typed: F6 / F7 / F8 act
 
 A link loss or an interlock shows as a red banner with its reason;
 x on the Bench screen resets once the cause is cleared.
@@ -134,10 +144,13 @@ class HelpDialog(ModalScreen[None]):
     BINDINGS: ClassVar[list[Binding]] = [Binding("escape,question_mark,q", "close", "Close")]
 
     def compose(self) -> ComposeResult:
-        with Vertical(classes="dialog", id="help"):
+        with VerticalScroll(classes="dialog", id="help"):  # scrolls with the arrows where it is cut
             yield Label(ESTOP_HINT)
             yield Static(HELP_TEXT, id="help-text")
             yield Label("Escape closes")
+
+    def on_mount(self) -> None:
+        self.query_one("#help", VerticalScroll).focus()
 
     def action_close(self) -> None:
         self.dismiss(None)

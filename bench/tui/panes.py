@@ -16,15 +16,47 @@ from textual.widgets import DataTable, Input, Label, OptionList, Static
 from bench.app.check import step_line
 from bench.app.durations import sequence_estimate_text
 from bench.app.plan import CampaignPlan
+from bench.app.progress import DoneBefore
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
-from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun
+from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun, SequenceLaunched
 from sequences import shipped_files
 from sequences.points import PointStatus
 
 #: Shipped sequence files offered on the sequence screen.
 #: The shipped sequences as listed, the seconds-long smoke check first.
 SHIPPED = tuple(sorted(shipped_files(), key=lambda name: name != "smoke.toml"))
+
+
+#: Samples younger than this (s) are shown as live; older ones with their age.
+LIVE_AGE_S = 2.0
+#: What the live line says without samples, and after the values it shows from a past run.
+IDLE_NOTE = "the WFS streams during runs only"
+
+
+def age_text(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+
+
+def live_text(trace: LiveTrace | None, running: bool) -> str:
+    """The live values line: live during a run, else the last values marked with their age and
+    the run that recorded them (the WFS streams during runs only), or that there are none."""
+    values = trace.latest() if trace is not None else {}
+    if not values:
+        return f"[b]live[/b]  no live values while idle: {IDLE_NOTE}"
+    v = values
+    figures = (
+        f"Fz {v['fz_wfs_n']:9.1f} N   plate force {v['f_plate_n']:9.1f} N   "
+        f"displacement {v['z_base_m'] * 1e3:7.3f} mm   hub acc. {v['a_hub_m_s2']:7.2f} m/s²"
+    )
+    age = trace.age_s()
+    if running and age is not None and age < LIVE_AGE_S:
+        return f"[b]live[/b]  {figures}"
+    during = f", during {trace.last_run}" if trace.last_run else ""
+    return (
+        f"[b]last seen[/b] [yellow]{age_text(age or 0.0)} ago{during}[/yellow] ({IDLE_NOTE})\n"
+        f"      [dim]{figures}[/dim]"
+    )
 
 
 def lamp(ok: bool | None, text: str) -> str:
@@ -40,7 +72,16 @@ class BenchPane(Vertical):
         yield Static("", id="bench-lamps")
         yield Static("", id="bench-values")
         yield Static("", id="bench-counters")
-        yield Label("l / h / o: hydraulics low / high / off    t: tare    x: reset   (each confirmed)")
+        yield Label("l / h / o: hydraulics low / high / off   t: tare   x: reset   (each asks y / n)")
+
+    def show_opening(self) -> None:
+        self.query_one("#bench-links", Static).update("opening the bench…")
+
+    def show_unopened(self, reason: str) -> None:
+        self.query_one("#bench-links", Static).update(
+            f"[b red]the bench did not open[/b red]: {reason}\n"
+            "[b]b[/b]: open it again (once the cause is fixed)"
+        )
 
     def show(
         self,
@@ -53,7 +94,8 @@ class BenchPane(Vertical):
         tripped: dict[str, str],
         failure: str | None,
         interlocks: tuple[str, ...],
-        values: dict[str, float],
+        trace: LiveTrace | None,
+        running: bool,
         counters: dict[str, int],
     ) -> None:
         state = controller.state if controller else "not read yet"
@@ -69,16 +111,7 @@ class BenchPane(Vertical):
         if failure is not None:  # the engine stopped the bench itself: no interlock lamp tells why
             lamps.append(lamp(False, f"sequence failed: {failure}"))
         self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))
-        v = values
-        self.query_one("#bench-values", Static).update(
-            "[b]live[/b]  "
-            + (
-                f"Fz {v['fz_wfs_n']:9.1f} N   plate force {v['f_plate_n']:9.1f} N   "
-                f"displacement {v['z_base_m'] * 1e3:7.3f} mm   hub acc. {v['a_hub_m_s2']:7.2f} m/s²"
-                if v
-                else "no samples yet (the WFS streams during runs)"
-            )
-        )
+        self.query_one("#bench-values", Static).update(live_text(trace, running))
         self.query_one("#bench-counters", Static).update(
             "[b]WFS link[/b]  "
             + "   ".join(f"{name.replace('_', ' ')} {value}" for name, value in counters.items())
@@ -136,12 +169,23 @@ class RunPane(Vertical):
         self._total = 0
         self._done = 0
         self._estimate_s = 0.0
+        self._before = DoneBefore()  # what the resumed file held done: counted, never run again
+        self._launched: SequenceLaunched | None = None
+
+    def launched(self, launched: SequenceLaunched) -> None:
+        """A sequence goes to the engine; a resume's points done already count from its start."""
+        self._launched = launched
 
     def sequence_started(self, event: ev.SequenceStarted) -> None:
+        launched = self._launched
+        self._before = launched.done_before if launched is not None and launched.resume else DoneBefore()
+        self._launched = None
         self._started = time.monotonic()
-        self._total, self._done, self._estimate_s = event.total_points, 0, event.estimated_duration_s
+        self._total, self._estimate_s = event.total_points, event.estimated_duration_s
+        self._done = self._before.points
         self.query_one("#run-points", DataTable).clear()
-        self.query_one("#run-step", Static).update(f"sequence {event.sequence_name}")
+        resumed = " (resumed)" if launched is not None and launched.resume else ""
+        self.query_one("#run-step", Static).update(f"sequence {event.sequence_name}{resumed}")
 
     def point_started(self, event: ev.PointStarted) -> None:
         pressure = event.conditions.get("tyre_pressure_bar")
@@ -179,10 +223,17 @@ class RunPane(Vertical):
             text = f"state [b]{state}[/b]; no sequence started"
         else:
             elapsed = time.monotonic() - self._started
-            rest = elapsed / self._done * (self._total - self._done) if self._done else self._estimate_s
+            done_here = self._done - self._before.points  # this start's pace, not the file's
+            rest = (
+                elapsed / done_here * (self._total - self._done)
+                if done_here > 0
+                else max(self._estimate_s - self._before.estimated_s, 0.0)
+            )
             eta = f"ETA {rest:5.0f} s" if running else "ended"
+            before = f" ({self._before.points} done before the resume)" if self._before.points else ""
             text = (
-                f"state [b]{state}[/b]   points {self._done}/{self._total}   elapsed {elapsed:5.0f} s   {eta}"
+                f"state [b]{state}[/b]   points {self._done}/{self._total}{before}"
+                f"   elapsed {elapsed:5.0f} s   {eta}"
             )
         self.query_one("#run-progress", Static).update(text)
 

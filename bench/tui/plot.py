@@ -5,6 +5,7 @@ envelope, not an alias); sparse data (a few dwells) is joined by straight lines.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +61,23 @@ def column_ranges(
     return lo, hi
 
 
+def tick_label(value: float, span: float, width: int = LABEL_CELLS - 1) -> str:
+    """``value`` rounded to the resolution its axis can show: three significant digits of the
+    axis' ``span`` without trailing zeros (a phase axis of 168 deg reads ``-168`` and ``0``, not
+    ``0.0003842``), at most
+    ``width`` characters (else in the ``g`` format)."""
+    span = abs(span)
+    if not math.isfinite(span) or span <= 0:
+        return f"{value:.3g}"
+    decimals = min(max(0, 2 - math.floor(math.log10(span))), 6)
+    text = f"{round(value, decimals) + 0.0:.{decimals}f}"  # + 0.0: no "-0"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    if text in ("", "-", "-0"):
+        text = "0"
+    return text if len(text) <= width else f"{value:.{max(1, width - 6)}g}"
+
+
 def render_plot(series: list[Series], width: int, height: int, y_label: str = "") -> list[list[Segment]]:
     """The plot as ``height`` lines of ``width`` cells (labels included), each line a few segments:
     consecutive cells of one curve share one segment, which keeps redrawing cheap."""
@@ -91,9 +109,9 @@ def render_plot(series: list[Series], width: int, height: int, y_label: str = ""
     for row in range(height):
         label = " " * LABEL_CELLS
         if row == 0:
-            label = f"{y_max:>8.4g} "
+            label = f"{tick_label(y_max, y_max - y_min):>8} "
         elif row == height - 1:
-            label = f"{y_min:>8.4g} "
+            label = f"{tick_label(y_min, y_max - y_min):>8} "
         elif row == height // 2 and y_label:
             label = f"{y_label[: LABEL_CELLS - 1]:>8} "
         segments = [Segment(label[:LABEL_CELLS].ljust(LABEL_CELLS), _DIM)]

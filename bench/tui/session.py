@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,17 +28,21 @@ from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan, plan_campaign
 from bench.app.post_run import CampaignKnowledge, initial_knowledge
-from bench.app.resume import held_runs
+from bench.app.progress import DoneBefore
+from bench.app.resume import done_in_file, held_runs
 from bench.app.run import run_on_engine
+from bench.app.run_log import RunLog
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
-from bench.engine.engine import Engine
-from bench.engine.states import RunState
+from bench.engine.engine import Engine, is_measurement
+from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
 from sequences.channels import ChannelSet, Role, standard_name
 
 log = logging.getLogger(__name__)
+#: The run's events, one readable line each (the CLI's run log lines), into the UI's log file.
+run_log = logging.getLogger("bench.tui.run")
 
 #: The live channels the UI plots and shows (wheel-frame Fz, plate force, displacement, hub
 #: acceleration), by recorded channel name.
@@ -60,6 +65,24 @@ class BenchFault:
     """Something the technician must see as a banner: a link lost, an interlock, a device error."""
 
     reason: str
+
+
+@dataclass(frozen=True)
+class BenchUnopened:
+    """The bench could not be opened (``reason``: the plain message, naming the configuration's
+    keys and the address tried); :meth:`BenchSession.reopen` tries again."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class SequenceLaunched:
+    """A sequence goes to the engine; ``done_before``: what the resumed file holds done already
+    (its points count as done in the progress)."""
+
+    name: str
+    resume: bool
+    done_before: DoneBefore
 
 
 @dataclass(frozen=True)
@@ -115,6 +138,16 @@ class PastRuns:
 
 
 @dataclass(frozen=True)
+class HeldRuns:
+    """The runs of a sequence the campaign file holds already, by run id with their status, and
+    whether the sequence is complete there (every measurement run of it complete: nothing to
+    resume)."""
+
+    statuses: dict[str, str]
+    complete: bool
+
+
+@dataclass(frozen=True)
 class PlanChecked:
     """A sequence file checked: ``plan`` when it may run, else ``error`` (file, key, allowed range)."""
 
@@ -146,11 +179,14 @@ class LiveTrace:
         self._data = {standard_name(role): np.zeros(self._n, dtype=np.float64) for role in LIVE_ROLES}
         self._filled = 0
         self.samples_seen = 0
+        self.last_seen_s: float | None = None  # time.monotonic() of the newest samples
+        self.last_run: str | None = None  # the run that recorded them
 
-    def append(self, columns: dict[str, np.ndarray]) -> None:
+    def append(self, columns: dict[str, np.ndarray], run_id: str | None = None) -> None:
         present = [name for name, source in self._sources.items() if source in columns]
         if not present:
             return
+        self.last_seen_s, self.last_run = time.monotonic(), run_id
         n = len(columns[self._sources[present[0]]])
         with self._lock:
             for name in present:
@@ -174,6 +210,10 @@ class LiveTrace:
             if not self._filled:
                 return {}
             return {name: float(buf[-1]) for name, buf in self._data.items()}
+
+    def age_s(self) -> float | None:
+        """Seconds since the newest samples arrived (None: none yet)."""
+        return None if self.last_seen_s is None else time.monotonic() - self.last_seen_s
 
 
 class UiOperator:
@@ -240,6 +280,18 @@ class BenchSession:
     def start(self) -> None:
         self._thread.start()
 
+    def reopen(self) -> bool:
+        """Open the bench again after it could not be opened (the configuration read anew); False
+        while a bench is open or being opened."""
+        if self._thread.is_alive():
+            return False
+        self.engine = self.devices = self.trace = None
+        self.opened.clear()
+        self._thread = threading.Thread(target=self._serve, name="tui-bench", daemon=True)
+        run_log.info("opening the bench again")
+        self._thread.start()
+        return True
+
     def close(self, timeout_s: float = 30.0) -> None:
         """Stop after the command under way (a running sequence is aborted first)."""
         if self.running.is_set() and self.engine is not None:
@@ -257,14 +309,26 @@ class BenchSession:
                 self.engine = build_engine(self.config, devices)
                 self.trace = LiveTrace(float(self.config.wfs.rate_hz), self.config.channels)
                 self.engine.bus.subscribe(self._on_event)
+                self.engine.bus.subscribe(RunLog(self._log_lines))
                 where = "simulated lab" if devices.lab is not None else self.config.source
                 self.post(BenchOpened(f"{self.config.kind} bench ({where})", self._interlock_names()))
+                run_log.info("bench open: %s bench (%s), file %s", self.config.kind, where, self.out_path)
                 self.opened.set()
                 self._post_past_runs()
                 self._loop()
         except Exception as exc:  # a bench that cannot open is shown, not raised into the UI
-            log.exception("the bench failed")
-            self.post(BenchFault(f"the bench failed: {type(exc).__name__}: {exc}"))
+            if self.opened.is_set():
+                log.exception("the bench failed")
+                self.post(BenchFault(f"the bench failed: {exc or type(exc).__name__}"))
+            else:  # the message names the configuration's keys and the address tried
+                log.warning("the bench did not open: %s", exc, exc_info=True)
+                run_log.info("the bench did not open: %s", exc)
+                self.post(BenchUnopened(str(exc) or type(exc).__name__))
+
+    @staticmethod
+    def _log_lines(text: str) -> None:
+        for line in text.splitlines():
+            run_log.info(line)
 
     def _loop(self) -> None:
         while True:
@@ -289,10 +353,19 @@ class BenchSession:
             target=self._check, args=(Path(sequence_path),), name="tui-check", daemon=True
         ).start()
 
-    def held_runs(self, plan: CampaignPlan) -> set[str]:
-        """The runs of ``plan``'s sequence the campaign file holds already: a start must resume
-        them (StoreError when the file is no campaign file)."""
-        return held_runs(plan, self.out_path)
+    def held_runs(self, plan: CampaignPlan) -> HeldRuns:
+        """The runs of ``plan``'s sequence the campaign file holds already, with their status: a
+        start must resume them, unless every one is complete (StoreError when the file is no
+        campaign file)."""
+        held = held_runs(plan, self.out_path)
+        if not held:
+            return HeldRuns({}, complete=False)
+        with open_campaign(self.out_path) as campaign:
+            statuses = {r.run_id: r.status for r in campaign.runs if r.run_id in held}
+        steps = enumerate(plan.sequence.steps)
+        planned = {Engine.run_id(plan.sequence, i) for i, step in steps if is_measurement(step)}
+        complete = planned <= statuses.keys() and all(s == "complete" for s in statuses.values())
+        return HeldRuns(statuses, complete)
 
     def start_sequence(self, plan: CampaignPlan, *, resume: bool = False) -> None:
         """Run ``plan`` into the campaign file; ``resume`` continues its runs there, skipping its
@@ -301,30 +374,47 @@ class BenchSession:
         self._commands.put(lambda: self._run(plan, resume))
 
     def hydraulics(self, level: str) -> None:
+        run_log.info("operator: hydraulics %s", level)
         self._commands.put(lambda: self._guarded(f"hydraulics {level}", self.engine.set_hydraulics, level))
 
     def tare(self) -> None:
+        run_log.info("operator: tare")
         self._commands.put(lambda: self._guarded("tare", self.devices.acquisition.tare))
 
     def reset(self) -> None:
         """Release an interlock or e-stop; the commands after it wait until the controller has
         tapered out and takes commands again."""
+        run_log.info("operator: reset")
         self._commands.put(lambda: self._guarded("reset", self.engine.reset))
 
     # -- requests to the running sequence (any thread, at once) ---------------------------------
 
-    def pause(self) -> None:
-        self.engine.request_pause()
+    def pause(self) -> bool:
+        """Request a pause; False when the engine's state does not allow one."""
+        done = self.engine.request_pause()
+        run_log.info("operator: pause %s", "requested" if done else f"refused ({self.engine.state.value})")
+        return done
 
-    def resume(self) -> None:
-        self.engine.request_resume()
+    def resume(self) -> bool:
+        """Resume a paused (or pausing) sequence; False when the state does not allow it."""
+        done = self.engine.request_resume()
+        run_log.info("operator: resume %s", "requested" if done else f"refused ({self.engine.state.value})")
+        return done
 
-    def abort(self) -> None:
-        self.engine.request_abort()
-        self.operator.cancel("aborted by the operator")
+    def abort(self) -> bool:
+        """Abort the sequence under way (a prompt waiting gets no answer); False when the state
+        does not allow it (nothing under way, or aborting already)."""
+        if self.engine.state not in ACTIVE:
+            return False
+        done = self.engine.request_abort()
+        run_log.info("operator: abort %s", "requested" if done else f"refused ({self.engine.state.value})")
+        if done:
+            self.operator.cancel("aborted by the operator")
+        return done
 
     def estop(self) -> None:
         """E-stop from the caller's thread: the controller is told before this returns."""
+        run_log.warning("operator: E-STOP")
         self.engine.request_estop()
 
     def answer(self, value: object) -> None:
@@ -344,6 +434,15 @@ class BenchSession:
         self.knowledge = initial_knowledge(plan.config)
         self._started = False
         try:
+            done_before = done_in_file(plan, self.out_path) if resume else DoneBefore()
+            self.post(SequenceLaunched(plan.sequence.name, resume, done_before))
+            run_log.info(
+                "%s sequence %s into %s%s",
+                "resuming" if resume else "starting",
+                plan.sequence.name,
+                self.out_path,
+                f" ({done_before.points} point(s) done there already)" if resume else "",
+            )
             run_on_engine(self.engine, plan, self.out_path, resume=resume, knowledge=self.knowledge)
         except Exception as exc:
             if not self._started:  # the campaign file refused it (it names the file): nothing moved
@@ -351,9 +450,8 @@ class BenchSession:
                 self.post(BenchFault(f"the sequence did not start: {exc}{self._reset_hint()}"))
             else:
                 log.exception("the sequence failed")
-                self.post(
-                    BenchFault(f"the sequence failed: {type(exc).__name__}: {exc}{self._reset_hint()}")
-                )
+                reason = str(exc) or type(exc).__name__  # the plain message, not the class
+                self.post(BenchFault(f"the sequence failed: {reason}{self._reset_hint()}"))
         finally:
             self.running.clear()
         self._post_past_runs()
@@ -401,7 +499,7 @@ class BenchSession:
     def _on_event(self, event: ev.Event) -> None:
         """Forward an event to the UI; samples go to the live trace; results get their curves."""
         if isinstance(event, ev.SamplesRecorded):
-            self.trace.append(dict(event.columns))
+            self.trace.append(dict(event.columns), event.run_id)
             return
         if isinstance(event, ev.SequenceStarted):
             self._started = True

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.tui.plot import LABEL_CELLS, Series, column_ranges, render_plot
+from bench.tui.plot import LABEL_CELLS, Series, column_ranges, render_plot, tick_label
 
 
 def test_dense_sine_keeps_its_envelope_in_every_column() -> None:
@@ -35,3 +35,18 @@ def test_rendered_plot_has_its_size_and_marks_the_extremes() -> None:
     # the ramp rises left to right: the top row's dots are at the right, the bottom row's at the left
     assert plot[0][-1] != "\u2800" and plot[0][0] == "\u2800"
     assert plot[-1][0] != "\u2800" and plot[-1][-1] == "\u2800"
+
+
+def test_axis_labels_are_rounded_to_what_the_axis_resolves() -> None:
+    """A phase from -167.9 deg up to 0.0003842 deg reads -168 and 0 at its ends (not 0.0003842);
+    small ranges keep their digits, and no label is wider than its cells."""
+    x = np.linspace(1.0, 2.0, 50)
+    phase = np.linspace(0.0003842, -167.9, 50)
+    lines = render_plot([Series("phase", x, phase, "cyan")], 40, 8, "deg")
+    labels = ["".join(s.text for s in line)[:LABEL_CELLS].strip() for line in lines]
+    assert (labels[0], labels[-1]) == ("0", "-168")
+    assert tick_label(0.9995, 12.8) == "1" and tick_label(13.8, 12.8) == "13.8"
+    assert tick_label(0.0003842, 0.0004) == "0.000384"
+    assert tick_label(-0.009429, 168.0) == "0"  # never "-0"
+    for value, span in ((1.2e9, 2e9), (-1e-5, 3e-5), (12345.6, 100.0), (2.5, 0.0)):
+        assert len(tick_label(value, span)) <= LABEL_CELLS - 1, (value, span)

@@ -35,3 +35,15 @@ def test_documented_tmux_script_runs_smoke_to_results(tmp_path: Path) -> None:
             ("smoke-s010-sweep", "complete"),
         ]
         assert campaign.run("smoke-s009-dwell_grid").conditions["tyre_pressure_bar"] == 2.5
+    # the UI's log beside the file tells the run's events in the run log's lines
+    log = Path(f"{out}.log").read_text()
+    for line in (
+        "bench.tui.run: starting sequence smoke into",
+        "bench.tui.run: prompt remove_wheel: Remove the wheel from the bench -> True",
+        "bench.tui.run: run smoke-s003-free_run (free_run)",
+        "bench.tui.run:   point 0 at 10 Hz: done, commanded 2.000 mm",
+        "bench.tui.run: prompt pressure: Set the tyre pressure to 2.5 bar and enter the pressure read",
+        "bench.tui.run: run smoke-s009-dwell_grid: complete",
+        "bench.tui.run: sequence complete",
+    ):
+        assert line in log, line

@@ -9,7 +9,6 @@ import threading
 from pathlib import Path
 
 import numpy as np
-import pytest
 from rich.text import Text
 
 from bench.engine import events as ev
@@ -55,7 +54,8 @@ async def until(pilot, condition, what: str) -> None:
 
 
 async def open_app(pilot, app: WfsBenchApp) -> Recorded:
-    await until(pilot, app.session.opened.is_set, "the bench to open")
+    await until(pilot, lambda: app.session.opened.is_set() or app.unopened, "the bench to open")
+    assert app.unopened is None, f"the bench did not open: {app.unopened}"
     recorded = Recorded()
     app.session.engine.bus.subscribe(recorded)
     return recorded
@@ -128,16 +128,9 @@ def text_of(node, selector: str) -> str:
     return str(node.query_one(selector).render())
 
 
-@pytest.fixture
-def app(tmp_path: Path) -> WfsBenchApp:
-    """The UI on the default simulated bench (as fast as the engine drains it)."""
-    return WfsBenchApp(None, tmp_path / "campaign.h5")
-
-
-@pytest.fixture
-def paced_app(tmp_path: Path) -> WfsBenchApp:
-    """The UI on the simulated bench paced in real time: a 60 s dwell lasts 60 s."""
-    return WfsBenchApp(FILES / "paced.toml", tmp_path / "campaign.h5")
+def screen_lines(app: WfsBenchApp) -> list[str]:
+    """The terminal's rows as plain text, as drawn now (the dialog above the panes included)."""
+    return [strip.text for strip in app.screen._compositor.render_strips()]
 
 
 async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -> None:
