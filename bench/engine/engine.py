@@ -230,6 +230,7 @@ class Engine:
         self._outcome: RunOutcome | None = None  # how the sequence under way ended, once it has
         self._sequence_thread: int | None = None  # the thread running a sequence, while one runs
         self._publishing = threading.Lock()
+        self._recording: _RunRecording | None = None  # the run whose stream is recorded now
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -726,9 +727,14 @@ class Engine:
 
     def _wait_paused(self) -> None:
         """At rest at the checkpoint until resumed; an abort or e-stop meanwhile ends the sequence.
-        A pause withdrawn before the checkpoint (resumed while pausing) goes straight on."""
+        A pause withdrawn before the checkpoint (resumed while pausing) goes straight on. Within a
+        run the stream goes on while paused: it is recorded and the interlocks watched (a stream
+        left unread would overrun the port)."""
         if self._request(Trigger.CHECKPOINT):
-            self.machine.wait_while(RunState.PAUSED)
+            if self._recording is None:
+                self.machine.wait_while(RunState.PAUSED)
+            else:
+                self._recording.record_while_paused()
         self._stop_if_requested()
 
     # -- the ending -----------------------------------------------------------------------------
@@ -857,6 +863,7 @@ class _RunRecording:
         )
         try:
             self._start_stream()
+            e._recording = self
         except BaseException as exc:  # the run began: it ends too, with the sequence's ending
             if self._subscription is not None:
                 self._subscription.close()
@@ -882,6 +889,7 @@ class _RunRecording:
         except LinkError as stop_error:
             log.warning("stopping the WFS stream failed: %s", stop_error)
         finally:
+            self.engine._recording = None
             self._subscription.close()
             self._close_host_stall()  # one still open lost nothing: it is published, nothing trips
             self.engine._run_finished(self.run_id, outcome)
@@ -1003,6 +1011,12 @@ class _RunRecording:
         columns = self._record(block)
         self._follow_host_stall(block)
         return columns
+
+    def record_while_paused(self) -> None:
+        """At rest in a pause: the stream is recorded and the interlocks are watched until the state
+        leaves ``paused`` (resumed, aborting, e-stopped)."""
+        while self.engine.state is RunState.PAUSED:
+            self._guard(self._next_columns())
 
     def _follow_host_stall(self, block) -> None:
         """Host stalls, from the blocks' port timing: a block the port went unread ``unread_s``
