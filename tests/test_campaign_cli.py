@@ -4,12 +4,10 @@ refused before anything is written to the controller."""
 
 from __future__ import annotations
 
-import asyncio
 import re
 import shutil
 import subprocess
 import sys
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,10 +19,7 @@ from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_REFUSED, main
 from bench.config import load_bench_config
 from bench.store import open_campaign
 from sequences import load_sequence
-from simulators.bench_sim import BenchRunner, SimulatedBench
-from simulators.controller_server import ControllerServer
-from simulators.ports import PtyLink
-from simulators.wfs_device import WfsDevice
+from tests.served_lab import served_lab
 from tests.test_store_h5dump import _matches, documented_layout, parse_h5dump
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -109,29 +104,8 @@ def test_a_point_the_dry_run_refuses_stops_everything_before_it_starts(tmp_path)
 @pytest.fixture
 def lab_devices():
     """A controller served on 127.0.0.1 and a WFS on a pty, outside the command: ``(server, pty)``."""
-    bench = SimulatedBench.paper_shaker(seed=1)
-    runner = BenchRunner(bench, paced=True)
-    link = PtyLink()
-    device = WfsDevice(link, bench, seed=1)
-    runner.sinks.append(device)
-    server = ControllerServer(bench)
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name="itest-controller", daemon=True)
-    thread.start()
-    device.start()
-    runner.start()
-    try:
-        server.address = asyncio.run_coroutine_threadsafe(server.serve_tcp("127.0.0.1", 0), loop).result(10)
+    with served_lab() as (server, link, _):
         yield server, link.path
-    finally:
-        asyncio.run_coroutine_threadsafe(server.close(), loop).result(10)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(timeout=5)
-        runner.stop()
-        device.stop()
-        link.close()
-        loop.close()
-    assert runner.error is None
 
 
 HYDRAULICS_ONLY = """\

@@ -7,17 +7,12 @@ a real pseudo-terminal, the controller on Modbus TCP. Before the fix every later
 
 from __future__ import annotations
 
-import asyncio
-import threading
-
 import pytest
 
 from bench.app.devices import open_bench
 from bench.config import parse_bench_config
-from simulators.bench_sim import BenchRunner, SimulatedBench
-from simulators.controller_server import ControllerServer
-from simulators.ports import PtyLink
 from simulators.wfs_device import WfsDevice
+from tests.served_lab import served_lab
 from tests.test_campaign_cli import SMOKE, _bench_toml, wfsbench
 from tests.test_run_unattended import SMOKE_ANSWERS
 from tests.waiting import wait_until
@@ -26,29 +21,8 @@ from tests.waiting import wait_until
 @pytest.fixture
 def lab():
     """The controller on 127.0.0.1 and the WFS on a pty, outside the run: ``(server, link, device)``."""
-    bench = SimulatedBench.paper_shaker(seed=1)
-    runner = BenchRunner(bench, paced=True)
-    link = PtyLink()
-    device = WfsDevice(link, bench, seed=1)
-    runner.sinks.append(device)
-    server = ControllerServer(bench)
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name="test-controller", daemon=True)
-    thread.start()
-    device.start()
-    runner.start()
-    try:
-        server.address = asyncio.run_coroutine_threadsafe(server.serve_tcp("127.0.0.1", 0), loop).result(10)
+    with served_lab() as (server, link, device):
         yield server, link, device
-    finally:
-        asyncio.run_coroutine_threadsafe(server.close(), loop).result(10)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(timeout=5)
-        runner.stop()
-        device.stop()
-        link.close()
-        loop.close()
-    assert runner.error is None
 
 
 def _left_streaming(device: WfsDevice) -> None:
