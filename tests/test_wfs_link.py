@@ -297,6 +297,9 @@ def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
         # disconnect and reconnect: the reader reopens the link and the stream resumes
         device.disconnect()
         wait_until(lambda: not reader.wait_connected(0), 5, "the reader to see the link drop")
+        # the bench goes on while the link is down, losing frames (on a busy machine the reader
+        # may see the drop before the bench has produced the next block)
+        wait_until(lambda: device.frames_unsent > stalled, 10, "frames produced while the link is down")
         device.reconnect()
         assert reader.wait_connected(5)
         got3 = sub.read_frames(3000, timeout_s=20)
