@@ -9,6 +9,7 @@ device clients (pymodbus, pyserial), the simulators or the run engine
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import time
 from pathlib import Path
@@ -51,7 +52,9 @@ def _run(args: argparse.Namespace) -> int:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return EXIT_REFUSED
     log_path = _log_beside(Path(args.out))
-    logged_before = log_path.stat().st_size if log_path.exists() else 0
+    log_existed = log_path.exists()
+    logged_before = log_path.stat().st_size if log_existed else 0
+    opened: list = []  # the engine, once the devices are open: from then on the log is the run's
     try:
         with hold_campaign_file(Path(args.out)):  # before the file is read: one writer per file
             done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
@@ -66,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
                     operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
                     answers=answers,
                     subscribers=(RunLog(progress.line), progress),
-                    on_engine=interrupts.attach,
+                    on_engine=lambda engine: (opened.append(engine), interrupts.attach(engine)),
                 )
     except InUseError as exc:  # the campaign file or a device is held by another process
         print(f"error: {exc}", file=sys.stderr)
@@ -78,7 +81,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
     finally:
-        if log_path.exists() and log_path.stat().st_size > logged_before:
+        logging.shutdown()  # the log file closed: kept, or removed below
+        if not opened and not log_existed:
+            log_path.unlink(missing_ok=True)  # nothing ran: the error above says it all, no file left
+        elif log_path.exists() and log_path.stat().st_size > logged_before:
             print(f"warnings of the links and libraries: {log_path}", file=sys.stderr)
     why = f": {outcome.reason}" if outcome.reason else ""
     print(f"{plan.sequence.name}: {outcome.status}{why}; file {args.out}")
@@ -89,8 +95,6 @@ def _log_beside(out: Path) -> Path:
     """Send log records (the drivers' warnings, pymodbus's raw frames and retries) to ``out.log``
     instead of the terminal, where they would cut into the status line; the file is created only
     when there is a warning to write."""
-    import logging
-
     path = out.with_name(out.name + ".log")
     handler = logging.FileHandler(path, delay=True)
     handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
@@ -100,8 +104,6 @@ def _log_beside(out: Path) -> Path:
 
 def _tui(args: argparse.Namespace) -> int:
     """The technician's terminal UI; the log goes to a file beside the campaign file, not the screen."""
-    import logging
-
     from bench.tui.app import WfsBenchApp
 
     out = Path(args.out or time.strftime("campaign-%Y%m%d-%H%M%S.h5"))

@@ -111,7 +111,7 @@ class ActionRefusal:
         return (
             f"steps[{self.step_index}] prompt {self.prompt_id!r}: {self.action} is done on a {self.needs}"
             f" bench, and the configured bench is a {self.bench} bench (give a {self.needs} bench"
-            " configuration with --bench)"
+            f" configuration with --bench: the simulated one is configs/simulated_{self.needs}.toml)"
         )
 
 

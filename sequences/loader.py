@@ -111,6 +111,11 @@ def _build_step(index: int, raw: object, source: str, problems: list[Problem]) -
         problems.append(Problem(source, key, f"must be a table, got {raw!r}"))
         return None
     kind = raw.get("type")
+    if kind is None:
+        problems.append(
+            Problem(source, f"{key}.type", f"missing: a step needs type, one of {list(STEP_TYPES)}")
+        )
+        return None
     if kind not in STEP_TYPES:
         problems.append(
             Problem(source, f"{key}.type", f"unknown step type {kind!r}; use one of {list(STEP_TYPES)}")

@@ -247,3 +247,14 @@ def test_a_valid_sequence_on_the_same_configuration_reaches_the_controller(tmp_p
     outcome = run_campaign(plan_campaign(sequence, config), tmp_path / "c.h5", operator=_NoPrompts())
     assert outcome.status == "complete", outcome.reason
     assert server.writes_received > 0
+
+
+def test_a_real_wfs_beside_the_default_simulated_actuator_names_the_simulated_key(tmp_path):
+    """Only [wfs] configured as a serial port: the actuator is still the simulated default, and
+    the refusal says which key that is; nothing is written."""
+    config, out = tmp_path / "lab.toml", tmp_path / "c.h5"
+    config.write_text('[wfs]\ntransport = "serial"\ndevice = "/dev/ttyUSB1"\n')
+    run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out))
+    assert run.returncode == EXIT_INVALID
+    assert f"{config}: actuator.transport: a simulated device cannot be mixed with real ones" in run.stderr
+    assert not out.exists()

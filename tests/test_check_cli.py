@@ -6,7 +6,7 @@ import subprocess
 import sys
 
 from sequences import shipped_file
-from tests.test_campaign_cli import wfsbench
+from tests.test_campaign_cli import ROOT, wfsbench
 
 
 def check(*args: str) -> subprocess.CompletedProcess:
@@ -51,12 +51,15 @@ def test_a_sequence_for_another_kind_of_bench_is_refused_by_check_and_by_run(tmp
     assert result.returncode == 4
     assert (
         "  steps[5] prompt 'car_on_posts': car_on_posts is done on a four_post bench, and the configured"
-        " bench is a shaker bench (give a four_post bench configuration with --bench)"
+        " bench is a shaker bench (give a four_post bench configuration with --bench: the simulated one is"
+        " configs/simulated_four_post.toml)"
     ) in result.stdout.splitlines()
     out = tmp_path / "c.h5"
     run = wfsbench("run", four_post, "--out", str(out))
     assert run.returncode == 4 and "car_on_posts is done on a four_post bench" in run.stderr
     assert not out.exists()  # refused before anything was opened
+    named = check(four_post, "--bench", str(ROOT / "configs" / "simulated_four_post.toml"))
+    assert named.returncode == 0, named.stdout  # the configuration the refusal names takes it
 
 
 def test_an_invalid_file_is_named_with_its_key_and_exit_3(tmp_path):

@@ -58,7 +58,15 @@ def open_bench(
         raise ValueError("give an operator or answers, not both")
     transports = {config.actuator.transport, config.wfs.transport}
     if "simulated" in transports and transports != {"simulated"}:
-        raise ValueError(f"{config.source}: a simulated device cannot be mixed with real ones")
+        simulated = [
+            f"{device}.transport"
+            for device, transport in (("actuator", config.actuator.transport), ("wfs", config.wfs.transport))
+            if transport == "simulated"
+        ]
+        raise ValueError(
+            f"{config.source}: {', '.join(simulated)}: a simulated device cannot be mixed with real ones"
+            " (the simulated transport is the default: set every device's transport)"
+        )
     with contextlib.ExitStack() as stack:
         lab = None
         if config.simulated:
@@ -122,9 +130,7 @@ class DeviceUnreachableError(ConnectionError):
     """A device of the bench could not be opened: the message names the configuration file and the
     keys that say where the device is, the address tried and why it failed."""
 
-    def __init__(
-        self, config: BenchConfig, device: str, where: str, port: int | None, cause: object
-    ) -> None:
+    def __init__(self, config: BenchConfig, device: str, where: str, port: int | None, cause: object) -> None:
         if device == "wfs":
             keys, what = "wfs.device", f"the WFS acquisition at {where}"
         elif config.actuator.transport == "rtu":
