@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -391,6 +392,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C before a command took it over (a run: before the devices opened)
         print("interrupted: nothing moved", file=sys.stderr)
         return EXIT_STOPPED
+    except BrokenPipeError:  # the reader of a pipe went away (| head): stop writing, quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the exit's flush goes nowhere
+        return EXIT_COMPLETE
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ import json
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import h5py
@@ -20,7 +21,7 @@ from bench.cli_analysis import EXIT_NOT_CAMPAIGN, EXIT_OK
 from bench.config import default_bench_config
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
 from bench.store import StoreError, add_results, open_campaign
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.test_campaign_cli import ROOT, SMOKE, wfsbench
 
 H5DUMP = shutil.which("h5dump")
 
@@ -276,3 +277,14 @@ def test_a_directory_or_a_text_file_is_refused_in_one_plain_sentence(tmp_path):
         f"error: {text}: not a readable HDF5 file"
         " (Unable to synchronously open file (file signature not found))\n"
     )
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(smoke_file):
+    """``wfsbench analyze FILE --json | head -c 600``, the reader gone before the command writes
+    (whatever the pipe's buffer holds): no traceback, exit 0."""
+    command = [sys.executable, "-m", "bench.cli", "analyze", str(smoke_file), "--json"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    process.stdout.close()  # the reader has gone
+    stderr = process.stderr.read().decode()
+    assert process.wait(timeout=120) == EXIT_OK, stderr
+    assert "Traceback" not in stderr and "BrokenPipeError" not in stderr
