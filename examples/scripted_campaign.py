@@ -4,11 +4,12 @@ An engineer's script: the free run without the wheel, then a dwell grid at two p
 pressure set by the operator (on the simulated bench, the simulated operator sets it), all recorded
 into one campaign file and analysed after each run.
 
-    python examples/scripted_campaign.py [OUT.h5]
+    python examples/scripted_campaign.py [OUT.h5]      (--help: usage)
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -65,5 +66,14 @@ def main(out: Path) -> int:
     return 0 if outcome.status == "complete" else 1
 
 
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line, as a command takes it: usage, --help, an unknown option refused."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "out", nargs="?", type=Path, default=Path("scripted-campaign.h5"), help="the campaign file to write"
+    )
+    return parser.parse_args(argv)
+
+
 if __name__ == "__main__":
-    sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "scripted-campaign.h5")))
+    sys.exit(main(parse_args().out))

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bench.store import open_campaign
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "scripted_campaign.py"
@@ -29,3 +31,21 @@ def test_the_scripted_campaign_runs_and_records_every_point(tmp_path):
             for run in runs.values()
         )
     assert "stiffness_n_per_m" in result.stdout  # the identification was printed after each pressure's grid
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "words"), [(["--help"], 0, "usage:"), (["--out", "x.h5"], 2, "usage:")]
+)
+def test_the_example_takes_its_arguments_like_a_command(tmp_path, args, code, words):
+    """--help prints the usage and runs nothing; an option it does not take is refused."""
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLE), *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+        check=False,
+    )
+    assert result.returncode == code, result.stderr
+    assert words in result.stdout + result.stderr
+    assert list(tmp_path.iterdir()) == []  # no campaign file, not even one named --help
