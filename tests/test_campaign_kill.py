@@ -27,23 +27,15 @@ from bench.app.progress import DoneBefore
 from bench.app.resume import done_in_file
 from bench.engine.amplitude import achieved_amplitude_mm
 from bench.store import open_campaign
+from tests.sequence_texts import sequence_text
 from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench
 from tests.test_store_h5dump import parse_h5dump
 
 RATE_HZ = 1000.0  # the WFS frame rate of the configuration: a store chunk is one second of it
 RUN_ID = "killed-s002-dwell_grid"
-SEQUENCE = """\
-[sequence]
-name = "killed"
-
-[[steps]]
-type = "hydraulics"
-level = "low"
-
-[[steps]]
-type = "hydraulics"
-level = "high"
-
+SEQUENCE = sequence_text(
+    "killed",
+    """\
 [[steps]]
 type = "dwell_grid"
 freqs_hz = [10, 20]
@@ -54,7 +46,8 @@ measure_cycles = 2
 measure_min_s = 3.0
 taper_in_s = 0.2
 taper_out_s = 0.2
-"""
+""",
+)
 #: How far into point 1 the kill comes (wall clock, the bench being paced): beyond the one second
 #: after which point 0's row must be durable, well before point 1's end (3.5 s).
 KILL_AFTER_S = 2.0

@@ -20,6 +20,7 @@ from bench import locks
 from bench.cli import EXIT_COMPLETE, EXIT_LINK
 from bench.store import open_campaign
 from drivers.register_map import Command, ControllerState, WaveformCode
+from tests.sequence_texts import sequence_text
 from tests.test_campaign_cli import ROOT, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
 from tests.waiting import wait_until
 
@@ -27,18 +28,9 @@ from tests.waiting import wait_until
 START_TIMEOUT_S = 60.0
 
 #: Hydraulics, then one 10 s dwell: long enough for the second runs to be tried while it runs.
-LONG_DWELL = """\
-[sequence]
-name = "long"
-
-[[steps]]
-type = "hydraulics"
-level = "low"
-
-[[steps]]
-type = "hydraulics"
-level = "high"
-
+LONG_DWELL = sequence_text(
+    "long",
+    """\
 [[steps]]
 type = "sine_dwell"
 freq_hz = 10
@@ -48,7 +40,8 @@ measure_min_s = 10
 [[steps]]
 type = "hydraulics"
 level = "off"
-"""
+""",
+)
 
 
 @pytest.fixture(autouse=True)

@@ -15,6 +15,7 @@ import pytest
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID
 from bench.engine import events as ev
 from bench.store import open_campaign
+from tests.sequence_texts import sequence_text
 from tests.test_campaign_cli import SMOKE, wfsbench
 from tests.test_campaign_faults import _check_file, _run_with_fault
 
@@ -27,19 +28,9 @@ unit = "m"
 name = "f_loadcell_n"
 unit = "N"
 """
-ADAPTIVE = """\
-[sequence]
-name = "adaptive"
-description = "an adaptive grid whose FRF names its channels"
-
-[[steps]]
-type = "hydraulics"
-level = "low"
-
-[[steps]]
-type = "hydraulics"
-level = "high"
-
+ADAPTIVE = sequence_text(
+    "adaptive",
+    """\
 [[steps]]
 type = "dwell_grid"
 freqs_hz = [10.0, 20.0]
@@ -48,7 +39,9 @@ amplitudes_mm = [1.0]
 [steps.adaptive]
 output = "fz_wfs_n"
 input = "{input}"
-"""
+""",
+    "an adaptive grid whose FRF names its channels",
+)
 
 
 @pytest.fixture(scope="module")

@@ -1026,8 +1026,7 @@ class _RunRecording:
         the gaps of the blocks that arrived within ``host_stall_s`` of its own and is published at
         its first gap, or once a block arrives later, or at the run's end. Frames lost stop the run."""
         e = self.engine
-        unread_s = getattr(block, "unread_s", 0.0)
-        arrived_s = getattr(block, "arrived_s", 0.0)
+        unread_s, arrived_s = block.unread_s, block.arrived_s
         lost = sum(g.missing for g in block.gaps)
         if self._stall is not None and arrived_s - self._stall[1] > e.timing.host_stall_s:
             self._close_host_stall()

@@ -39,6 +39,7 @@ class FakeBlock:
     gaps: tuple = ()
     resyncs: tuple = ()
     unread_s: float = 0.0
+    arrived_s: float = 0.0
 
 
 @dataclass
