@@ -87,11 +87,15 @@ class Actuator(StatusReadable, Excitable, EmergencyStoppable, HydraulicsControl,
 
 
 class SampleBlockLike(Protocol):
-    """Consecutive WFS frames (``drivers.wfs_frame.FRAME_DTYPE``) with the gaps before some of them."""
+    """Consecutive WFS frames (``drivers.wfs_frame.FRAME_DTYPE``) with the gaps before some of them;
+    ``arrived_s``: when the bytes that completed the block reached the port (monotonic s);
+    ``unread_s``: how long the port went unread before that (a host stall when long)."""
 
     frames: np.ndarray
     gaps: tuple
     resyncs: tuple
+    arrived_s: float
+    unread_s: float
 
 
 class SampleSubscription(Protocol):

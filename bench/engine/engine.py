@@ -28,7 +28,7 @@ import numpy as np
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan
+from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, SampleBlockLike
 from bench.engine.interlocks import Interlock, Observation, first_trip
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
@@ -1018,7 +1018,7 @@ class _RunRecording:
         while self.engine.state is RunState.PAUSED:
             self._guard(self._next_columns())
 
-    def _follow_host_stall(self, block) -> None:
+    def _follow_host_stall(self, block: SampleBlockLike) -> None:
         """Host stalls, from the blocks' port timing: a block the port went unread ``unread_s``
         before (the host busy, not the link) opens a stall once that reaches ``host_stall_s``. The
         frames lost to it show as gaps in that block or in those read right after it (the port
