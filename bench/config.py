@@ -131,10 +131,18 @@ class Specimen:
 
 @dataclass(frozen=True)
 class Simulation:
-    """The simulated devices: noise seed, and whether they run paced in real time."""
+    """The simulated devices: noise seed, whether they run paced in real time, and whether in a
+    process of their own (``own_process``; None: when paced, as hardware keeps its own time; an
+    unpaced bench waits for its host anyway)."""
 
     seed: int = 1
     paced: bool = False
+    own_process: bool | None = None
+
+    @property
+    def in_own_process(self) -> bool:
+        """Whether the simulated devices run in a process of their own."""
+        return self.paced if self.own_process is None else self.own_process
 
 
 @dataclass(frozen=True)
@@ -192,6 +200,7 @@ def measured_bench(config: BenchConfig) -> dict[str, object]:
     measure alike (a resume compares them)."""
     data = tomllib.loads(config.to_toml())
     del data["actuator"], data["simulation"]["paced"], data["timing"]
+    data["simulation"].pop("own_process", None)
     for key in ("transport", "device", "baudrate"):
         del data["wfs"][key]
     flat: dict[str, object] = {"simulated": config.simulated}
@@ -569,8 +578,9 @@ class _Reader:
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()
-        t = self.table(data, "simulation", ("seed", "paced"))
+        t = self.table(data, "simulation", ("seed", "paced", "own_process"))
         return Simulation(
             seed=self.number(t, "simulation", "seed", d.seed, lo=0, hi=2**32 - 1, integer=True),
             paced=self.boolean(t, "simulation", "paced", d.paced),
+            own_process=self.boolean(t, "simulation", "own_process", False) if "own_process" in t else None,
         )

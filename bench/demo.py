@@ -24,10 +24,11 @@ import dataclasses
 import time
 from pathlib import Path
 
+from bench.analysis.campaign import CampaignKnowledge
 from bench.app.plan import plan_sequence
-from bench.app.post_run import CampaignKnowledge, initial_knowledge
 from bench.app.report import write_report
 from bench.app.run import run_campaign
+from bench.app.run_analysis import initial_knowledge
 from bench.config import default_bench_config
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.runs import ShakerCampaignResult, analyse_shaker_campaign
 from bench.app.plan import plan_sequence
-from bench.app.post_run import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, CampaignKnowledge, shaker_result_at
 from bench.app.run import run_campaign
+from bench.app.run_analysis import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, shaker_result_at
 from bench.config import default_bench_config
 from bench.models.parameters import Suspension, WfsSensor
 from bench.models.setup import BenchSetup

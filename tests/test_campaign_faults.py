@@ -47,7 +47,9 @@ RATE_HZ = 1000.0  # the WFS frame rate of the default configuration
 SCHEDULING_S = 1.0
 
 
-PACED = "[simulation]\npaced = true\n"  # real time: the faults meet the engine as on a real bench
+# real time: the faults meet the engine as on a real bench; the lab in this process: the faults are
+# injected into its devices
+PACED = "[simulation]\npaced = true\nown_process = false\n"
 
 
 @dataclass

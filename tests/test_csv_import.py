@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.analysis.campaign import CampaignKnowledge
 from bench.app.plan import plan_campaign
-from bench.app.post_run import CampaignKnowledge, PostRunAnalysis
 from bench.app.run import run_campaign
+from bench.app.run_analysis import RunAnalyser, replay_campaign
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
@@ -112,7 +113,8 @@ def analysed(path: Path) -> CampaignKnowledge:
     knowledge = CampaignKnowledge(
         sensor=WfsSensor(mass_kg=3.82, eigenfrequency_hz=2200.0), wheel_mass_kg=29.0
     )
-    PostRunAnalysis(path, lambda event: None, knowledge)
+    with open_campaign(path) as campaign:
+        replay_campaign(campaign, RunAnalyser(knowledge))
     return knowledge
 
 

@@ -15,7 +15,7 @@ from bench.analysis import analyse_free_run, analyse_hammer
 from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.records import DwellRecord
 from bench.app.analyze import analyze_campaign
-from bench.app.post_run import RunAnalyser, replay_campaign
+from bench.app.run_analysis import RunAnalyser, replay_campaign
 from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
@@ -109,7 +109,7 @@ def test_a_replay_analyses_the_runs_its_knowledge_has_not_taken_in_yet(stored):
     analyser = RunAnalyser(fresh)
     calls: list[str] = []
     analyse = analyser.analyse
-    analyser.analyse = lambda run, campaign: calls.append(run.run_id) or analyse(run, campaign)
+    analyser.analyse = lambda run: calls.append(run.run_id) or analyse(run)
     with open_campaign(path) as campaign:
         first = replay_campaign(campaign, analyser)
         again = replay_campaign(campaign, analyser)

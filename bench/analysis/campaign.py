@@ -56,6 +56,11 @@ class RunAnalysis:
     results: dict[str, Any]
     error: str = ""
 
+    @classmethod
+    def failed(cls, run_id: str, kind: str, reason: str) -> RunAnalysis:
+        """The analysis of a run that failed for ``reason``: a flag, the reason as its result."""
+        return cls(run_id, kind, "analysis", (f"FLAG analysis failed: {reason}",), {"error": reason}, reason)
+
 
 @dataclass(frozen=True)
 class CampaignAnalysis:

@@ -1,7 +1,7 @@
 """Analysis of a whole campaign file, whatever wrote it, and its results stored beside the runs.
 
 :func:`analyze_campaign` replays the complete runs of any file that follows the HDF5 schema
-(docs/hdf5.md) in the order they began, through the same :class:`~bench.app.post_run.RunAnalyser`
+(docs/hdf5.md) in the order they began, through the same :class:`~bench.app.run_analysis.RunAnalyser`
 the post-run analysis uses while a campaign runs: the hammer test gives the sensor, the free runs
 the plate masses, each tyre pressure's dwell grids the tyre, the four-post sweep the car. The
 sensor and wheel masses come from the bench configuration stored in the file (``config_toml``),
@@ -77,7 +77,7 @@ def analyze_campaign(
         raise ValueError("give a configuration or a knowledge, not both: the knowledge holds its masses")
     with open_campaign(path) as campaign:
         from bench.analysis.campaign import CampaignAnalysis
-        from bench.app.post_run import RunAnalyser, initial_knowledge, replay_campaign
+        from bench.app.run_analysis import RunAnalyser, initial_knowledge, replay_campaign
 
         if config is None:
             config, source = _stored_config(path, campaign.config_toml, campaign.config_name)

@@ -12,12 +12,19 @@ from __future__ import annotations
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Protocol
 
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt, Sequence
 from sequences.errors import problems_text
 from sequences.toml_text import load_toml, toml_error_where, toml_value
-from simulators.world import SimulatedOperator
+
+
+class WorldOperator(Protocol):
+    """The operator's hands on a simulated world (:class:`simulators.world.SimulatedOperator`, or
+    one in the simulated lab's own process): does what a prompt's action asks, with the answer."""
+
+    def apply(self, action: str, answer: float | str | bool | None) -> None: ...
 
 
 class AnswersError(ValueError):
@@ -116,7 +123,7 @@ class FileAnswers:
     (:class:`bench.app.simulated.TargetAnswers`) applies its own."""
 
     def __init__(
-        self, answers: Mapping[str, float | str | bool], world_operator: SimulatedOperator | None = None
+        self, answers: Mapping[str, float | str | bool], world_operator: WorldOperator | None = None
     ) -> None:
         self.answers = answers
         self.world_operator = world_operator

@@ -3,13 +3,14 @@
 :func:`open_bench` connects the actuator controller (Modbus TCP or RTU, on a thread of its own:
 :mod:`bench.app.actuator_thread`) and the WFS acquisition (serial), brought to a known state (a
 stream left running is stopped, then the configured rate set), and chooses who answers the prompts;
-on the simulated bench it first starts the in-process simulated lab (:mod:`bench.app.simulated`)
-and connects to it over the same transports. A device that cannot be
-reached raises :class:`DeviceUnreachableError`, naming the configuration's keys and the address
-tried; a device another process holds raises :class:`DeviceInUseError` (one master per device:
-:mod:`bench.locks`), a controller found moving :class:`ControllerStateError`, both before anything
-is written to a device. This is the one module of the run that needs the drivers' clients
-(pymodbus, pyserial) and the simulators; it is imported only when a bench is opened.
+on the simulated bench it first starts the simulated lab (:mod:`bench.app.simulated`; a paced one
+in a process of its own, :mod:`bench.app.lab_process`) and connects to it over the same
+transports. A device that cannot be reached raises :class:`DeviceUnreachableError`, naming the
+configuration's keys and the address tried; a device another process holds raises
+:class:`DeviceInUseError` (one master per device: :mod:`bench.locks`), a controller found moving
+:class:`ControllerStateError`, both before anything is written to a device. This is the one
+module of the run that needs the drivers' clients (pymodbus, pyserial) and the simulators; it is
+imported only when a bench is opened.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 from bench import locks
 from bench.app.actuator_thread import ThreadedActuator
 from bench.app.answers import FileAnswers
+from bench.app.lab_process import LabProcess
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings, TargetAnswers
 from bench.app.terminal import TerminalOperator
 from bench.config import BenchConfig
@@ -39,7 +41,7 @@ class BenchDevices:
     actuator: ThreadedActuator
     acquisition: WfsReader
     operator: Operator
-    lab: SimulatedLab | None = None
+    lab: SimulatedLab | LabProcess | None = None
 
 
 @contextlib.contextmanager
@@ -70,20 +72,18 @@ def open_bench(
     with contextlib.ExitStack() as stack:
         lab = None
         if config.simulated:
-            lab = stack.enter_context(
-                SimulatedLab(
-                    SimulatedLabSettings(
-                        kind=config.kind,
-                        paced=config.simulation.paced,
-                        seed=config.simulation.seed,
-                        tyre_pressure_bar=config.specimen.tyre_pressure_bar,
-                        specimen_mounted=config.specimen.wheel_fitted,
-                        tyre_model=config.specimen.tyre_model,
-                        nonlinear=config.specimen.nonlinear,
-                        aux_roles=tuple(a.channel.role for a in config.aux),
-                    )
-                )
+            settings = SimulatedLabSettings(
+                kind=config.kind,
+                paced=config.simulation.paced,
+                seed=config.simulation.seed,
+                tyre_pressure_bar=config.specimen.tyre_pressure_bar,
+                specimen_mounted=config.specimen.wheel_fitted,
+                tyre_model=config.specimen.tyre_model,
+                nonlinear=config.specimen.nonlinear,
+                aux_roles=tuple(a.channel.role for a in config.aux),
             )
+            lab_class = LabProcess if config.simulation.in_own_process else SimulatedLab
+            lab = stack.enter_context(lab_class(settings))
             host, port = lab.address
             wfs_url = lab.wfs_port
             if answers is not None:

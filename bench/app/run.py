@@ -16,12 +16,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench import locks
+from bench.analysis.campaign import CampaignKnowledge
 from bench.app.devices import open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan
-from bench.app.post_run import CampaignKnowledge, PostRunAnalysis, initial_knowledge
+from bench.app.post_run import PostRunAnalysis
 from bench.app.recorder import Recorder
 from bench.app.resume import ResumeFromFile, check_target
+from bench.app.run_analysis import initial_knowledge
 from bench.app.version import software_version
 from bench.engine import events as ev
 from bench.engine.contracts import Operator
@@ -118,11 +120,14 @@ def _run_on(
     knowledge: CampaignKnowledge | None,
 ) -> CampaignOutcome:
     analyses: list[ev.AnalysisDone] = []
-    with _campaign_writer(plan, out_path, out_path.exists()) as campaign:
-        knowledge = knowledge or initial_knowledge(plan.config)
+    knowledge = knowledge or initial_knowledge(plan.config)
+    with (
+        _campaign_writer(plan, out_path, out_path.exists()) as campaign,
+        PostRunAnalysis(out_path, engine.bus.publish, knowledge) as analysis,
+    ):
         own = [
             Recorder(campaign),
-            PostRunAnalysis(out_path, engine.bus.publish, knowledge),
+            analysis,
             lambda e: analyses.append(e) if isinstance(e, ev.AnalysisDone) else None,
         ]
         engine.bus.subscribe(own[0], critical=True)

@@ -13,6 +13,7 @@ import asyncio
 import threading
 from dataclasses import dataclass
 
+from bench.app.answers import WorldOperator
 from bench.models.benches import TyreModel
 from bench.models.setup import BenchSetup
 from sequences import Prompt
@@ -118,7 +119,7 @@ class TargetAnswers:
     """The simulated technician: answers each prompt with the value it asks for (confirms the
     others) and applies the answer to the simulated world."""
 
-    def __init__(self, operator: SimulatedOperator) -> None:
+    def __init__(self, operator: WorldOperator) -> None:
         self.operator = operator
 
     def answer(self, prompt: Prompt) -> object:

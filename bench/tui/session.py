@@ -24,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.campaign import CampaignKnowledge
 from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan, plan_campaign
-from bench.app.post_run import CampaignKnowledge, initial_knowledge
 from bench.app.progress import DoneBefore
 from bench.app.resume import done_in_file, held_runs
 from bench.app.run import run_on_engine
+from bench.app.run_analysis import initial_knowledge
 from bench.app.run_log import RunLog
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev

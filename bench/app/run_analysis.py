@@ -1,0 +1,269 @@
+"""One run's analysis with what the runs before it established, wherever it runs.
+
+What is analysed after which run (the paper's procedure):
+
+- hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on);
+- free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow);
+- dwell grids with the wheel: the tyre identification and the compensation, over every complete grid
+  of the campaign at the same tyre pressure, once that pressure's grids are done (the next run is of
+  another kind or pressure, or the sequence ends);
+- four-post sweep: m_wheel, the quarter car and the valid bands, with the post's own free run and the
+  tyre identified on the shaker at the pressure nearest the one the sweep's run records (its
+  ``set_tyre_pressure`` prompt; a run that records none is not analysed against a guessed tyre),
+  or the configured tyre when the campaign has no shaker identification.
+
+:func:`run_inputs` reads what a run's analysis needs from its campaign file (:class:`RunInputs`);
+:class:`RunAnalyser` analyses it with what the runs before it established (an analysis that fails
+is a flagged result, never an exception); :func:`runs_to_analyse` says which runs of a file are
+analysed, in which order; :func:`replay_campaign` takes them through an analyser in this process
+(``wfsbench analyze``, :mod:`bench.app.analyze`). While a campaign runs the analyser works in a
+process of its own (:mod:`bench.app.analysis_process`, fed by :mod:`bench.app.post_run`). Both
+start from :func:`initial_knowledge` unless they are given what earlier runs established.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis
+from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+from bench.analysis.runs import (
+    ShakerCampaignResult,
+    analyse_four_post,
+    analyse_free_run,
+    analyse_hammer,
+    analyse_shaker_campaign,
+)
+from bench.analysis.validation import AnalysisInputError
+from bench.config import BenchConfig
+from bench.models.parameters import WfsSensor
+from bench.report.text import summary_lines
+from bench.store import CampaignFile, RunView
+
+#: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
+PRESSURE_MATCH_BAR = 0.05
+#: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
+#: sensor rings at about 2.2 kHz).
+DEFAULT_SENSOR_EIGENFREQUENCY_HZ = 2200.0
+
+
+def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
+    """What a campaign knows before its first run: the configuration's masses and the sensor's
+    assumed eigenfrequency."""
+    return CampaignKnowledge(
+        sensor=WfsSensor(mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+        wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+    )
+
+
+@dataclass(frozen=True)
+class RunInputs:
+    """What the analysis of one run reads from its campaign file, so that it can run where the file
+    is not open (a process of its own): the run's ``run_id``, ``kind`` and ``conditions``, and its
+    records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
+    of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
+    (``sweep``). ``read_error``: why the records could not be read (the analysis is then flagged)."""
+
+    run_id: str
+    kind: str
+    conditions: dict[str, Any]
+    hammer: HammerRecord | None = None
+    dwells: tuple[DwellRecord, ...] = ()
+    sweep: SweepRecord | None = None
+    read_error: str = ""
+
+
+def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
+    """Read what the analysis of ``run`` of ``campaign`` needs (:class:`RunInputs`)."""
+    conditions = dict(run.conditions)
+    inputs = RunInputs(run.run_id, run.kind, conditions)
+    try:
+        if run.kind == "hammer":
+            return dataclasses.replace(inputs, hammer=run.hammer_record())
+        if run.kind == "free_run":
+            return dataclasses.replace(inputs, dwells=tuple(run.dwell_records()))
+        if run.kind == "dwell_grid" and (pressure := conditions.get("tyre_pressure_bar")) is not None:
+            grids = [
+                other
+                for other in campaign.runs
+                if other.kind == "dwell_grid"
+                and other.status == "complete"
+                and other.conditions.get("tyre_pressure_bar") == pressure
+            ]
+            dwells = tuple(record for grid in grids for record in grid.dwell_records())
+            return dataclasses.replace(inputs, dwells=dwells)
+        if run.kind == "sweep" and conditions.get("bench") == "four_post":
+            return dataclasses.replace(inputs, sweep=run.sweep_record())
+    except (AnalysisInputError, ValueError) as exc:
+        return dataclasses.replace(inputs, read_error=str(exc))
+    return inputs
+
+
+class RunAnalyser:
+    """Analyses runs one after another, each with what the runs before it established
+    (``knowledge``: the sensor from the hammer test, the free runs' records, the shaker
+    identification per tyre pressure)."""
+
+    def __init__(self, knowledge: CampaignKnowledge) -> None:
+        self.knowledge = knowledge
+
+    def analyse(self, run: RunInputs) -> RunAnalysis:
+        """Analyse ``run`` (its records read by :func:`run_inputs`); a failure is returned as a
+        flagged analysis. The knowledge keeps the analysis (:attr:`CampaignKnowledge.analysed_runs`)."""
+        try:
+            if run.read_error:
+                raise ValueError(run.read_error)
+            name, lines, results = self._analyse(run)
+            outcome = RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
+        except (AnalysisInputError, ValueError) as exc:
+            outcome = RunAnalysis.failed(run.run_id, run.kind, str(exc))
+        self.knowledge.analysed_runs[run.run_id] = outcome
+        return outcome
+
+    def _analyse(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if run.kind == "hammer":
+            assert run.hammer is not None
+            result = analyse_hammer(run.hammer, sensor_mass_kg=k.sensor.mass_kg)
+            k.hammer = result
+            k.sensor = WfsSensor(
+                mass_kg=k.sensor.mass_kg,
+                eigenfrequency_hz=result.eigenfrequency_hz,
+                damping_ratio=result.damping_ratio_log_decrement,
+            )
+            return (
+                "hammer",
+                summary_lines(result),
+                {
+                    "eigenfrequency_hz": result.eigenfrequency_hz,
+                    "damping_ratio": result.damping_ratio_log_decrement,
+                },
+            )
+        if run.kind == "free_run":
+            records = list(run.dwells)
+            result = analyse_free_run(records)
+            if run.conditions.get("bench") == "four_post":
+                k.post_free_run = records
+                k.plate_masses.append(PlateMassRun(run.run_id, "four-post post", result))
+            else:
+                k.shaker_free_run = records
+                k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
+            return (
+                "plate_mass",
+                summary_lines(result),
+                {
+                    "m_comp_kg": result.plate.mass_kg,
+                    "m_comp_sigma_kg": result.plate.sigma_kg,
+                },
+            )
+        if run.kind == "dwell_grid":
+            return self._shaker(run)
+        if run.kind == "sweep":
+            return self._four_post(run)
+        raise ValueError(f"no analysis for a {run.kind} run")
+
+    def _shaker(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if not k.shaker_free_run:
+            raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
+        pressure = run.conditions.get("tyre_pressure_bar")
+        if pressure is None:
+            raise ValueError("no tyre pressure was answered before this grid")
+        result = analyse_shaker_campaign(
+            list(run.dwells), k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+        )
+        k.shaker[float(pressure)] = result
+        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
+
+    def _four_post(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        if run.conditions.get("bench") != "four_post":
+            note = (
+                "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
+                " from its dwell grids; the sweep analysis is the four-post bench's)"
+            )
+            return "sweep", [note], {}
+        if not k.post_free_run:
+            raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
+        pressure = run.conditions.get("tyre_pressure_bar")
+        if not k.shaker:
+            raise ValueError(
+                "the four-post analysis needs the tyre below the sensor: run the shaker campaign"
+                " (its dwell grids) into the same campaign file first"
+            )
+        identified_bar, tyre = shaker_result_at(k.shaker, pressure)
+        notes = [f"tyre at {pressure:g} bar: shaker identification at {identified_bar:g} bar"]
+        if abs(identified_bar - pressure) > PRESSURE_MATCH_BAR:
+            notes.append(
+                f"FLAG no shaker identification at the car's {pressure:g} bar: the nearest, at"
+                f" {identified_bar:g} bar, describes a tyre of another stiffness"
+            )
+        assert run.sweep is not None
+        result = analyse_four_post(
+            run.sweep, k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+        )
+        k.four_post = result
+        lines = summary_lines(result)
+        return (
+            "four_post",
+            [lines[0], *notes, *lines[1:]],
+            {
+                "m_wheel_kg": result.wheel_mass.mass_kg,
+                **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
+            },
+        )
+
+
+def _grids_end(run: RunView, following: list[RunView]) -> bool:
+    """Whether the dwell grid ``run`` is the last of its tyre pressure before ``following``."""
+    pressure = run.conditions.get("tyre_pressure_bar")
+    return (
+        not following
+        or following[0].kind != "dwell_grid"
+        or (following[0].conditions.get("tyre_pressure_bar") != pressure)
+    )
+
+
+def runs_to_analyse(campaign: CampaignFile) -> list[RunView]:
+    """The complete runs of ``campaign`` to analyse, in the order they began, as they would have
+    been analysed while the campaign ran: each dwell grid together with the grids of its tyre
+    pressure that follow it directly, after the last of them. Runs that did not complete are not
+    analysed."""
+    complete = [run for run in campaign.runs if run.status == "complete"]
+    return [
+        run
+        for i, run in enumerate(complete)
+        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
+    ]
+
+
+def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
+    """The analyses of :func:`runs_to_analyse` of ``campaign``, in this process; a run the
+    analyser's knowledge has taken in already (analysed while the campaign ran, or carried from an
+    earlier sequence) gives the analysis it holds, without analysing it again."""
+    known = analyser.knowledge.analysed_runs
+    return [
+        known[run.run_id] if run.run_id in known else analyser.analyse(run_inputs(run, campaign))
+        for run in runs_to_analyse(campaign)
+    ]
+
+
+def shaker_result_at(
+    shaker: dict[float, ShakerCampaignResult], pressure_bar: float | None
+) -> tuple[float, ShakerCampaignResult]:
+    """The shaker campaign result (and its pressure, bar) for a tyre at ``pressure_bar``: the one
+    at the nearest pressure. The tyre's stiffness changes with its pressure (250 / 390 / 420 kN/m at
+    1.5 / 2.5 / 3.5 bar), so a run that records no pressure (no ``set_tyre_pressure`` prompt before
+    it) gets none: ValueError, which names the pressures identified."""
+    if not shaker:
+        raise ValueError("no shaker identification in this campaign yet")
+    known = ", ".join(f"{p:g}" for p in sorted(shaker))
+    if pressure_bar is None:
+        raise ValueError(
+            "the four-post run records no tyre pressure (no set_tyre_pressure prompt before its"
+            f" sweep): which shaker identification ({known} bar) describes its tyre is unknown"
+        )
+    nearest = min(shaker, key=lambda p: abs(p - pressure_bar))
+    return nearest, shaker[nearest]
