@@ -234,6 +234,10 @@ class WfsReader:
         self.last_arrival_s: float | None = None
         #: the longest the port went unread between two reads since the reader started (s)
         self.longest_unread_s = 0.0
+        #: the most bytes one read took from the port since the reader started: how full its receive
+        #: buffer got (a read held inside the port's read, after its system call, by the
+        #: interpreter's lock, shows here and not in ``longest_unread_s``)
+        self.largest_backlog_bytes = 0
         self._read_returned_s: float | None = None
 
     @classmethod
@@ -445,8 +449,8 @@ class WfsReader:
                     continue
                 opened_before = True
             called = time.monotonic()
-            unread = 0.0 if self._read_returned_s is None else called - self._read_returned_s
             try:
+                waiting = self._port.in_waiting
                 data = self._read_available(self._port)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 # pyserial raises TypeError/AttributeError when the port is closed under a read
@@ -455,11 +459,24 @@ class WfsReader:
                 self._close_port()
                 self._read_returned_s = None
                 continue
-            returned = self._read_returned_s = time.monotonic()
+            returned = time.monotonic()
+            unread = self._unread_s(called, returned, waiting)
+            self._read_returned_s = returned
             self.longest_unread_s = max(self.longest_unread_s, unread)
+            self.largest_backlog_bytes = max(self.largest_backlog_bytes, len(data))
             if data:
                 self.last_arrival_s = returned
                 self._consume(data, returned, unread)
+
+    def _unread_s(self, called_s: float, returned_s: float, waiting: int) -> float:
+        """How long the port went unread before the read called at ``called_s`` returned at
+        ``returned_s``: from the previous read's return to this one's when bytes were waiting at the
+        call (the read itself may have been held too: by the interpreter's lock, or descheduled
+        after its system call), else to the call (the read then waited for the line, not the host)."""
+        since = self._read_returned_s
+        if since is None:
+            return 0.0
+        return (returned_s if waiting > 0 else called_s) - since
 
     def _read_available(self, port: SerialLike) -> bytes:
         """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one

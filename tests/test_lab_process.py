@@ -89,7 +89,7 @@ def test_the_lab_process_refuses_garbage_requests_and_goes_on():
         assert os.getsid(process.pid) != os.getsid(0)  # Ctrl-C at the bench's terminal does not reach it
         with pytest.raises(ValueError, match="unknown operator action 'dance'"):
             lab.operator.apply("dance", True)
-        with pytest.raises(ValueError, match="neither apply nor drop_controller_link"):
+        with pytest.raises(ValueError, match="neither apply, drop_controller_link nor link"):
             lab.request({"nonsense": 1})
         for garbage in ("}{\x00\xff not json", '{"apply": 5}', '{"apply": ["set_tyre_pressure"]}', "[1, 2]"):
             process.stdin.write(garbage + "\n")
@@ -97,6 +97,7 @@ def test_the_lab_process_refuses_garbage_requests_and_goes_on():
             reply = _read_reply(process.stdout, 10.0)
             assert "refused" in reply["error"], (garbage, reply)
         lab.operator.apply("set_tyre_pressure", 1.5)  # still serving
+        assert lab.bytes_overrun() == 0  # nobody reads its WFS, which is not streaming
         assert asyncio.run(_controller_state(lab.address)) == ControllerState.OFF  # Modbus TCP answers
 
 

@@ -6,20 +6,32 @@ the heartbeat and the engine's loop while the next run is under way; here it run
 interpreter (:mod:`bench.app.child_process`) holding a :class:`~bench.app.run_analysis.RunAnalyser`.
 The bench reads each run's records from its campaign file (:func:`~bench.app.run_analysis.run_inputs`;
 the file is the bench's own while it records) and sends them; the child sends back, for each, the
-analysis and what the campaign knows after it. Both ways the messages are pickles, one after the
+analysis and what it changed in the campaign's knowledge. Both ways the messages are pickles, one after the
 other, on the child's standard input and output: first the campaign's knowledge, then one
-:class:`~bench.app.run_analysis.RunInputs` per run; back one ``(RunAnalysis, CampaignKnowledge)`` per
-run, in the order they were sent.
+:class:`~bench.app.run_analysis.RunInputs` per run; back, for each run in the order they were sent,
+its ``RunAnalysis`` and what it changed in the campaign's knowledge (:func:`knowledge_changes`),
+which :class:`AnalysisProcess` applies to the knowledge it was given. Only the changes travel: the
+whole knowledge grows with every run, and unpickling it after each would hold the interpreter's lock
+(and wake its garbage collector) for tens of milliseconds.
+
+A message's arrays travel beside its pickle, not in it (protocol 5's out-of-band buffers): a
+grid's records are megabytes, and copying them into one pickle would hold the interpreter's lock for
+milliseconds on end; written as they lie, the lock is released while the pipe takes them. Framing:
+the pickle's length and the number of buffers (little-endian u64, u32), each buffer's length (u64),
+then the pickle and the buffers. The bench never waits on the child to send: a sender thread writes
+what :meth:`AnalysisProcess.submit` queued, as the child reads it between analyses.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import pickle
 import queue
+import struct
 import subprocess
 import sys
 import threading
-from typing import IO
+from typing import IO, Any
 
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.app.child_process import start_child
@@ -40,15 +52,20 @@ class AnalysisProcess:
     def __init__(self, knowledge: CampaignKnowledge) -> None:
         self.knowledge = knowledge
         self._process: subprocess.Popen[bytes] | None = None
-        self._results: queue.Queue[tuple[RunAnalysis, CampaignKnowledge] | BaseException] = queue.Queue()
-        self._receiver: threading.Thread | None = None
+        self._outbox: queue.Queue[object] = queue.Queue()  # to the child; _END closes its input
+        self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges] | BaseException] = queue.Queue()
+        self._threads: list[threading.Thread] = []
         self.outstanding = 0  # runs sent and not yet taken back
 
     def __enter__(self) -> AnalysisProcess:
-        self._process = start_child("bench.app.analysis_process", text=False)
-        self._receiver = threading.Thread(target=self._receive, name="analysis-results", daemon=True)
-        self._receiver.start()
-        self._send(self.knowledge)
+        process = self._process = start_child("bench.app.analysis_process", text=False)
+        self._threads = [
+            threading.Thread(target=work, args=(process,), name=f"analysis-{name}", daemon=True)
+            for work, name in ((self._send_all, "sender"), (self._receive, "results"))
+        ]
+        for thread in self._threads:
+            thread.start()
+        self._outbox.put(self.knowledge)
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -57,23 +74,27 @@ class AnalysisProcess:
         process, self._process = self._process, None
         if process is None:
             return
+        self._outbox.put(_END)
         try:
-            assert process.stdin is not None
-            process.stdin.close()
             process.wait(STOP_TIMEOUT_S)
-        except (OSError, subprocess.TimeoutExpired):
+        except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
+        for thread in self._threads:
+            thread.join(STOP_TIMEOUT_S)
 
     def submit(self, run: RunInputs) -> None:
-        """Send ``run`` to be analysed after those sent before it."""
-        self._send(run)
+        """Queue ``run`` to be analysed after those sent before it. It never waits for the child: a
+        sender thread writes to its input, which it reads between analyses."""
+        if self._process is None:
+            raise AnalysisProcessError("the analysis process is not running")
+        self._outbox.put(run)
         self.outstanding += 1
 
-    def next_result(self, timeout_s: float | None) -> tuple[RunAnalysis, CampaignKnowledge] | None:
-        """The next analysis and the knowledge after it, waiting up to ``timeout_s`` (None: until it
-        comes; 0: only if it is there); None if none came. AnalysisProcessError if the child ended
-        before answering."""
+    def next_result(self, timeout_s: float | None) -> RunAnalysis | None:
+        """The next analysis, its changes applied to :attr:`knowledge`, waiting up to ``timeout_s``
+        (None: until it comes; 0: only if it is there); None if none came. AnalysisProcessError if
+        the child ended before answering."""
         if self.outstanding == 0:
             return None
         try:
@@ -84,46 +105,141 @@ class AnalysisProcess:
             self._results.put(result)  # every later call fails alike
             raise AnalysisProcessError(f"the analysis process ended: {result}")
         self.outstanding -= 1
-        return result
+        outcome, changes = result
+        apply_changes(self.knowledge, changes)
+        return outcome
 
-    def _send(self, message: object) -> None:
-        process = self._process
-        if process is None or process.stdin is None:
-            raise AnalysisProcessError("the analysis process is not running")
+    def _send_all(self, process: subprocess.Popen[bytes]) -> None:
+        """The sender thread: everything queued, in order, until _END closes the child's input. A
+        child that is gone ends it; the receiver then reports the child's end."""
+        assert process.stdin is not None
         try:
-            pickle.dump(message, process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            process.stdin.flush()
-        except OSError as err:
-            raise AnalysisProcessError(f"the analysis process is gone: {err}") from None
+            while (message := self._outbox.get()) is not _END:
+                write_message(process.stdin, message)
+            process.stdin.close()
+        except OSError:
+            pass  # the child is gone: the receiver's end of file says so to whoever waits
 
-    def _receive(self) -> None:
-        process = self._process
-        assert process is not None and process.stdout is not None
+    def _receive(self, process: subprocess.Popen[bytes]) -> None:
+        assert process.stdout is not None
         try:
             while True:
-                self._results.put(pickle.load(process.stdout))
+                self._results.put(read_message(process.stdout))
         except EOFError:
             self._results.put(EOFError("no more results"))
         except Exception as exc:  # a broken pipe or a garbled pickle: every waiting call is told
             self._results.put(exc)
 
 
+#: Put in the sender's queue to close the child's input.
+_END = object()
+_HEAD = struct.Struct("<QI")
+_LENGTH = struct.Struct("<Q")
+#: Bounds beyond which a frame's header is garbage, not a campaign's records (whose arrays are each a
+#: channel's samples of one point).
+_MAX_BUFFERS = 1 << 24
+_MAX_BYTES = 1 << 32
+
+
+def write_message(stream: IO[bytes], message: object) -> None:
+    """Write ``message`` as one frame (the module's docstring): its arrays as they lie in memory."""
+    buffers: list[pickle.PickleBuffer] = []
+    payload = pickle.dumps(message, protocol=5, buffer_callback=buffers.append)
+    views = [buffer.raw() for buffer in buffers]
+    stream.write(_HEAD.pack(len(payload), len(views)) + b"".join(_LENGTH.pack(v.nbytes) for v in views))
+    stream.write(payload)
+    for view in views:
+        stream.write(view)
+    stream.flush()
+
+
+def read_message(stream: IO[bytes]) -> object:
+    """Read one frame written by :func:`write_message`; EOFError at the end of the stream, before or
+    inside a frame."""
+    length, count = _HEAD.unpack(_read_exactly(stream, _HEAD.size))
+    if count > _MAX_BUFFERS:
+        raise pickle.UnpicklingError(f"a frame of {count} buffers: not a message of this protocol")
+    lengths = _read_exactly(stream, count * _LENGTH.size)
+    sizes = [_LENGTH.unpack_from(lengths, i * _LENGTH.size)[0] for i in range(count)]
+    if (largest := max([length, *sizes])) > _MAX_BYTES:
+        raise pickle.UnpicklingError(f"a frame part of {largest} bytes: not a message of this protocol")
+    payload = _read_exactly(stream, length)
+    return pickle.loads(payload, buffers=[_read_exactly(stream, size) for size in sizes])
+
+
+def _read_exactly(stream: IO[bytes], size: int) -> bytearray:
+    """``size`` bytes (a writable buffer: arrays built on it are writable, as the analysis's own)."""
+    buffer = bytearray(size)
+    view, got = memoryview(buffer), 0
+    while got < size:
+        n = stream.readinto(view[got:])
+        if not n:
+            raise EOFError(f"the stream ended {size - got} bytes short of a message")
+        got += n
+    return buffer
+
+
+#: What an analysis changed in the campaign's knowledge, by field: ("set", value) for a field given
+#: a new value, ("extend", items) for items appended to a list, ("update", items) for a dict's new or
+#: replaced entries.
+KnowledgeChanges = dict[str, tuple[str, Any]]
+
+
+def _snapshot(knowledge: CampaignKnowledge) -> dict[str, Any]:
+    """Each field's object, and a shallow copy of each list or dict, to compare with afterwards."""
+    snapshot = {}
+    for field in dataclasses.fields(knowledge):
+        value = getattr(knowledge, field.name)
+        copy = list(value) if isinstance(value, list) else dict(value) if isinstance(value, dict) else None
+        snapshot[field.name] = (value, copy)
+    return snapshot
+
+
+def knowledge_changes(before: dict[str, Any], knowledge: CampaignKnowledge) -> KnowledgeChanges:
+    """What changed in ``knowledge`` since ``before`` (:func:`_snapshot`)."""
+    changes: KnowledgeChanges = {}
+    for name, (old, copy) in before.items():
+        new = getattr(knowledge, name)
+        if new is not old:
+            changes[name] = ("set", new)
+        elif isinstance(new, list) and new[: len(copy)] == copy and len(new) > len(copy):
+            changes[name] = ("extend", new[len(copy) :])
+        elif isinstance(new, list) and new != copy:
+            changes[name] = ("set", new)
+        elif isinstance(new, dict):
+            updated = {key: value for key, value in new.items() if key not in copy or copy[key] is not value}
+            if updated:
+                changes[name] = ("update", updated)
+    return changes
+
+
+def apply_changes(knowledge: CampaignKnowledge, changes: KnowledgeChanges) -> None:
+    """Apply what :func:`knowledge_changes` found to another copy of the knowledge."""
+    for name, (how, value) in changes.items():
+        if how == "set":
+            setattr(knowledge, name, value)
+        elif how == "extend":
+            getattr(knowledge, name).extend(value)
+        else:
+            getattr(knowledge, name).update(value)
+
+
 def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
     """The child's side: the knowledge, then one analysis per run until its input closes. An
     analysis that fails in a way the analyser does not flag itself is sent back flagged too."""
-    analyser = RunAnalyser(pickle.load(stdin))
+    analyser = RunAnalyser(read_message(stdin))
     while True:
         try:
-            run: RunInputs = pickle.load(stdin)
+            run: RunInputs = read_message(stdin)
         except EOFError:
             return
+        before = _snapshot(analyser.knowledge)
         try:
             outcome = analyser.analyse(run)
         except Exception as exc:
             outcome = RunAnalysis.failed(run.run_id, run.kind, f"{type(exc).__name__}: {exc}")
             analyser.knowledge.analysed_runs[run.run_id] = outcome
-        pickle.dump((outcome, analyser.knowledge), stdout, protocol=pickle.HIGHEST_PROTOCOL)
-        stdout.flush()
+        write_message(stdout, (outcome, knowledge_changes(before, analyser.knowledge)))
 
 
 if __name__ == "__main__":

@@ -11,10 +11,12 @@ remove the wheel, set the pressure) reach its world over the child's standard in
 one JSON object per line:
 
 - parent to child: the settings first (``SimulatedLabSettings`` as an object), then requests
-  ``{"apply": [action, answer]}`` or ``{"drop_controller_link": true}``;
+  ``{"apply": [action, answer]}``, ``{"drop_controller_link": true}`` or ``{"link": true}`` (the
+  WFS link's counters);
 - child to parent: ``{"address": [host, port], "wfs_port": path}`` once the devices are up, then
-  ``{"ok": true}`` or ``{"error": text}`` for each request, and ``{"ended": null}`` or
-  ``{"ended": text}`` (the simulated bench failed) when its standard input closes.
+  ``{"ok": true}`` (with ``"bytes_overrun"`` for ``link``) or ``{"error": text}`` for each
+  request, and ``{"ended": null}`` or ``{"ended": text}`` (the simulated bench failed) when its
+  standard input closes.
 
 The child (:mod:`bench.app.child_process`) runs in a session of its own, so Ctrl-C at the terminal
 reaches the bench (which tapers the run out) and not the devices; it ends when its standard input
@@ -96,8 +98,12 @@ class LabProcess:
         """Pull the Modbus cable: every client connection is closed by the controller's side."""
         self.request({"drop_controller_link": True})
 
-    def request(self, message: dict[str, Any]) -> None:
-        """Send one request and wait for its reply; an error reply is raised as ValueError (an
+    def bytes_overrun(self) -> int:
+        """Bytes the WFS link dropped so far because the host's receive buffer was full."""
+        return int(self.request({"link": True})["bytes_overrun"])
+
+    def request(self, message: dict[str, Any]) -> dict[str, Any]:
+        """Send one request and return its reply; an error reply is raised as ValueError (an
         unknown action, an answer the world cannot take), a child that does not answer as
         :class:`LabProcessError`."""
         with self._lock:
@@ -107,6 +113,7 @@ class LabProcess:
             raise ValueError(reply["error"])
         if not reply.get("ok"):
             raise LabProcessError(f"the simulated lab answered {reply}")
+        return reply
 
     def _send(self, message: dict[str, Any]) -> None:
         process = self._process
@@ -186,17 +193,20 @@ def _serve(stdin: IO[str], stdout: IO[str]) -> None:
             for line in stdin:
                 try:
                     request = json.loads(line)
+                    reply: dict[str, Any] = {"ok": True}
                     if "apply" in request:
                         action, answer = request["apply"]
                         lab.operator.apply(action, answer)
                     elif request.get("drop_controller_link"):
                         lab.drop_controller_link()
+                    elif request.get("link"):
+                        reply["bytes_overrun"] = lab.link.bytes_overrun
                     else:
-                        raise ValueError("neither apply nor drop_controller_link")
+                        raise ValueError("neither apply, drop_controller_link nor link")
                 except (ValueError, TypeError, KeyError, AttributeError) as exc:
                     send({"error": f"request {line.strip()[:200]!r} refused: {exc}"})
                 else:
-                    send({"ok": True})
+                    send(reply)
     except Exception as exc:  # told to the bench, which raises it
         send({"ended": f"{exc or type(exc).__name__}\n{traceback.format_exc(limit=8)}"})
     else:

@@ -12,7 +12,6 @@ waited for. The campaign's knowledge (the object given) is kept up to date with 
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from collections.abc import Callable
 from pathlib import Path
@@ -113,16 +112,9 @@ class PostRunAnalysis:
                     return
                 if result is None:
                     return
-                outcome, knowledge = result
-                self._adopt(knowledge)
-                self._done(outcome)
+                self._done(result)
         finally:
             self._publishing = False
-
-    def _adopt(self, knowledge: CampaignKnowledge) -> None:
-        """Make the campaign's knowledge (the object the caller holds) the process's."""
-        for field in dataclasses.fields(CampaignKnowledge):
-            setattr(self.knowledge, field.name, getattr(knowledge, field.name))
 
     def _done(self, outcome: RunAnalysis) -> None:
         run_id, _, publish = self._sent.pop(0)
