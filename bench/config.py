@@ -21,6 +21,7 @@ import numpy as np
 
 from bench.engine.channels import FrameChannels
 from bench.engine.timing import EngineTiming
+from bench.models.parameters import WfsSensor
 from drivers.errors import RegisterMapError
 from drivers.register_map import RegisterMap, load_register_map
 from drivers.wfs_frame import FRAME_SIZE
@@ -116,6 +117,22 @@ class Masses:
 
 
 @dataclass(frozen=True)
+class SensorStatement:
+    """The WFS as the lab states it (its data sheet, or a hammer test of an earlier campaign): the
+    bare sensor's eigenfrequency (Hz) and damping ratio. ``None``: not stated; the analysis then
+    assumes :class:`~bench.models.parameters.WfsSensor`'s defaults (2200 Hz, 0.02) and says so. A
+    hammer run of the campaign measures the sensor and overrides both."""
+
+    eigenfrequency_hz: float | None = None
+    damping_ratio: float | None = None
+
+    @property
+    def stated(self) -> bool:
+        """Whether the configuration states anything of the sensor."""
+        return self.eigenfrequency_hz is not None or self.damping_ratio is not None
+
+
+@dataclass(frozen=True)
 class Specimen:
     """What stands on the bench, for the dry run's model and the simulated world: the tyre model
     (the paper's 1, 2 or 3), whether the tyre is non-linear, the state before the first prompt
@@ -155,6 +172,7 @@ class BenchConfig:
     limits: BenchLimits = field(default_factory=BenchLimits)
     calibration: Calibration = field(default_factory=Calibration)
     masses: Masses = field(default_factory=Masses)
+    sensor: SensorStatement = field(default_factory=SensorStatement)
     aux: tuple[AuxInput, ...] = DEFAULT_AUX_INPUTS
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
@@ -165,6 +183,17 @@ class BenchConfig:
     def channels(self) -> ChannelSet:
         """The channels a run on this bench records, each with its role."""
         return FrameChannels(self.aux).recorded
+
+    @property
+    def wfs_sensor(self) -> WfsSensor:
+        """The sensor as this configuration states it (``[sensor]``, its mass from ``[masses]``), what
+        it does not state from :class:`WfsSensor`'s defaults (the paper's sensor: 2200 Hz, 0.02)."""
+        stated, default = self.sensor, WfsSensor()
+        return WfsSensor(
+            mass_kg=self.masses.sensor_kg,
+            eigenfrequency_hz=stated.eigenfrequency_hz or default.eigenfrequency_hz,
+            damping_ratio=default.damping_ratio if stated.damping_ratio is None else stated.damping_ratio,
+        )
 
     @property
     def simulated(self) -> bool:
@@ -184,6 +213,7 @@ class BenchConfig:
             toml_table("[limits]", limits),
             toml_table("[calibration]", _as_dict(self.calibration)),
             toml_table("[masses]", _as_dict(self.masses)),
+            toml_table("[sensor]", _as_dict(self.sensor)),
             toml_table("[aux]", {f"aux{i}": _aux_entry(a) for i, a in enumerate(self.aux)}),
             toml_table("[specimen]", _as_dict(self.specimen)),
             toml_table("[simulation]", _as_dict(self.simulation)),
@@ -375,6 +405,7 @@ class _Reader:
             "limits",
             "calibration",
             "masses",
+            "sensor",
             "aux",
             "specimen",
             "simulation",
@@ -394,6 +425,7 @@ class _Reader:
             limits=limits,
             calibration=self.calibration(data),
             masses=self.masses(data, base.masses),
+            sensor=self.sensor(data),
             aux=self.aux(data),
             specimen=self.specimen(data),
             simulation=self.simulation(data),
@@ -504,6 +536,18 @@ class _Reader:
             **{
                 f.name: self.number(t, "masses", f.name, getattr(base, f.name), lo=0, lo_open=True)
                 for f in fields(Masses)
+            }
+        )
+
+    def sensor(self, data: dict) -> SensorStatement:
+        """The ``[sensor]`` table: the eigenfrequency above 0 Hz, the damping ratio from 0 to 1 (an
+        underdamped sensor rings); each may be left out (not stated)."""
+        t = self.table(data, "sensor", tuple(f.name for f in fields(SensorStatement)))
+        limits = {"eigenfrequency_hz": {"lo": 0, "lo_open": True}, "damping_ratio": {"lo": 0, "hi": 1}}
+        return SensorStatement(
+            **{
+                name: self.number(t, "sensor", name, math.nan, **bounds) if name in t else None
+                for name, bounds in limits.items()
             }
         )
 

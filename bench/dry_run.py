@@ -22,7 +22,7 @@ import numpy as np
 
 from bench.config import BenchConfig
 from bench.models.benches import TyreModel
-from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity, WfsSensor
+from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity
 from bench.models.setup import BenchKind, BenchSetup
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
@@ -229,7 +229,7 @@ class _World:
             BenchKind.SHAKER if c.kind == "shaker" else BenchKind.QUARTER_CAR,
             TyreModel(c.specimen.tyre_model),
             tyre_at(self.pressure_bar, c.masses.wheel_below_sensor_kg),
-            sensor=WfsSensor(mass_kg=c.masses.sensor_kg),
+            sensor=c.wfs_sensor,
             rig=rig,
             nonlinearity=TyreNonlinearity() if c.specimen.nonlinear else None,
         )

@@ -16,9 +16,9 @@ from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.runs import ShakerCampaignResult, analyse_shaker_campaign
 from bench.app.plan import plan_sequence
 from bench.app.run import run_campaign
-from bench.app.run_analysis import DEFAULT_SENSOR_EIGENFREQUENCY_HZ, shaker_result_at
+from bench.app.run_analysis import shaker_result_at
 from bench.config import default_bench_config
-from bench.models.parameters import Suspension, WfsSensor
+from bench.models.parameters import Suspension
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from sequences import load_sequence, shipped_file
@@ -47,7 +47,7 @@ def test_four_post_run_is_analysed_with_the_tyre_at_its_pressure(tmp_path: Path,
     path = shipped_file("paper_four_post.toml")
     plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text())
     knowledge = CampaignKnowledge(
-        sensor=WfsSensor(mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+        sensor=config.wfs_sensor,
         wheel_mass_kg=config.masses.wheel_below_sensor_kg,
         shaker=dict(shaker_identifications),
     )

@@ -6,12 +6,33 @@ the post-run analysis and ``wfsbench analyze`` fill them, :mod:`bench.report` re
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.runs import FourPostResult, FreeRunResult, HammerResult, ShakerCampaignResult
 from bench.models.parameters import WfsSensor
+
+
+class SensorSource(StrEnum):
+    """Where the sensor model an analysis used comes from: the campaign's hammer test, the bench
+    configuration's ``[sensor]`` table, or the assumed default (neither)."""
+
+    HAMMER_TEST = "hammer_test"
+    CONFIGURATION = "configuration"
+    DEFAULT = "default"
+
+    @property
+    def text(self) -> str:
+        """How reports say it, after the sensor's figures."""
+        return {
+            SensorSource.HAMMER_TEST: "from the hammer test",
+            SensorSource.CONFIGURATION: "from the bench configuration's [sensor]",
+            SensorSource.DEFAULT: (
+                "assumed: no hammer test in the campaign, none stated in the bench configuration"
+            ),
+        }[self]
 
 
 @dataclass(frozen=True)
@@ -26,13 +47,16 @@ class PlateMassRun:
 
 @dataclass
 class CampaignKnowledge:
-    """What the campaign has established so far, for the analyses that follow; ``plate_masses``:
+    """What the campaign has established so far, for the analyses that follow; ``sensor`` and
+    ``sensor_source``: the sensor model and where it comes from (the hammer test replaces what the
+    configuration stated or the default assumed); ``plate_masses``:
     every free run analysed, in order (whether or not a later run used it); ``analysed_runs``:
     the analyses of the runs it has taken in, by run id (a replay of the file takes these instead
     of analysing the runs again)."""
 
     sensor: WfsSensor
     wheel_mass_kg: float
+    sensor_source: SensorSource = SensorSource.DEFAULT
     shaker_free_run: list[DwellRecord] = field(default_factory=list)
     post_free_run: list[DwellRecord] = field(default_factory=list)
     plate_masses: list[PlateMassRun] = field(default_factory=list)

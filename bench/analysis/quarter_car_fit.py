@@ -31,7 +31,7 @@ hysteretic loss ``4 F_c / (pi X)``), so the shaker's damping does not carry over
 about the tyre is taken from the shaker identification at the same pressure, as a lab would:
 fitting the tyre's stiffness and tread mass on the post as well was tried on the simulated plant
 and traded them against the body mass (tread +12 %, body +5 %) with intervals that did not cover
-the error. The wheel mass below the sensor (weighed), the sensor (hammer test) and Model 3's
+the error. The wheel mass below the sensor (weighed), the sensor (hammer test, or as stated) and Model 3's
 sidewall are not identifiable from this data either; :attr:`QuarterCarFit.taken_as_given` lists
 them. Neighbouring Welch bins are correlated (the Hann window's equivalent noise bandwidth is 1.5
 bins) and a model error makes neighbouring residuals alike, so the covariance is inflated by
@@ -361,12 +361,14 @@ def fit_quarter_car(
     tyre: Tyre,
     sensor: WfsSensor,
     rubber: RubberTerms = LINEAR,
+    sensor_source: str = "given",
 ) -> QuarterCarFit:
     """Identify the quarter car from four-post FRFs (see the module docstring).
 
     ``tyre``/``rubber``/``model``: the tyre below the sensor as identified on the shaker at the
     same pressure (its ``wheel_mass_kg`` is the weighed mass below the sensor); the tyre's
-    hysteretic loss is refitted on the post (see the module docstring).
+    hysteretic loss is refitted on the post (see the module docstring). ``sensor_source``: where
+    the sensor comes from, as ``taken_as_given`` names it (``from the hammer test``).
     """
     model = TyreModel(model)
     data = _post_data(frfs)
@@ -403,7 +405,7 @@ def fit_quarter_car(
     given = [
         "tyre stiffness, viscous damping, tread mass and stiffness rise (shaker identification)",
         "wheel_mass_kg below the sensor (weighed)",
-        "sensor stiffness and damping (hammer test)",
+        f"sensor stiffness and damping ({sensor_source})",
     ]
     if model is TyreModel.WHEEL_TREAD_SIDEWALL:
         given.append("sidewall mass and stiffnesses (shaker identification)")

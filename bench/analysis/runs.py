@@ -246,13 +246,15 @@ class ShakerCampaignResult:
     """The shaker campaign of one tyre: ``free_run`` (m_comp), ``amplitudes`` (ascending amplitude
     in m -> :class:`ShakerAmplitudeResult`), ``amplitude_dependence`` (Model 2 per amplitude with
     the rubber terms any amplitude needed; ``None`` with a single amplitude), and the given
-    ``wheel_mass_kg`` (weighed) and ``sensor`` (hammer test)."""
+    ``wheel_mass_kg`` (weighed) and ``sensor`` (hammer test, or as stated), with where the sensor
+    comes from (``sensor_source``, as reports say it: ``from the hammer test``)."""
 
     wheel_mass_kg: float
     sensor: WfsSensor
     free_run: FreeRunResult
     amplitudes: dict[float, ShakerAmplitudeResult]
     amplitude_dependence: AmplitudeDependence | None
+    sensor_source: str = "given"
 
     def nearest(self, amplitude_m: float) -> ShakerAmplitudeResult:
         """The amplitude's result closest to ``amplitude_m``."""
@@ -358,14 +360,16 @@ def analyse_shaker_campaign(
     sensor: WfsSensor,
     settle_s: float = DEFAULT_SETTLE_S,
     compensation_band_hz: float | None = None,
+    sensor_source: str = "given",
 ) -> ShakerCampaignResult:
     """Analyse the shaker campaign of one tyre (at one pressure).
 
     ``records``: every dwell with the wheel (channels ``z_base_m``, ``f_plate_n``, ``fz_wfs_n``,
     ``a_hub_m_s2``), grouped by their commanded ``amplitude_m``; ``free_run``: the dwells without a
     wheel (``z_base_m``, ``f_plate_n``). ``wheel_mass_kg``: the weighed mass below the sensor;
-    ``sensor``: from the hammer test. ``compensation_band_hz``: the compensator's design band
-    (default ``DESIGN_BAND_MARGIN`` times the highest dwell frequency of each amplitude).
+    ``sensor``: from the hammer test (or as the lab states it; ``sensor_source`` says which, as
+    reports word it). ``compensation_band_hz``: the compensator's design band (default
+    ``DESIGN_BAND_MARGIN`` times the highest dwell frequency of each amplitude).
     """
     _positive("wheel mass", wheel_mass_kg)
     if not records:
@@ -397,7 +401,7 @@ def analyse_shaker_campaign(
             dependence = tabulate_amplitude_dependence(
                 {a: r.identification.tried[variant] for a, r in results.items()}
             )
-    return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence)
+    return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence, sensor_source)
 
 
 # ---------------------------------------------------------------------------------------- four-post
@@ -585,6 +589,7 @@ def analyse_four_post(
     tyre_model: TyreModel | None = None,
     settle_s: float = DEFAULT_SETTLE_S,
     compensation_band_hz: float | None = None,
+    sensor_source: str = "given",
 ) -> FourPostResult:
     """Analyse a four-post sweep (channels ``z_base_m``, ``f_plate_n`` of the post's load cell,
     ``fz_wfs_n``, ``a_hub_m_s2``) with the post's free-run dwells.
@@ -594,7 +599,8 @@ def analyse_four_post(
     ``tyre_model`` says which model). ``wheel_mass_kg``: weighed, must be the mass the tyre
     describes. The compensator is the shaker campaign's (redesigned with its band if the sample
     rates differ), else designed over ``compensation_band_hz`` (default ``DESIGN_BAND_MARGIN``
-    times the sweep's end).
+    times the sweep's end). ``sensor_source``: where ``sensor`` comes from, as the quarter car's
+    ``taken_as_given`` words it (``from the hammer test``).
     """
     label = sweep.label
     _positive("wheel mass", wheel_mass_kg)
@@ -638,7 +644,9 @@ def analyse_four_post(
             )
         }
         bands = {name: _ratio_band(ratio, SWEEP_MAX_GAP_BINS) for name, ratio in ratios.items()}
-        car = fit_quarter_car(frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber)
+        car = fit_quarter_car(
+            frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber, sensor_source=sensor_source
+        )
     all_reliable = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     return FourPostResult(
         label=f"{label}, {sweep.duration_s:.1f} s at {fs:g} Hz",

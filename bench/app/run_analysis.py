@@ -2,7 +2,8 @@
 
 What is analysed after which run (the paper's procedure):
 
-- hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on);
+- hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on;
+  before it, the sensor the bench configuration states in ``[sensor]``, or the assumed default);
 - free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow);
 - dwell grids with the wheel: the tyre identification and the compensation, over every complete grid
   of the campaign at the same tyre pressure, once that pressure's grids are done (the next run is of
@@ -27,7 +28,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis
+from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis, SensorSource
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.runs import (
     ShakerCampaignResult,
@@ -44,17 +45,15 @@ from bench.store import CampaignFile, RunView
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
-#: The WFS's eigenfrequency assumed until a hammer test of this campaign measured it (the paper's
-#: sensor rings at about 2.2 kHz).
-DEFAULT_SENSOR_EIGENFREQUENCY_HZ = 2200.0
 
 
 def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
-    """What a campaign knows before its first run: the configuration's masses and the sensor's
-    assumed eigenfrequency."""
+    """What a campaign knows before its first run: the configuration's masses and its sensor
+    (:attr:`BenchConfig.wfs_sensor`: as stated, else assumed), until a hammer run measures it."""
     return CampaignKnowledge(
-        sensor=WfsSensor(mass_kg=config.masses.sensor_kg, eigenfrequency_hz=DEFAULT_SENSOR_EIGENFREQUENCY_HZ),
+        sensor=config.wfs_sensor,
         wheel_mass_kg=config.masses.wheel_below_sensor_kg,
+        sensor_source=SensorSource.CONFIGURATION if config.sensor.stated else SensorSource.DEFAULT,
     )
 
 
@@ -133,6 +132,7 @@ class RunAnalyser:
                 eigenfrequency_hz=result.eigenfrequency_hz,
                 damping_ratio=result.damping_ratio_log_decrement,
             )
+            k.sensor_source = SensorSource.HAMMER_TEST
             return (
                 "hammer",
                 summary_lines(result),
@@ -172,7 +172,11 @@ class RunAnalyser:
         if pressure is None:
             raise ValueError("no tyre pressure was answered before this grid")
         result = analyse_shaker_campaign(
-            list(run.dwells), k.shaker_free_run, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+            list(run.dwells),
+            k.shaker_free_run,
+            wheel_mass_kg=k.wheel_mass_kg,
+            sensor=k.sensor,
+            sensor_source=k.sensor_source.text,
         )
         k.shaker[float(pressure)] = result
         return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
@@ -202,7 +206,12 @@ class RunAnalyser:
             )
         assert run.sweep is not None
         result = analyse_four_post(
-            run.sweep, k.post_free_run, tyre=tyre, wheel_mass_kg=k.wheel_mass_kg, sensor=k.sensor
+            run.sweep,
+            k.post_free_run,
+            tyre=tyre,
+            wheel_mass_kg=k.wheel_mass_kg,
+            sensor=k.sensor,
+            sensor_source=k.sensor_source.text,
         )
         k.four_post = result
         lines = summary_lines(result)

@@ -88,8 +88,11 @@ def _campaign(analysis: CampaignAnalysis) -> str:
 def _sensor(analysis: CampaignAnalysis) -> str:
     h = analysis.knowledge.hammer
     if h is None:
-        s = analysis.knowledge.sensor
-        return f"<p>No hammer test: the sensor is taken as {s.eigenfrequency_hz:g} Hz (assumed).</p>"
+        k = analysis.knowledge
+        return (
+            f"<p>No hammer test: the sensor is taken as {k.sensor.eigenfrequency_hz:g} Hz, damping ratio"
+            f" {k.sensor.damping_ratio:.3g} ({escape(k.sensor_source.text)}).</p>"
+        )
     return _table(
         ("quantity", "value", "unit"),
         (
@@ -277,7 +280,7 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
     """The whole page."""
     sections = [
         ("Campaign", _campaign(analysis)),
-        ("Sensor (hammer test)", _sensor(analysis)),
+        ("Sensor", _sensor(analysis)),
         ("Plate masses m_comp", _plate_masses(analysis)),
         ("Identified tyre parameters (95 % intervals)", _parameters(analysis)),
         ("Amplitude dependence (Model 2)", _dependence(analysis)),

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.campaign import CampaignAnalysis, SensorSource
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.runs import FourPostResult, FreeRunResult, ShakerAmplitudeResult, ShakerCampaignResult
@@ -124,6 +124,7 @@ def shaker_json(pressure_bar: float, result: ShakerCampaignResult) -> dict[str, 
         "tyre_pressure_bar": pressure_bar,
         "wheel_mass_kg": result.wheel_mass_kg,
         "sensor_eigenfrequency_hz": result.sensor.eigenfrequency_hz,
+        "sensor_damping_ratio": result.sensor.damping_ratio,
         "free_run": free_run_json(result.free_run),
         "amplitudes": [amplitude_json(r) for r in result.amplitudes.values()],
         "amplitude_dependence": None
@@ -189,7 +190,8 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
             "mass_kg": k.sensor.mass_kg,
             "eigenfrequency_hz": k.sensor.eigenfrequency_hz,
             "damping_ratio": k.sensor.damping_ratio,
-            "from_hammer_test": k.hammer is not None,
+            "from_hammer_test": k.sensor_source == SensorSource.HAMMER_TEST,
+            "source": str(k.sensor_source),
         },
         "hammer": None if k.hammer is None else hammer_json(k.hammer),
         "shaker": [shaker_json(p, r) for p, r in sorted(k.shaker.items())],

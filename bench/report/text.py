@@ -140,7 +140,8 @@ def shaker_campaign_lines(result: ShakerCampaignResult) -> list[str]:
     amps = ", ".join(r.label for r in result.amplitudes.values())
     lines = [
         f"shaker campaign: amplitudes {amps}; wheel mass {result.wheel_mass_kg:g} kg (given),"
-        f" sensor {result.sensor.mass_kg:g} kg at {result.sensor.eigenfrequency_hz:g} Hz (given)",
+        f" sensor {result.sensor.mass_kg:g} kg at {result.sensor.eigenfrequency_hz:g} Hz, damping ratio"
+        f" {result.sensor.damping_ratio:.3g} ({result.sensor_source})",
         *free_run_lines(result.free_run),
     ]
     for amplitude in result.amplitudes.values():

@@ -1,0 +1,90 @@
+"""Campaign files written straight from analysis records, as another writer of the schema would
+write them: each run's dwells (or hammer blow) one after another with their points, no engine.
+Tests of what the analysis of a file gives write the runs they need with :func:`write_campaign`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.analysis.records import DwellRecord, HammerRecord
+from bench.config import BenchConfig, default_bench_config
+from bench.store import CampaignWriter
+from sequences.channels import Channel
+from sequences.points import PointAttempt
+
+#: The unit of each channel the records carry, by its name's suffix.
+_UNITS = {"_m": "m", "_n": "N", "_m_s2": "m/s^2"}
+
+
+def _unit(name: str) -> str:
+    return next(
+        unit for suffix, unit in sorted(_UNITS.items(), key=lambda s: -len(s[0])) if name.endswith(suffix)
+    )
+
+
+@dataclass(frozen=True)
+class StoredRun:
+    """One run to write: ``kind`` (``free_run``, ``dwell_grid``, ``hammer``), its records, its
+    ``conditions`` and ``status``; ``channels``: the names written (default: every channel of
+    the first record)."""
+
+    run_id: str
+    kind: str
+    records: tuple[DwellRecord, ...] | tuple[HammerRecord, ...]
+    conditions: dict[str, Any] = field(default_factory=dict)
+    status: str = "complete"
+    channels: tuple[str, ...] | None = None
+
+
+def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None = None) -> Path:
+    """Write ``runs`` into a new campaign file at ``path`` with ``config`` (default: the default
+    shaker configuration) recorded as its bench configuration."""
+    config = config or default_bench_config()
+    with CampaignWriter.create(
+        path,
+        software_version="test",
+        config_toml=config.to_toml(),
+        sequence_toml="",
+        sequence_name="written",
+        config_name=config.source,
+    ) as writer:
+        for stored in runs:
+            first = stored.records[0]
+            names = stored.channels or tuple(first.channels)
+            run = writer.begin_run(
+                stored.run_id,
+                kind=stored.kind,
+                step={"type": stored.kind},
+                conditions=stored.conditions,
+                channels=tuple(Channel(name, _unit(name)) for name in names),
+                sample_rate_hz=first.sample_rate_hz,
+            )
+            for index, record in enumerate(stored.records):
+                start = run.samples
+                run.append({name: record.channels[name] for name in names})
+                n = run.samples - start
+                if isinstance(record, HammerRecord):
+                    run.add_point(PointAttempt(index, math.nan, math.nan, start, start, start + n, start + n))
+                    continue
+                hold = record.hold_s or (0.0, n / record.sample_rate_hz)
+                hold_start, hold_end = (start + round(t * record.sample_rate_hz) for t in hold)
+                nominal_mm = (
+                    math.nan if record.nominal_amplitude_m is None else 1e3 * record.nominal_amplitude_m
+                )
+                run.add_point(
+                    PointAttempt(
+                        index,
+                        record.freq_hz,
+                        1e3 * record.amplitude_m,
+                        start,
+                        hold_start,
+                        hold_end,
+                        start + n,
+                        requested_amplitude_mm=nominal_mm,
+                    )
+                )
+            run.finish(stored.status)
+    return path
