@@ -2,13 +2,16 @@
 
 Exit codes (both commands):
 
-- 0: analysed (runs whose analysis failed are flagged in the output, not an error);
+- 0: analysed; for ``analyze``, every run's analysis complete;
 - 3: the file is no campaign file (missing, not HDF5, another layout, truncated, a schema
   violation or an invalid stored configuration), or (``report`` only) the ``--out`` directory
   cannot be used (a file, under a file, not writable; checked before the analysis): nothing was
   written;
 - 4 (``analyze`` only): analysed and printed, but the results could not be stored in the file
-  (read-only file or directory).
+  (read-only file or directory);
+- 5 (``analyze`` only): analysed, printed and stored, but not every run's analysis is complete: one
+  failed (a channel it needs is missing from the file, its records are unusable, ...) or gave only
+  part of what its run is for; each is flagged with why (``report`` writes its page either way).
 """
 
 from __future__ import annotations
@@ -16,10 +19,27 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.analysis.campaign import CampaignAnalysis
 
 EXIT_OK = 0
 EXIT_NOT_CAMPAIGN = 3
 EXIT_NOT_STORED = 4
+EXIT_PARTIAL = 5
+
+
+def _status_line(analysis: CampaignAnalysis) -> str:
+    """The analysis's status as the text output's last line: ``complete``, or ``partial`` with each
+    run whose analysis failed or is partial, and why."""
+    runs = analysis.not_complete
+    if not runs:
+        return f"== analysis complete: {len(analysis.runs)} runs analysed"
+    why = "; ".join(
+        f"{run.run_id} {run.status}: {run.error or ', '.join(run.omitted)}" for run in runs
+    )
+    return f"== analysis partial: {len(runs)} of {len(analysis.runs)} runs not complete ({why})"
 
 
 def _analyze(args: argparse.Namespace) -> int:
@@ -32,7 +52,7 @@ def _analyze(args: argparse.Namespace) -> int:
     except (StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_NOT_CAMPAIGN
-    code, names = EXIT_OK, {}
+    code, names = EXIT_PARTIAL if analysis.not_complete else EXIT_OK, {}
     try:
         names = store_reanalysis(analysis)
     except StoreError as exc:
@@ -50,6 +70,7 @@ def _analyze(args: argparse.Namespace) -> int:
             print(line)
     for run_id, status in analysis.skipped:
         print(f"== {run_id}: {status}, not analysed")
+    print(_status_line(analysis))
     return code
 
 

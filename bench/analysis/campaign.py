@@ -35,6 +35,16 @@ class SensorSource(StrEnum):
         }[self]
 
 
+class AnalysisStatus(StrEnum):
+    """How far an analysis got: ``complete`` (everything the run is for), ``partial`` (what the data
+    allows, with what it does not allow said: no tyre fit from fewer than four points), ``failed``
+    (nothing: the reason is the analysis's error)."""
+
+    COMPLETE = "complete"
+    PARTIAL = "partial"
+    FAILED = "failed"
+
+
 @dataclass(frozen=True)
 class PlateMassRun:
     """A free run analysed: its ``run_id``, the ``plate`` it weighed (``"shaker plate"`` or
@@ -70,8 +80,9 @@ class CampaignKnowledge:
 class RunAnalysis:
     """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
     ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
-    scalar ``results`` stored beside the run and ``error`` (empty when the analysis succeeded).
-    The result objects go into the analyser's knowledge."""
+    scalar ``results`` stored beside the run, ``error`` (empty when the analysis succeeded) and
+    ``omitted``: what the data did not allow, each with why (empty when the analysis gave
+    everything the run is for). The result objects go into the analyser's knowledge."""
 
     run_id: str
     kind: str
@@ -79,6 +90,14 @@ class RunAnalysis:
     lines: tuple[str, ...]
     results: dict[str, Any]
     error: str = ""
+    omitted: tuple[str, ...] = ()
+
+    @property
+    def status(self) -> AnalysisStatus:
+        """Failed with an error, partial with something omitted, else complete."""
+        if self.error:
+            return AnalysisStatus.FAILED
+        return AnalysisStatus.PARTIAL if self.omitted else AnalysisStatus.COMPLETE
 
     @classmethod
     def failed(cls, run_id: str, kind: str, reason: str) -> RunAnalysis:
@@ -111,3 +130,15 @@ class CampaignAnalysis:
     hammer_record: HammerRecord | None
     sequences: tuple[tuple[str, int], ...] = ()
     sweep_record: SweepRecord | None = None
+
+    @property
+    def status(self) -> AnalysisStatus:
+        """``complete`` when every run's analysis is complete, else ``partial`` (runs that did not
+        complete are not analysed and do not count)."""
+        done = all(run.status is AnalysisStatus.COMPLETE for run in self.runs)
+        return AnalysisStatus.COMPLETE if done else AnalysisStatus.PARTIAL
+
+    @property
+    def not_complete(self) -> tuple[RunAnalysis, ...]:
+        """The runs whose analysis failed or is partial, in order."""
+        return tuple(run for run in self.runs if run.status is not AnalysisStatus.COMPLETE)

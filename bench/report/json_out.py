@@ -185,6 +185,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "sequence_name": analysis.sequence_name,
         "sequences": [{"name": name, "runs": runs} for name, runs in analysis.sequences],
         "config_source": analysis.config_source,
+        "status": str(analysis.status),
         "given": {"sensor_mass_kg": analysis.sensor_mass_kg, "wheel_mass_kg": analysis.wheel_mass_kg},
         "sensor": {
             "mass_kg": k.sensor.mass_kg,
@@ -202,7 +203,9 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
                 "kind": run.kind,
                 "analysis": run.name,
                 "results_name": names.get(run.run_id),
+                "status": str(run.status),
                 "error": run.error or None,
+                "omitted": list(run.omitted),
                 "summary": list(run.lines),
             }
             for run in analysis.runs
