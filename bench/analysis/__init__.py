@@ -44,6 +44,7 @@ _PUBLIC = {
     "analyse_free_run": "bench.analysis.runs",
     "analyse_hammer": "bench.analysis.runs",
     "analyse_shaker_campaign": "bench.analysis.runs",
+    "nominal_free_run": "bench.analysis.runs",
 }
 __all__ = [
     "AnalysisInputError",
@@ -58,6 +59,7 @@ __all__ = [
     "analyse_free_run",
     "analyse_hammer",
     "analyse_shaker_campaign",
+    "nominal_free_run",
 ]
 
 if TYPE_CHECKING:
@@ -71,6 +73,7 @@ if TYPE_CHECKING:
         analyse_free_run,
         analyse_hammer,
         analyse_shaker_campaign,
+        nominal_free_run,
     )
     from bench.analysis.validation import AnalysisInputError
 

@@ -59,7 +59,9 @@ class PlateMassRun:
 class CampaignKnowledge:
     """What the campaign has established so far, for the analyses that follow; ``sensor`` and
     ``sensor_source``: the sensor model and where it comes from (the hammer test replaces what the
-    configuration stated or the default assumed); ``plate_masses``:
+    configuration stated or the default assumed); ``plate_mass_kg``: the shaker plate's mass as the
+    configuration states it (nominal: the shaker analysis takes it when the campaign has no free
+    run); ``plate_masses``:
     every free run analysed, in order (whether or not a later run used it); ``analysed_runs``:
     the analyses of the runs it has taken in, by run id (a replay of the file takes these instead
     of analysing the runs again)."""
@@ -67,6 +69,7 @@ class CampaignKnowledge:
     sensor: WfsSensor
     wheel_mass_kg: float
     sensor_source: SensorSource = SensorSource.DEFAULT
+    plate_mass_kg: float | None = None
     shaker_free_run: list[DwellRecord] = field(default_factory=list)
     post_free_run: list[DwellRecord] = field(default_factory=list)
     plate_masses: list[PlateMassRun] = field(default_factory=list)

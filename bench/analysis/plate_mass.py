@@ -49,7 +49,10 @@ class PlateMass:
     @property
     def outside_noise(self) -> bool:
         """The rigid-mass fit misses the free run far outside its noise (see the module docstring):
-        the plate did not move as a rigid mass, so m_comp is no plate mass."""
+        the plate did not move as a rigid mass, so m_comp is no plate mass. A mass that was given
+        (no points) fits nothing."""
+        if self.n_points == 0:
+            return False
         dof = 2 * self.n_points - 1
         return chi2_far_outside_noise(self.reduced_chi2 * dof, dof)
 

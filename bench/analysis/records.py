@@ -33,6 +33,9 @@ HAMMER_FORCE = standard_name(Role.HAMMER_FORCE)
 WHEEL_CHANNELS = (DISPLACEMENT, PLATE_FORCE, WFS_FORCE, HUB_ACCELERATION)
 FREE_RUN_CHANNELS = (DISPLACEMENT, PLATE_FORCE)
 
+#: Reliable dwell frequencies a tyre fit needs (Model 2 has three parameters; the fourth point leaves
+#: a residual to judge it by). With fewer a grid gives its measured ratios only.
+MIN_FIT_POINTS = 4
 #: Time left for settling at the start of a dwell's hold phase before the analysed window.
 DEFAULT_SETTLE_S = 0.2
 #: Largest relative difference between a dwell's measured and declared displacement amplitude. A

@@ -169,6 +169,20 @@ class FreeRunResult:
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
     findings: tuple[str, ...] = ()
+    nominal_source: str = ""
+
+    @property
+    def nominal(self) -> bool:
+        """Whether m_comp is a stated mass (``nominal_source`` says whose), not measured."""
+        return bool(self.nominal_source)
+
+
+def nominal_free_run(mass_kg: float, source: str) -> FreeRunResult:
+    """m_comp taken as stated, not measured, where a campaign has no free run: ``mass_kg`` from
+    ``source`` (how reports name it, e.g. ``the bench configuration's masses.plate_kg``), with no
+    uncertainty of its own (none is known: the shaker analysis says what an error in it does)."""
+    _positive("nominal plate mass", mass_kg)
+    return FreeRunResult(PlateMass(float(mass_kg), 0.0, float("nan"), 0), (), (), nominal_source=source)
 
 
 def plate_mass_findings(plate: PlateMass) -> tuple[str, ...]:
@@ -303,6 +317,25 @@ def _unreliable_plate_finding(ident: ShakerIdentification) -> str:
     )
 
 
+def _nominal_plate_finding(fits: Sequence[DwellFit], plate: PlateMass) -> str:
+    """What an error in a nominal m_comp does: each kilogram moves every dwell's contact force by
+    ``w^2 |Z|`` newtons (``F_contact = F_shaker + m_comp w^2 Z``) and, since ``w^2 dm`` is the form
+    of a tread mass's inertia, the tread mass by as much the other way; neither is in the fit's
+    intervals (the mass has no uncertainty of its own)."""
+    f = np.sort([d.freq_hz for d in fits])
+    z, _ = dwell_phasors(fits, DISPLACEMENT)
+    contact, _ = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    per_kg_n = (2 * np.pi * f) ** 2 * np.abs(z)
+    relative = per_kg_n / np.abs(contact)
+    worst = int(np.argmax(relative))
+    return (
+        f"m_comp {plate.mass_kg:g} kg is nominal, not measured (no free run): each kg it is off moves"
+        f" the contact force by {per_kg_n[-1]:.3g} N at {f[-1]:g} Hz ({100 * relative[-1]:.2g} % of it;"
+        f" at most {100 * relative[worst]:.2g} % at {f[worst]:g} Hz) and the tread mass by 1 kg the"
+        " other way; neither is in the intervals (a free run measures m_comp)"
+    )
+
+
 def _analyse_amplitude(
     amplitude_m: float,
     records: Sequence[DwellRecord],
@@ -325,6 +358,8 @@ def _analyse_amplitude(
         )
         if plate.outside_noise:
             ident = replace(ident, findings=(*ident.findings, _unreliable_plate_finding(ident)))
+        if plate.n_points == 0:
+            ident = replace(ident, findings=(*ident.findings, _nominal_plate_finding(fits, plate)))
         best = ident.best_fit
         comp = design_model_compensator(
             best.model,
@@ -354,7 +389,7 @@ def _analyse_amplitude(
 
 def analyse_shaker_campaign(
     records: Sequence[DwellRecord],
-    free_run: Sequence[DwellRecord],
+    free_run: Sequence[DwellRecord] | FreeRunResult,
     *,
     wheel_mass_kg: float,
     sensor: WfsSensor,
@@ -366,7 +401,8 @@ def analyse_shaker_campaign(
 
     ``records``: every dwell with the wheel (channels ``z_base_m``, ``f_plate_n``, ``fz_wfs_n``,
     ``a_hub_m_s2``), grouped by their commanded ``amplitude_m``; ``free_run``: the dwells without a
-    wheel (``z_base_m``, ``f_plate_n``). ``wheel_mass_kg``: the weighed mass below the sensor;
+    wheel (``z_base_m``, ``f_plate_n``), or m_comp as stated (:func:`nominal_free_run`), whose
+    effect each amplitude's findings state. ``wheel_mass_kg``: the weighed mass below the sensor;
     ``sensor``: from the hammer test (or as the lab states it; ``sensor_source`` says which, as
     reports word it). ``compensation_band_hz``: the compensator's design band (default
     ``DESIGN_BAND_MARGIN`` times the highest dwell frequency of each amplitude).
@@ -374,7 +410,7 @@ def analyse_shaker_campaign(
     _positive("wheel mass", wheel_mass_kg)
     if not records:
         raise AnalysisInputError("shaker campaign: no dwell records given")
-    free = analyse_free_run(free_run, settle_s=settle_s)
+    free = free_run if isinstance(free_run, FreeRunResult) else analyse_free_run(free_run, settle_s=settle_s)
     groups = _group_amplitudes(records)
     results = {
         a: _analyse_amplitude(

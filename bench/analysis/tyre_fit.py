@@ -49,6 +49,7 @@ from bench.analysis.lsq import (
     weighted_fit,
 )
 from bench.analysis.plate_mass import ShakerErrors
+from bench.analysis.records import MIN_FIT_POINTS
 from bench.analysis.shaker_models import (
     MODEL_PARAMETERS,
     RUBBER_PARAMETERS,
@@ -189,8 +190,10 @@ def _data(wfs_per_z: Frf, contact_per_z: Frf, errors: ShakerErrors | None) -> _D
     ):
         raise AnalysisInputError("F_wfs/Z and F_contact/Z must share their frequencies")
     use = wfs_per_z.reliable & contact_per_z.reliable
-    if use.sum() < 4:
-        raise AnalysisInputError(f"only {int(use.sum())} reliable FRF points; at least 4 needed")
+    if use.sum() < MIN_FIT_POINTS:
+        raise AnalysisInputError(
+            f"only {int(use.sum())} reliable FRF points; at least {MIN_FIT_POINTS} needed"
+        )
     f = wfs_per_z.freq_hz[use]
     h_w, h_c = wfs_per_z.value[use], contact_per_z.value[use]
     if errors is None:  # independent points: the FRFs' own sigmas

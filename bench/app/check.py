@@ -1,13 +1,15 @@
 """``wfsbench check``: a sequence validated and dry-run on a bench, without opening any device.
 
-Lists the steps with their points and estimated durations, the sequence's totals, the largest
-predicted loads of the bench model with the point where each occurs, and every refusal.
+Lists the steps with their points and estimated durations, the sequence's totals, what the runs
+will not let the analysis give (:mod:`bench.app.analysis_plan`), the largest predicted loads of the
+bench model with the point where each occurs, and every refusal.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
+from bench.app.analysis_plan import analysis_limits
 from bench.app.durations import sequence_estimate_text
 from bench.config import BenchConfig
 from bench.dry_run import DryRun
@@ -48,6 +50,12 @@ def check_lines(sequence: Sequence, config: BenchConfig, dry: DryRun) -> list[st
     lines = [f"sequence {sequence.name} ({sequence.source}) on the {config.kind} bench ({config.source})"]
     lines += [f"  {step_line(i, step)}" for i, step in enumerate(sequence.steps)]
     lines.append(sequence_estimate_text(sequence))
+    limits = analysis_limits(sequence, config)
+    if limits:
+        lines.append(f"ANALYSIS LIMITED ({len(limits)}): what the runs will not let the analysis give:")
+        lines += [f"  - {limit}" for limit in limits]
+    else:
+        lines.append("analysis: every run can be analysed in full")
     if dry.points:
         for quantity, unit, limit in (
             ("actuator_force_n", "N", config.limits.force_n),

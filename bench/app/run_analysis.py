@@ -4,7 +4,8 @@ What is analysed after which run (the paper's procedure):
 
 - hammer test: the sensor's eigenfrequency, damping and stiffness (the sensor model from then on;
   before it, the sensor the bench configuration states in ``[sensor]``, or the assumed default);
-- free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow);
+- free run without a wheel: the plate mass m_comp (kept for the shaker dwells that follow; a
+  campaign without one takes the configured plate mass, nominal, and says what an error in it does);
 - dwell grids with the wheel: the tyre identification and the compensation, over every complete grid
   of the campaign at the same tyre pressure, once that pressure's grids are done (the next run is of
   another kind or pressure, or the sequence ends);
@@ -31,11 +32,13 @@ from typing import Any
 from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis, SensorSource
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.runs import (
+    FreeRunResult,
     ShakerCampaignResult,
     analyse_four_post,
     analyse_free_run,
     analyse_hammer,
     analyse_shaker_campaign,
+    nominal_free_run,
 )
 from bench.analysis.validation import AnalysisInputError
 from bench.config import BenchConfig
@@ -45,6 +48,8 @@ from bench.store import CampaignFile, RunView
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
+#: Where a nominal m_comp comes from, as reports name it.
+NOMINAL_PLATE_SOURCE = "the bench configuration's masses.plate_kg"
 
 
 def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
@@ -54,6 +59,7 @@ def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
         sensor=config.wfs_sensor,
         wheel_mass_kg=config.masses.wheel_below_sensor_kg,
         sensor_source=SensorSource.CONFIGURATION if config.sensor.stated else SensorSource.DEFAULT,
+        plate_mass_kg=config.masses.plate_kg if config.kind == "shaker" else None,
     )
 
 
@@ -166,20 +172,27 @@ class RunAnalyser:
 
     def _shaker(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
-        if not k.shaker_free_run:
-            raise ValueError("no free run without the wheel in this campaign yet: m_comp unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
         if pressure is None:
             raise ValueError("no tyre pressure was answered before this grid")
         result = analyse_shaker_campaign(
             list(run.dwells),
-            k.shaker_free_run,
+            k.shaker_free_run or self._nominal_plate(),
             wheel_mass_kg=k.wheel_mass_kg,
             sensor=k.sensor,
             sensor_source=k.sensor_source.text,
         )
         k.shaker[float(pressure)] = result
         return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
+
+    def _nominal_plate(self) -> FreeRunResult:
+        """m_comp of a campaign without a free run: the configured plate mass, nominal."""
+        if self.knowledge.plate_mass_kg is None:
+            raise ValueError(
+                "no free run without the wheel in this campaign yet, and no shaker plate mass"
+                " configured (masses.plate_kg): m_comp unknown"
+            )
+        return nominal_free_run(self.knowledge.plate_mass_kg, NOMINAL_PLATE_SOURCE)
 
     def _four_post(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge

@@ -65,12 +65,13 @@ def free_run_json(result: FreeRunResult) -> dict[str, Any]:
     p = result.plate
     return {
         "m_comp_kg": p.mass_kg,
-        "m_comp_sigma_kg": p.sigma_kg,
-        "residual_rms_n_per_m": p.residual_rms_n_per_m,
-        "residual_reduced_chi2": p.reduced_chi2,
+        "m_comp_sigma_kg": None if result.nominal else p.sigma_kg,
+        "nominal": result.nominal,
+        "residual_rms_n_per_m": _number(p.residual_rms_n_per_m),
+        "residual_reduced_chi2": None if result.nominal else p.reduced_chi2,
         "n_points_used": p.n_points,
         "n_dwells": len(result.fits),
-        "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
+        "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz] if result.fits else None,
         "flags": [line for line in free_run_lines(result) if line.startswith("FLAG")],
     }
 

@@ -76,8 +76,11 @@ def hammer_lines(result: HammerResult) -> list[str]:
 
 
 def free_run_lines(result: FreeRunResult) -> list[str]:
-    """m_comp with the dwells it comes from, and every dwell left out."""
+    """m_comp with the dwells it comes from, and every dwell left out; a nominal m_comp says whose
+    it is."""
     p = result.plate
+    if result.nominal:
+        return [f"FLAG m_comp {p.mass_kg:g} kg nominal ({result.nominal_source}): not measured, no free run"]
     lines = [
         f"m_comp {p.mass_kg:.4f} +/- {p.sigma_kg:.1g} kg from {p.n_points} of {len(result.fits)} free-run"
         f" dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz"

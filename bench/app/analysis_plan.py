@@ -1,0 +1,101 @@
+"""What a sequence's runs will not let the analysis give, said before anything runs (``wfsbench
+check``), from the steps alone and the bench configuration.
+
+The post-run analysis (:mod:`bench.app.run_analysis`) needs, besides a run's own records: for a
+dwell grid on the shaker the tyre's pressure (a ``set_tyre_pressure`` prompt before it) and the
+plate mass m_comp (a free run before it, else the configured plate mass, nominal), and at least
+:data:`~bench.analysis.records.MIN_FIT_POINTS` frequencies per amplitude and pressure for a tyre
+fit (fewer give the measured ratios only); for a four-post sweep the post's free run, the tyre's
+pressure and the tyre's shaker identification, which only an earlier sequence run into the same
+campaign file can give. A sweep on the shaker is recorded, not analysed. A campaign file that holds
+runs already (another sequence's) may supply what a step lacks here: each line says so.
+"""
+
+from __future__ import annotations
+
+from bench.analysis.records import MIN_FIT_POINTS
+from bench.config import BenchConfig
+from sequences import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+
+#: What a campaign file the sequence runs into may hold already.
+_UNLESS_IN_FILE = "unless the campaign file it runs into holds one already"
+
+
+class _Walk:
+    """The steps in order, with what the runs before each established."""
+
+    def __init__(self, config: BenchConfig) -> None:
+        self.config = config
+        self.free_run = False
+        self.pressure_bar: float | None = None
+        self.lines: list[str] = []
+        #: per (pressure, grid amplitude in mm): the steps and the frequencies they dwell at
+        self.grid_points: dict[tuple[float, float], tuple[list[int], set[float]]] = {}
+
+    def grid(self, index: int, step: DwellGrid | SineDwell) -> None:
+        key = f"steps[{index}] {step.kind}"
+        if self.pressure_bar is None:
+            self.lines.append(
+                f"{key}: no analysis: no set_tyre_pressure prompt before it (the tyre fit needs the"
+                " tyre's pressure)"
+            )
+            return
+        if not self.free_run:
+            self.lines.append(
+                f"{key}: no free run before it: m_comp will be the configured plate mass"
+                f" {self.config.masses.plate_kg:g} kg (masses.plate_kg), nominal, not measured,"
+                f" {_UNLESS_IN_FILE}"
+            )
+        for dwell in (step,) if isinstance(step, SineDwell) else step.dwells():
+            amplitude_mm = dwell.requested_amplitude_mm or dwell.amplitude_mm
+            steps, freqs = self.grid_points.setdefault((self.pressure_bar, amplitude_mm), ([], set()))
+            if index not in steps:
+                steps.append(index)
+            freqs.add(dwell.freq_hz)
+
+    def sweep(self, index: int, step: Sweep) -> None:
+        key = f"steps[{index}] {step.kind}"
+        if self.config.kind == "shaker":
+            self.lines.append(f"{key}: recorded, not analysed (the sweep analysis is the four-post bench's)")
+            return
+        if not self.free_run:
+            self.lines.append(
+                f"{key}: no analysis: no free run of the post before it (its m_comp), {_UNLESS_IN_FILE}"
+            )
+        if self.pressure_bar is None:
+            self.lines.append(
+                f"{key}: no analysis: no set_tyre_pressure prompt before it (which shaker identification"
+                " describes the tyre)"
+            )
+        self.lines.append(
+            f"{key}: the four-post analysis needs the tyre's shaker identification: run the shaker"
+            " campaign into the same campaign file first"
+        )
+
+    def too_few_points(self) -> list[str]:
+        lines = []
+        for (bar, amplitude_mm), (steps, freqs) in self.grid_points.items():
+            if len(freqs) < MIN_FIT_POINTS:
+                lines.append(
+                    f"{', '.join(f'steps[{i}]' for i in steps)} at {bar:g} bar, {amplitude_mm:g} mm:"
+                    f" {len(freqs)} frequencies: no tyre fit (at least {MIN_FIT_POINTS} needed): the"
+                    " measured ratios only (grids at this pressure already in the campaign file count too)"
+                )
+        return lines
+
+
+def analysis_limits(sequence: Sequence, config: BenchConfig) -> list[str]:
+    """One line per analysis the sequence's runs will not allow (or allow only in part), each
+    naming the step, what is missing and what would make it possible; empty when every run can be
+    analysed in full."""
+    walk = _Walk(config)
+    for index, step in enumerate(sequence.steps):
+        if isinstance(step, Prompt) and step.action == "set_tyre_pressure":
+            walk.pressure_bar = float(step.target)
+        elif isinstance(step, FreeRun):
+            walk.free_run = True
+        elif isinstance(step, DwellGrid | SineDwell) and config.kind == "shaker":
+            walk.grid(index, step)
+        elif isinstance(step, Sweep):
+            walk.sweep(index, step)
+    return walk.lines + walk.too_few_points()
