@@ -33,7 +33,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.app.interrupts import RunInterrupts
     from bench.app.plan import PlanRefusedError, plan_campaign
     from bench.app.progress import DoneBefore, Progress
-    from bench.app.resume import done_in_file
+    from bench.app.resume import NothingToResumeError, done_in_file
     from bench.app.run import hold_campaign_file, run_campaign
     from bench.app.run_log import RunLog
     from bench.app.terminal import TerminalOperator
@@ -72,15 +72,13 @@ def _run(args: argparse.Namespace) -> int:
                     subscribers=(RunLog(progress.line), progress),
                     on_engine=lambda engine: (opened.append(engine), interrupts.attach(engine)),
                 )
-    except InUseError as exc:  # the campaign file or a device is held by another process
+    except NothingToResumeError as exc:  # nothing opened, asked or moved: the campaign is complete
+        print(exc)
+        return EXIT_COMPLETE
+    except (InUseError, DeviceUnreachableError, ValueError) as exc:
+        # a file or device held by another process, a device unreachable: a link problem; else invalid
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_LINK
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
-    except DeviceUnreachableError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_LINK
+        return EXIT_LINK if isinstance(exc, InUseError | DeviceUnreachableError) else EXIT_INVALID
     finally:
         logging.shutdown()  # the log file closed: kept, or removed below
         if not opened and not log_existed:

@@ -42,9 +42,14 @@ class ResumeFromFile:
         return self._runs[run_id][2] if run_id in self._runs else 0
 
 
+class NothingToResumeError(Exception):
+    """A resume of a campaign file that holds every run of the sequence complete: nothing is left to
+    run, so nothing is opened, asked or moved (the message says so, naming the file)."""
+
+
 def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFromFile | None:
     """Refuse a campaign file that cannot take the sequence (before anything is opened); the resume
-    plan when resuming."""
+    plan when resuming; :class:`NothingToResumeError` when the file holds the sequence complete."""
     existing = _run_ids(out_path)
     if existing is None and resume:
         raise ValueError(f"{out_path}: no campaign file to resume")
@@ -57,7 +62,18 @@ def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFrom
         return None
     with open_campaign(out_path) as campaign:
         check_resume(campaign, plan.sequence, plan.config)
+        if sequence_complete(plan, {run.run_id: run.status for run in campaign.runs}):
+            raise NothingToResumeError(
+                f"{out_path}: every run of sequence {plan.sequence.name!r} is complete already:"
+                " nothing was run (to run it again, write to another file)"
+            )
     return ResumeFromFile(out_path)
+
+
+def sequence_complete(plan: CampaignPlan, statuses: dict[str, str]) -> bool:
+    """Whether every run of ``plan``'s sequence is among ``statuses`` (run id -> status of the runs
+    a campaign file holds) and complete."""
+    return all(statuses.get(run_id) == "complete" for run_id in _planned_runs(plan))
 
 
 def held_runs(plan: CampaignPlan, out_path: Path) -> set[str]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from bench.app.analyze import sequences_run
 from bench.config import BenchConfig, ConfigError, measured_bench, parse_bench_config
 from bench.engine.engine import Engine, is_measurement
 from bench.store import CampaignFile
@@ -31,8 +32,17 @@ def check_resume(campaign: CampaignFile, sequence: Sequence, config: BenchConfig
 
     The file records the configuration and the sequence text of the campaign's first sequence; a
     sequence added to it later (the four-post's after the shaker's) is compared run by run with the
-    steps its runs recorded, and its bench is not compared."""
+    steps its runs recorded, and its bench is not compared. A sequence of which the file holds no
+    run has nothing to continue: refused too (it is added to a file without ``--resume``)."""
     if campaign.sequence_name != sequence.name:
+        if not _holds_runs_of(campaign, sequence):
+            held = ", ".join(name for name, _ in sequences_run(run.run_id for run in campaign.runs))
+            raise _mismatch(
+                campaign,
+                f"it holds no run of sequence {sequence.name!r} (it holds sequences {held or 'none'}):"
+                " there is nothing of it to continue; to add its runs to this file, run it without"
+                " --resume",
+            )
         problem = _runs_difference(campaign, sequence)
         if problem:
             raise _mismatch(campaign, f"the sequence in {sequence.source} differs from its runs: {problem}")
@@ -70,6 +80,16 @@ def _sequence_difference(sequence: Sequence, stored: Sequence) -> str:
         if problem:
             return problem
     return ""
+
+
+def _holds_runs_of(campaign: CampaignFile, sequence: Sequence) -> bool:
+    """Whether the file holds any run of ``sequence`` (by the run ids its steps would record)."""
+    held = {run.run_id for run in campaign.runs}
+    return any(
+        Engine.run_id(sequence, index) in held
+        for index, step in enumerate(sequence.steps)
+        if is_measurement(step)
+    )
 
 
 def _runs_difference(campaign: CampaignFile, sequence: Sequence) -> str:

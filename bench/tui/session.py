@@ -29,13 +29,13 @@ from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan, plan_campaign
 from bench.app.progress import DoneBefore
-from bench.app.resume import done_in_file, held_runs
+from bench.app.resume import done_in_file, held_runs, sequence_complete
 from bench.app.run import run_on_engine
 from bench.app.run_analysis import initial_knowledge
 from bench.app.run_log import RunLog
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
-from bench.engine.engine import Engine, is_measurement
+from bench.engine.engine import Engine
 from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
@@ -363,10 +363,7 @@ class BenchSession:
             return HeldRuns({}, complete=False)
         with open_campaign(self.out_path) as campaign:
             statuses = {r.run_id: r.status for r in campaign.runs if r.run_id in held}
-        steps = enumerate(plan.sequence.steps)
-        planned = {Engine.run_id(plan.sequence, i) for i, step in steps if is_measurement(step)}
-        complete = planned <= statuses.keys() and all(s == "complete" for s in statuses.values())
-        return HeldRuns(statuses, complete)
+        return HeldRuns(statuses, sequence_complete(plan, statuses))
 
     def start_sequence(self, plan: CampaignPlan, *, resume: bool = False) -> None:
         """Run ``plan`` into the campaign file; ``resume`` continues its runs there, skipping its
