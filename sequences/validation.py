@@ -68,11 +68,10 @@ def validate(sequence: Sequence, limits: BenchLimits, channels: ChannelSet | Non
         raise SequenceError.of(problems)
 
 
-#: Roles the analysis of a run with the wheel needs beyond those every run needs (the
-#: hub-acceleration compensation of dwells and sweeps).
+#: Roles the analysis of a run with the wheel needs beyond those every run needs: the four-post
+#: sweep's hub-acceleration compensation and m_wheel. (A shaker's dwells need none: its hub is
+#: clamped, and their analysis without a hub accelerometer takes it as not moving.)
 _ANALYSIS_ROLES = {
-    SineDwell: (Role.HUB_ACCELERATION,),
-    DwellGrid: (Role.HUB_ACCELERATION,),
     Sweep: (Role.HUB_ACCELERATION,),
 }
 

@@ -29,8 +29,10 @@ WFS_FORCE = standard_name(Role.WFS_FZ)
 HUB_ACCELERATION = standard_name(Role.HUB_ACCELERATION)
 HAMMER_FORCE = standard_name(Role.HAMMER_FORCE)
 
-#: Channels of a dwell or sweep with a wheel on the bench, and of a free run (no wheel).
+#: Channels of a dwell or sweep with a wheel on the bench, and of a free run (no wheel). A shaker's
+#: dwells need no hub acceleration (``SHAKER_CHANNELS``): its hub is clamped.
 WHEEL_CHANNELS = (DISPLACEMENT, PLATE_FORCE, WFS_FORCE, HUB_ACCELERATION)
+SHAKER_CHANNELS = (DISPLACEMENT, PLATE_FORCE, WFS_FORCE)
 FREE_RUN_CHANNELS = (DISPLACEMENT, PLATE_FORCE)
 
 #: Reliable dwell frequencies a tyre fit needs (Model 2 has three parameters; the fourth point leaves

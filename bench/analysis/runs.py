@@ -54,6 +54,7 @@ from bench.analysis.records import (
     HAMMER_FORCE,
     HUB_ACCELERATION,
     PLATE_FORCE,
+    SHAKER_CHANNELS,
     WFS_FORCE,
     WHEEL_CHANNELS,
     DwellRecord,
@@ -228,7 +229,9 @@ class ShakerAmplitudeResult:
     model; ``compensated_per_contact``: compensated force over the contact force at each dwell (the
     compensator's response applied to the dwell phasors); ``valid_band_raw`` (F_wfs/F_contact) and
     ``valid_band_compensated``, both uncertainty-aware; ``unsettled``: dwells that did not settle
-    (unreliable points, left out of the fits), with why.
+    (unreliable points, left out of the fits), with why; ``hub_acceleration_recorded``: false when
+    the dwells carry no hub acceleration: the clamped hub is then taken as not moving (the
+    compensated ratio without its ``G_A a_hub`` term), which nothing checks.
     """
 
     amplitude_m: float
@@ -242,6 +245,7 @@ class ShakerAmplitudeResult:
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
     model_peak: RatioPeak | None = None
+    hub_acceleration_recorded: bool = True
 
     @property
     def label(self) -> str:
@@ -292,13 +296,17 @@ def _design_band(highest_hz: float, given_hz: float | None) -> float:
     return DESIGN_BAND_MARGIN * highest_hz if given_hz is None else given_hz
 
 
-def _compensated_ratio(fits: Sequence[DwellFit], plate: PlateMass, comp: ModelCompensator) -> Frf:
+def _compensated_ratio(
+    fits: Sequence[DwellFit], plate: PlateMass, comp: ModelCompensator, *, hub_recorded: bool
+) -> Frf:
     """(G_F F_wfs + G_A a_hub) / F_contact per dwell from the phasors themselves (as the raw ratio
     of :func:`shaker_frfs`: no division by the displacement, whose error would enter numerator and
-    denominator alike), with propagated uncertainty."""
+    denominator alike), with propagated uncertainty. Without a hub accelerometer
+    (``hub_recorded`` false) the clamped hub is taken as not moving: ``a_hub = 0``."""
     f = np.sort([d.freq_hz for d in fits])
     g_f, g_a = comp.response(f)
-    (wfs, s_w), (acc, s_a) = dwell_phasors(fits, WFS_FORCE), dwell_phasors(fits, HUB_ACCELERATION)
+    wfs, s_w = dwell_phasors(fits, WFS_FORCE)
+    acc, s_a = dwell_phasors(fits, HUB_ACCELERATION) if hub_recorded else (np.zeros(f.size), np.zeros(f.size))
     contact, s_c = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
     num_sigma = np.hypot(np.abs(g_f) * s_w, np.abs(g_a) * s_a)
     ratio, sigma = phasor_ratio(g_f * wfs + g_a * acc, num_sigma, contact, s_c)
@@ -347,7 +355,9 @@ def _analyse_amplitude(
     band_hz: float | None,
 ) -> ShakerAmplitudeResult:
     label = amplitude_label(amplitude_m)
-    ordered, fits, rejected = _fit_grid(records, WHEEL_CHANNELS, settle_s, label)
+    hub_recorded = all(HUB_ACCELERATION in r.channels for r in records)
+    channels = WHEEL_CHANNELS if hub_recorded else SHAKER_CHANNELS
+    ordered, fits, rejected = _fit_grid(records, channels, settle_s, label)
     rates = {r.sample_rate_hz for r in ordered}
     if len(rates) != 1:
         raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
@@ -369,7 +379,7 @@ def _analyse_amplitude(
             fs_hz=rates.pop(),
             band_hz=_design_band(fits[-1].freq_hz, band_hz),
         )
-        compensated = _compensated_ratio(fits, plate, comp)
+        compensated = _compensated_ratio(fits, plate, comp, hub_recorded=hub_recorded)
         peak = ratio_peak(best, sensor, (fits[0].freq_hz, fits[-1].freq_hz))
         band_raw, band_comp = _ratio_band(frfs.wfs_per_contact), _ratio_band(compensated)
     return ShakerAmplitudeResult(
@@ -384,6 +394,7 @@ def _analyse_amplitude(
         _unsettled(ordered, fits),
         rejected,
         peak,
+        hub_recorded,
     )
 
 
@@ -399,10 +410,11 @@ def analyse_shaker_campaign(
 ) -> ShakerCampaignResult:
     """Analyse the shaker campaign of one tyre (at one pressure).
 
-    ``records``: every dwell with the wheel (channels ``z_base_m``, ``f_plate_n``, ``fz_wfs_n``,
-    ``a_hub_m_s2``), grouped by their commanded ``amplitude_m``; ``free_run``: the dwells without a
-    wheel (``z_base_m``, ``f_plate_n``), or m_comp as stated (:func:`nominal_free_run`), whose
-    effect each amplitude's findings state. ``wheel_mass_kg``: the weighed mass below the sensor;
+    ``records``: every dwell with the wheel (channels ``z_base_m``, ``f_plate_n``, ``fz_wfs_n``, and
+    ``a_hub_m_s2`` when a hub accelerometer was recorded: the clamped hub needs none), grouped by
+    their commanded ``amplitude_m``; ``free_run``: the dwells without a wheel (``z_base_m``,
+    ``f_plate_n``), or m_comp as stated (:func:`nominal_free_run`), whose effect each amplitude's
+    findings state. ``wheel_mass_kg``: the weighed mass below the sensor;
     ``sensor``: from the hammer test (or as the lab states it; ``sensor_source`` says which, as
     reports word it). ``compensation_band_hz``: the compensator's design band (default
     ``DESIGN_BAND_MARGIN`` times the highest dwell frequency of each amplitude).

@@ -116,6 +116,7 @@ def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
         "compensator_band_hz": result.compensator.band_hz,
         "unsettled": list(result.unsettled),
         "rejected": list(result.rejected),
+        "hub_acceleration_recorded": result.hub_acceleration_recorded,
     }
 
 

@@ -133,6 +133,11 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
         f" model-compensated {band_text(result.valid_band_compensated)}"
         f" (compensator design error {100 * result.compensator.design_error:.2f} %)"
     )
+    if not result.hub_acceleration_recorded:
+        lines.append(
+            f"{label} no hub-acceleration channel: the clamped hub is taken as not moving (the"
+            " model-compensated ratio without its hub-acceleration term); whether it moved is not checked"
+        )
     lines += [f"FLAG not settled: {u}" for u in result.unsettled]
     lines += [f"FLAG rejected: {r}" for r in result.rejected]
     return lines

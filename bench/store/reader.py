@@ -25,6 +25,7 @@ from bench import locks
 from bench.analysis.records import (
     DEFAULT_SETTLE_S,
     FREE_RUN_CHANNELS,
+    SHAKER_CHANNELS,
     WFS_FORCE,
     WHEEL_CHANNELS,
     DwellRecord,
@@ -40,7 +41,7 @@ from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
 #: Channels each kind of run needs for its analysis records.
 REQUIRED_CHANNELS = {
-    "dwell_grid": WHEEL_CHANNELS,
+    "dwell_grid": SHAKER_CHANNELS,
     "free_run": FREE_RUN_CHANNELS,
     "sweep": WHEEL_CHANNELS,
     "hammer": (WFS_FORCE,),
