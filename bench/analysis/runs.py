@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -53,6 +53,7 @@ from bench.analysis.records import (
     FREE_RUN_CHANNELS,
     HAMMER_FORCE,
     HUB_ACCELERATION,
+    MIN_FIT_POINTS,
     PLATE_FORCE,
     SHAKER_CHANNELS,
     WFS_FORCE,
@@ -260,10 +261,32 @@ class ShakerAmplitudeResult:
 
 
 @dataclass(frozen=True)
+class ShakerRatiosResult:
+    """One amplitude's dwell grid with too few reliable points for a tyre fit: the measured ratios
+    (``frfs``: F_wfs/Z, F_contact/Z, F_wfs/F_contact with their uncertainties), the raw valid band,
+    the dwells left out, and ``why`` there is no fit (no model, compensator or compensated band)."""
+
+    amplitude_m: float
+    fits: tuple[DwellFit, ...]
+    frfs: ShakerFrfs
+    valid_band_raw: ValidBand
+    why: str
+    unsettled: tuple[str, ...]
+    rejected: tuple[str, ...] = ()
+    hub_acceleration_recorded: bool = True
+
+    @property
+    def label(self) -> str:
+        return amplitude_label(self.amplitude_m)
+
+
+@dataclass(frozen=True)
 class ShakerCampaignResult:
     """The shaker campaign of one tyre: ``free_run`` (m_comp), ``amplitudes`` (ascending amplitude
-    in m -> :class:`ShakerAmplitudeResult`), ``amplitude_dependence`` (Model 2 per amplitude with
-    the rubber terms any amplitude needed; ``None`` with a single amplitude), and the given
+    in m -> :class:`ShakerAmplitudeResult`, the amplitudes with a tyre fit), ``ratios_only`` (those
+    with too few reliable dwells for a fit: :class:`ShakerRatiosResult`), ``amplitude_dependence``
+    (Model 2 per fitted amplitude with the rubber terms any amplitude needed; ``None`` with fewer
+    than two), and the given
     ``wheel_mass_kg`` (weighed) and ``sensor`` (hammer test, or as stated), with where the sensor
     comes from (``sensor_source``, as reports say it: ``from the hammer test``)."""
 
@@ -273,9 +296,15 @@ class ShakerCampaignResult:
     amplitudes: dict[float, ShakerAmplitudeResult]
     amplitude_dependence: AmplitudeDependence | None
     sensor_source: str = "given"
+    ratios_only: dict[float, ShakerRatiosResult] = field(default_factory=dict)
 
     def nearest(self, amplitude_m: float) -> ShakerAmplitudeResult:
-        """The amplitude's result closest to ``amplitude_m``."""
+        """The fitted amplitude's result closest to ``amplitude_m`` (AnalysisInputError when no
+        amplitude had enough dwells for a fit)."""
+        if not self.amplitudes:
+            raise AnalysisInputError(
+                "no amplitude of this tyre's shaker campaign has a tyre fit (too few dwells)"
+            )
         return self.amplitudes[min(self.amplitudes, key=lambda a: abs(a - amplitude_m))]
 
 
@@ -353,7 +382,9 @@ def _analyse_amplitude(
     sensor: WfsSensor,
     settle_s: float,
     band_hz: float | None,
-) -> ShakerAmplitudeResult:
+) -> ShakerAmplitudeResult | ShakerRatiosResult:
+    """One amplitude's grid analysed; with fewer than ``MIN_FIT_POINTS`` reliable dwells its
+    measured ratios only."""
     label = amplitude_label(amplitude_m)
     hub_recorded = all(HUB_ACCELERATION in r.channels for r in records)
     channels = WHEEL_CHANNELS if hub_recorded else SHAKER_CHANNELS
@@ -363,6 +394,22 @@ def _analyse_amplitude(
         raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
     with _named(label):
         frfs = shaker_frfs(fits, plate, wfs=WFS_FORCE, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+        usable = int(np.sum(frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable))
+        if usable < MIN_FIT_POINTS:
+            why = (
+                f"{usable} reliable dwell{'s' if usable != 1 else ''}, a tyre fit needs at least"
+                f" {MIN_FIT_POINTS} (Model 2 has three parameters and the fit a residual to be judged by)"
+            )
+            return ShakerRatiosResult(
+                amplitude_m,
+                tuple(fits),
+                frfs,
+                _ratio_band(frfs.wfs_per_contact),
+                why,
+                _unsettled(ordered, fits),
+                rejected,
+                hub_recorded,
+            )
         ident = identify_shaker(
             frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
         )
@@ -436,6 +483,8 @@ def analyse_shaker_campaign(
         )
         for a in sorted(groups)
     }
+    ratios = {a: r for a, r in results.items() if isinstance(r, ShakerRatiosResult)}
+    results = {a: r for a, r in results.items() if isinstance(r, ShakerAmplitudeResult)}
     dependence = None
     if len(results) > 1:
         idents = [r.identification for r in results.values()]
@@ -449,7 +498,9 @@ def analyse_shaker_campaign(
             dependence = tabulate_amplitude_dependence(
                 {a: r.identification.tried[variant] for a, r in results.items()}
             )
-    return ShakerCampaignResult(float(wheel_mass_kg), sensor, free, results, dependence, sensor_source)
+    return ShakerCampaignResult(
+        float(wheel_mass_kg), sensor, free, results, dependence, sensor_source, ratios
+    )
 
 
 # ---------------------------------------------------------------------------------------- four-post

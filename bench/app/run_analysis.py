@@ -121,11 +121,21 @@ class RunAnalyser:
             if run.read_error:
                 raise ValueError(run.read_error)
             name, lines, results = self._analyse(run)
-            outcome = RunAnalysis(run.run_id, run.kind, name, tuple(lines), results)
+            outcome = RunAnalysis(
+                run.run_id, run.kind, name, tuple(lines), results, omitted=self._omitted(name, run)
+            )
         except (AnalysisInputError, ValueError) as exc:
             outcome = RunAnalysis.failed(run.run_id, run.kind, str(exc))
         self.knowledge.analysed_runs[run.run_id] = outcome
         return outcome
+
+    def _omitted(self, name: str, run: RunInputs) -> tuple[str, ...]:
+        """What the analysis ``name`` of ``run`` could not give, with why: a grid's amplitudes with
+        too few dwells for a tyre fit."""
+        if name != "shaker":
+            return ()
+        result = self.knowledge.shaker[float(run.conditions["tyre_pressure_bar"])]
+        return tuple(f"{r.label}: no tyre fit: {r.why}" for r in result.ratios_only.values())
 
     def _analyse(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge

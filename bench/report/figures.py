@@ -449,7 +449,7 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 lambda: hammer_figure(analysis),
             )
         )
-    for pressure, result in sorted(k.shaker.items()):
+    for pressure, result in sorted((p, r) for p, r in k.shaker.items() if r.amplitudes):
         tag = _pressure_tag(pressure)
         out.append(
             (

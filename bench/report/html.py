@@ -250,7 +250,7 @@ def _bands(analysis: CampaignAnalysis) -> str:
     any_band = (
         r.valid_band_raw
         if r is not None
-        else next(iter(next(iter(analysis.knowledge.shaker.values())).amplitudes.values())).valid_band_raw
+        else next(a for s in analysis.knowledge.shaker.values() for a in s.amplitudes.values()).valid_band_raw
     )
     tolerance = (
         f"<p>Tolerance: | |H| - 1 | &lt;= {100 * any_band.amplitude_tolerance:g} % and |phase| &lt;="

@@ -15,7 +15,14 @@ import numpy as np
 from bench.analysis.campaign import CampaignAnalysis, SensorSource
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
-from bench.analysis.runs import FourPostResult, FreeRunResult, ShakerAmplitudeResult, ShakerCampaignResult
+from bench.analysis.lsq import Z95
+from bench.analysis.runs import (
+    FourPostResult,
+    FreeRunResult,
+    ShakerAmplitudeResult,
+    ShakerCampaignResult,
+    ShakerRatiosResult,
+)
 from bench.report.text import free_run_lines
 
 SCHEMA = "wfs-bench-analysis"
@@ -120,6 +127,34 @@ def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
     }
 
 
+def ratios_json(result: ShakerRatiosResult) -> dict[str, Any]:
+    """An amplitude without a tyre fit: why, and the measured F_wfs/F_contact per dwell with the
+    95 % half-widths of its magnitude and phase."""
+    raw = result.frfs.wfs_per_contact
+    half = Z95 * raw.sigma / np.sqrt(2)
+    return {
+        "amplitude_m": result.amplitude_m,
+        "n_dwells": len(result.fits),
+        "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
+        "why_no_fit": result.why,
+        "ratios": [
+            {
+                "freq_hz": float(f),
+                "ratio": float(abs(h)),
+                "ratio_ci95": float(c),
+                "phase_deg": float(np.degrees(np.angle(h))),
+                "phase_ci95_deg": float(np.degrees(c / abs(h))),
+                "reliable": bool(ok),
+            }
+            for f, h, c, ok in zip(raw.freq_hz, raw.value, half, raw.reliable, strict=True)
+        ],
+        "valid_band_raw": band_json(result.valid_band_raw),
+        "unsettled": list(result.unsettled),
+        "rejected": list(result.rejected),
+        "hub_acceleration_recorded": result.hub_acceleration_recorded,
+    }
+
+
 def shaker_json(pressure_bar: float, result: ShakerCampaignResult) -> dict[str, Any]:
     dep = result.amplitude_dependence
     return {
@@ -129,6 +164,7 @@ def shaker_json(pressure_bar: float, result: ShakerCampaignResult) -> dict[str, 
         "sensor_damping_ratio": result.sensor.damping_ratio,
         "free_run": free_run_json(result.free_run),
         "amplitudes": [amplitude_json(r) for r in result.amplitudes.values()],
+        "ratios_only": [ratios_json(r) for r in result.ratios_only.values()],
         "amplitude_dependence": None
         if dep is None
         else [row._asdict() for row in dep.rows()],

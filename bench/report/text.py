@@ -12,11 +12,13 @@ import numpy as np
 
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import DAMPING_AGREEMENT, HammerResult
+from bench.analysis.lsq import Z95
 from bench.analysis.runs import (
     FourPostResult,
     FreeRunResult,
     ShakerAmplitudeResult,
     ShakerCampaignResult,
+    ShakerRatiosResult,
 )
 
 
@@ -143,9 +145,35 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
     return lines
 
 
+def shaker_ratios_lines(result: ShakerRatiosResult) -> list[str]:
+    """An amplitude too small for a tyre fit: why, then each dwell's measured F_wfs/F_contact with
+    95 % intervals of its magnitude and phase (a complex standard uncertainty ``sigma`` gives each
+    component ``sigma / sqrt 2``), and the raw valid band."""
+    label, raw = result.label, result.frfs.wfs_per_contact
+    lines = [
+        f"{label}: {len(result.fits)} dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz;"
+        f" no tyre fit: {result.why}; the measured F_wfs/F_contact (95 %):"
+    ]
+    for f, h, sigma, ok in zip(raw.freq_hz, raw.value, raw.sigma, raw.reliable, strict=True):
+        half = Z95 * sigma / np.sqrt(2)
+        note = "" if ok else " (not reliable: not settled)"
+        lines.append(
+            f"{label} {f:g} Hz: |F_wfs/F_contact| {abs(h):.4g} +/- {half:.2g}, phase"
+            f" {np.degrees(np.angle(h)):.2f} +/- {np.degrees(half / abs(h)):.2g} deg{note}"
+        )
+    band = result.valid_band_raw
+    lines.append(f"{label} valid band ({tolerance_text(band)}): raw {band_text(band)}")
+    if not result.hub_acceleration_recorded:
+        lines.append(f"{label} no hub-acceleration channel (the clamped hub needs none)")
+    lines += [f"FLAG not settled: {u}" for u in result.unsettled]
+    lines += [f"FLAG rejected: {r}" for r in result.rejected]
+    return lines
+
+
 def shaker_campaign_lines(result: ShakerCampaignResult) -> list[str]:
-    """A tyre's shaker campaign: the givens, m_comp, every amplitude and the amplitude dependence."""
-    amps = ", ".join(r.label for r in result.amplitudes.values())
+    """A tyre's shaker campaign: the givens, m_comp, every amplitude (those too small for a fit with
+    their measured ratios) and the amplitude dependence."""
+    amps = ", ".join(r.label for r in (*result.amplitudes.values(), *result.ratios_only.values()))
     lines = [
         f"shaker campaign: amplitudes {amps}; wheel mass {result.wheel_mass_kg:g} kg (given),"
         f" sensor {result.sensor.mass_kg:g} kg at {result.sensor.eigenfrequency_hz:g} Hz, damping ratio"
@@ -154,9 +182,12 @@ def shaker_campaign_lines(result: ShakerCampaignResult) -> list[str]:
     ]
     for amplitude in result.amplitudes.values():
         lines += shaker_amplitude_lines(amplitude)
+    for ratios in result.ratios_only.values():
+        lines += shaker_ratios_lines(ratios)
     dep = result.amplitude_dependence
     if dep is None:
-        lines.append("amplitude dependence: not determined (one amplitude only)")
+        why = "one amplitude only" if result.amplitudes else "no amplitude with a tyre fit"
+        lines.append(f"amplitude dependence: not determined ({why})")
     else:
         per = "; ".join(
             f"{1e3 * a:g} mm k {k / 1e3:.2f} +/- {ci / 1e3:.2f} kN/m ({100 * dk:+.2f} %),"
