@@ -20,7 +20,6 @@ The model compensator is designed over ``DESIGN_BAND_MARGIN`` times the highest 
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -66,6 +65,7 @@ from bench.analysis.records import (
     fit_dwell_record,
     record_channels,
 )
+from bench.analysis.repeats import RepeatSpread, combine_repeats, spread_of_repeats
 from bench.analysis.shaker_models import LINEAR, RubberTerms
 from bench.analysis.tyre_fit import (
     AmplitudeDependence,
@@ -113,32 +113,53 @@ def _unsettled(records: Sequence[DwellRecord], fits: Sequence[DwellFit]) -> tupl
     )
 
 
-def _fit_grid(
-    records: Sequence[DwellRecord], channels: tuple[str, ...], settle_s: float, what: str
-) -> tuple[list[DwellRecord], list[DwellFit], tuple[str, ...]]:
-    """Fit every dwell of a grid, sorted by frequency; duplicate frequencies are an error. Dwells
-    with a problem (:func:`~bench.analysis.records.dwell_problems`: dead or frozen channel, the
-    actuator not following, a mislabelled record) are left out and returned as ``rejected``
-    (label and why); the rest is analysed."""
+@dataclass(frozen=True)
+class _Grid:
+    """A grid's dwells fitted: ``records`` and ``fits`` (one per frequency, ascending: repeats
+    combined, the first repeat's record standing for them), ``rejected`` (label and why) and
+    ``repeats`` (how far each repeated point's repeats spread)."""
+
+    records: list[DwellRecord]
+    fits: list[DwellFit]
+    rejected: tuple[str, ...]
+    repeats: tuple[RepeatSpread, ...]
+
+
+def _fit_grid(records: Sequence[DwellRecord], channels: tuple[str, ...], settle_s: float, what: str) -> _Grid:
+    """Fit every dwell of a grid, sorted by frequency. Dwells with a problem
+    (:func:`~bench.analysis.records.dwell_problems`: dead or frozen channel, the actuator not
+    following, a mislabelled record) are left out and returned as ``rejected`` (label and why);
+    dwells at the same frequency are repeats, combined (:mod:`bench.analysis.repeats`); the rest is
+    analysed."""
     if not records:
         raise AnalysisInputError(f"{what}: no dwell records given")
-    ordered = sorted(records, key=lambda r: r.freq_hz)
-    for a, b in itertools.pairwise(ordered):
-        if a.freq_hz == b.freq_hz:
-            raise AnalysisInputError(f"{what}: two records of the same dwell ({a.label})")
-    kept, fits, rejected = [], [], []
+    kept: dict[float, list[tuple[DwellRecord, DwellFit]]] = {}
+    rejected = []
     signal = tuple(c for c in channels if c != HUB_ACCELERATION)  # the shaker clamps the hub
-    for record in ordered:
+    for record in sorted(records, key=lambda r: r.freq_hz):
         fit = fit_dwell_record(record, channels, settle_s=settle_s)
         problems = dwell_problems(record, fit, signal)
         if problems:
             rejected.append(f"{record.label}: {'; '.join(problems)}")
         else:
-            kept.append(record)
-            fits.append(fit)
-    if not fits:
+            kept.setdefault(record.freq_hz, []).append((record, fit))
+    if not kept:
         raise AnalysisInputError(f"{what}: every dwell was rejected ({'; '.join(rejected)})")
-    return kept, fits, tuple(rejected)
+    spreads = []
+    for same in kept.values():
+        fits = [fit for _, fit in same]
+        if len(fits) > 1:
+            responses = [c for c in signal if c != DISPLACEMENT]
+            spreads.append(spread_of_repeats(same[0][0].label, fits, DISPLACEMENT, responses))
+    return _Grid(
+        [same[0][0] for same in kept.values()],
+        [
+            same[0][1] if len(same) == 1 else combine_repeats([f for _, f in same], DISPLACEMENT)
+            for same in kept.values()
+        ],
+        tuple(rejected),
+        tuple(spreads),
+    )
 
 
 def _group_amplitudes(records: Sequence[DwellRecord]) -> dict[float, list[DwellRecord]]:
@@ -164,7 +185,8 @@ class FreeRunResult:
     """m_comp of a bench's plate from its free run: ``plate`` (mass, sigma, residual), the dwell
     ``fits`` (ascending frequency) and ``unsettled``: the dwells that did not settle, with why
     (their points are left out of m_comp); ``findings``: what the user must know about m_comp
-    (a mass that is not positive is not physical; a fit far outside the noise is no plate mass)."""
+    (a mass that is not positive is not physical; a fit far outside the noise is no plate mass);
+    ``repeats``: the dwells measured more than once, combined, with their spread."""
 
     plate: PlateMass
     fits: tuple[DwellFit, ...]
@@ -172,6 +194,7 @@ class FreeRunResult:
     rejected: tuple[str, ...] = ()
     findings: tuple[str, ...] = ()
     nominal_source: str = ""
+    repeats: tuple[RepeatSpread, ...] = ()
 
     @property
     def nominal(self) -> bool:
@@ -211,10 +234,17 @@ def plate_mass_findings(plate: PlateMass) -> tuple[str, ...]:
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
     """m_comp from the free-run dwells (channels ``z_base_m``, ``f_plate_n``), flagged when it is
     not a positive mass or its fit misses the data (:func:`plate_mass_findings`)."""
-    ordered, fits, rejected = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
+    grid = _fit_grid(records, FREE_RUN_CHANNELS, settle_s, "free run")
     with _named("free run"):
-        plate = identify_plate_mass(dwell_frf(fits, PLATE_FORCE, DISPLACEMENT))
-    return FreeRunResult(plate, tuple(fits), _unsettled(ordered, fits), rejected, plate_mass_findings(plate))
+        plate = identify_plate_mass(dwell_frf(grid.fits, PLATE_FORCE, DISPLACEMENT))
+    return FreeRunResult(
+        plate,
+        tuple(grid.fits),
+        _unsettled(grid.records, grid.fits),
+        grid.rejected,
+        plate_mass_findings(plate),
+        repeats=grid.repeats,
+    )
 
 
 # ---------------------------------------------------------------------------------------- shaker
@@ -232,7 +262,8 @@ class ShakerAmplitudeResult:
     ``valid_band_compensated``, both uncertainty-aware; ``unsettled``: dwells that did not settle
     (unreliable points, left out of the fits), with why; ``hub_acceleration_recorded``: false when
     the dwells carry no hub acceleration: the clamped hub is then taken as not moving (the
-    compensated ratio without its ``G_A a_hub`` term), which nothing checks.
+    compensated ratio without its ``G_A a_hub`` term), which nothing checks; ``repeats``: the
+    dwells measured more than once, combined (one point each), with their spread.
     """
 
     amplitude_m: float
@@ -247,6 +278,7 @@ class ShakerAmplitudeResult:
     rejected: tuple[str, ...] = ()
     model_peak: RatioPeak | None = None
     hub_acceleration_recorded: bool = True
+    repeats: tuple[RepeatSpread, ...] = ()
 
     @property
     def label(self) -> str:
@@ -274,6 +306,7 @@ class ShakerRatiosResult:
     unsettled: tuple[str, ...]
     rejected: tuple[str, ...] = ()
     hub_acceleration_recorded: bool = True
+    repeats: tuple[RepeatSpread, ...] = ()
 
     @property
     def label(self) -> str:
@@ -388,7 +421,8 @@ def _analyse_amplitude(
     label = amplitude_label(amplitude_m)
     hub_recorded = all(HUB_ACCELERATION in r.channels for r in records)
     channels = WHEEL_CHANNELS if hub_recorded else SHAKER_CHANNELS
-    ordered, fits, rejected = _fit_grid(records, channels, settle_s, label)
+    grid = _fit_grid(records, channels, settle_s, label)
+    ordered, fits, rejected = grid.records, grid.fits, grid.rejected
     rates = {r.sample_rate_hz for r in ordered}
     if len(rates) != 1:
         raise AnalysisInputError(f"{label}: dwells at different sample rates {sorted(rates)}")
@@ -409,6 +443,7 @@ def _analyse_amplitude(
                 _unsettled(ordered, fits),
                 rejected,
                 hub_recorded,
+                grid.repeats,
             )
         ident = identify_shaker(
             frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
@@ -442,6 +477,7 @@ def _analyse_amplitude(
         rejected,
         peak,
         hub_recorded,
+        grid.repeats,
     )
 
 

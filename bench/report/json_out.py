@@ -16,6 +16,7 @@ from bench.analysis.campaign import CampaignAnalysis, SensorSource
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.lsq import Z95
+from bench.analysis.repeats import RepeatSpread
 from bench.analysis.runs import (
     FourPostResult,
     FreeRunResult,
@@ -68,6 +69,21 @@ def hammer_json(result: HammerResult) -> dict[str, Any]:
     }
 
 
+def repeats_json(repeats: tuple[RepeatSpread, ...]) -> list[dict[str, Any]]:
+    """The dwells measured more than once: per point, how many were combined and their relative rms
+    spread over the displacement per channel, against their noise."""
+    return [
+        {
+            "freq_hz": r.freq_hz,
+            "n": r.n,
+            "spread": r.spread,
+            "noise": r.noise,
+            "outside_noise": r.outside_noise,
+        }
+        for r in repeats
+    ]
+
+
 def free_run_json(result: FreeRunResult) -> dict[str, Any]:
     p = result.plate
     return {
@@ -80,6 +96,7 @@ def free_run_json(result: FreeRunResult) -> dict[str, Any]:
         "n_dwells": len(result.fits),
         "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz] if result.fits else None,
         "flags": [line for line in free_run_lines(result) if line.startswith("FLAG")],
+        "repeats": repeats_json(result.repeats),
     }
 
 
@@ -124,6 +141,7 @@ def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
         "unsettled": list(result.unsettled),
         "rejected": list(result.rejected),
         "hub_acceleration_recorded": result.hub_acceleration_recorded,
+        "repeats": repeats_json(result.repeats),
     }
 
 
@@ -152,6 +170,7 @@ def ratios_json(result: ShakerRatiosResult) -> dict[str, Any]:
         "unsettled": list(result.unsettled),
         "rejected": list(result.rejected),
         "hub_acceleration_recorded": result.hub_acceleration_recorded,
+        "repeats": repeats_json(result.repeats),
     }
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import DAMPING_AGREEMENT, HammerResult
 from bench.analysis.lsq import Z95
+from bench.analysis.repeats import RepeatSpread
 from bench.analysis.runs import (
     FourPostResult,
     FreeRunResult,
@@ -57,6 +58,29 @@ def values_text(values: dict[str, float], ci95: dict[str, float]) -> str:
     return ", ".join(f"{name} {v:.6g} +/- {ci95[name]:.2g}" for name, v in values.items())
 
 
+def repeats_lines(prefix: str, repeats: tuple[RepeatSpread, ...]) -> list[str]:
+    """The dwells measured more than once: the repeatability (the largest spread), each repeated
+    point's spread per channel against its noise, and a ``FLAG`` where the spread is far outside
+    it. ``prefix`` names the grid (``2 mm ``, ``free run ``)."""
+    if not repeats:
+        return []
+    worst = max(repeats, key=lambda r: r.largest[1])
+    channel, spread = worst.largest
+    lines = [
+        f"{prefix}repeatability: {len(repeats)} dwell(s) measured more than once, each combined into one"
+        f" point; largest spread {100 * spread:.2g} % rms ({channel} over the displacement, {worst.label})"
+    ]
+    for r in repeats:
+        per = ", ".join(f"{c} {100 * v:.2g} % (noise {100 * r.noise[c]:.2g} %)" for c, v in r.spread.items())
+        lines.append(f"{prefix}repeats: {r.label}: {r.n} combined; spread over the displacement: {per}")
+        if r.outside_noise:
+            lines.append(
+                f"FLAG {prefix}repeats of {r.label} differ far outside their noise: the specimen or the"
+                " bench changed between them (tyre pressure or temperature, a clamp)"
+            )
+    return lines
+
+
 def hammer_lines(result: HammerResult) -> list[str]:
     """The sensor from a hammer blow; the two damping estimates are flagged when they disagree by
     more than ``DAMPING_AGREEMENT`` (they are independent: one of them is then not to be trusted)."""
@@ -88,6 +112,7 @@ def free_run_lines(result: FreeRunResult) -> list[str]:
         f" dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz"
         f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
     ]
+    lines += repeats_lines("free run ", result.repeats)
     lines += [f"FLAG free run not settled: {u}" for u in result.unsettled]
     lines += [f"FLAG free run rejected: {r}" for r in result.rejected]
     lines += [f"FLAG free run: {finding}" for finding in result.findings]
@@ -135,6 +160,7 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
         f" model-compensated {band_text(result.valid_band_compensated)}"
         f" (compensator design error {100 * result.compensator.design_error:.2f} %)"
     )
+    lines += repeats_lines(f"{label} ", result.repeats)
     if not result.hub_acceleration_recorded:
         lines.append(
             f"{label} no hub-acceleration channel: the clamped hub is taken as not moving (the"
@@ -163,6 +189,7 @@ def shaker_ratios_lines(result: ShakerRatiosResult) -> list[str]:
         )
     band = result.valid_band_raw
     lines.append(f"{label} valid band ({tolerance_text(band)}): raw {band_text(band)}")
+    lines += repeats_lines(f"{label} ", result.repeats)
     if not result.hub_acceleration_recorded:
         lines.append(f"{label} no hub-acceleration channel (the clamped hub needs none)")
     lines += [f"FLAG not settled: {u}" for u in result.unsettled]
