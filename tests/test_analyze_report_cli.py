@@ -66,7 +66,8 @@ def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data
     assert re.search(
         r"^== \S+ \(free_run: plate_mass; stored as results/plate_mass-reanalysis-1\)$", text.stdout, re.M
     ), text.stdout
-    assert re.search(r"^m_comp [\d.]+ \+/- \S+ kg from 3 of 3 free-run dwells 10-60 Hz", text.stdout, re.M)
+    m_comp = r"^m_comp [\d.]+ \+/- \S+ kg \(95 %\) from 3 of 3 free-run dwells 10-60 Hz"
+    assert re.search(m_comp, text.stdout, re.M)
     assert "2 mm Model" in text.stdout and "valid band" in text.stdout
 
     run = wfsbench("analyze", str(smoke_file), "--json")

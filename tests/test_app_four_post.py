@@ -75,6 +75,12 @@ def test_four_post_run_is_analysed_with_the_tyre_at_its_pressure(tmp_path: Path,
     assert result.tyre == identified
     assert analysis.results["tyre_pressure_bar"] == config.specimen.tyre_pressure_bar == 2.5
     assert "shaker identification at 2.5 bar" in analysis.results["summary"]
+    # no hammer run in this campaign: the sensor is credited to where it came from, not to a hammer test
+    summary = analysis.results["summary"]
+    assert "sensor stiffness and damping (assumed: no hammer test in the campaign" in summary
+    assert "(hammer test)" not in summary
+    # the servo-hydraulic actuator follows the sweep's 2 mm within the dwells' 20 %: not flagged
+    assert result.measured_amplitude_m == pytest.approx(2e-3, rel=0.2) and result.findings == ()
 
 
 def test_shaker_identification_is_chosen_by_the_recorded_pressure_only():

@@ -25,6 +25,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.signal import hilbert
 
 from bench.analysis.compensation import (
     ModelCompensator,
@@ -47,6 +48,7 @@ from bench.analysis.plate_mass import (
 )
 from bench.analysis.quarter_car_fit import FourPostFrfs, QuarterCarFit, fit_quarter_car, four_post_frfs
 from bench.analysis.records import (
+    AMPLITUDE_MISMATCH,
     DEFAULT_SETTLE_S,
     DISPLACEMENT,
     FREE_RUN_CHANNELS,
@@ -556,7 +558,10 @@ class FourPostResult:
     ``valid_band_raw``, ``valid_band_hub_compensated``, ``valid_band_model_compensated``
     (uncertainty-aware); ``compensator``: the model compensator applied; ``quarter_car``: the car
     above the sensor with its modes, what it does not determine and what it took as given;
-    ``unreliable_bins``: bins of the swept band not reliable in all three FRFs.
+    ``unreliable_bins``: bins of the swept band not reliable in all three FRFs;
+    ``amplitude_m`` (declared) and ``measured_amplitude_m``: the displacement amplitude the record
+    shows (:func:`sweep_amplitude_m`); ``findings``: what the user must know (a measured amplitude far from
+    the declared one).
     """
 
     label: str
@@ -578,6 +583,9 @@ class FourPostResult:
     compensator: ModelCompensator
     quarter_car: QuarterCarFit
     unreliable_bins: int
+    amplitude_m: float = float("nan")
+    measured_amplitude_m: float = float("nan")
+    findings: tuple[str, ...] = ()
 
     @property
     def unreliable_bins_hz(self) -> tuple[np.ndarray, np.ndarray]:
@@ -611,6 +619,29 @@ def _tyre_below(
     shaker = tyre.nearest(amplitude_m)
     fit = shaker.identification.best_fit
     return fit.model, fit.tyre, fit.rubber, f"the shaker identification at {shaker.label}", shaker.compensator
+
+
+def sweep_amplitude_m(displacement_m: np.ndarray) -> float:
+    """The displacement amplitude a sweep record shows: the median of its envelope (the magnitude
+    of the analytic signal of the displacement less its median) over the record's middle half,
+    clear of the tapers and of the transform's edge effects."""
+    z = np.asarray(displacement_m, dtype=float)
+    envelope = np.abs(hilbert(z - np.median(z)))
+    quarter = z.size // 4
+    return float(np.median(envelope[quarter : z.size - quarter]))
+
+
+def _amplitude_findings(sweep: SweepRecord, measured_m: float) -> tuple[str, ...]:
+    """A measured amplitude more than ``AMPLITUDE_MISMATCH`` from the declared one: the actuator did
+    not follow, or the record's amplitude is mislabelled (the tyre's amplitude is chosen by it)."""
+    if abs(measured_m / sweep.amplitude_m - 1) <= AMPLITUDE_MISMATCH:
+        return ()
+    return (
+        f"{sweep.label}: measured displacement amplitude {1e3 * measured_m:.3g} mm (median over the"
+        f" sweep's middle half) against the declared {1e3 * sweep.amplitude_m:g} mm: the actuator did"
+        " not follow, or the amplitude is mislabelled (the shaker amplitude whose tyre is used is"
+        " chosen by it)",
+    )
 
 
 def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
@@ -747,6 +778,7 @@ def analyse_four_post(
         )
     rec = _checked_sweep(sweep)
     fs = float(sweep.sample_rate_hz)
+    measured_amplitude_m = sweep_amplitude_m(rec[DISPLACEMENT])
     post = analyse_free_run(free_run, settle_s=settle_s)
     with _named(label):
         if shaker_comp is not None and shaker_comp.fs_hz == fs:
@@ -803,6 +835,9 @@ def analyse_four_post(
         compensator=comp,
         quarter_car=car,
         unreliable_bins=int(np.sum(~all_reliable)),
+        amplitude_m=float(sweep.amplitude_m),
+        measured_amplitude_m=measured_amplitude_m,
+        findings=_amplitude_findings(sweep, measured_amplitude_m),
     )
 
 

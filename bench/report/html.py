@@ -14,6 +14,7 @@ from html import escape
 
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import ValidBand
+from bench.analysis.lsq import Z95
 from bench.report.figures import FigureFile
 
 _STYLE = """
@@ -115,12 +116,12 @@ def _plate_masses(analysis: CampaignAnalysis) -> str:
             run.plate,
             run.run_id,
             _g(run.result.plate.mass_kg, 6),
-            _g(run.result.plate.sigma_kg, 2),
+            _g(Z95 * run.result.plate.sigma_kg, 2),
             f"{run.result.plate.n_points} of {len(run.result.fits)}",
         )
         for run in analysis.knowledge.plate_masses
     ]
-    header = ("plate", "free run", "m_comp (kg)", "sigma (kg)", "dwells used")
+    header = ("plate", "free run", "m_comp (kg)", "+/- 95 % (kg)", "dwells used")
     return _table(header, rows) if rows else "<p>none</p>"
 
 
@@ -185,7 +186,8 @@ def _four_post(analysis: CampaignAnalysis) -> str:
             ("tyre below the sensor", f"Model {int(r.tyre_model)} from {r.tyre_source}"),
             (
                 "m_wheel from the run",
-                f"{m.mass_kg:.3f} +/- {m.sigma_kg:.2g} kg ({m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz)",
+                f"{m.mass_kg:.3f} +/- {Z95 * m.sigma_kg:.2g} kg (95 %;"
+                f" {m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz)",
             ),
             (
                 "m_wheel weighed",

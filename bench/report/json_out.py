@@ -226,6 +226,9 @@ def four_post_json(result: FourPostResult) -> dict[str, Any]:
         "unreliable_bins": result.unreliable_bins,
         "unreliable_flank_hz": [float(f) for f in flank_hz],
         "unreliable_low_excitation_hz": [float(f) for f in other_hz],
+        "amplitude_m": result.amplitude_m,
+        "measured_amplitude_m": result.measured_amplitude_m,
+        "findings": list(result.findings),
     }
 
 

@@ -108,8 +108,8 @@ def free_run_lines(result: FreeRunResult) -> list[str]:
     if result.nominal:
         return [f"FLAG m_comp {p.mass_kg:g} kg nominal ({result.nominal_source}): not measured, no free run"]
     lines = [
-        f"m_comp {p.mass_kg:.4f} +/- {p.sigma_kg:.1g} kg from {p.n_points} of {len(result.fits)} free-run"
-        f" dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz"
+        f"m_comp {p.mass_kg:.4f} +/- {Z95 * p.sigma_kg:.1g} kg (95 %) from {p.n_points} of"
+        f" {len(result.fits)} free-run dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz"
         f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
     ]
     lines += repeats_lines("free run ", result.repeats)
@@ -232,10 +232,12 @@ def four_post_lines(result: FourPostResult) -> list[str]:
     lines = [
         f"four-post {result.label}; tyre: Model {int(result.tyre_model)} from {result.tyre_source}",
         *(f"post {line}" for line in free_run_lines(result.post_free_run)),
-        f"m_wheel {m.mass_kg:.3f} +/- {m.sigma_kg:.2g} kg from the run"
+        f"m_wheel {m.mass_kg:.3f} +/- {Z95 * m.sigma_kg:.2g} kg (95 %) from the run"
         f" ({m.band_hz[0]:.3g}-{m.band_hz[1]:.3g} Hz; weighed {result.wheel_mass_given_kg:g} kg,"
         f" {100 * (m.mass_kg / result.wheel_mass_given_kg - 1):+.1f} %),"
         f" accelerometer lag {1e3 * m.accelerometer_delay_s:.3f} ms",
+        f"sweep displacement amplitude: measured {1e3 * result.measured_amplitude_m:.3g} mm, declared"
+        f" {1e3 * result.amplitude_m:g} mm",
         f"valid band ({tolerance_text(result.valid_band_raw)}): raw {band_text(result.valid_band_raw)},"
         f" hub-acceleration compensated {band_text(result.valid_band_hub_compensated)},"
         f" model-compensated {band_text(result.valid_band_model_compensated)}",
@@ -261,6 +263,7 @@ def four_post_lines(result: FourPostResult) -> list[str]:
         )
     if not car.converged:
         lines.append("FLAG the quarter-car fit did not converge")
+    lines += [f"FLAG {finding}" for finding in result.findings]
     return lines
 
 
