@@ -7,6 +7,7 @@ wheel removed gives no flag."""
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +16,13 @@ import pytest
 from bench.analysis import analyse_shaker_campaign
 from bench.analysis.frf import Frf
 from bench.analysis.plate_mass import identify_plate_mass
+from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
 from bench.analysis.shaker_models import shaker_response
+from bench.cli import EXIT_COMPLETE, EXIT_STOPPED
 from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
+from tests.campaign_files import StoredRun, write_campaign
 from tests.test_campaign_cli import SMOKE, wfsbench
 
 REMOVE_WHEEL = """[[steps]]
@@ -31,22 +35,60 @@ action = "remove_wheel"
 """
 
 
-def _record(tmp_path: Path, sequence_text: str) -> Path:
+def _run(tmp_path: Path, sequence_text: str) -> tuple[Path, subprocess.CompletedProcess]:
     sequence = tmp_path / "seq.toml"
     sequence.write_text(sequence_text)
     out = tmp_path / "campaign.h5"
-    run = wfsbench("run", str(sequence), "--out", str(out))
-    assert run.returncode == 0, run.stderr
+    return out, wfsbench("run", str(sequence), "--out", str(out))
+
+
+def _record(tmp_path: Path, sequence_text: str) -> Path:
+    out, run = _run(tmp_path, sequence_text)
+    assert run.returncode == EXIT_COMPLETE, run.stderr
     return out
 
 
 @pytest.fixture(scope="module")
-def wheel_on_file(tmp_path_factory) -> Path:
+def stopped(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     """The smoke sequence without its "Remove the wheel" prompt: the simulated world starts with
-    the wheel fitted, so the free run shakes the plate with the tyre on it."""
+    the wheel fitted, so the free run shakes the plate with the tyre on it; the sequence stops
+    before its grid (docs/engine.md, "After each run")."""
     text = SMOKE.read_text()
     assert REMOVE_WHEEL in text
-    return _record(tmp_path_factory.mktemp("wheel_on"), text.replace(REMOVE_WHEEL, ""))
+    return _run(tmp_path_factory.mktemp("wheel_on"), text.replace(REMOVE_WHEEL, ""))
+
+
+@pytest.fixture(scope="module")
+def wheel_on_file(stopped, tmp_path_factory) -> Path:
+    """A campaign file that goes on past such a free run, as a file from elsewhere may: the
+    wheel-on free run recorded above and the smoke sequence's grid recorded with the wheel fitted,
+    written into one file."""
+    folder = tmp_path_factory.mktemp("wheel_on_then_grid")
+    with open_campaign(stopped[0]) as campaign:
+        (free,) = [run.dwell_records() for run in campaign.runs if run.kind == "free_run"]
+    with open_campaign(_record(folder, SMOKE.read_text())) as campaign:
+        (grid,) = [run for run in campaign.runs if run.kind == "dwell_grid"]
+        grid_run = StoredRun(
+            grid.run_id,
+            "dwell_grid",
+            tuple(grid.dwell_records()),
+            dict(grid.conditions),
+            channels=WHEEL_CHANNELS,
+        )
+    free_run = StoredRun("wheel-on-free_run", "free_run", tuple(free), {}, channels=FREE_RUN_CHANNELS)
+    return write_campaign(folder / "wheel_on_then_grid.h5", [free_run, grid_run])
+
+
+def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped):
+    path, run = stopped
+    assert run.returncode == EXIT_STOPPED, run.stderr
+    assert (
+        "smoke: aborted: stopped before smoke-s008-dwell_grid: the free run smoke-s002-free_run gives an"
+        " m_comp not to be trusted: m_comp misses the free run far outside its noise"
+    ) in run.stdout
+    assert "(was the specimen removed?)" in run.stdout and "(repeat the free run)" in run.stdout
+    with open_campaign(path) as campaign:
+        assert [(r.kind, r.status) for r in campaign.runs] == [("free_run", "complete")]
 
 
 def _analysis_json(path: Path) -> dict:

@@ -8,6 +8,10 @@ analyses come back while the next run is under way; each is published (an
 :class:`~bench.engine.events.AnalysisDone`, which the recorder stores beside its run) from the
 engine's thread at the next event, and at the sequence's end every analysis still under way is
 waited for. The campaign's knowledge (the object given) is kept up to date with the process's.
+
+Before a run that corrects its contact force with a plate mass starts, :meth:`PostRunAnalysis.gate`
+(the engine's run gate) waits for the free runs' analyses and stops the sequence when the last free
+run's m_comp is not to be trusted (docs/engine.md, "After each run").
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError
 from bench.app.run_analysis import run_inputs, runs_to_analyse
 from bench.engine import events as ev
 from bench.store import CampaignFile, open_campaign
+from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +88,31 @@ class PostRunAnalysis:
             else:
                 self._send_run(run_id)
 
+    def gate(self, run_id: str, kind: str) -> str | None:
+        """The engine's run gate (:class:`~bench.engine.contracts.RunGate`): before a run whose
+        contact force is corrected with a free run's plate mass (a dwell grid, a sweep), the
+        analyses of the free runs sent are waited for (they take well under a second; the bench is
+        at rest between runs), and a sequence whose last free run gives an m_comp not to be trusted
+        (a finding: the plate did not move as a rigid mass, the mass is not physical) or could not
+        be analysed stops before the run, with the reason."""
+        if kind not in (RunKind.DWELL_GRID, RunKind.SWEEP):
+            return None
+        self._take_results(wait=True, until_kind=RunKind.FREE_RUN)
+        free_runs = [a for a in self.knowledge.analysed_runs.values() if a.kind == RunKind.FREE_RUN]
+        if not free_runs:
+            return None
+        last = free_runs[-1]
+        if last.error:
+            return f"the free run {last.run_id} could not be analysed ({last.error}): its m_comp is unknown"
+        weighed = [p for p in self.knowledge.plate_masses if p.run_id == last.run_id]
+        findings = weighed[-1].result.findings if weighed else ()
+        if findings:
+            return (
+                f"the free run {last.run_id} gives an m_comp not to be trusted: {findings[0]};"
+                f" {run_id} would correct its contact force with it (repeat the free run)"
+            )
+        return None
+
     def _send_pending_grid(self) -> None:
         run_id, _ = self._pending_grid
         self._pending_grid = None
@@ -97,14 +127,15 @@ class PostRunAnalysis:
         self._process.submit(run_inputs(run, campaign))
         self._sent.append((run_id, run.kind, publish))
 
-    def _take_results(self, *, wait: bool) -> None:
-        """Publish the analyses that came back (all of those sent, when ``wait``). Not re-entered
-        from the publishing of one of them, so that every subscriber sees them in order."""
+    def _take_results(self, *, wait: bool, until_kind: str | None = None) -> None:
+        """Publish the analyses that came back (when ``wait``: all of those sent, or with
+        ``until_kind`` those up to the last run of that kind sent). Not re-entered from the
+        publishing of one of them, so that every subscriber sees them in order."""
         if self._publishing:
             return
         self._publishing = True
         try:
-            while self._sent:
+            while self._sent and (until_kind is None or any(k == until_kind for _, k, _ in self._sent)):
                 try:
                     result = self._process.next_result(None if wait else 0)
                 except AnalysisProcessError as err:

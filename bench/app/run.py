@@ -139,6 +139,7 @@ def _run_on(
                 sequence_text=plan.sequence_text,
                 config_text=plan.config_text,
                 resume=resume_plan,
+                gate=analysis.gate,
             )
         finally:
             for subscriber in (*own, *subscribers):

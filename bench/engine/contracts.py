@@ -181,3 +181,13 @@ class ResumePlan(Protocol):
     def recorded_samples(self, run_id: str) -> int:
         """The samples the run holds already (0 if it has none): its new samples follow them."""
         ...
+
+
+class RunGate(Protocol):
+    """Consulted before each measurement run starts, with the bench at rest: what the runs before it
+    established may forbid it (a free run whose plate mass is not to be trusted, before the runs
+    that would use it). It may block until it knows (an analysis still under way)."""
+
+    def __call__(self, run_id: str, kind: str) -> str | None:
+        """None: the run may start; else why the sequence stops before it."""
+        ...

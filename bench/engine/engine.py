@@ -28,7 +28,7 @@ import numpy as np
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, SampleBlockLike
+from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, RunGate, SampleBlockLike
 from bench.engine.interlocks import Interlock, Observation, first_trip
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker
@@ -231,6 +231,7 @@ class Engine:
         self._sequence_thread: int | None = None  # the thread running a sequence, while one runs
         self._publishing = threading.Lock()
         self._recording: _RunRecording | None = None  # the run whose stream is recorded now
+        self._gate: RunGate | None = None  # the sequence under way's run gate
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -317,11 +318,13 @@ class Engine:
         sequence_text: str = "",
         config_text: str = "",
         resume: ResumePlan | None = None,
+        gate: RunGate | None = None,
     ) -> RunOutcome:
         """Run ``sequence`` to its end or until stopped (refused unless the engine is ready: at rest,
         aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
         says how and why. A crash (or Ctrl-C) still stops the actuator and ends the sequence
-        ``failed``, then is raised on."""
+        ``failed``, then is raised on. ``gate``: asked before each measurement run starts; a reason
+        it gives ends the sequence there, ``aborted`` with that reason."""
         if self._sequence_thread is not None:
             raise TransitionRefusedError(f"start is not allowed while {self.state.value}: a sequence runs")
         self._sequence_thread = threading.get_ident()  # before the start: its change is published here
@@ -329,6 +332,7 @@ class Engine:
             self._fire(Trigger.START)
             self.conditions = {"bench": self.bench_kind}
             self._outcome = None
+            self._gate = gate
             self.bus.publish(
                 ev.SequenceStarted(
                     sequence.name,
@@ -349,6 +353,7 @@ class Engine:
             return self._sequence_finished(self._end(None))
         finally:
             self._sequence_thread = None
+            self._gate = None
             self._abort_reason = ABORT_REASON
             self._publish_changes()  # what another thread requested after the loop last looked
 
@@ -405,9 +410,13 @@ class Engine:
             self.conditions["mean_mm"] = step.mean_mm
         elif is_measurement(step):
             run_id = self.run_id(sequence, index)
+            if resume is not None and resume.run_complete(run_id):
+                return
+            if self._gate is not None and (reason := self._gate(run_id, RunKind.of_step(step.kind))):
+                raise RunStoppedError.abort(f"stopped before {run_id}: {reason}")
             if resume is None:
                 self._measure(run_id, step, RecordedRun())
-            elif not resume.run_complete(run_id):
+            else:
                 held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
                 self._measure(run_id, step, held)
         else:

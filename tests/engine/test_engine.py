@@ -686,3 +686,23 @@ def test_a_reset_with_nothing_stopped_is_refused_and_changes_nothing():
     with pytest.raises(TransitionRefusedError, match="nothing to reset while hydraulics high"):
         engine.reset()
     assert engine.state is RunState.HYDRAULICS_HIGH and bench.hydraulics == "high"
+
+
+def test_a_run_gate_stops_the_sequence_before_the_run_it_forbids():
+    """The gate is asked before each measurement run, with its run id and kind; a reason stops the
+    sequence there (aborted, the reason kept), the forbidden run never starts, the actuator stays at
+    rest, and a run the gate allows runs as before."""
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    asked: list[tuple[str, str]] = []
+
+    def gate(run_id: str, kind: str) -> str | None:
+        asked.append((run_id, kind))
+        return "the free run's m_comp is not to be trusted" if kind == "dwell_grid" else None
+
+    outcome = engine.run(sequence(FreeRun(grid()), grid(), FreeRun(grid())), gate=gate)
+    assert outcome.status == "aborted"
+    assert outcome.reason == "stopped before test-s001-dwell_grid: the free run's m_comp is not to be trusted"
+    assert asked == [("test-s000-free_run", "free_run"), ("test-s001-dwell_grid", "dwell_grid")]
+    assert [e.run_id for e in of(seen, ev.RunStarted)] == ["test-s000-free_run"]
+    assert of(seen, ev.SequenceFinished)[-1].status == "aborted"
