@@ -22,6 +22,12 @@ action = "set_tyre_pressure"
 target = 2.5
 
 """
+FREE_RUN = """[[steps]]
+type = "free_run"
+freqs_hz = [10, 30, 60]
+amplitudes_mm = [2]
+
+"""
 GRID = """[[steps]]
 type = "dwell_grid"
 freqs_hz = [10, 30, 50]
@@ -65,4 +71,19 @@ def test_the_shipped_shaker_campaign_is_analysed_in_full_and_the_smoke_sweep_is_
     smoke = check(str(shipped_file("smoke.toml")))
     assert _limits(smoke.stdout) == [
         "steps[10] sweep: recorded, not analysed (the sweep analysis is the four-post bench's)"
+    ]
+
+
+def test_a_grid_on_a_bench_without_a_hub_accelerometer_is_told_what_its_analysis_takes(tmp_path):
+    sequence = tmp_path / "grid.toml"
+    sequence.write_text(
+        sequence_text("grid", PRESSURE + FREE_RUN + GRID.replace("[10, 30, 50]", "[10, 20, 30, 50]"))
+    )
+    bench = tmp_path / "lab.toml"
+    bench.write_text('[aux.aux2]\nname = "aux2_v"\nunit = "V"\nrole = "spare"\n')
+    result = check(str(sequence), "--bench", str(bench))
+    assert result.returncode == 0, result.stderr
+    assert _limits(result.stdout) == [
+        "steps[4] dwell_grid: the bench records no hub acceleration: the clamped hub is taken as not moving"
+        " (the compensated ratio without its hub term); whether it moved is not checked"
     ]

@@ -7,7 +7,8 @@ plate mass m_comp (a free run before it, else the configured plate mass, nominal
 :data:`~bench.analysis.records.MIN_FIT_POINTS` frequencies per amplitude and pressure for a tyre
 fit (fewer give the measured ratios only); for a four-post sweep the post's free run, the tyre's
 pressure and the tyre's shaker identification, which only an earlier sequence run into the same
-campaign file can give. A sweep on the shaker is recorded, not analysed. A campaign file that holds
+campaign file can give. A shaker's grid on a bench without a hub accelerometer is analysed with the
+clamped hub taken as not moving. A sweep on the shaker is recorded, not analysed. A campaign file that holds
 runs already (another sequence's) may supply what a step lacks here: each line says so.
 """
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 from bench.analysis.records import MIN_FIT_POINTS
 from bench.config import BenchConfig
 from sequences import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+from sequences.channels import Role
 
 #: What a campaign file the sequence runs into may hold already.
 _UNLESS_IN_FILE = "unless the campaign file it runs into holds one already"
@@ -40,6 +42,11 @@ class _Walk:
                 " tyre's pressure)"
             )
             return
+        if not self.config.channels.bound(Role.HUB_ACCELERATION):
+            self.lines.append(
+                f"{key}: the bench records no hub acceleration: the clamped hub is taken as not moving"
+                " (the compensated ratio without its hub term); whether it moved is not checked"
+            )
         if not self.free_run:
             self.lines.append(
                 f"{key}: no free run before it: m_comp will be the configured plate mass"
