@@ -61,8 +61,9 @@ def _weighted_mean(values: np.ndarray, sigma: np.ndarray) -> tuple[complex, floa
 def _spread(fits: Sequence[DwellFit], channel: str, displacement: str) -> tuple[float, float, float, int]:
     """The relative rms spread of ``channel / displacement`` over the repeats, the rms of its
     relative uncertainties, its chi^2 and degrees of freedom."""
-    h, s = np.array([f.ratio(channel, displacement) for f in fits]).T
-    h, s = h.astype(complex), s.real.astype(float)
+    points = [f.ratio(channel, displacement) for f in fits]
+    h = np.array([value for value, _ in points], dtype=complex)
+    s = np.array([sigma for _, sigma in points], dtype=float)
     mean, _ = _weighted_mean(h, s)
     scale = abs(mean) or 1.0
     chi2 = float(np.sum(2 * np.abs(h - mean) ** 2 / s**2))
