@@ -357,7 +357,14 @@ def build_parser() -> argparse.ArgumentParser:
     tui.add_argument("--out", help="campaign file (HDF5); default: campaign-<date>-<time>.h5 here")
     tui.set_defaults(run=_tui)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
-    serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
+    serve = sim.add_parser(
+        "serve",
+        help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)",
+        description="Serve the simulated shaker bench: the controller on Modbus TCP and on Modbus RTU"
+        " over a pty, the WFS on a pty. The operator's actions are typed on standard input, one per"
+        " line: remove_wheel, fit_wheel, set_tyre_pressure BAR, set_damper SETTING,"
+        " strike_hammer [PEAK_N] (docs/cli.md).",
+    )
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
     serve.add_argument("--seed", type=int, default=1)

@@ -13,15 +13,13 @@ import numpy as np
 import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
-from bench.app.plan import plan_campaign
-from bench.app.run import run_campaign
 from bench.app.run_analysis import RunAnalyser, replay_campaign
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
 from bench.store.csv_import import CsvError, ImportLimits, import_campaign, read_csv
 from bench.store.csv_mapping import MappingError, load_mapping
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.test_campaign_cli import wfsbench
 
 ROOT = Path(__file__).resolve().parents[1]
 G_M_S2 = 9.80665
@@ -116,14 +114,6 @@ def analysed(path: Path) -> CampaignKnowledge:
     with open_campaign(path) as campaign:
         replay_campaign(campaign, RunAnalyser(knowledge))
     return knowledge
-
-
-@pytest.fixture(scope="module")
-def smoke_campaign(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("original") / "smoke.h5"
-    outcome = run_campaign(plan_campaign(SMOKE), path)
-    assert outcome.status == "complete", outcome.reason
-    return path
 
 
 def test_a_campaign_exported_to_foreign_csv_and_imported_gives_the_same_parameters(smoke_campaign, tmp_path):
