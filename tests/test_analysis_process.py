@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
-from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError, read_message, write_message
+from bench.app.analysis_process import (
+    NICE_INCREMENT,
+    AnalysisProcess,
+    AnalysisProcessError,
+    read_message,
+    write_message,
+)
 from bench.app.post_run import PostRunAnalysis
 from bench.app.run_analysis import (
     RunAnalyser,
@@ -69,6 +75,14 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
     assert flagged.error.startswith("AttributeError") and flagged.lines[0].startswith("FLAG analysis failed")
     assert analysed.name == "plate_mass" and not analysed.error
     assert list(process.knowledge.analysed_runs) == ["broken-free_run", free_run.run_id]
+
+
+def test_the_analysis_process_runs_below_the_benchs_priority():
+    with AnalysisProcess(_fresh()) as process:
+        process.submit(RunInputs("r", "free_run", {}))
+        assert process.next_result(RESULT_TIMEOUT_S).error  # answered: it has set its priority
+        child = os.getpriority(os.PRIO_PROCESS, process._process.pid)
+    assert child == min(os.getpriority(os.PRIO_PROCESS, 0) + NICE_INCREMENT, 19)  # 19: the lowest
 
 
 def test_a_killed_analysis_process_is_a_clear_error():
