@@ -370,5 +370,6 @@ def import_summary(run: ImportedRun) -> str:
     points, files = len(m.points), len(m.files)
     text = f"{m.run_id} ({m.kind}, {points} point{'s' * (points != 1)} from {files} file{'s' * (files != 1)}"
     if run.left_out:
-        text += f", without {', '.join(run.left_out)}: not in its files, a {m.kind} run does not need it"
+        them = "it" if len(run.left_out) == 1 else "them"
+        text += f", without {', '.join(run.left_out)}: not in its files, a {m.kind} run does not need {them}"
     return text + ")"

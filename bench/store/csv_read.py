@@ -178,7 +178,8 @@ def _rows(path: Path, lines: list[str], first_line: int, n: int, delimiter: str)
             if len(row) == n + 1 and not row[-1].strip():
                 row.pop()
             elif len(row) != n:
-                raise CsvError(path, first_line + k, None, f"{len(row)} fields where the header has {n}")
+                fields = f"{len(row)} field{'s' * (len(row) != 1)}"
+                raise CsvError(path, first_line + k, None, f"{fields} where the header has {n}")
     return rows
 
 
