@@ -345,19 +345,30 @@ def test_the_documented_example_mapping_loads_as_described(tmp_path):
         ";",
         ",",
     )
-    assert (mapping.runs[0].timing.column, mapping.runs[0].timing.unit) == ("Zeit [ms]", "ms")
-    assert {c.channel: (c.column, c.unit, c.scale) for c in mapping.runs[1].channels}["fz_wfs_n"] == (
+    hammer, free, grid, continuous, _ = mapping.runs
+    assert (free.timing.column, free.timing.unit) == ("Zeit [ms]", "ms")
+    assert {c.channel: (c.column, c.unit, c.scale) for c in grid.channels}["fz_wfs_n"] == (
         "Fz [kN]",
         "kN",
         -1.0,
     )
-    assert [(r.run_id, r.kind, r.tyre_pressure_bar, len(r.points)) for r in mapping.runs] == [
-        ("lab_b_2019-r000-free_run", "free_run", None, 2),
-        ("lab_b_2019-grid-2.5bar", "dwell_grid", 2.5, 2),
-        ("lab_b_2019-r002-sweep", "sweep", 2.5, 1),
+    assert [(r.run_id, r.kind, r.tyre_pressure_bar, len(r.points), len(r.files)) for r in mapping.runs] == [
+        ("lab_b_2019-r000-hammer", "hammer", None, 1, 1),
+        ("lab_b_2019-r001-free_run", "free_run", None, 2, 2),
+        ("lab_b_2019-grid-2.5bar", "dwell_grid", 2.5, 2, 2),
+        ("lab_b_2019-r003-dwell_grid", "dwell_grid", 3.5, 2, 1),
+        ("lab_b_2019-r004-sweep", "sweep", 2.5, 1, 1),
     ]
-    assert mapping.runs[1].points[1].requested_amplitude_mm == 2
-    assert mapping.runs[0].points[0].file == tmp_path / "free_10hz.csv"
+    assert (hammer.timing.sample_rate_hz, [c.channel for c in hammer.channels]) == (
+        20e3,
+        ["fz_wfs_n", "f_hammer_n"],
+    )
+    assert grid.points[1].requested_amplitude_mm == 2
+    assert free.points[0].file == tmp_path / "free_10hz.csv"
+    assert [(p.file.name, p.start_s, p.end_s, p.hold_start_s) for p in continuous.points] == [
+        ("grid_3.5bar.csv", 1.0, 4.0, 1.5),
+        ("grid_3.5bar.csv", 5.0, 8.0, None),
+    ]
 
 
 def test_every_problem_of_a_mapping_is_reported_in_the_order_of_the_file(tmp_path):

@@ -84,11 +84,12 @@ def read_csv(path: Path, dialect: Dialect, timing: Timing, channels: tuple[Chann
             raise CsvError(path, header_line, timing.column, f"missing (the header has: {', '.join(header)})")
         wanted[_TIME] = (timing.column, timing.unit, "s", 1.0)
     factors = {}
+    units_line = header_line + 1 if dialect.units_row else None
     for channel, (column, unit, si_unit, scale) in wanted.items():
         i = header.index(column)
-        found = _unit(path, header_line, column, unit, units[i])
+        found, line = _unit(path, column, unit, units[i], header_line=header_line, units_line=units_line)
         if UNITS[found][0] != si_unit:
-            raise CsvError(path, header_line, column, f"unit {found} is not a unit of {si_unit} ({channel})")
+            raise CsvError(path, line, column, f"unit {found} is not a unit of {si_unit} ({channel})")
         factors[channel] = UNITS[found][1] * scale
     rows = _rows(path, lines[data_line - 1 :], data_line, len(header), dialect.delimiter)
     values, problems = {}, []
@@ -136,7 +137,9 @@ def _units_row(path: Path, lines: list[str], header_line: int, n: int, delimiter
     """The units row under the header: one field per column (None where it is blank)."""
     if len(lines) <= header_line:
         raise CsvError(path, header_line + 1, None, "no units row after the header (csv.units_row)")
-    fields = _fields(lines[header_line], delimiter)
+    fields = next(csv.reader([lines[header_line]], delimiter=delimiter), [])
+    if len(fields) == n + 1 and not fields[-1].strip():
+        fields.pop()  # a delimiter ending the line (a blank last field is the last column's)
     if len(fields) != n:
         raise CsvError(
             path, header_line + 1, None, f"the units row has {len(fields)} fields where the header has {n}"
@@ -144,13 +147,22 @@ def _units_row(path: Path, lines: list[str], header_line: int, n: int, delimiter
     return [field.strip() or None for field in fields]
 
 
-def _unit(path: Path, header_line: int, column: str, mapped: str | None, stated: str | None) -> str:
-    """A column's unit (a key of :data:`UNITS`): the mapping's, else the file's: its units row's
-    field (``mm``, ``[mm]``, ``(mm)``) or the brackets at the end of its header (``Weg [mm]``). A
-    known unit the file states must be the mapping's."""
-    line = header_line + 1 if stated is not None else header_line
+def _unit(
+    path: Path,
+    column: str,
+    mapped: str | None,
+    stated: str | None,
+    *,
+    header_line: int,
+    units_line: int | None,
+) -> tuple[str, int]:
+    """A column's unit (a key of :data:`UNITS`) and the line that gives it: the mapping's, else the
+    file's: its units row's field (``mm``, ``[mm]``, ``(mm)``; ``units_line`` None: no units row) or
+    the brackets at the end of its header (``Weg [mm]``). A known unit the file states must be the
+    mapping's."""
+    line = units_line if stated is not None or units_line is not None else header_line
     if stated is None and (found := _HEADER_UNIT.search(column)) is not None:
-        stated = found.group(1)
+        stated, line = found.group(1), header_line
     if stated is not None:
         bracketed = _BRACKETED.match(stated.strip())
         stated = (bracketed.group(1) if bracketed else stated).strip()
@@ -162,10 +174,10 @@ def _unit(path: Path, header_line: int, column: str, mapped: str | None, stated:
             )
         if known is None:
             raise CsvError(path, line, column, f"unknown unit {stated!r} (known: {known_units()})")
-        return known
+        return known, line
     if known is not None and known != mapped:
         raise CsvError(path, line, column, f"the file gives the unit {stated}, the mapping {mapped}")
-    return mapped
+    return mapped, line
 
 
 def _rows(path: Path, lines: list[str], first_line: int, n: int, delimiter: str) -> list[list[str]]:
