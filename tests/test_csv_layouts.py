@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
-from bench.store import open_campaign
+from bench.store import csv_read, open_campaign
 from bench.store.csv_mapping import MappingError, load_mapping
 from bench.store.csv_units import UNITS, unit_named
 
@@ -133,6 +133,33 @@ def test_what_stays_refused_with_a_units_row(tmp_path, capsys, text, error):
     code, said = import_csv(mapping, capsys)
     assert code == EXIT_INVALID
     assert said.startswith(f"error: {tmp_path}/free.csv: {error}")
+
+
+@pytest.mark.parametrize(
+    ("rows", "error"),
+    [
+        ("1;2;3\n2;2;3\n3;2;3\n4;2;3\n5;2;3\n\n \n\n", None),  # blank lines ending the file
+        ("1;2;3\n2;2;3\n3;2;3\n4;x;3\n5;2;3\n", "line 6, column 'F_Platte': 'x' is not a number"),
+        ("1;2;3\n2;2;3\n\n4;2;3\n", "line 5: a blank line amid the data rows"),  # blank ends a block
+        ("1;2;3\n\n3;2;3\n", "line 4: a blank line amid the data rows"),  # blank inside a block
+    ],
+    ids=["blank end", "error in the second block", "blank line ending a block", "blank line in a block"],
+)
+def test_a_file_read_in_blocks_is_read_whole_and_its_errors_at_their_lines(
+    tmp_path, capsys, monkeypatch, rows, error
+):
+    """Blocks of two rows, so that every row boundary case meets a block's end."""
+    monkeypatch.setattr(csv_read, "BLOCK_ROWS", 2)
+    mapping = write(
+        tmp_path, HEAD.format(csv="units_row = true") + FREE_RUN, free="Weg;F_Platte;Fz\nmm;kN;N\n" + rows
+    )
+    code, said = import_csv(mapping, capsys)
+    if error is not None:
+        assert (code, said) == (EXIT_INVALID, f"error: {tmp_path}/free.csv: {error}\n")
+        return
+    assert code == EXIT_COMPLETE
+    with open_campaign(tmp_path / "out.h5") as campaign:
+        np.testing.assert_allclose(campaign.runs[0].channels["z_base_m"], np.arange(1, 6) * 1e-3, rtol=1e-7)
 
 
 def test_a_column_a_run_does_not_need_is_left_out_and_said(tmp_path, capsys):

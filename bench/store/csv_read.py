@@ -14,15 +14,17 @@ from __future__ import annotations
 
 import codecs
 import csv
+import itertools
 import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
 from bench.store.csv_mapping import ChannelColumn, Dialect, Timing
-from bench.store.csv_units import UNITS, known_units, unit_named
+from bench.store.csv_units import TIME_UNIT, UNITS, known_units, unit_named
 
 #: Largest deviation of one time step from the mean step, relative, before a time column is refused.
 TIME_STEP_TOLERANCE = 0.01
@@ -30,6 +32,9 @@ _HEADER_UNIT = re.compile(r"\[([^\]]*)\]\s*$")
 _BRACKETED = re.compile(r"^[\[(](.*)[\])]$")
 #: The name of the time column among a table's columns while it is read.
 _TIME = ""
+#: Data rows read and converted at a time: a long continuous file never lies in memory whole as
+#: text and Python strings (a block of five columns is a few MB of them).
+BLOCK_ROWS = 65536
 
 
 class CsvError(ValueError):
@@ -68,83 +73,122 @@ class CsvTable:
 def read_csv(path: Path, dialect: Dialect, timing: Timing, channels: tuple[ChannelColumn, ...]) -> CsvTable:
     """The columns of ``channels`` that the CSV file at ``path`` has, in SI units, with its sample
     rate (``timing``: a rate, or a time column the file must have)."""
-    lines = _lines(path, dialect)
+    # a UTF-8 file may start with a byte-order mark (spreadsheet programs write one): not a header
+    utf8 = codecs.lookup(dialect.encoding).name == "utf-8"
+    try:
+        with path.open(newline="", encoding="utf-8-sig" if utf8 else dialect.encoding) as f:
+            return _read(path, f, dialect, timing, channels)
+    except OSError as exc:
+        raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CsvError(path, None, None, f"not {dialect.encoding} text: {exc.reason}") from None
+
+
+@dataclass(frozen=True)
+class _Wanted:
+    """A column to read: field ``index`` of each row, named ``column``, into ``channel`` (the time
+    column: ""), times ``factor`` to its SI unit."""
+
+    channel: str
+    column: str
+    index: int
+    factor: float
+
+
+def _read(
+    path: Path, f: TextIO, dialect: Dialect, timing: Timing, channels: tuple[ChannelColumn, ...]
+) -> CsvTable:
+    """:func:`read_csv` on the open file ``f``, its data rows read and converted a block at a time."""
+    for _ in range(dialect.skip_lines):
+        f.readline()
+    reader = csv.reader(f, delimiter=dialect.delimiter)
     header_line = dialect.skip_lines + 1
-    if len(lines) < header_line or not lines[header_line - 1].strip():
+    header = [name.strip() for name in _without_end_delimiter(next(reader, []), None)]
+    if not any(header):
         raise CsvError(path, header_line, None, "empty file: no header line")
-    header = [name.strip() for name in _fields(lines[header_line - 1], dialect.delimiter)]
-    units = [None] * len(header)
-    data_line = header_line + 1
+    units: list[str | None] = [None] * len(header)
+    units_line = None
     if dialect.units_row:
-        units = _units_row(path, lines, header_line, len(header), dialect.delimiter)
-        data_line += 1
-    wanted = {c.channel: (c.column, c.unit, c.si_unit, c.scale) for c in channels if c.column in header}
-    if timing.column is not None:
-        if timing.column not in header:
-            raise CsvError(path, header_line, timing.column, f"missing (the header has: {', '.join(header)})")
-        wanted[_TIME] = (timing.column, timing.unit, "s", 1.0)
-    factors = {}
-    units_line = header_line + 1 if dialect.units_row else None
-    for channel, (column, unit, si_unit, scale) in wanted.items():
-        i = header.index(column)
-        found, line = _unit(path, column, unit, units[i], header_line=header_line, units_line=units_line)
-        if UNITS[found][0] != si_unit:
-            raise CsvError(path, line, column, f"unit {found} is not a unit of {si_unit} ({channel})")
-        factors[channel] = UNITS[found][1] * scale
-    rows = _rows(path, lines[data_line - 1 :], data_line, len(header), dialect.delimiter)
-    values, problems = {}, []
-    for channel, (column, *_) in wanted.items():
-        i = header.index(column)
-        column_values = _column(path, [row[i] for row in rows], data_line, column, dialect.decimal)
-        if isinstance(column_values, CsvError):
-            problems.append(column_values)
-        else:
-            values[channel] = column_values * factors[channel]
-    if problems:
-        raise min(problems, key=lambda e: e.line)
+        units_line = header_line + 1
+        units = _units_row(path, next(reader, None), units_line, len(header))
+    wanted = _wanted(
+        path, header, units, header_line=header_line, units_line=units_line, timing=timing, channels=channels
+    )
+    data_line = header_line + 1 + dialect.units_row
+    parts: dict[str, list[np.ndarray]] = {w.channel: [] for w in wanted}
+    n_rows, blank_line = 0, None
+    while rows := list(itertools.islice(reader, BLOCK_ROWS)):
+        first_line = data_line + n_rows
+        if blank_line is not None and any("".join(row).strip() for row in rows):
+            raise CsvError(path, blank_line, None, "a blank line amid the data rows")  # not the file's end
+        rows, blank = _rows(path, rows, first_line, len(header))
+        blank_line = blank_line or blank
+        problems = []
+        for w in wanted:
+            values = _column(path, [row[w.index] for row in rows], first_line, w.column, dialect.decimal)
+            if isinstance(values, CsvError):
+                problems.append(values)
+            else:
+                parts[w.channel].append(values * w.factor)
+        if problems:
+            raise min(problems, key=lambda e: e.line)
+        n_rows += len(rows)
+    if not n_rows:
+        raise CsvError(path, data_line, None, "no data rows after the header")
+    values = {channel: np.concatenate(arrays) for channel, arrays in parts.items()}
     if timing.column is None:
         rate = timing.sample_rate_hz
     else:
         rate = _rate_from_time(path, data_line, timing.column, values.pop(_TIME))
-    return CsvTable(path, tuple(header), header_line, values, rate, len(rows))
+    return CsvTable(path, tuple(header), header_line, values, rate, n_rows)
 
 
-def _lines(path: Path, d: Dialect) -> list[str]:
-    """The file's lines without the blank lines at its end; a UTF-8 byte-order mark (spreadsheet
-    programs write one) is not part of the first line."""
-    utf8 = codecs.lookup(d.encoding).name == "utf-8"
-    try:
-        with path.open(newline="", encoding="utf-8-sig" if utf8 else d.encoding) as f:
-            lines = f.read().splitlines()
-    except OSError as exc:
-        raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError as exc:
-        raise CsvError(path, None, None, f"not {d.encoding} text: {exc.reason}") from None
-    while lines and not lines[-1].strip():
-        lines.pop()
-    return lines
-
-
-def _fields(line: str, delimiter: str) -> list[str]:
-    """The fields of one line; a delimiter at its end (spaces aside) ends the line, no field after it."""
-    fields = next(csv.reader([line], delimiter=delimiter), [])
-    if len(fields) > 1 and not fields[-1].strip():
+def _without_end_delimiter(fields: list[str], n: int | None) -> list[str]:
+    """``fields`` without the blank one after a delimiter that ends the line (spaces aside): of a
+    header (``n`` None: its columns unknown), or of a line under a header of ``n`` columns when
+    it has one field more."""
+    if len(fields) > 1 and not fields[-1].strip() and (n is None or len(fields) == n + 1):
         fields.pop()
     return fields
 
 
-def _units_row(path: Path, lines: list[str], header_line: int, n: int, delimiter: str) -> list[str | None]:
-    """The units row under the header: one field per column (None where it is blank)."""
-    if len(lines) <= header_line:
-        raise CsvError(path, header_line + 1, None, "no units row after the header (csv.units_row)")
-    fields = next(csv.reader([lines[header_line]], delimiter=delimiter), [])
-    if len(fields) == n + 1 and not fields[-1].strip():
-        fields.pop()  # a delimiter ending the line (a blank last field is the last column's)
+def _units_row(path: Path, fields: list[str] | None, line: int, n: int) -> list[str | None]:
+    """The units row's fields, one per column (None where it is blank)."""
+    if fields is None:
+        raise CsvError(path, line, None, "no units row after the header (csv.units_row)")
+    fields = _without_end_delimiter(fields, n)
     if len(fields) != n:
-        raise CsvError(
-            path, header_line + 1, None, f"the units row has {len(fields)} fields where the header has {n}"
-        )
+        raise CsvError(path, line, None, f"the units row has {len(fields)} fields where the header has {n}")
     return [field.strip() or None for field in fields]
+
+
+def _wanted(
+    path: Path,
+    header: list[str],
+    units: list[str | None],
+    *,
+    header_line: int,
+    units_line: int | None,
+    timing: Timing,
+    channels: tuple[ChannelColumn, ...],
+) -> list[_Wanted]:
+    """The mapped columns the header has, with their units checked (and the time column, which
+    it must have)."""
+    specs = [(c.channel, c.column, c.unit, c.si_unit, c.scale) for c in channels if c.column in header]
+    if timing.column is not None:
+        if timing.column not in header:
+            raise CsvError(path, header_line, timing.column, f"missing (the header has: {', '.join(header)})")
+        specs.append((_TIME, timing.column, timing.unit, TIME_UNIT, 1.0))
+    wanted = []
+    for channel, column, mapped, si_unit, scale in specs:
+        i = header.index(column)
+        unit, line = _unit(path, column, mapped, units[i], header_line=header_line, units_line=units_line)
+        if UNITS[unit][0] != si_unit:
+            raise CsvError(
+                path, line, column, f"unit {unit} is not a unit of {si_unit} ({channel or 'time'})"
+            )
+        wanted.append(_Wanted(channel, column, i, UNITS[unit][1] * scale))
+    return wanted
 
 
 def _unit(
@@ -180,19 +224,23 @@ def _unit(
     return mapped, line
 
 
-def _rows(path: Path, lines: list[str], first_line: int, n: int, delimiter: str) -> list[list[str]]:
-    """The data rows, each of ``n`` fields (one more, blank, where the line ends with a delimiter)."""
-    if not lines:
-        raise CsvError(path, first_line, None, "no data rows after the header")
-    rows = list(csv.reader(lines, delimiter=delimiter))
-    if list(map(len, rows)).count(n) != len(rows):
-        for k, row in enumerate(rows):
-            if len(row) == n + 1 and not row[-1].strip():
-                row.pop()
-            elif len(row) != n:
-                fields = f"{len(row)} field{'s' * (len(row) != 1)}"
-                raise CsvError(path, first_line + k, None, f"{fields} where the header has {n}")
-    return rows
+def _rows(path: Path, rows: list[list[str]], first_line: int, n: int) -> tuple[list[list[str]], int | None]:
+    """A block of data rows, each of ``n`` fields (one more, blank, where the line ends with a
+    delimiter), without the blank lines at its end; and the line of the first of those (None: none),
+    which must be the file's end."""
+    if list(map(len, rows)).count(n) == len(rows):
+        return rows, None
+    end = len(rows)
+    while end and not "".join(rows[end - 1]).strip():
+        end -= 1
+    for k, row in enumerate(rows[:end]):
+        if len(_without_end_delimiter(row, n)) == n:
+            continue
+        if not "".join(row).strip():
+            raise CsvError(path, first_line + k, None, "a blank line amid the data rows")
+        fields = f"{len(row)} field{'s' * (len(row) != 1)}"
+        raise CsvError(path, first_line + k, None, f"{fields} where the header has {n}")
+    return rows[:end], (first_line + end if end < len(rows) else None)
 
 
 def _column(
