@@ -275,6 +275,10 @@ def test_points_of_one_continuous_file_are_its_parts_only(tmp_path, capsys):
             "runs[0].points[0].hold_end_s: must not come after end_s",
         ),
         (("end_s = 0.005", "end_s = 0.001"), "runs[0].points[0].end_s: must come after start_s"),
+        (
+            ("hold_start_s = 0.003", "hold_start_s = 0.005"),
+            "runs[0].points[0].hold_start_s: must come before end_s",
+        ),
     ],
     ids=[
         "overlap",
@@ -284,6 +288,7 @@ def test_points_of_one_continuous_file_are_its_parts_only(tmp_path, capsys):
         "hold before part",
         "hold after part",
         "end before start",
+        "hold from the end",
     ],
 )
 def test_parts_that_cannot_be_are_refused_naming_the_key(tmp_path, capsys, change, error):

@@ -52,14 +52,11 @@ class ImportedRun:
         return self.tables[0].sample_rate_hz
 
 
-def read_run(
-    run: RunMapping, mapping: ImportMapping, read: dict[tuple, CsvTable] | None = None
-) -> ImportedRun:
+def read_run(run: RunMapping, mapping: ImportMapping, read: dict[tuple, CsvTable]) -> ImportedRun:
     """Every file of ``run``, read once and checked: one sample rate, and the same mapped columns
     in every file, a column lacking in all of them only where the run's kind does not need its
-    channel. ``read``: the tables read so far, by file and mapping, to read a file once whatever
-    number of points and runs name it."""
-    read = {} if read is None else read
+    channel. ``read``: the tables read so far (this run's are added), by file, timing and
+    channels, so that a file is read once whatever number of points and runs name it."""
     tables = {}
     for file in run.files:
         key = (file, run.timing, run.channels)

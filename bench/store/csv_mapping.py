@@ -432,9 +432,17 @@ class _Reader:
             self.add(f"{where}.channels", "missing: give a [channels] table, or the run's own")
         return RunMapping(run_id, kind, pressure, timing or Timing(), channels or (), points, channels_key)
 
-    def file(self, t: dict, key: str, default: Path | None = None) -> Path | None:
-        name = self.string(t, key, required=default is None)
-        return default if name is None else self.path.parent / name
+    def file(self, t: dict, key: str) -> Path | None:
+        name = self.string(t, key, required=True)
+        return None if name is None else self.path.parent / name
+
+    def point_file(self, p: dict, at: str, run_file: Path | None) -> Path | None:
+        """A point's file: its own, else its run's."""
+        if "file" in p:
+            return self.file(p, f"{at}.file")
+        if run_file is None:
+            self.add(f"{at}.file", "missing: give the point's file, or the run's")
+        return run_file
 
     def points(self, run: dict, where: str, kind: str | None) -> tuple[PointPart, ...]:
         """A point-wise run's points; each names its file or takes the run's ``file`` (a hammer
@@ -467,7 +475,7 @@ class _Reader:
     def hammer_blow(self, p: dict, at: str, run_file: Path | None) -> PointPart:
         self.keys(p, at, _HAMMER_POINT_KEYS)
         start, end = self.span(p, at)
-        return PointPart(self.file(p, f"{at}.file", run_file), start_s=start, end_s=end)
+        return PointPart(self.point_file(p, at, run_file), start_s=start, end_s=end)
 
     def dwell(self, p: dict, at: str, run_file: Path | None) -> PointPart:
         self.keys(p, at, _DWELL_POINT_KEYS)
@@ -476,12 +484,14 @@ class _Reader:
         hold_end = None if "hold_end_s" not in p else self.number(p, f"{at}.hold_end_s", positive=True)
         if hold_start is not None and start is not None and hold_start < start:
             self.add(f"{at}.hold_start_s", "must not come before start_s (both from the file's start)")
+        elif hold_start is not None and end is not None and hold_start >= end:
+            self.add(f"{at}.hold_start_s", "must come before end_s (both from the file's start)")
         if hold_end is not None and (hold_end <= (start if hold_start is None else hold_start)):
             self.add(f"{at}.hold_end_s", "must come after hold_start_s")
         elif hold_end is not None and end is not None and hold_end > end:
             self.add(f"{at}.hold_end_s", "must not come after end_s (both from the file's start)")
         return PointPart(
-            self.file(p, f"{at}.file", run_file),
+            self.point_file(p, at, run_file),
             self.number(p, f"{at}.freq_hz", positive=True),
             self.number(p, f"{at}.amplitude_mm", positive=True),
             self.number(p, f"{at}.requested_amplitude_mm", math.nan, positive=True),
