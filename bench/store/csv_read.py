@@ -5,9 +5,10 @@ end of the lines (data rows only, or every line), units spelt with non-ASCII cha
 ``µm``), a byte-order mark, blank lines at the end. A mapped column the file lacks is not an error
 here: the run decides whether its kind needs that channel (:mod:`bench.store.csv_import`).
 
-A column's numbers are converted at once (numpy parses the whole column); only a column that fails
-is walked value by value, to name the first bad field's line. Every error names the file, the line
-(counting from 1, lines skipped before the header included) and the column.
+The data rows are read :data:`BLOCK_ROWS` at a time, each block's columns converted at once (numpy
+parses a column's fields); only a column that fails is walked value by value, to name the first bad
+field's line. Every error names the file, the line (counting from 1, lines skipped before the
+header included) and the column.
 """
 
 from __future__ import annotations
@@ -204,7 +205,7 @@ def _unit(
     file's: its units row's field (``mm``, ``[mm]``, ``(mm)``; ``units_line`` None: no units row) or
     the brackets at the end of its header (``Weg [mm]``). A known unit the file states must be the
     mapping's."""
-    line = units_line if stated is not None or units_line is not None else header_line
+    line = units_line or header_line
     if stated is None and (found := _HEADER_UNIT.search(column)) is not None:
         stated, line = found.group(1), header_line
     if stated is not None:
