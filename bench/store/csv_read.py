@@ -34,8 +34,10 @@ _BRACKETED = re.compile(r"^[\[(](.*)[\])]$")
 #: The name of the time column among a table's columns while it is read.
 _TIME = ""
 #: Data rows read and converted at a time: a long continuous file never lies in memory whole as
-#: text and Python strings (a block of five columns is a few MB of them).
-BLOCK_ROWS = 65536
+#: text and Python strings, and a block's rows (a few hundred kB of them) are few enough for the
+#: garbage collector not to walk them again and again (65536 made a continuous file 1.3x slower
+#: per MB than one file per dwell, 4096 not: benchmarks/csv_import_speed.py).
+BLOCK_ROWS = 4096
 
 
 class CsvError(ValueError):
