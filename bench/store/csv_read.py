@@ -34,9 +34,9 @@ _BRACKETED = re.compile(r"^[\[(](.*)[\])]$")
 #: The name of the time column among a table's columns while it is read.
 _TIME = ""
 #: Data rows read and converted at a time: a long continuous file never lies in memory whole as
-#: text and Python strings, and a block's rows (a few hundred kB of them) are few enough for the
-#: garbage collector not to walk them again and again (65536 made a continuous file 1.3x slower
-#: per MB than one file per dwell, 4096 not: benchmarks/csv_import_speed.py).
+#: text and Python strings, and a block's rows stay small (blocks of 65536 rows, tens of MB of
+#: Python objects, made a continuous file 1.1-1.9x slower per MB than one file per dwell, with the
+#: garbage collector on or off; 4096 rows: 0.6-1.0x, benchmarks/csv_import_speed.py).
 BLOCK_ROWS = 4096
 
 
