@@ -37,8 +37,14 @@ _RUN_KEYS = {
 _SWEEP_KEYS = ("file", "start_hz", "end_hz", "duration_s", "amplitude_mm", "law")
 #: A point's keys: a hammer blow is a part of a file, a dwell says what it excited too.
 _HAMMER_POINT_KEYS = ("file", "start_s", "end_s")
-_DWELL_POINT_KEYS = (*_HAMMER_POINT_KEYS, "freq_hz", "amplitude_mm", "requested_amplitude_mm")
-_DWELL_POINT_KEYS += ("hold_start_s", "hold_end_s")
+_DWELL_POINT_KEYS = (
+    *_HAMMER_POINT_KEYS,
+    "freq_hz",
+    "amplitude_mm",
+    "requested_amplitude_mm",
+    "hold_start_s",
+    "hold_end_s",
+)
 
 _TOP_KEYS = ("source", "csv", "time", "channels", "runs")
 
