@@ -338,6 +338,19 @@ def test_a_hammer_capture_at_its_own_rate_with_its_own_columns(tmp_path, capsys)
         assert run.conditions == {"bench": "shaker", "wheel_fitted": False}
 
 
+def test_two_blows_of_one_capture_file_are_two_points(tmp_path, capsys):
+    rows = "".join(f"{0.05 * i:.2f},{i:g}\n" for i in range(10))
+    blows = "[[runs.points]]\nend_s = 0.0002\n[[runs.points]]\nstart_s = 0.0003\n"
+    mapping = write(tmp_path, HAMMER + blows, hammer="t [ms],Fz [kN]\n" + rows)
+    assert import_csv(mapping, capsys)[0] == EXIT_COMPLETE
+    with open_campaign(tmp_path / "out.h5") as campaign:
+        (run,) = campaign.runs
+        assert run.step["blows"] == 2
+        first, second = (run.hammer_record(blow).channels["fz_wfs_n"] for blow in (0, 1))
+        np.testing.assert_allclose(first, [0, 1e3, 2e3, 3e3], rtol=1e-6)
+        np.testing.assert_allclose(second, np.arange(6, 10) * 1e3, rtol=1e-6)
+
+
 @pytest.mark.parametrize(
     ("change", "error"),
     [
