@@ -138,8 +138,9 @@ def _import_csv(args: argparse.Namespace) -> int:
     from bench.config import ConfigError, default_bench_config, load_bench_config
     from bench.locks import InUseError
     from bench.store import StoreError
-    from bench.store.csv_import import CsvError, ImportLimits, import_campaign
+    from bench.store.csv_import import ImportLimits, import_campaign, import_summary
     from bench.store.csv_mapping import MappingError, load_mapping
+    from bench.store.csv_read import CsvError
     from sequences import SequenceError
     from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 
@@ -153,17 +154,14 @@ def _import_csv(args: argparse.Namespace) -> int:
         config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
         limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, *TYRE_PRESSURE_RANGE_BAR)
         out, version = Path(args.out), software_version()
-        import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
+        runs = import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
     except InUseError as exc:  # another process writes that file
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
     except (MappingError, CsvError, ConfigError, SequenceError, StoreError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    runs = ", ".join(
-        f"{r.run_id} ({r.kind}, {len(r.files)} file{'' if len(r.files) == 1 else 's'})" for r in mapping.runs
-    )
-    print(f"imported {runs}; file {args.out}")
+    print(f"imported {'; '.join(map(import_summary, runs))}; file {args.out}")
     return EXIT_COMPLETE
 
 

@@ -149,12 +149,20 @@ def test_bad_files_are_refused_naming_the_place(tmp_path, changes, where, messag
 
 
 def test_a_missing_channel_is_named_when_records_are_asked_for(tmp_path):
-    path = write_by_hand(tmp_path / "no_hub.h5", channels=("z_base_m", "f_plate_n", "fz_wfs_n"))
+    path = write_by_hand(tmp_path / "no_wfs.h5", channels=("z_base_m", "f_plate_n", "a_hub_m_s2"))
     with (
         open_campaign(path) as f,
-        pytest.raises(StoreError, match=r"no_hub.h5: /runs/a/channels/a_hub_m_s2: missing"),
+        pytest.raises(StoreError, match=r"no_wfs.h5: /runs/a/channels/fz_wfs_n: missing"),
     ):
         f.runs[0].dwell_records()
+
+
+def test_a_dwell_grid_without_hub_acceleration_gives_its_records(tmp_path):
+    """The shaker clamps the hub: a lab without a hub accelerometer records none."""
+    path = write_by_hand(tmp_path / "no_hub.h5", channels=("z_base_m", "f_plate_n", "fz_wfs_n"))
+    with open_campaign(path) as f:
+        records = f.runs[0].dwell_records()
+    assert [sorted(r.channels) for r in records] == [["f_plate_n", "fz_wfs_n", "z_base_m"]] * 2
 
 
 def test_channels_of_a_finished_run_must_have_one_length(tmp_path):

@@ -24,7 +24,9 @@ import numpy as np
 from bench import locks
 from bench.analysis.records import (
     DEFAULT_SETTLE_S,
+    DISPLACEMENT,
     FREE_RUN_CHANNELS,
+    PLATE_FORCE,
     WFS_FORCE,
     WHEEL_CHANNELS,
     DwellRecord,
@@ -38,9 +40,10 @@ from sequences.channels import Channel, Role, standard_name
 from sequences.points import PointAttempt, PointStatus, Verdict
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
-#: Channels each kind of run needs for its analysis records.
+#: Channels each kind of run needs for its analysis records. A dwell grid's wheel is on the shaker,
+#: whose hub is clamped: its hub acceleration is recorded where the lab has it, never needed.
 REQUIRED_CHANNELS = {
-    "dwell_grid": WHEEL_CHANNELS,
+    "dwell_grid": (DISPLACEMENT, PLATE_FORCE, WFS_FORCE),
     "free_run": FREE_RUN_CHANNELS,
     "sweep": WHEEL_CHANNELS,
     "hammer": (WFS_FORCE,),
