@@ -104,10 +104,12 @@ def test_runs_held_by_a_dead_analysis_process_are_published_flagged_at_the_seque
     with PostRunAnalysis(smoke_campaign, published.append, _fresh()) as analysis:  # replays the file first
         child = analysis._process._process
         os.kill(child.pid, signal.SIGSTOP)  # it cannot answer before it dies
-        analysis(ev.RunStarted(free_run.run_id, "free_run", {}, {}, (), 1000.0))
-        analysis(ev.RunFinished(free_run.run_id, "complete", ""))
-        os.kill(child.pid, signal.SIGKILL)
-        child.wait(10)
+        try:
+            analysis(ev.RunStarted(free_run.run_id, "free_run", {}, {}, (), 1000.0))
+            analysis(ev.RunFinished(free_run.run_id, "complete", ""))
+        finally:
+            os.kill(child.pid, signal.SIGKILL)  # a stopped process left behind would never end
+            child.wait(10)
         analysis(ev.SequenceFinished("complete", ""))
     (done,) = [e for e in published if isinstance(e, ev.AnalysisDone)]
     assert done.run_id == free_run.run_id and done.name == "analysis"
