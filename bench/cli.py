@@ -136,8 +136,9 @@ def _import_csv(args: argparse.Namespace) -> int:
     from bench.config import ConfigError, default_bench_config, load_bench_config
     from bench.locks import InUseError
     from bench.store import StoreError
-    from bench.store.csv_import import CsvError, ImportLimits, import_campaign
+    from bench.store.csv_import import ImportLimits, import_campaign, import_summary
     from bench.store.csv_mapping import MappingError, load_mapping
+    from bench.store.csv_read import CsvError
     from sequences import SequenceError
     from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 
@@ -151,17 +152,14 @@ def _import_csv(args: argparse.Namespace) -> int:
         config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
         limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, *TYRE_PRESSURE_RANGE_BAR)
         out, version = Path(args.out), software_version()
-        import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
+        runs = import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
     except InUseError as exc:  # another process writes that file
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
     except (MappingError, CsvError, ConfigError, SequenceError, StoreError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    runs = ", ".join(
-        f"{r.run_id} ({r.kind}, {len(r.files)} file{'' if len(r.files) == 1 else 's'})" for r in mapping.runs
-    )
-    print(f"imported {runs}; file {args.out}")
+    print(f"imported {'; '.join(map(import_summary, runs))}; file {args.out}")
     return EXIT_COMPLETE
 
 
@@ -355,7 +353,14 @@ def build_parser() -> argparse.ArgumentParser:
     tui.add_argument("--out", help="campaign file (HDF5); default: campaign-<date>-<time>.h5 here")
     tui.set_defaults(run=_tui)
     sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
-    serve = sim.add_parser("serve", help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)")
+    serve = sim.add_parser(
+        "serve",
+        help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)",
+        description="Serve the simulated shaker bench: the controller on Modbus TCP and on Modbus RTU"
+        " over a pty, the WFS on a pty. The operator's actions are typed on standard input, one per"
+        " line: remove_wheel, fit_wheel, set_tyre_pressure BAR, set_damper SETTING,"
+        " strike_hammer [PEAK_N] (docs/cli.md).",
+    )
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
     serve.add_argument("--seed", type=int, default=1)

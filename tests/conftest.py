@@ -1,6 +1,9 @@
-"""Shared fixtures: a simulated bench with its runner, the controller served on 127.0.0.1."""
+"""Shared fixtures: a simulated bench with its runner, the controller served on 127.0.0.1, the
+smoke sequence's campaign file."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -42,3 +45,17 @@ async def client(controller):
         assert controller.bench.controller.write_setpoints({"watchdog_ms": 0}) is None
     yield client
     await client.close()
+
+
+@pytest.fixture(scope="session")
+def smoke_campaign(tmp_path_factory) -> Path:
+    """The shipped smoke sequence run on the unpaced simulated bench into a campaign file (read it,
+    do not change it: the tests of a worker share it)."""
+    from bench.app.plan import plan_campaign
+    from bench.app.run import run_campaign
+
+    sequence = Path(__file__).resolve().parents[1] / "sequences" / "files" / "smoke.toml"
+    path = tmp_path_factory.mktemp("smoke") / "smoke.h5"
+    outcome = run_campaign(plan_campaign(sequence), path)
+    assert outcome.status == "complete", outcome.reason
+    return path

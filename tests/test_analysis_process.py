@@ -8,16 +8,19 @@ from __future__ import annotations
 import os
 import pickle
 import signal
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
-from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError, read_message, write_message
-from bench.app.plan import plan_campaign
+from bench.app.analysis_process import (
+    NICE_INCREMENT,
+    AnalysisProcess,
+    AnalysisProcessError,
+    read_message,
+    write_message,
+)
 from bench.app.post_run import PostRunAnalysis
-from bench.app.run import run_campaign
 from bench.app.run_analysis import (
     RunAnalyser,
     RunInputs,
@@ -29,28 +32,19 @@ from bench.app.run_analysis import (
 from bench.config import default_bench_config
 from bench.engine import events as ev
 from bench.store import open_campaign
-from tests.test_campaign_cli import SMOKE
 
 RESULT_TIMEOUT_S = 60.0  # wall clock for one analysis to come back, a timeout only
-
-
-@pytest.fixture(scope="module")
-def smoke_file(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("smoke") / "smoke.h5"
-    outcome = run_campaign(plan_campaign(SMOKE), path)
-    assert outcome.status == "complete", outcome.reason
-    return path
 
 
 def _fresh() -> CampaignKnowledge:
     return initial_knowledge(default_bench_config())
 
 
-def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back(smoke_file):
+def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back(smoke_campaign):
     """Run for run the same lines and results; the knowledge given to the process ends as the one
     analysed here (only the changes came back: new values, list items appended, dict entries)."""
     here_knowledge = _fresh()
-    with open_campaign(smoke_file) as campaign:
+    with open_campaign(smoke_campaign) as campaign:
         here = replay_campaign(campaign, RunAnalyser(here_knowledge))
         inputs = [run_inputs(run, campaign) for run in runs_to_analyse(campaign)]
     with AnalysisProcess(_fresh()) as process:
@@ -69,8 +63,8 @@ def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back
     assert list(knowledge.shaker[2.5].amplitudes) == list(here_knowledge.shaker[2.5].amplitudes)
 
 
-def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analysed(smoke_file):
-    with open_campaign(smoke_file) as campaign:
+def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analysed(smoke_campaign):
+    with open_campaign(smoke_campaign) as campaign:
         free_run = run_inputs(runs_to_analyse(campaign)[0], campaign)
     broken = RunInputs("broken-free_run", "free_run", {}, dwells=("not a record",))  # type: ignore[arg-type]
     with AnalysisProcess(_fresh()) as process:
@@ -83,6 +77,14 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
     assert list(process.knowledge.analysed_runs) == ["broken-free_run", free_run.run_id]
 
 
+def test_the_analysis_process_runs_below_the_benchs_priority():
+    with AnalysisProcess(_fresh()) as process:
+        process.submit(RunInputs("r", "free_run", {}))
+        assert process.next_result(RESULT_TIMEOUT_S).error  # answered: it has set its priority
+        child = os.getpriority(os.PRIO_PROCESS, process._process.pid)
+    assert child == min(os.getpriority(os.PRIO_PROCESS, 0) + NICE_INCREMENT, 19)  # 19: the lowest
+
+
 def test_a_killed_analysis_process_is_a_clear_error():
     with AnalysisProcess(_fresh()) as process:
         os.kill(process._process.pid, signal.SIGKILL)
@@ -92,20 +94,22 @@ def test_a_killed_analysis_process_is_a_clear_error():
             process.next_result(RESULT_TIMEOUT_S)
 
 
-def test_runs_held_by_a_dead_analysis_process_are_published_flagged_at_the_sequences_end(smoke_file):
+def test_runs_held_by_a_dead_analysis_process_are_published_flagged_at_the_sequences_end(smoke_campaign):
     """The subscriber sends the smoke file's free run as the engine's events say it completed; the
     process dies before answering; the sequence's end publishes it as a flagged analysis (the
     replay of the file's runs, never published, is not either)."""
     published: list[ev.Event] = []
-    with open_campaign(smoke_file) as campaign:
+    with open_campaign(smoke_campaign) as campaign:
         free_run = runs_to_analyse(campaign)[0]
-    with PostRunAnalysis(smoke_file, published.append, _fresh()) as analysis:  # replays the file first
+    with PostRunAnalysis(smoke_campaign, published.append, _fresh()) as analysis:  # replays the file first
         child = analysis._process._process
         os.kill(child.pid, signal.SIGSTOP)  # it cannot answer before it dies
-        analysis(ev.RunStarted(free_run.run_id, "free_run", {}, {}, (), 1000.0))
-        analysis(ev.RunFinished(free_run.run_id, "complete", ""))
-        os.kill(child.pid, signal.SIGKILL)
-        child.wait(10)
+        try:
+            analysis(ev.RunStarted(free_run.run_id, "free_run", {}, {}, (), 1000.0))
+            analysis(ev.RunFinished(free_run.run_id, "complete", ""))
+        finally:
+            os.kill(child.pid, signal.SIGKILL)  # a stopped process left behind would never end
+            child.wait(10)
         analysis(ev.SequenceFinished("complete", ""))
     (done,) = [e for e in published if isinstance(e, ev.AnalysisDone)]
     assert done.run_id == free_run.run_id and done.name == "analysis"

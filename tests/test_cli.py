@@ -10,6 +10,10 @@ import sys
 
 import pytest
 
+from bench.models.parameters import Rig
+from bench.store import open_campaign
+from tests.test_lab_process import FREE_RUN
+
 
 @pytest.fixture
 def sim_process():
@@ -65,3 +69,50 @@ def test_wfs_monitor_shows_duration_over_interval_lines_of_interval_seconds_each
     samples = [int(m) for m in re.findall(r"^sample\s+(\d+) ", monitor, re.M)]
     assert len(samples) == 4, monitor
     assert [b - a for a, b in itertools.pairwise(samples)] == [500, 500, 500], monitor
+
+
+def test_sim_serve_takes_the_operators_actions_on_its_standard_input(tmp_path):
+    """The wheel removed at the served bench's terminal: a free run recorded against it through
+    `wfsbench run --bench` weighs the bare plate (with the wheel left on, m_comp is flagged:
+    tests/test_free_run_wheel_on.py); garbage and unknown actions are refused and it goes on."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "sim", "serve", "--port", "0", "--fast"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        lines = [proc.stdout.readline() for _ in range(3)]
+        host, port = re.fullmatch(r"actuator controller: modbus tcp (\S+):(\d+)\n", lines[0]).groups()
+        wfs = re.fullmatch(r"wfs acquisition: serial (/\S+)\n", lines[2]).group(1)
+        for typed, answer in (
+            ("dance", "operator: refused: unknown operator action 'dance'"),
+            ("set_tyre_pressure lots", "operator: refused: could not convert string to float: 'lots'"),
+            ("\x00\xff", "operator: refused: unknown operator action"),
+            ("remove_wheel", "operator: remove_wheel: done"),
+        ):
+            proc.stdin.write(typed + "\n")
+            proc.stdin.flush()
+            assert proc.stdout.readline().startswith(answer), typed
+        sequence, config, answers = tmp_path / "seq.toml", tmp_path / "bench.toml", tmp_path / "answers.toml"
+        sequence.write_text(FREE_RUN)
+        config.write_text(
+            f'kind = "shaker"\n[actuator]\ntransport = "tcp"\nhost = "{host}"\nport = {port}\n'
+            f'[wfs]\ntransport = "serial"\ndevice = "{wfs}"\n'
+        )
+        answers.write_text("remove_wheel = true\n")
+        out = tmp_path / "campaign.h5"
+        run = subprocess.run(
+            [sys.executable, "-m", "bench.cli", "run", str(sequence), "--out", str(out),
+             "--bench", str(config), "--answers", str(answers)],
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert run.returncode == 0, run.stderr
+    finally:
+        proc.terminate()
+        assert proc.wait(timeout=10) == 0
+    with open_campaign(out) as campaign:
+        (free_run,) = campaign.runs
+        m_comp_kg = free_run.results("plate_mass")["m_comp_kg"]
+    assert m_comp_kg == pytest.approx(Rig().plate_mass_kg, rel=0.02)
+    assert "FLAG" not in run.stdout

@@ -13,15 +13,14 @@ import numpy as np
 import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
-from bench.app.plan import plan_campaign
-from bench.app.run import run_campaign
 from bench.app.run_analysis import RunAnalyser, replay_campaign
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
-from bench.store.csv_import import CsvError, ImportLimits, import_campaign, read_csv
-from bench.store.csv_mapping import MappingError, load_mapping
-from tests.test_campaign_cli import SMOKE, wfsbench
+from bench.store.csv_import import ImportLimits, import_campaign
+from bench.store.csv_mapping import ImportMapping, MappingError, load_mapping
+from bench.store.csv_read import CsvError, CsvTable, read_csv
+from tests.test_campaign_cli import wfsbench
 
 ROOT = Path(__file__).resolve().parents[1]
 G_M_S2 = 9.80665
@@ -118,14 +117,6 @@ def analysed(path: Path) -> CampaignKnowledge:
     return knowledge
 
 
-@pytest.fixture(scope="module")
-def smoke_campaign(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("original") / "smoke.h5"
-    outcome = run_campaign(plan_campaign(SMOKE), path)
-    assert outcome.status == "complete", outcome.reason
-    return path
-
-
 def test_a_campaign_exported_to_foreign_csv_and_imported_gives_the_same_parameters(smoke_campaign, tmp_path):
     mapping = export_campaign(smoke_campaign, tmp_path)
     imported = tmp_path / "imported.h5"
@@ -196,7 +187,8 @@ GOOD_CSV = "Weg [mm];F_Platte [kN]\n0,5;1,25\n0,75;1,5\n1;1,75\n"
 GARBAGE = {
     "missing column": (
         "Weg [mm];F_Plate [kN]\n0,5;1,25\n",
-        "free.csv: line 1, column 'F_Platte [kN]': missing (the header has: Weg [mm], F_Plate [kN])",
+        "free.csv: line 1, column 'F_Platte [kN]': missing: a free_run run needs f_plate_n"
+        " (the header has: Weg [mm], F_Plate [kN])",
     ),
     "text in a number": (
         "Weg [mm];F_Platte [kN]\n0,5;1,25\n0,75;n/a\n",
@@ -262,7 +254,9 @@ def test_a_good_file_imports_with_its_units_converted(tmp_path, capsys):
     (tmp_path / "free.csv").write_text(GOOD_CSV)
     out = tmp_path / "imported.h5"
     assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
-    assert f"imported lab_b-r000-free_run (free_run, 1 file); file {out}" in capsys.readouterr().out
+    assert (
+        f"imported lab_b-r000-free_run (free_run, 1 point from 1 file); file {out}" in capsys.readouterr().out
+    )
     with open_campaign(out) as campaign:
         (run,) = campaign.runs
         assert (run.run_id, run.kind, run.status) == ("lab_b-r000-free_run", "free_run", "complete")
@@ -289,7 +283,7 @@ BAD_MAPPINGS = {
         ("freq_hz = 10", 'freq_hz = "10"'),
         "runs[0].points[0].freq_hz: expected a number",
     ),
-    "unknown run kind": (('kind = "free_run"', 'kind = "hammer"'), "runs[0].kind: 'hammer' is not one of"),
+    "unknown run kind": (('kind = "free_run"', 'kind = "hamer"'), "runs[0].kind: 'hamer' is not one of"),
     "unknown key": (('decimal = ","', 'decimal = ","\nquote = "x"'), "csv.quote: unknown key"),
     "a negative frequency": (
         ("freq_hz = 10", "freq_hz = -10"),
@@ -312,6 +306,12 @@ def test_a_bad_mapping_is_refused_naming_the_key(tmp_path, case):
     assert str(refused.value).startswith(f"{tmp_path}/mapping.toml: {named}")
 
 
+def read_first(mapping: ImportMapping) -> CsvTable:
+    """The first point's file of the mapping's first run, read as that run maps it."""
+    run = mapping.runs[0]
+    return read_csv(run.points[0].file, mapping.dialect, run.timing, run.channels)
+
+
 def test_a_time_column_that_does_not_step_evenly_is_refused_at_its_line(tmp_path):
     timed = MAPPING.replace("sample_rate_hz = 1000", 'column = "t [s]"')
     (tmp_path / "mapping.toml").write_text(timed)
@@ -319,11 +319,9 @@ def test_a_time_column_that_does_not_step_evenly_is_refused_at_its_line(tmp_path
         "t [s];Weg [mm];F_Platte [kN]\n0;1;1\n0,001;1;1\n0,003;1;1\n0,004;1;1\n"
     )
     with pytest.raises(CsvError, match=r"free\.csv: line 3, column 't \[s\]': time steps unevenly"):
-        read_csv(tmp_path / "free.csv", load_mapping(tmp_path / "mapping.toml"))
+        read_first(load_mapping(tmp_path / "mapping.toml"))
     (tmp_path / "free.csv").write_text("t [s];Weg [mm];F_Platte [kN]\n0;1;1\n0,002;1;1\n0,004;1;1\n")
-    assert read_csv(
-        tmp_path / "free.csv", load_mapping(tmp_path / "mapping.toml")
-    ).sample_rate_hz == pytest.approx(500)
+    assert read_first(load_mapping(tmp_path / "mapping.toml")).sample_rate_hz == pytest.approx(500)
 
 
 def test_the_documented_example_mapping_loads_as_described(tmp_path):
@@ -337,19 +335,30 @@ def test_the_documented_example_mapping_loads_as_described(tmp_path):
         ";",
         ",",
     )
-    assert (mapping.timing.column, mapping.timing.unit) == ("Zeit [ms]", "ms")
-    assert {c.channel: (c.column, c.unit, c.scale) for c in mapping.channels}["fz_wfs_n"] == (
+    hammer, free, grid, continuous, _ = mapping.runs
+    assert (free.timing.column, free.timing.unit) == ("Zeit [ms]", "ms")
+    assert {c.channel: (c.column, c.unit, c.scale) for c in grid.channels}["fz_wfs_n"] == (
         "Fz [kN]",
         "kN",
         -1.0,
     )
-    assert [(r.run_id, r.kind, r.tyre_pressure_bar, len(r.files)) for r in mapping.runs] == [
-        ("lab_b_2019-r000-free_run", "free_run", None, 2),
-        ("lab_b_2019-grid-2.5bar", "dwell_grid", 2.5, 2),
-        ("lab_b_2019-r002-sweep", "sweep", 2.5, 1),
+    assert [(r.run_id, r.kind, r.tyre_pressure_bar, len(r.points), len(r.files)) for r in mapping.runs] == [
+        ("lab_b_2019-r000-hammer", "hammer", None, 1, 1),
+        ("lab_b_2019-r001-free_run", "free_run", None, 2, 2),
+        ("lab_b_2019-grid-2.5bar", "dwell_grid", 2.5, 2, 2),
+        ("lab_b_2019-r003-dwell_grid", "dwell_grid", 3.5, 2, 1),
+        ("lab_b_2019-r004-sweep", "sweep", 2.5, 1, 1),
     ]
-    assert mapping.runs[1].files[1].requested_amplitude_mm == 2
-    assert mapping.runs[0].files[0].file == tmp_path / "free_10hz.csv"
+    assert (hammer.timing.sample_rate_hz, [c.channel for c in hammer.channels]) == (
+        20e3,
+        ["fz_wfs_n", "f_hammer_n"],
+    )
+    assert grid.points[1].requested_amplitude_mm == 2
+    assert free.points[0].file == tmp_path / "free_10hz.csv"
+    assert [(p.file.name, p.start_s, p.end_s, p.hold_start_s) for p in continuous.points] == [
+        ("grid_3.5bar.csv", 1.0, 4.0, 1.5),
+        ("grid_3.5bar.csv", 5.0, 8.0, None),
+    ]
 
 
 def test_every_problem_of_a_mapping_is_reported_in_the_order_of_the_file(tmp_path):
@@ -361,9 +370,9 @@ def test_every_problem_of_a_mapping_is_reported_in_the_order_of_the_file(tmp_pat
         load_mapping(tmp_path / "mapping.toml")
     path = tmp_path / "mapping.toml"
     assert str(refused.value).splitlines() == [
-        f"{path}: csv.foo: unknown key (allowed: delimiter, decimal, skip_lines, encoding)",
+        f"{path}: csv.foo: unknown key (allowed: delimiter, decimal, skip_lines, units_row, encoding)",
         "  and 2 more:",
-        f"  {path}: runs[0].kind: 'swep' is not one of free_run, dwell_grid, sweep",
+        f"  {path}: runs[0].kind: 'swep' is not one of dwell_grid, free_run, sweep, hammer",
         f"  {path}: runs[0].points[0].freq_hz: expected a number, got '10'",
     ]
     keys = [key for key, _ in refused.value.problems]

@@ -25,6 +25,7 @@ what :meth:`AnalysisProcess.submit` queued, as the child reads it between analys
 from __future__ import annotations
 
 import dataclasses
+import os
 import pickle
 import queue
 import struct
@@ -39,6 +40,10 @@ from bench.app.run_analysis import RunAnalyser, RunInputs
 
 #: How long closing waits for the child to end once its input is closed (s).
 STOP_TIMEOUT_S = 10.0
+
+#: The analysis process's scheduling priority, below the bench's (nice values: higher is lower): it is
+#: background work, and on a busy host the bench's reader and heartbeat come first.
+NICE_INCREMENT = 10
 
 
 class AnalysisProcessError(RuntimeError):
@@ -243,6 +248,7 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
 
 
 if __name__ == "__main__":
+    os.nice(NICE_INCREMENT)
     protocol_in, protocol_out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # a stray print cannot corrupt the protocol
     _serve(protocol_in, protocol_out)

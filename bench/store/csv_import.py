@@ -1,193 +1,91 @@
 """CSV exports of another acquisition system brought into a campaign file (docs/import.md).
 
-Every CSV file the mapping names is read and checked first, into SI channels; only then is the
-campaign written, through :class:`bench.store.CampaignWriter`, to a temporary file beside the
-output that is renamed into place once complete. So a bad CSV file (a missing column, text in a
-number, a ragged row, an unknown unit, an empty file) is refused with its file, line and column,
-and nothing half-written is left behind. The values the mapping gives are then checked against the
-files and the bench (:func:`check_mapped_values`): frequencies within the bench's range and below
-half the sample rate, a sweep's duration the length of its file, holds inside their files, tyre
-pressures that a pressure prompt accepts; every problem names the mapping file and the key.
+Every CSV file the mapping names is read once (:mod:`bench.store.csv_read`) and checked first, into
+SI channels; only then is the campaign written, through :class:`bench.store.CampaignWriter`, to a
+temporary file beside the output that is renamed into place once complete. So a bad CSV file (a
+column the run needs missing, text in a number, a ragged row, an unknown unit, an empty file) is
+refused with its file, line and column, and nothing half-written is left behind. The values the
+mapping gives are then checked against the files and the bench (:func:`check_mapped_values`):
+frequencies within the bench's range and below half the sample rate, a sweep's duration the length
+of its file, points and holds inside their files, the points of one file apart, tyre pressures that
+a pressure prompt accepts; every problem names the mapping file and the key.
+
+Only the points are written: the part of its file each point names, so one continuous file per run
+imports into a campaign file the size of one file per point.
 """
 
 from __future__ import annotations
 
-import codecs
 import contextlib
-import csv
+import itertools
 import math
 import os
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from bench.store.csv_mapping import (
-    UNITS,
-    ChannelColumn,
-    Dialect,
-    DwellFile,
-    ImportMapping,
-    RunMapping,
-    SweepFile,
-    mapping_error,
-)
+from bench.store.csv_mapping import ImportMapping, PointPart, RunMapping, SweepFile, mapping_error
+from bench.store.csv_read import CsvError, CsvTable, read_csv
+from bench.store.reader import REQUIRED_CHANNELS
 from bench.store.writer import CampaignWriter
 from sequences.channels import Channel, role_of_standard_name
 from sequences.points import PointAttempt
+from sequences.runs import RunKind
 from sequences.toml_text import load_toml
-
-#: Largest deviation of one time step from the mean step, relative, before a time column is refused.
-TIME_STEP_TOLERANCE = 0.01
-_HEADER_UNIT = re.compile(r"\[([^\]]*)\]\s*$")
-
-
-class CsvError(ValueError):
-    """A CSV file that cannot be imported: the message names the file, the line and the column."""
-
-    def __init__(self, path: Path, line: int | None, column: str | None, message: str) -> None:
-        where = "".join(
-            [f": line {line}" if line is not None else "", f", column {column!r}" if column else ""]
-        )
-        super().__init__(f"{path}{where}: {message}")
-        self.path, self.line, self.column = path, line, column
-
-
-@dataclass(frozen=True)
-class CsvTable:
-    """One CSV file read into SI channels: ``columns`` by channel name, ``sample_rate_hz``."""
-
-    path: Path
-    columns: dict[str, np.ndarray]
-    sample_rate_hz: float
-
-    def __len__(self) -> int:
-        return len(next(iter(self.columns.values())))
-
-
-def read_csv(path: Path, mapping: ImportMapping) -> CsvTable:
-    """The mapped columns of the CSV file at ``path`` in SI units (float64), with its sample rate."""
-    d = mapping.dialect
-    # a UTF-8 file may start with a byte-order mark (spreadsheet programs write one): not a header
-    utf8 = codecs.lookup(d.encoding).name == "utf-8"
-    try:
-        with path.open(newline="", encoding="utf-8-sig" if utf8 else d.encoding) as f:
-            lines = f.read().splitlines()
-    except OSError as exc:
-        raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError as exc:
-        raise CsvError(path, None, None, f"not {d.encoding} text: {exc.reason}") from None
-    header_line = d.skip_lines + 1
-    rows = list(csv.reader(lines[d.skip_lines :], delimiter=d.delimiter))
-    if not rows or not any(field.strip() for field in rows[0]):
-        raise CsvError(path, header_line, None, "empty file: no header line")
-    header = [name.strip() for name in rows[0]]
-    wanted = [(c.channel, c.column, _factor(path, header_line, c)) for c in mapping.channels]
-    if mapping.timing.column is not None:
-        unit = mapping.timing.unit or _header_unit(path, header_line, mapping.timing.column)
-        wanted.append(("", mapping.timing.column, UNITS[unit][1]))
-    index = {}
-    for channel, column, _ in wanted:
-        if column not in header:
-            raise CsvError(path, header_line, column, f"missing (the header has: {', '.join(header)})")
-        index[channel] = header.index(column)
-    data = rows[1:]
-    if not data:
-        raise CsvError(path, header_line + 1, None, "no data rows after the header")
-    values = {channel: np.empty(len(data)) for channel in index}
-    for n, row in enumerate(data):
-        line = header_line + 1 + n
-        if len(row) != len(header):
-            raise CsvError(path, line, None, f"{len(row)} fields where the header has {len(header)}")
-        for channel, i in index.items():
-            values[channel][n] = _number(path, line, header[i], row[i], d)
-    for channel, _, factor in wanted:
-        values[channel] *= factor
-    rate = mapping.timing.sample_rate_hz or _rate_from_time(path, header_line, mapping.timing.column, values)
-    values.pop("", None)
-    return CsvTable(path, values, rate)
-
-
-def _number(path: Path, line: int, column: str, text: str, d: Dialect) -> float:
-    field = text.strip()
-    if d.decimal == ",":
-        if "." in field:
-            raise CsvError(path, line, column, f"{text!r}: a '.' where the decimal mark is ','")
-        field = field.replace(",", ".")
-    try:
-        value = float(field)
-    except ValueError:
-        raise CsvError(path, line, column, f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise CsvError(path, line, column, f"{text!r} is not a finite number")
-    return value
-
-
-def _header_unit(path: Path, line: int, column: str) -> str:
-    """The unit in brackets at the end of a column header (``Fz [kN]``), which must be known."""
-    found = _HEADER_UNIT.search(column)
-    if found is None:
-        raise CsvError(path, line, column, "no unit in the mapping and none in brackets in the header")
-    unit = found.group(1).strip()
-    if unit not in UNITS:
-        raise CsvError(path, line, column, f"unknown unit {unit!r} (known: {', '.join(UNITS)})")
-    return unit
-
-
-def _factor(path: Path, line: int, c: ChannelColumn) -> float:
-    """The factor from the column's numbers to the channel's SI unit, times the mapping's scale."""
-    unit = c.unit or _header_unit(path, line, c.column)
-    si_unit, factor = UNITS[unit]
-    if si_unit != c.si_unit:
-        raise CsvError(path, line, c.column, f"unit {unit} is not a unit of {c.si_unit} ({c.channel})")
-    return factor * c.scale
-
-
-def _rate_from_time(path: Path, header_line: int, column: str | None, values: dict[str, np.ndarray]) -> float:
-    """The sample rate of a time column (s), which must step evenly forward."""
-    t = values[""]
-    if len(t) < 2:
-        raise CsvError(path, header_line + 1, column, "a time column needs at least two rows")
-    step = (t[-1] - t[0]) / (len(t) - 1)
-    off = np.flatnonzero(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * abs(step))
-    if step <= 0 or len(off):
-        n = int(off[0]) + 1 if len(off) else 1
-        raise CsvError(
-            path,
-            header_line + 1 + n,
-            column,
-            f"time steps unevenly (mean step {step:g} s): not one sample rate",
-        )
-    return 1.0 / step
 
 
 @dataclass(frozen=True)
 class ImportedRun:
-    """A run's CSV files read, one table per point."""
+    """A run's CSV files read: each point's file as a table (several points may share one), the
+    mapped ``channels`` its files have, and the mapped channels they all lack (``left_out``: its
+    kind does not need them)."""
 
     mapping: RunMapping
     tables: tuple[CsvTable, ...]
+    channels: tuple[str, ...]
+    left_out: tuple[str, ...]
 
     @property
     def sample_rate_hz(self) -> float:
         return self.tables[0].sample_rate_hz
 
 
-def read_run(run: RunMapping, mapping: ImportMapping) -> ImportedRun:
-    """Every file of ``run``, read and checked: one sample rate."""
-    tables = tuple(read_csv(f.file, mapping) for f in run.files)
-    rate = tables[0].sample_rate_hz
-    for f, table in zip(run.files, tables, strict=True):
-        if not math.isclose(table.sample_rate_hz, rate, rel_tol=1e-6):
+def read_run(run: RunMapping, mapping: ImportMapping, read: dict[tuple, CsvTable]) -> ImportedRun:
+    """Every file of ``run``, read once and checked: one sample rate, and the same mapped columns
+    in every file, a column lacking in all of them only where the run's kind does not need its
+    channel. ``read``: the tables read so far (this run's are added), by file, timing and
+    channels, so that a file is read once whatever number of points and runs name it."""
+    tables = {}
+    for file in run.files:
+        key = (file, run.timing, run.channels)
+        if key not in read:
+            read[key] = read_csv(file, mapping.dialect, run.timing, run.channels)
+        tables[file] = read[key]
+    first = tables[run.points[0].file]
+    for table in tables.values():
+        if not math.isclose(table.sample_rate_hz, first.sample_rate_hz, rel_tol=1e-6):
             raise CsvError(
-                f.file,
+                table.path,
                 None,
                 None,
-                f"sample rate {table.sample_rate_hz:g} Hz differs from the run's {rate:g} Hz",
+                f"sample rate {table.sample_rate_hz:g} Hz differs from the run's {first.sample_rate_hz:g} Hz",
             )
-    return ImportedRun(run, tables)
+    needed = REQUIRED_CHANNELS[run.kind]
+    channels, left_out = [], []
+    for c in run.channels:
+        having = [t for t in tables.values() if c.channel in t.columns]
+        lacking = [t for t in tables.values() if c.channel not in t.columns]
+        if not lacking:
+            channels.append(c.channel)
+        elif having:
+            raise lacking[0].missing(c, f", though {having[0].path.name} of the same run has it")
+        elif c.channel in needed:
+            raise lacking[0].missing(c, f": a {run.kind} run needs {c.channel}")
+        else:
+            left_out.append(c.channel)
+    return ImportedRun(run, tuple(tables[p.file] for p in run.points), tuple(channels), tuple(left_out))
 
 
 @dataclass(frozen=True)
@@ -205,8 +103,9 @@ def check_mapped_values(mapping: ImportMapping, runs: list[ImportedRun], limits:
     """Refuse, with a :class:`~bench.store.csv_mapping.MappingError` listing every problem in the
     mapping's order, what the files and the bench make impossible: a frequency outside the bench's
     range or not below half its file's sample rate (a time column in the wrong unit shows here), a
-    sweep's ``duration_s`` more than one sample from its file's length, a hold beyond its file, a
-    tyre pressure no pressure prompt accepts."""
+    sweep's ``duration_s`` more than one sample from its file's length, a point or hold beyond its
+    file, points of one file that overlap, a tyre pressure no pressure prompt accepts, a mapped
+    column in none of the files."""
     problems: list[tuple[str, str]] = []
     lo_bar, hi_bar = limits.min_tyre_pressure_bar, limits.max_tyre_pressure_bar
     for i, run in enumerate(runs):
@@ -220,11 +119,13 @@ def check_mapped_values(mapping: ImportMapping, runs: list[ImportedRun], limits:
                     f" (allowed {lo_bar:g} <= tyre_pressure_bar <= {hi_bar:g} bar)",
                 )
             )
-        for j, (f, table) in enumerate(zip(m.files, run.tables, strict=True)):
+        for j, (f, table) in enumerate(zip(m.points, run.tables, strict=True)):
             if isinstance(f, SweepFile):
                 problems += _sweep_problems(f"runs[{i}]", f, table, limits)
             else:
-                problems += _dwell_problems(f"runs[{i}].points[{j}]", f, table, limits)
+                problems += _point_problems(f"runs[{i}].points[{j}]", f, table, limits)
+        problems += _overlaps(f"runs[{i}]", m)
+    problems += _columns_in_no_file(runs)
     if problems:
         raise mapping_error(mapping.path, load_toml(mapping.text), problems)
 
@@ -248,26 +149,63 @@ def _frequency_problem(
     return None
 
 
-def _dwell_problems(at: str, f: DwellFile, table: CsvTable, limits: ImportLimits) -> list[tuple[str, str]]:
-    problems = [_frequency_problem(f"{at}.freq_hz", f.freq_hz, table, limits)]
-    length_s = len(table) / table.sample_rate_hz
+def _point_problems(at: str, f: PointPart, table: CsvTable, limits: ImportLimits) -> list[tuple[str, str]]:
+    """A dwell's frequency (a hammer blow has none); a part or hold beyond the file."""
+    problems = []
+    if f.freq_hz:
+        problems.append(_frequency_problem(f"{at}.freq_hz", f.freq_hz, table, limits))
+    length_s = table.length_s
     samples = f"the {length_s:g} s of samples of {table.path.name}"
-    if f.hold_start_s >= length_s:
-        problems.append(
-            (
-                f"{at}.hold_start_s",
-                f"{f.hold_start_s:g} s is beyond {samples} (allowed 0 <= hold_start_s < {length_s:g} s)",
-            )
-        )
-    elif f.hold_end_s is not None and f.hold_end_s > length_s:
-        problems.append(
-            (
-                f"{at}.hold_end_s",
-                f"{f.hold_end_s:g} s is beyond {samples}"
-                f" (allowed hold_start_s < hold_end_s <= {length_s:g} s)",
-            )
-        )
+    for key, value_s, allowed in (
+        ("start_s", f.start_s, f"0 <= start_s < {length_s:g} s"),
+        ("hold_start_s", f.hold_start_s, f"0 <= hold_start_s < {length_s:g} s"),
+    ):
+        if value_s is not None and value_s >= length_s:
+            problems.append((f"{at}.{key}", f"{value_s:g} s is beyond {samples} (allowed {allowed})"))
+    for key, value_s, allowed in (
+        ("end_s", f.end_s, f"start_s < end_s <= {length_s:g} s"),
+        ("hold_end_s", f.hold_end_s, f"hold_start_s < hold_end_s <= {length_s:g} s"),
+    ):
+        if value_s is not None and value_s > length_s:
+            problems.append((f"{at}.{key}", f"{value_s:g} s is beyond {samples} (allowed {allowed})"))
     return [p for p in problems if p is not None]
+
+
+def _overlaps(at: str, m: RunMapping) -> list[tuple[str, str]]:
+    """Points of one file whose parts overlap: each would be stored with the other's samples
+    (refused rather than stored twice; a point's part defaults to its whole file)."""
+    problems = []
+    parts = sorted(
+        (p.file, p.start_s, math.inf if p.end_s is None else p.end_s, j)
+        for j, p in enumerate(m.points)
+        if isinstance(p, PointPart)
+    )
+    for (file, start_a, end_a, a), (other, start_b, _, b) in itertools.pairwise(parts):
+        if file == other and start_b < end_a:
+            end = "its end" if math.isinf(end_a) else f"{end_a:g} s"
+            problems.append(
+                (
+                    f"{at}.points[{b}].start_s",
+                    f"{start_b:g} s lies inside the part of {file.name} that {at}.points[{a}] holds"
+                    f" ({start_a:g} s to {end}): the points of one file must not overlap (give each"
+                    " point its start_s and end_s)",
+                )
+            )
+    return problems
+
+
+def _columns_in_no_file(runs: list[ImportedRun]) -> list[tuple[str, str]]:
+    """Mapped columns that no file of any run mapping them has: a misspelt header, most likely."""
+    found: dict[tuple[str, str], bool] = {}
+    for run in runs:
+        for c in run.mapping.channels:
+            key = (f"{run.mapping.channels_key}.{c.channel}.column", c.column)
+            found[key] = found.get(key, False) or c.channel in run.channels
+    return [
+        (key, f"{column!r} is a column of none of the CSV files that map it")
+        for (key, column), seen in found.items()
+        if not seen
+    ]
 
 
 def _sweep_problems(at: str, f: SweepFile, table: CsvTable, limits: ImportLimits) -> list[tuple[str, str]]:
@@ -276,7 +214,7 @@ def _sweep_problems(at: str, f: SweepFile, table: CsvTable, limits: ImportLimits
         _frequency_problem(f"{at}.end_hz", f.end_hz, table, limits),
     ]
     sample_s = 1 / table.sample_rate_hz
-    length_s = len(table) * sample_s
+    length_s = table.length_s
     if abs(f.duration_s - length_s) > sample_s * (1 + 1e-9):
         problems.append(
             (
@@ -295,14 +233,15 @@ def import_campaign(
     limits: ImportLimits,
     config_toml: str,
     software_version: str,
-) -> None:
+) -> tuple[ImportedRun, ...]:
     """Read every CSV file of ``mapping`` and check the mapped values against them and ``limits``,
     then write the campaign file ``out_path`` (never over an existing file). ``config_toml``: the
-    bench configuration recorded with the campaign."""
+    bench configuration recorded with the campaign. Returns the runs as read (what each holds)."""
     out_path = Path(out_path)
     if out_path.exists():
         raise FileExistsError(f"{out_path} exists already: import into a new file")
-    runs = [read_run(run, mapping) for run in mapping.runs]
+    read: dict[tuple, CsvTable] = {}
+    runs = [read_run(run, mapping, read) for run in mapping.runs]
     check_mapped_values(mapping, runs, limits)
     tmp = out_path.with_name(f".{out_path.name}.importing-{os.getpid()}")
     with _removed_on_failure(tmp):
@@ -322,6 +261,7 @@ def import_campaign(
         if out_path.exists():
             raise FileExistsError(f"{out_path} appeared during the import: not replaced")
         os.replace(tmp, out_path)
+    return tuple(runs)
 
 
 @contextlib.contextmanager
@@ -334,9 +274,11 @@ def _removed_on_failure(path: Path) -> Iterator[None]:
 
 
 def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMapping) -> None:
+    """The run's points, each the part of its file it names, one after the other."""
     m = run.mapping
     rate = run.sample_rate_hz
-    conditions: dict[str, object] = {"bench": mapping.bench, "wheel_fitted": m.kind != "free_run"}
+    wheel_fitted = m.kind not in (RunKind.FREE_RUN, RunKind.HAMMER)
+    conditions: dict[str, object] = {"bench": mapping.bench, "wheel_fitted": wheel_fitted}
     if m.tyre_pressure_bar is not None:
         conditions["tyre_pressure_bar"] = m.tyre_pressure_bar
     channels = [
@@ -346,41 +288,54 @@ def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMappin
             f"CSV column {c.column!r} x {c.scale:g}",
             role=role_of_standard_name(c.channel),
         )
-        for c in mapping.channels
+        for c in m.channels
+        if c.channel in run.channels
     ]
     writer = campaign.begin_run(
         m.run_id, kind=m.kind, step=_step(m), conditions=conditions, channels=channels, sample_rate_hz=rate
     )
-    start = 0
-    for index, (f, table) in enumerate(zip(m.files, run.tables, strict=True)):
-        writer.append({name: values.astype(np.float32) for name, values in table.columns.items()})
-        writer.add_event("import", f"point {index} from {f.file.name}", file=str(f.file), rows=len(table))
-        writer.add_point(_point(index, f, start, len(table), rate))
-        start += len(table)
+    offset = 0
+    for index, (f, table) in enumerate(zip(m.points, run.tables, strict=True)):
+        start, hold_start, hold_end, end = _samples(f, table)
+        writer.append({name: table.columns[name][start:end].astype(np.float32) for name in run.channels})
+        writer.add_event(
+            "import",
+            f"point {index} from {f.file.name}, samples {start} to {end}",
+            file=str(f.file),
+            rows=end - start,
+            first_row=start,
+        )
+        positions = (offset, offset + hold_start - start, offset + hold_end - start, offset + end - start)
+        writer.add_point(_point(index, f, positions))
+        offset += end - start
     writer.finish("complete")
 
 
-def _point(index: int, f: DwellFile | SweepFile, start: int, n: int, rate_hz: float) -> PointAttempt:
+def _samples(f: PointPart | SweepFile, table: CsvTable) -> tuple[int, int, int, int]:
+    """Where the point ``f`` starts, holds and ends in its file's rows (a sweep: the whole file)."""
     if isinstance(f, SweepFile):
-        return PointAttempt(0, f.start_hz, f.amplitude_mm, start, start, start + n, start + n)
-    hold_start = start + round(f.hold_start_s * rate_hz)
-    hold_end = start + (n if f.hold_end_s is None else round(f.hold_end_s * rate_hz))
+        return 0, 0, table.n_rows, table.n_rows
+    rate = table.sample_rate_hz
+    start = round(f.start_s * rate)
+    end = table.n_rows if f.end_s is None else min(round(f.end_s * rate), table.n_rows)
+    hold_start = start if f.hold_start_s is None else round(f.hold_start_s * rate)
+    hold_end = end if f.hold_end_s is None else min(round(f.hold_end_s * rate), end)
+    return start, hold_start, hold_end, end
+
+
+def _point(index: int, f: PointPart | SweepFile, positions: tuple[int, int, int, int]) -> PointAttempt:
+    """The point attempt of ``f`` at sample ``positions`` (start, hold start, hold end, end) of the run."""
+    if isinstance(f, SweepFile):
+        return PointAttempt(0, f.start_hz, f.amplitude_mm, *positions)
     return PointAttempt(
-        index,
-        f.freq_hz,
-        f.amplitude_mm,
-        start,
-        hold_start,
-        hold_end,
-        start + n,
-        requested_amplitude_mm=f.requested_amplitude_mm,
+        index, f.freq_hz, f.amplitude_mm, *positions, requested_amplitude_mm=f.requested_amplitude_mm
     )
 
 
 def _step(m: RunMapping) -> dict[str, object]:
     """The run's step as the schema records it (docs/hdf5.md): what the CSV files were."""
-    if m.kind == "sweep":
-        (f,) = m.files
+    if m.kind == RunKind.SWEEP:
+        (f,) = m.points
         return {
             "kind": "sweep",
             "start_hz": f.start_hz,
@@ -390,10 +345,28 @@ def _step(m: RunMapping) -> dict[str, object]:
             "law": f.law,
             "source": "csv import",
         }
-    return {
-        "kind": m.kind,
-        "freqs_hz": [f.freq_hz for f in m.files],
-        "amplitudes_mm": sorted({f.amplitude_mm for f in m.files}),
-        "files": [f.file.name for f in m.files],
+    parts = {
+        "files": [f.file.name for f in m.points],
+        "parts_s": [[f.start_s, f.end_s] for f in m.points],
         "source": "csv import",
     }
+    if m.kind == RunKind.HAMMER:
+        return {"kind": "hammer", "blows": len(m.points), **parts}
+    return {
+        "kind": m.kind,
+        "freqs_hz": [f.freq_hz for f in m.points],
+        "amplitudes_mm": sorted({f.amplitude_mm for f in m.points}),
+        **parts,
+    }
+
+
+def import_summary(run: ImportedRun) -> str:
+    """What a run became: ``lab-r000-free_run (free_run, 4 points from 1 file, without fz_wfs_n:
+    not in its files, a free_run does not need it)``."""
+    m = run.mapping
+    points, files = len(m.points), len(m.files)
+    text = f"{m.run_id} ({m.kind}, {points} point{'s' * (points != 1)} from {files} file{'s' * (files != 1)}"
+    if run.left_out:
+        them = "it" if len(run.left_out) == 1 else "them"
+        text += f", without {', '.join(run.left_out)}: not in its files, a {m.kind} run does not need {them}"
+    return text + ")"

@@ -1,5 +1,6 @@
 """The mapping file of a CSV import (docs/import.md): which CSV column is which channel in which
-unit, the CSV dialect, the sample rate or time column, and what each CSV file is.
+unit, the CSV dialect, the sample rate or time column (for the whole campaign or per run), and
+which part of which CSV file each point of each run is.
 
 Loaded and checked whole before any CSV file is read: one error lists every problem of the file, in
 the file's order, each naming the mapping file and the key
@@ -15,30 +16,35 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sequences.runs import RunKind
+from bench.store.csv_units import (
+    CHANNEL_SUFFIX_UNITS,
+    TIME_UNIT,
+    UNITS,
+    channel_si_unit,
+    known_units,
+    unit_named,
+)
+from sequences.runs import RUN_KINDS, RunKind
 from sequences.toml_text import load_toml, toml_error_where
 
-#: Units a column may be given in: unit -> (the SI unit of the schema's channel, factor to it).
-UNITS: dict[str, tuple[str, float]] = {
-    "N": ("N", 1.0),
-    "kN": ("N", 1e3),
-    "Nm": ("N m", 1.0),
-    "kNm": ("N m", 1e3),
-    "m": ("m", 1.0),
-    "mm": ("m", 1e-3),
-    "m/s2": ("m/s^2", 1.0),
-    "m/s^2": ("m/s^2", 1.0),
-    "g": ("m/s^2", 9.80665),
-    "s": ("s", 1.0),
-    "ms": ("s", 1e-3),
-}
-#: The SI unit a channel's name promises by its suffix (docs/hdf5.md: units in names).
-CHANNEL_SUFFIX_UNITS = (("_m_s2", "m/s^2"), ("_nm", "N m"), ("_n", "N"), ("_m", "m"))
-#: The channel that the CSV's time column is: seconds.
-TIME_UNIT = "s"
-#: The kinds of run a CSV export can hold (a hammer capture is not imported).
-IMPORTED_KINDS = (RunKind.FREE_RUN, RunKind.DWELL_GRID, RunKind.SWEEP)
 SWEEP_LAWS = ("linear", "log")
+#: A run's own keys, by kind: the point-wise kinds list their points, a sweep is one file.
+_RUN_KEYS = {
+    RunKind.FREE_RUN: ("kind", "id", "tyre_pressure_bar", "time", "channels", "file", "points"),
+    RunKind.DWELL_GRID: ("kind", "id", "tyre_pressure_bar", "time", "channels", "file", "points"),
+    RunKind.HAMMER: ("kind", "id", "time", "channels", "file", "points"),
+}
+_SWEEP_KEYS = ("file", "start_hz", "end_hz", "duration_s", "amplitude_mm", "law")
+#: A point's keys: a hammer blow is a part of a file, a dwell says what it excited too.
+_HAMMER_POINT_KEYS = ("file", "start_s", "end_s")
+_DWELL_POINT_KEYS = (
+    *_HAMMER_POINT_KEYS,
+    "freq_hz",
+    "amplitude_mm",
+    "requested_amplitude_mm",
+    "hold_start_s",
+    "hold_end_s",
+)
 
 _TOP_KEYS = ("source", "csv", "time", "channels", "runs")
 
@@ -86,19 +92,22 @@ def file_position(data: object, key: str) -> tuple[int, ...]:
 @dataclass(frozen=True)
 class Dialect:
     """``delimiter`` between fields, ``decimal`` mark ("." or ","), ``skip_lines`` before the
-    header line, ``encoding`` of the files."""
+    header line, ``units_row``: the line under the header gives each column's unit, ``encoding``
+    of the files."""
 
     delimiter: str = ","
     decimal: str = "."
     skip_lines: int = 0
+    units_row: bool = False
     encoding: str = "utf-8"
 
 
 @dataclass(frozen=True)
 class ChannelColumn:
     """Channel ``channel`` (schema name, SI unit ``si_unit``) from CSV column ``column`` given in
-    ``unit`` (None: the unit in brackets at the end of the column's header, e.g. ``Fz [kN]``),
-    multiplied by ``scale`` after the unit's conversion."""
+    ``unit`` (a key of :data:`~bench.store.csv_units.UNITS`; None: the unit the file gives, in its
+    units row or in brackets at the end of the column's header, e.g. ``Fz [kN]``), multiplied by
+    ``scale`` after the unit's conversion."""
 
     channel: str
     si_unit: str
@@ -109,7 +118,8 @@ class ChannelColumn:
 
 @dataclass(frozen=True)
 class Timing:
-    """Either ``sample_rate_hz`` or a ``column`` of sample instants in ``unit`` (s or ms)."""
+    """Either ``sample_rate_hz`` or a ``column`` of sample instants in ``unit`` (a unit of
+    seconds; None: the unit the file gives)."""
 
     sample_rate_hz: float | None = None
     column: str | None = None
@@ -117,21 +127,29 @@ class Timing:
 
 
 @dataclass(frozen=True)
-class DwellFile:
-    """One CSV file holding one dwell: its frequency, amplitude (the grid's nominal amplitude too
-    when a bench limit lowered it) and the constant-amplitude part, seconds from the file's start
-    (``hold_end_s`` None: to the end)."""
+class PointPart:
+    """One point of a free run, dwell grid or hammer run: the part of ``file`` that holds it,
+    ``start_s`` to ``end_s`` (None: the file's end), seconds from the file's first sample, and for
+    a dwell its frequency, amplitude (and the grid's nominal amplitude when a bench limit lowered
+    it) and constant-amplitude hold, also from the file's first sample (None: the part's start,
+    its end). A hammer blow has no frequency nor amplitude (0). Only the part is imported: the
+    points of a continuous file are imported without what lies between them."""
 
     file: Path
-    freq_hz: float
-    amplitude_mm: float
+    freq_hz: float = 0.0
+    amplitude_mm: float = 0.0
     requested_amplitude_mm: float = math.nan
-    hold_start_s: float = 0.0
+    start_s: float = 0.0
+    end_s: float | None = None
+    hold_start_s: float | None = None
     hold_end_s: float | None = None
 
 
 @dataclass(frozen=True)
 class SweepFile:
+    """A sweep's one file and its step: ``start_hz`` to ``end_hz`` over ``duration_s`` (the file's
+    length) at ``amplitude_mm``, ``law`` linear or log."""
+
     file: Path
     start_hz: float
     end_hz: float
@@ -142,12 +160,22 @@ class SweepFile:
 
 @dataclass(frozen=True)
 class RunMapping:
-    """One run of the campaign: ``kind``, its id, tyre pressure (None: not known) and files."""
+    """One run of the campaign: ``kind``, its id, tyre pressure (None: not given), how its files'
+    samples are timed and which columns are its channels (the run's own tables, else the
+    mapping's: ``channels_key`` names the table), and its points (a sweep: its one file)."""
 
     run_id: str
     kind: str
     tyre_pressure_bar: float | None
-    files: tuple[DwellFile, ...] | tuple[SweepFile]
+    timing: Timing
+    channels: tuple[ChannelColumn, ...]
+    points: tuple[PointPart, ...] | tuple[SweepFile]
+    channels_key: str = "channels"
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        """The run's CSV files, each once, in the order its points name them."""
+        return tuple(dict.fromkeys(p.file for p in self.points))
 
 
 @dataclass(frozen=True)
@@ -157,8 +185,6 @@ class ImportMapping:
     name: str
     bench: str
     dialect: Dialect
-    timing: Timing
-    channels: tuple[ChannelColumn, ...]
     runs: tuple[RunMapping, ...]
 
 
@@ -183,26 +209,42 @@ def load_mapping(path: str | Path) -> ImportMapping:
     name = r.string(source, "source.name", required=True)
     if name is not None and not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         r.add("source.name", f"{name!r}: use letters, digits, '_', '.' and '-' only")
+    bench = r.choice(source, "source.bench", ("shaker", "four_post"), "shaker")
+    defaults = _RunDefaults(
+        timing=r.timing(r.table(data, "time"), "time") if "time" in data else None,
+        channels=r.channels(r.table(data, "channels"), "channels") if "channels" in data else None,
+        bench=bench,
+    )
     mapping = ImportMapping(
         path=path,
         text=text,
         name=name,
-        bench=r.choice(source, "source.bench", ("shaker", "four_post"), "shaker"),
+        bench=bench,
         dialect=r.dialect(r.table(data, "csv")),
-        timing=r.timing(r.table(data, "time")),
-        channels=r.channels(r.table(data, "channels")),
-        runs=r.runs(data.get("runs"), name or "import"),
+        runs=r.runs(data.get("runs"), name or "import", defaults),
     )
     if r.problems:
         raise mapping_error(path, data, r.problems)
     return mapping
 
 
-def channel_si_unit(name: str) -> str | None:
-    """The SI unit promised by a channel name's suffix (``fz_wfs_n``: N), None when there is none."""
-    for suffix, unit in CHANNEL_SUFFIX_UNITS:
-        if name.endswith(suffix):
-            return unit
+@dataclass(frozen=True)
+class _RunDefaults:
+    """What a run takes from the mapping's top level unless it has its own: the ``[time]`` and
+    ``[channels]`` tables (None: not given), and the bench (for what its analysis needs)."""
+
+    timing: Timing | None
+    channels: tuple[ChannelColumn, ...] | None
+    bench: str
+
+
+def pressure_needed(kind: str, bench: str) -> str | None:
+    """Why a run of ``kind`` on ``bench`` needs its tyre pressure, None when it does not: its
+    analysis takes the grids (or the shaker identification) of that pressure."""
+    if kind == RunKind.DWELL_GRID:
+        return "a dwell grid is analysed with the other grids of its tyre pressure"
+    if kind == RunKind.SWEEP and bench == "four_post":
+        return "a four-post sweep is analysed with the shaker identification at its tyre pressure"
     return None
 
 
@@ -230,10 +272,11 @@ class _Reader:
                 at = f"{where}.{key}" if where else key
                 self.add(at, f"unknown key (allowed: {', '.join(allowed)})")
 
-    def table(self, data: dict, key: str) -> dict:
+    def table(self, data: dict, key: str, where: str = "") -> dict:
+        """The table ``key`` of ``data`` (at ``where``), empty when missing or not a table."""
         value = data.get(key, {})
         if not isinstance(value, dict):
-            self.add(key, f"expected a table, got {value!r}")
+            self.add(f"{where}.{key}" if where else key, f"expected a table, got {value!r}")
             return {}
         return value
 
@@ -273,8 +316,16 @@ class _Reader:
             return default
         return float(value)
 
+    def bool(self, table: dict, key: str, default: bool) -> bool:
+        name = key.rsplit(".", 1)[-1]
+        value = table.get(name, default)
+        if not isinstance(value, bool):
+            self.add(key, f"expected true or false, got {value!r}")
+            return default
+        return value
+
     def dialect(self, t: dict) -> Dialect:
-        self.keys(t, "csv", ("delimiter", "decimal", "skip_lines", "encoding"))
+        self.keys(t, "csv", tuple(Dialect.__dataclass_fields__))
         d = Dialect()
         delimiter = self.string(t, "csv.delimiter", d.delimiter)
         if len(delimiter) != 1 and delimiter != "\\t":
@@ -286,94 +337,128 @@ class _Reader:
         skip = self.number(t, "csv.skip_lines", 0, lo=0)
         if skip != int(skip):
             self.add("csv.skip_lines", f"{skip:g} is not a whole number")
+        units_row = self.bool(t, "csv.units_row", d.units_row)
         encoding = self.string(t, "csv.encoding", d.encoding)
         try:
             "".encode(encoding)
         except LookupError:
             self.add("csv.encoding", f"unknown encoding {encoding!r}")
-        return Dialect(delimiter, decimal, int(skip), encoding)
+        return Dialect(delimiter, decimal, int(skip), units_row, encoding)
 
-    def timing(self, t: dict) -> Timing:
-        self.keys(t, "time", ("sample_rate_hz", "column", "unit"))
+    def timing(self, t: dict, where: str) -> Timing:
+        """The ``time`` table at ``where`` (``time`` or ``runs[i].time``)."""
+        self.keys(t, where, ("sample_rate_hz", "column", "unit"))
         if ("sample_rate_hz" in t) == ("column" in t):
-            self.add("time", "give either sample_rate_hz or a time column (column and unit)")
+            self.add(where, "give either sample_rate_hz or a time column (column and unit)")
             return Timing()
         if "sample_rate_hz" in t:
-            return Timing(sample_rate_hz=self.number(t, "time.sample_rate_hz", positive=True))
-        unit = self.unit(t, "time.unit", TIME_UNIT, required=False)
-        return Timing(column=self.string(t, "time.column", required=True), unit=unit)
+            return Timing(sample_rate_hz=self.number(t, f"{where}.sample_rate_hz", positive=True))
+        unit = self.unit(t, f"{where}.unit", TIME_UNIT, required=False)
+        return Timing(column=self.string(t, f"{where}.column", required=True), unit=unit)
 
     def unit(self, t: dict, key: str, si_unit: str, *, required: bool) -> str | None:
-        unit = self.string(t, key, required=required)
-        if unit is None:
+        """The unit at ``key``, as its key in :data:`UNITS` (``m/s²`` is ``m/s^2``)."""
+        spelling = self.string(t, key, required=required)
+        if spelling is None:
             return None
-        if unit not in UNITS:
-            self.add(key, f"unknown unit {unit!r} (known: {', '.join(UNITS)})")
+        unit = unit_named(spelling)
+        if unit is None:
+            self.add(key, f"unknown unit {spelling!r} (known: {known_units()})")
         elif UNITS[unit][0] != si_unit:
-            self.add(key, f"{unit} is not a unit of {si_unit}")
+            self.add(key, f"{spelling} is not a unit of {si_unit}")
         return unit
 
-    def channels(self, t: dict) -> tuple[ChannelColumn, ...]:
+    def channels(self, t: dict, where: str) -> tuple[ChannelColumn, ...]:
+        """The ``channels`` table at ``where`` (``channels`` or ``runs[i].channels``)."""
         if not t:
-            self.add("channels", "no channel mapped")
+            self.add(where, "no channel mapped")
         out = []
         for channel, spec in t.items():
-            where = f"channels.{channel}"
+            at = f"{where}.{channel}"
             si_unit = channel_si_unit(channel)
             if si_unit is None:
                 suffixes = ", ".join(s for s, _ in CHANNEL_SUFFIX_UNITS)
-                self.add(where, f"a channel name ends with its unit ({suffixes})")
+                self.add(at, f"a channel name ends with its unit ({suffixes})")
             if not isinstance(spec, dict):
-                self.add(where, f"expected a table (column, unit, scale), got {spec!r}")
+                self.add(at, f"expected a table (column, unit, scale), got {spec!r}")
                 continue
-            self.keys(spec, where, ("column", "unit", "scale"))
+            self.keys(spec, at, ("column", "unit", "scale"))
             out.append(
                 ChannelColumn(
                     channel,
                     si_unit,
-                    self.string(spec, f"{where}.column", required=True),
-                    None if si_unit is None else self.unit(spec, f"{where}.unit", si_unit, required=False),
-                    self.number(spec, f"{where}.scale", 1.0),
+                    self.string(spec, f"{at}.column", required=True),
+                    None if si_unit is None else self.unit(spec, f"{at}.unit", si_unit, required=False),
+                    self.number(spec, f"{at}.scale", 1.0),
                 )
             )
         return tuple(out)
 
-    def runs(self, runs: object, name: str) -> tuple[RunMapping, ...]:
+    def runs(self, runs: object, name: str, defaults: _RunDefaults) -> tuple[RunMapping, ...]:
         if not isinstance(runs, list) or not runs:
             self.add("runs", "expected at least one [[runs]] table")
             return ()
         out = []
         for i, run in enumerate(runs):
-            where = f"runs[{i}]"
             if not isinstance(run, dict):
-                self.add(where, "expected a table")
+                self.add(f"runs[{i}]", "expected a table")
                 continue
-            kind = self.choice(run, f"{where}.kind", IMPORTED_KINDS, None)
-            run_id = self.string(run, f"{where}.id", f"{name}-r{i:03d}-{kind}")
-            pressure = run.get("tyre_pressure_bar")
-            if pressure is not None:
-                pressure = self.number(run, f"{where}.tyre_pressure_bar", positive=True)
-            # a kind in error: the files are checked as the run's keys suggest
-            if kind == "sweep" or (kind is None and "points" not in run):
-                self.keys(run, where, ("kind", "id", "tyre_pressure_bar", *SweepFile.__dataclass_fields__))
-                files: tuple = (self.sweep(run, where),)
-            else:
-                self.keys(run, where, ("kind", "id", "tyre_pressure_bar", "points"))
-                files = self.dwells(run.get("points"), where)
-            out.append(RunMapping(run_id, kind, pressure, files))
+            out.append(self.run(run, i, name, defaults))
         ids = [r.run_id for r in out]
         for i, run_id in enumerate(ids):
             if run_id in ids[:i]:
                 self.add(f"runs[{i}].id", f"{run_id!r} is the id of an earlier run too")
         return tuple(out)
 
+    def run(self, run: dict, i: int, name: str, defaults: _RunDefaults) -> RunMapping:
+        where = f"runs[{i}]"
+        kind = self.choice(run, f"{where}.kind", RUN_KINDS, None)
+        run_id = self.string(run, f"{where}.id", f"{name}-r{i:03d}-{kind}")
+        pressure = run.get("tyre_pressure_bar")
+        if pressure is not None:
+            pressure = self.number(run, f"{where}.tyre_pressure_bar", positive=True)
+        elif (why := pressure_needed(kind, defaults.bench)) is not None:
+            self.add(f"{where}.tyre_pressure_bar", f"missing: {why} (give it in bar)")
+        # a kind in error: the points are checked as the run's keys suggest
+        if kind == RunKind.SWEEP or (kind is None and "points" not in run):
+            self.keys(run, where, ("kind", "id", "tyre_pressure_bar", "time", "channels", *_SWEEP_KEYS))
+            points: tuple = (self.sweep(run, where),)
+        else:
+            self.keys(run, where, _RUN_KEYS.get(kind, _RUN_KEYS[RunKind.DWELL_GRID]))
+            points = self.points(run, where, kind)
+        timing, channels, channels_key = defaults.timing, defaults.channels, "channels"
+        if "time" in run:
+            timing = self.timing(self.table(run, "time", where), f"{where}.time")
+        elif timing is None:
+            self.add(f"{where}.time", "missing: give a [time] table, or the run's own")
+        if "channels" in run:
+            channels_key = f"{where}.channels"
+            channels = self.channels(self.table(run, "channels", where), channels_key)
+        elif channels is None:
+            self.add(f"{where}.channels", "missing: give a [channels] table, or the run's own")
+        return RunMapping(run_id, kind, pressure, timing or Timing(), channels or (), points, channels_key)
+
     def file(self, t: dict, key: str) -> Path | None:
         name = self.string(t, key, required=True)
         return None if name is None else self.path.parent / name
 
-    def dwells(self, points: object, where: str) -> tuple[DwellFile, ...]:
+    def point_file(self, p: dict, at: str, run_file: Path | None) -> Path | None:
+        """A point's file: its own, else its run's."""
+        if "file" in p:
+            return self.file(p, f"{at}.file")
+        if run_file is None:
+            self.add(f"{at}.file", "missing: give the point's file, or the run's")
+        return run_file
+
+    def points(self, run: dict, where: str, kind: str | None) -> tuple[PointPart, ...]:
+        """A point-wise run's points; each names its file or takes the run's ``file`` (a hammer
+        run without points: one blow, the whole of the run's file)."""
+        run_file = self.file(run, f"{where}.file") if "file" in run else None
+        points = run.get("points")
+        if points is None and kind == RunKind.HAMMER and run_file is not None:
+            return (PointPart(run_file),)
         if not isinstance(points, list) or not points:
-            self.add(f"{where}.points", "expected at least one [[runs.points]] table (a file each)")
+            self.add(f"{where}.points", "expected at least one [[runs.points]] table (a part of a file each)")
             return ()
         out = []
         for j, p in enumerate(points):
@@ -381,21 +466,46 @@ class _Reader:
             if not isinstance(p, dict):
                 self.add(at, "expected a table")
                 continue
-            self.keys(p, at, tuple(DwellFile.__dataclass_fields__))
-            hold_end = p.get("hold_end_s")
-            out.append(
-                DwellFile(
-                    self.file(p, f"{at}.file"),
-                    self.number(p, f"{at}.freq_hz", positive=True),
-                    self.number(p, f"{at}.amplitude_mm", positive=True),
-                    self.number(p, f"{at}.requested_amplitude_mm", math.nan, positive=True),
-                    self.number(p, f"{at}.hold_start_s", 0.0, lo=0),
-                    None if hold_end is None else self.number(p, f"{at}.hold_end_s", positive=True),
-                )
-            )
-            if out[-1].hold_end_s is not None and out[-1].hold_end_s <= out[-1].hold_start_s:
-                self.add(f"{at}.hold_end_s", "must come after hold_start_s")
+            read = self.hammer_blow if kind == RunKind.HAMMER else self.dwell
+            out.append(read(p, at, run_file))
         return tuple(out)
+
+    def span(self, p: dict, at: str) -> tuple[float, float | None]:
+        """A point's ``start_s`` and ``end_s`` (None: the file's end), the end after the start."""
+        start = self.number(p, f"{at}.start_s", 0.0, lo=0)
+        end = None if "end_s" not in p else self.number(p, f"{at}.end_s", positive=True)
+        if end is not None and start is not None and end <= start:
+            self.add(f"{at}.end_s", "must come after start_s")
+        return start, end
+
+    def hammer_blow(self, p: dict, at: str, run_file: Path | None) -> PointPart:
+        self.keys(p, at, _HAMMER_POINT_KEYS)
+        start, end = self.span(p, at)
+        return PointPart(self.point_file(p, at, run_file), start_s=start, end_s=end)
+
+    def dwell(self, p: dict, at: str, run_file: Path | None) -> PointPart:
+        self.keys(p, at, _DWELL_POINT_KEYS)
+        start, end = self.span(p, at)
+        hold_start = None if "hold_start_s" not in p else self.number(p, f"{at}.hold_start_s", lo=0)
+        hold_end = None if "hold_end_s" not in p else self.number(p, f"{at}.hold_end_s", positive=True)
+        if hold_start is not None and start is not None and hold_start < start:
+            self.add(f"{at}.hold_start_s", "must not come before start_s (both from the file's start)")
+        elif hold_start is not None and end is not None and hold_start >= end:
+            self.add(f"{at}.hold_start_s", "must come before end_s (both from the file's start)")
+        if hold_end is not None and (hold_end <= (start if hold_start is None else hold_start)):
+            self.add(f"{at}.hold_end_s", "must come after hold_start_s")
+        elif hold_end is not None and end is not None and hold_end > end:
+            self.add(f"{at}.hold_end_s", "must not come after end_s (both from the file's start)")
+        return PointPart(
+            self.point_file(p, at, run_file),
+            self.number(p, f"{at}.freq_hz", positive=True),
+            self.number(p, f"{at}.amplitude_mm", positive=True),
+            self.number(p, f"{at}.requested_amplitude_mm", math.nan, positive=True),
+            start,
+            end,
+            hold_start,
+            hold_end,
+        )
 
     def sweep(self, t: dict, where: str) -> SweepFile:
         return SweepFile(

@@ -39,7 +39,8 @@ from sequences.channels import Channel, Role, standard_name
 from sequences.points import PointAttempt, PointStatus, Verdict
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
-#: Channels each kind of run needs for its analysis records.
+#: Channels each kind of run needs for its analysis records. A dwell grid's wheel is on the shaker,
+#: whose hub is clamped: its hub acceleration is recorded where the lab has it, never needed.
 REQUIRED_CHANNELS = {
     "dwell_grid": SHAKER_CHANNELS,
     "free_run": FREE_RUN_CHANNELS,
