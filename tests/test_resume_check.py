@@ -7,20 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-
 from bench.cli import EXIT_COMPLETE, EXIT_INVALID
 from bench.store import open_campaign
 from tests.test_campaign_cli import SMOKE, wfsbench
-
-
-@pytest.fixture(scope="module")
-def smoke_file(tmp_path_factory) -> Path:
-    """The smoke sequence run to its end into a campaign file (copied by each test)."""
-    out = tmp_path_factory.mktemp("resume") / "smoke.h5"
-    run = wfsbench("run", str(SMOKE), "--out", str(out))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
-    return out
 
 
 def _copy(src: Path, tmp_path: Path) -> Path:
@@ -29,8 +18,8 @@ def _copy(src: Path, tmp_path: Path) -> Path:
     return out
 
 
-def test_a_sequence_with_another_amplitude_is_refused_naming_the_step_and_key(tmp_path, smoke_file):
-    out = _copy(smoke_file, tmp_path)
+def test_a_sequence_with_another_amplitude_is_refused_naming_the_step_and_key(tmp_path, smoke_campaign):
+    out = _copy(smoke_campaign, tmp_path)
     changed = tmp_path / "smoke_mod.toml"
     changed.write_text(SMOKE.read_text().replace("amplitudes_mm = [2]", "amplitudes_mm = [3]", 1))
     before = out.read_bytes()
@@ -45,8 +34,8 @@ def test_a_sequence_with_another_amplitude_is_refused_naming_the_step_and_key(tm
         assert "amplitudes_mm = [2]" in campaign.sequence_toml
 
 
-def test_a_copy_differing_in_comments_whitespace_and_key_order_resumes(tmp_path, smoke_file):
-    out = _copy(smoke_file, tmp_path)
+def test_a_copy_differing_in_comments_whitespace_and_key_order_resumes(tmp_path, smoke_campaign):
+    out = _copy(smoke_campaign, tmp_path)
     lines = SMOKE.read_text().splitlines()
     grid = lines.index("amplitudes_mm = [2]")
     lines[grid - 1], lines[grid] = lines[grid], lines[grid - 1]  # two keys of one step swapped
@@ -57,9 +46,9 @@ def test_a_copy_differing_in_comments_whitespace_and_key_order_resumes(tmp_path,
 
 
 def test_a_bench_that_measures_differently_is_refused_and_connection_settings_may_change(
-    tmp_path, smoke_file
+    tmp_path, smoke_campaign
 ):
-    out = _copy(smoke_file, tmp_path)
+    out = _copy(smoke_campaign, tmp_path)
     heavy = tmp_path / "heavy.toml"
     heavy.write_text('kind = "shaker"\n[masses]\nsensor_kg = 4.0\n')
     run = wfsbench("run", str(SMOKE), "--out", str(out), "--resume", "--bench", str(heavy))

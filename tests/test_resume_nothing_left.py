@@ -5,6 +5,7 @@ sequences it does hold (before, it was run afresh into the file)."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -13,12 +14,10 @@ from bench.cli import EXIT_COMPLETE, EXIT_INVALID
 from tests.test_campaign_cli import SMOKE, wfsbench
 
 
-@pytest.fixture(scope="module")
-def smoke_file(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("resume") / "smoke.h5"
-    run = wfsbench("run", str(SMOKE), "--out", str(out))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
-    return out
+@pytest.fixture
+def smoke_file(smoke_campaign: Path, tmp_path: Path) -> Path:
+    """A copy of the smoke sequence's complete campaign file (tests/conftest.py)."""
+    return Path(shutil.copyfile(smoke_campaign, tmp_path / "smoke.h5"))
 
 
 def test_resuming_a_complete_campaign_runs_nothing_and_says_so(smoke_file):
