@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from bench.app.devices import BenchDevices
-from bench.app.simulated import UNPACED_BACKLOG_S
+from bench.app.simulated import UNPACED_BACKLOG_S, UNPACED_WFS_SILENCE_S
 from bench.config import BenchConfig
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
@@ -24,9 +24,14 @@ from drivers.wfs_transform import LoadProcessor
 
 
 def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
-    """The engine on ``devices`` with the configured channels, interlocks and tare policy (and a
-    short backlog on the unpaced simulated bench, which waits for the engine)."""
+    """The engine on ``devices`` with the configured channels, interlocks and tare policy (on the
+    unpaced simulated bench, which waits for the engine: a short backlog, and a link silence
+    limit of at least :data:`~bench.app.simulated.UNPACED_WFS_SILENCE_S`)."""
     unpaced = devices.lab is not None and not devices.lab.settings.paced
+    timing = config.timing
+    if unpaced:
+        silence_s = max(timing.wfs_silence_s, UNPACED_WFS_SILENCE_S)
+        timing = replace(timing, backlog_s=UNPACED_BACKLOG_S, wfs_silence_s=silence_s)
     channels = FrameChannels(config.aux, LoadProcessor(matrix=config.calibration.matrix_array()))
     return Engine(
         devices.actuator,
@@ -34,12 +39,12 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
         devices.operator,
         channels=channels,
         interlocks=standard_interlocks(
-            channels.recorded, config.limits, serial_timeout_s=config.timing.wfs_silence_s
+            channels.recorded, config.limits, serial_timeout_s=timing.wfs_silence_s
         ),
         sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
         sample_rate_hz=float(config.wfs.rate_hz),
         amplitude_control=AmplitudeControl(max_command_mm=config.limits.stroke_mm),
         tare=config.calibration.tare,
         bench_kind=config.kind,
-        timing=replace(config.timing, backlog_s=UNPACED_BACKLOG_S) if unpaced else config.timing,
+        timing=timing,
     )

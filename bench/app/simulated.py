@@ -28,6 +28,11 @@ from simulators.world import SimulatedOperator, SimulatedWorld
 #: How far (s of samples) the unpaced bench may run ahead of the engine (``EngineTiming.backlog_s``):
 #: it waits for its host, so one block is enough; more would only be rest recorded between points.
 UNPACED_BACKLOG_S = UNPACED_BLOCK_S
+#: The shortest WFS silence (s) taken as a lost link on the unpaced bench. Its devices run on threads
+#: of the bench's process and write only as fast as the engine drains them, so their link falls
+#: silent whenever that process waits for the processor: on a busy PC for longer than a real link's
+#: limit (``[timing] wfs_silence_s``, 0.5 s). Their silence is the host's, not a link's.
+UNPACED_WFS_SILENCE_S = 5.0
 
 
 @dataclass(frozen=True)
