@@ -210,14 +210,15 @@ def test_every_engine_timeout_is_a_configuration_key():
     from bench.app.engine_build import build_engine
     from bench.engine.interlocks import SerialLinkLost
 
-    config = parse_bench_config("[timing]\nwfs_silence_s = 2.0\nstatus_period_s = 0.1\n", "lab.toml")
-    assert (config.timing.wfs_silence_s, config.timing.status_period_s) == (2.0, 0.1)
+    # 6 s: above the unpaced simulated bench's own floor (5 s), so the configured limit stands there
+    config = parse_bench_config("[timing]\nwfs_silence_s = 6.0\nstatus_period_s = 0.1\n", "lab.toml")
+    assert (config.timing.wfs_silence_s, config.timing.status_period_s) == (6.0, 0.1)
     assert parse_bench_config(config.to_toml(), "lab.toml") == config
 
     with open_bench(config) as devices:  # the simulated lab
         engine = build_engine(config, devices)
     (silence,) = [i for i in engine.interlocks if isinstance(i, SerialLinkLost)]
-    assert silence.timeout_s == 2.0 and engine.timing.status_period_s == 0.1
+    assert silence.timeout_s == 6.0 and engine.timing.status_period_s == 0.1
     with pytest.raises(ConfigError, match=r"lab.toml: timing.wfs_silence_s: .*allowed"):
         parse_bench_config("[timing]\nwfs_silence_s = 0\n", "lab.toml")
     with pytest.raises(ConfigError, match=r"lab.toml: timing.link_s: unknown key"):
