@@ -45,6 +45,19 @@ FS_STRATEGY = "none"
 TABLE_CHUNK_ROWS = 64
 GZIP_LEVEL = 1
 
+#: The test's metadata: attributes of the campaign (``/``), UTF-8 strings, empty when not given.
+#: They name what was tested and by whom, so that a campaign can be found among many.
+METADATA_FIELDS = (
+    "bench_id",
+    "sensor_serial",
+    "sensor_calibration_date",
+    "tyre_make",
+    "tyre_size",
+    "tyre_id",
+    "operator",
+    "notes",
+)
+
 RUNS = "runs"
 CHANNELS = "channels"
 POINTS = "points"
