@@ -109,7 +109,7 @@ class PostRunAnalysis:
         if findings:
             return (
                 f"the free run {last.run_id} gives an m_comp not to be trusted: {findings[0]};"
-                f" {run_id} would correct its contact force with it (repeat the free run)"
+                " the runs after it would correct their contact force with it (repeat the free run)"
             )
         return None
 

@@ -81,15 +81,23 @@ def run_on_engine(
     resume: bool = False,
     subscribers: tuple[Callable[[ev.Event], None], ...] = (),
     knowledge: CampaignKnowledge | None = None,
+    gate_asks: bool = False,
 ) -> CampaignOutcome:
     """Like :func:`run_campaign`, on an engine whose bench stays open between sequences (a front
     end that shows and switches the bench between runs). The recorder, the analysis and
-    ``subscribers`` are unsubscribed when the sequence ends."""
+    ``subscribers`` are unsubscribed when the sequence ends. ``gate_asks``: a free run not to be
+    trusted is put to the operator as a question instead of ending the sequence (``Engine.run``)."""
     out_path = Path(out_path)
     with hold_campaign_file(out_path):
         resume_plan = check_target(plan, out_path, resume)
         return _run_on(
-            engine, plan, out_path, resume_plan=resume_plan, subscribers=subscribers, knowledge=knowledge
+            engine,
+            plan,
+            out_path,
+            resume_plan=resume_plan,
+            subscribers=subscribers,
+            knowledge=knowledge,
+            gate_asks=gate_asks,
         )
 
 
@@ -118,6 +126,7 @@ def _run_on(
     resume_plan: ResumeFromFile | None,
     subscribers: tuple[Callable[[ev.Event], None], ...],
     knowledge: CampaignKnowledge | None,
+    gate_asks: bool = False,
 ) -> CampaignOutcome:
     analyses: list[ev.AnalysisDone] = []
     knowledge = knowledge or initial_knowledge(plan.config)
@@ -140,6 +149,7 @@ def _run_on(
                 config_text=plan.config_text,
                 resume=resume_plan,
                 gate=analysis.gate,
+                gate_asks=gate_asks,
             )
         finally:
             for subscriber in (*own, *subscribers):

@@ -103,6 +103,9 @@ class RecordedRun:
 
 #: The reason an abort records unless its requester gives its own.
 ABORT_REASON = "aborted by the operator"
+#: The id of the question put to the operator when the run gate would stop the sequence and the
+#: operator is asked instead (``Engine.run(gate_asks=True)``); a yes is recorded as a condition.
+GO_ON_DESPITE = "go_on_despite"
 
 
 class RunStoppedError(Exception):
@@ -232,6 +235,8 @@ class Engine:
         self._publishing = threading.Lock()
         self._recording: _RunRecording | None = None  # the run whose stream is recorded now
         self._gate: RunGate | None = None  # the sequence under way's run gate
+        self._gate_asks = False  # whether a gate's reason is put to the operator instead of stopping
+        self._gate_accepted: set[str] = set()  # the gate's reasons the operator chose to go on despite
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -319,12 +324,14 @@ class Engine:
         config_text: str = "",
         resume: ResumePlan | None = None,
         gate: RunGate | None = None,
+        gate_asks: bool = False,
     ) -> RunOutcome:
         """Run ``sequence`` to its end or until stopped (refused unless the engine is ready: at rest,
         aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
         says how and why. A crash (or Ctrl-C) still stops the actuator and ends the sequence
-        ``failed``, then is raised on. ``gate``: asked before each measurement run starts; a reason
-        it gives ends the sequence there, ``aborted`` with that reason."""
+        ``failed``, then is raised on. ``gate``: asked before each step about the next measurement
+        run (:meth:`_pass_gate`); a reason it gives ends the sequence there, ``aborted`` with that
+        reason, or with ``gate_asks`` is put to the operator, who may go on despite it."""
         if self._sequence_thread is not None:
             raise TransitionRefusedError(f"start is not allowed while {self.state.value}: a sequence runs")
         self._sequence_thread = threading.get_ident()  # before the start: its change is published here
@@ -332,7 +339,7 @@ class Engine:
             self._fire(Trigger.START)
             self.conditions = {"bench": self.bench_kind}
             self._outcome = None
-            self._gate = gate
+            self._gate, self._gate_asks, self._gate_accepted = gate, gate_asks, set()
             self.bus.publish(
                 ev.SequenceStarted(
                     sequence.name,
@@ -399,6 +406,7 @@ class Engine:
     def _execute(self, sequence: Sequence, index: int, resume: ResumePlan | None) -> None:
         step = sequence.steps[index]
         self._checkpoint()
+        self._pass_gate(sequence, index, resume)
         if isinstance(step, Prompt):
             self._ask(step)
         elif isinstance(step, Hydraulics):
@@ -412,8 +420,6 @@ class Engine:
             run_id = self.run_id(sequence, index)
             if resume is not None and resume.run_complete(run_id):
                 return
-            if self._gate is not None and (reason := self._gate(run_id, RunKind.of_step(step.kind))):
-                raise RunStoppedError.abort(f"stopped before {run_id}: {reason}")
             if resume is None:
                 self._measure(run_id, step, RecordedRun())
             else:
@@ -421,6 +427,29 @@ class Engine:
                 self._measure(run_id, step, held)
         else:
             raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
+
+    def _pass_gate(self, sequence: Sequence, index: int, resume: ResumePlan | None) -> None:
+        """Ask the run gate about the next measurement run from step ``index`` on (that step's own
+        run, or the run the prompts, hydraulics and tare before it prepare), so that a sequence the
+        gate stops is stopped before the operator is asked to prepare a run that will not start. A
+        reason ends the sequence; with ``gate_asks`` the operator is asked instead whether to go on
+        (declined: the sequence ends, aborted), and is not asked the same again in this sequence."""
+        if self._gate is None:
+            return
+        steps = sequence.steps
+        upcoming = next((i for i in range(index, len(steps)) if is_measurement(steps[i])), None)
+        if upcoming is None:
+            return
+        run_id = self.run_id(sequence, upcoming)
+        if resume is not None and resume.run_complete(run_id):
+            return
+        reason = self._gate(run_id, RunKind.of_step(steps[upcoming].kind))
+        if reason is None or reason in self._gate_accepted:
+            return
+        if not self._gate_asks:
+            raise RunStoppedError.abort(f"stopped before {run_id}: {reason}")
+        self._ask(Prompt(GO_ON_DESPITE, f"Before {run_id}: {reason}. Go on anyway?"))
+        self._gate_accepted.add(reason)
 
     def _measure(self, run_id: str, step: object, held: RecordedRun) -> None:
         if isinstance(step, Sweep):

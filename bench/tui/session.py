@@ -441,7 +441,9 @@ class BenchSession:
                 self.out_path,
                 f" ({done_before.points} point(s) done there already)" if resume else "",
             )
-            run_on_engine(self.engine, plan, self.out_path, resume=resume, knowledge=self.knowledge)
+            run_on_engine(
+                self.engine, plan, self.out_path, resume=resume, knowledge=self.knowledge, gate_asks=True
+            )
         except Exception as exc:
             if not self._started:  # the campaign file refused it (it names the file): nothing moved
                 log.warning("the sequence did not start: %s", exc)

@@ -13,7 +13,7 @@ from bench.app.recorder import Recorder
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, SyncBits
+from bench.engine.engine import GO_ON_DESPITE, Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.run_ids import RUN_ID
 from bench.engine.states import RunState, TransitionRefusedError
@@ -688,21 +688,49 @@ def test_a_reset_with_nothing_stopped_is_refused_and_changes_nothing():
     assert engine.state is RunState.HYDRAULICS_HIGH and bench.hydraulics == "high"
 
 
-def test_a_run_gate_stops_the_sequence_before_the_run_it_forbids():
-    """The gate is asked before each measurement run, with its run id and kind; a reason stops the
-    sequence there (aborted, the reason kept), the forbidden run never starts, the actuator stays at
-    rest, and a run the gate allows runs as before."""
-    bench = FakeBench()
-    engine, seen = make_engine(bench)
-    asked: list[tuple[str, str]] = []
-
+def _untrusting_gate(asked: list[tuple[str, str]]):
     def gate(run_id: str, kind: str) -> str | None:
         asked.append((run_id, kind))
         return "the free run's m_comp is not to be trusted" if kind == "dwell_grid" else None
 
-    outcome = engine.run(sequence(FreeRun(grid()), grid(), FreeRun(grid())), gate=gate)
+    return gate
+
+
+def test_a_run_gate_stops_the_sequence_before_the_steps_that_prepare_the_run_it_forbids():
+    """The gate is asked before each step about the next measurement run, with its run id and kind;
+    a reason stops the sequence there (aborted, the reason kept): the prompt and the hydraulics step
+    that prepare the forbidden run are not reached, the run never starts, the actuator stays at rest,
+    and a run the gate allows runs as before."""
+    bench = FakeBench()
+    engine, seen = make_engine(bench)
+    asked: list[tuple[str, str]] = []
+    fit = Prompt("fit", "Fit the wheel", action="fit_wheel")
+    steps = (FreeRun(grid()), fit, Hydraulics("high"), grid(), FreeRun(grid()))
+    outcome = engine.run(sequence(*steps), gate=_untrusting_gate(asked))
     assert outcome.status == "aborted"
-    assert outcome.reason == "stopped before test-s001-dwell_grid: the free run's m_comp is not to be trusted"
-    assert asked == [("test-s000-free_run", "free_run"), ("test-s001-dwell_grid", "dwell_grid")]
+    assert outcome.reason == "stopped before test-s003-dwell_grid: the free run's m_comp is not to be trusted"
+    assert asked == [("test-s000-free_run", "free_run"), ("test-s003-dwell_grid", "dwell_grid")]
+    assert engine.operator.asked == [] and bench.hydraulics != "high"
     assert [e.run_id for e in of(seen, ev.RunStarted)] == ["test-s000-free_run"]
     assert of(seen, ev.SequenceFinished)[-1].status == "aborted"
+
+
+@pytest.mark.parametrize("go_on", [True, False])
+def test_a_gate_that_asks_puts_its_reason_to_the_operator_once(go_on):
+    """With ``gate_asks`` (the terminal UI) the gate's reason is a question: a yes lets the runs
+    start, is recorded as a condition of the runs and is not asked again for the same reason; a no
+    ends the sequence, aborted, before the run, naming the question."""
+    engine, seen = make_engine(FakeBench())
+    engine.operator = Answers() if go_on else Declines()
+    steps = (FreeRun(grid()), grid(), grid(amplitude_mm=1.0))
+    outcome = engine.run(sequence(*steps), gate=_untrusting_gate([]), gate_asks=True)
+    question = "Before test-s001-dwell_grid: the free run's m_comp is not to be trusted. Go on anyway?"
+    started = of(seen, ev.RunStarted)
+    if go_on:
+        assert outcome.status == "complete" and engine.operator.asked == [GO_ON_DESPITE]
+        runs = ["test-s000-free_run", "test-s001-dwell_grid", "test-s002-dwell_grid"]
+        assert [e.run_id for e in started] == runs
+        assert started[1].conditions[GO_ON_DESPITE] is True
+    else:
+        assert (outcome.status, outcome.reason) == ("aborted", f"the operator declined: {question}")
+        assert [e.run_id for e in started] == ["test-s000-free_run"]

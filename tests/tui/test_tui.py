@@ -12,6 +12,7 @@ import numpy as np
 from rich.text import Text
 
 from bench.engine import events as ev
+from bench.engine.engine import GO_ON_DESPITE
 from bench.engine.states import RunState
 from bench.store import open_campaign
 from bench.tui.app import SessionMessage, WfsBenchApp
@@ -635,3 +636,29 @@ async def test_results_keep_the_plot_and_the_runs_in_view_below_a_long_analysis(
         assert "finding-39" not in shown, "the analysis is longer than its box: the test means something"
         for word in ("|F_wfs/F_contact|", "phase", *(r.run_id for r in runs)):
             assert word in shown, f"{word!r} scrolled out of view by the analysis text"
+
+
+async def test_a_free_run_not_to_be_trusted_is_put_to_the_technician(app: WfsBenchApp, tmp_path: Path):
+    """The smoke sequence without "Remove the wheel": the free run shakes the plate with the tyre on
+    it. Before "Fit the wheel" is asked, the UI puts the reason to the technician; a no ends the
+    sequence, aborted, naming the question, and the grid never starts."""
+    smoke = (Path(__file__).parents[2] / "sequences" / "files" / "smoke.toml").read_text()
+    sequence = tmp_path / "wheel_left_on.toml"
+    sequence.write_text(smoke.replace('action = "remove_wheel"', 'action = "fit_wheel"'))
+    async with app.run_test(size=(120, 40)) as pilot:
+        recorded = await open_app(pilot, app)
+        await pilot.press("f3")
+        await type_path(pilot, app, sequence)
+        await until(pilot, lambda: "start this sequence" in text_of(app, "#seq-report"), "the check")
+        await pilot.press("g")
+        await prompt_open(pilot, app, "remove_wheel")  # its action now leaves the wheel on
+        await pilot.press("y")
+        dialog = await prompt_open(pilot, app, GO_ON_DESPITE)
+        assert "m_comp not to be trusted" in text_of(dialog, "#prompt-text")
+        await pilot.press("n")
+        await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
+        done = finished(recorded)
+        assert done.status == "aborted"
+        assert done.reason.startswith("the operator declined: Before smoke-s009-dwell_grid: the free run")
+        assert [e.kind for e in recorded.of(ev.RunStarted)] == ["free_run"]
+        assert not [e for e in recorded.of(ev.PromptAsked) if e.prompt_id == "fit_wheel"]
