@@ -201,8 +201,10 @@ class _StrictServing:
         self.unit_id = register_map.device_id
         self.mbap = framer == FramerType.SOCKET
         self.baudrate = baudrate
+        self.connections_accepted = 0  # clients that connected since the server started (for tests)
 
     def callback_new_connection(self) -> _Connection:
+        self.connections_accepted += 1
         return _Connection(self, self.trace_packet, self.trace_pdu, self.trace_connect)
 
 

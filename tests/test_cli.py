@@ -13,6 +13,7 @@ import pytest
 from bench.models.parameters import Rig
 from bench.store import open_campaign
 from tests.test_lab_process import FREE_RUN
+from tests.waiting import LineReader
 
 
 @pytest.fixture
@@ -22,7 +23,8 @@ def sim_process():
         stdout=subprocess.PIPE,
         text=True,
     )
-    lines = [proc.stdout.readline() for _ in range(3)]
+    output = LineReader(proc.stdout)
+    lines = [output.next(60.0, "the served bench's addresses") for _ in range(3)]
     tcp = re.fullmatch(r"actuator controller: modbus tcp (127\.0\.0\.1):(\d+)\n", lines[0])
     rtu = re.fullmatch(r"actuator controller: modbus rtu (/\S+) \(8N1\)\n", lines[1])
     wfs = re.fullmatch(r"wfs acquisition: serial (/\S+)\n", lines[2])
@@ -82,7 +84,8 @@ def test_sim_serve_takes_the_operators_actions_on_its_standard_input(tmp_path):
         text=True,
     )
     try:
-        lines = [proc.stdout.readline() for _ in range(3)]
+        output = LineReader(proc.stdout)
+        lines = [output.next(60.0, "the served bench's addresses") for _ in range(3)]
         host, port = re.fullmatch(r"actuator controller: modbus tcp (\S+):(\d+)\n", lines[0]).groups()
         wfs = re.fullmatch(r"wfs acquisition: serial (/\S+)\n", lines[2]).group(1)
         for typed, answer in (
@@ -93,7 +96,7 @@ def test_sim_serve_takes_the_operators_actions_on_its_standard_input(tmp_path):
         ):
             proc.stdin.write(typed + "\n")
             proc.stdin.flush()
-            assert proc.stdout.readline().startswith(answer), typed
+            assert output.next(60.0, f"the answer to {typed!r}").startswith(answer), typed
         sequence, config, answers = tmp_path / "seq.toml", tmp_path / "bench.toml", tmp_path / "answers.toml"
         sequence.write_text(FREE_RUN)
         config.write_text(

@@ -19,6 +19,7 @@ from bench.cli import EXIT_STOPPED
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT
 from tests.test_run_unattended import LONG_DWELL, RUN_ID
+from tests.waiting import LineReader
 
 DEADLINE_S = 120.0  # wall clock, a timeout only
 
@@ -52,13 +53,12 @@ def test_sigterm_mid_dwell_tapers_out_and_marks_the_run_aborted_with_the_signal(
     command, out = _command(tmp_path)
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
-        for line in proc.stdout:
-            if line.startswith("progress:") and "at amplitude" in line:
-                break
+        stdout, stderr = LineReader(proc.stdout), LineReader(proc.stderr)
+        stdout.until(lambda line: line.startswith("progress:") and "at amplitude" in line, 60, "the dwell")
         proc.send_signal(signal.SIGTERM)
-        told = proc.stderr.readline()
+        told = stderr.next(60, "the handler's word")
         assert told.startswith("terminated (SIGTERM): stopping with a taper, the run marked aborted"), told
-        rest = proc.stdout.read()
+        rest = stdout.rest(DEADLINE_S)
         assert proc.wait(timeout=DEADLINE_S) == EXIT_STOPPED
     finally:
         if proc.poll() is None:

@@ -30,6 +30,7 @@ from sequences import Prompt, Sequence, load_sequence
 from simulators.bench_sim import SimulatedBench
 from simulators.world import SimulatedOperator, SimulatedWorld
 from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+from tests.waiting import LineReader
 
 ROOT = Path(__file__).resolve().parents[1]
 H5DUMP = shutil.which("h5dump")
@@ -247,20 +248,16 @@ def _interrupted_run(tmp_path: Path, taper_out_s: float, signals: int) -> tuple[
         cwd=ROOT,
     )
     try:
-        seen = []
-        for line in proc.stdout:
-            seen.append(line)
-            if line.startswith("progress:") and "at amplitude" in line:
-                break
-        assert "at amplitude" in seen[-1], seen
+        stdout, stderr = LineReader(proc.stdout), LineReader(proc.stderr)
+        stdout.until(lambda line: line.startswith("progress:") and "at amplitude" in line, 60, "the dwell")
         told = []
         for _ in range(signals):
             proc.send_signal(signal.SIGINT)
-            told.append(proc.stderr.readline())  # the handler's word: the interrupt was taken
+            told.append(stderr.next(60, "the handler's word"))  # the interrupt was taken
             assert told[-1].startswith("interrupted"), told
-        proc.stdout.read()
+        stdout.rest(60)
         code = proc.wait(timeout=60)
-        return code, "".join(told) + proc.stderr.read(), out
+        return code, "".join(told) + stderr.rest(60), out
     finally:
         if proc.poll() is None:
             proc.kill()
