@@ -30,6 +30,10 @@ from scipy.special import fdtri
 from bench.analysis.frf import Frf, phasor_ratio
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 
+#: Fewest periodogram bins the noise density at a dwell's frequency is averaged over (the nearest
+#: ones when fewer lie within 25 % of it): 8 complex bins, 16 degrees of freedom, so the density is
+#: known to about 25 % (one sigma) even for a window of two cycles.
+MIN_NOISE_BINS = 8
 #: Probability that a settled dwell (stationary noise) is flagged by the residual test, all its
 #: channels together.
 SETTLING_FALSE_ALARM = 0.01
@@ -133,18 +137,26 @@ def _local_noise_variance(res: np.ndarray, w_dt: float, n_harm: int, dof_factor:
 
     Sensor noise is not white after the acquisition's anti-alias filter (and rarely is in a lab):
     the fundamental's error depends on the noise density at the excitation frequency only. ``G`` is
-    averaged over the periodogram bins within 25 % (at least 8 bins) of the fundamental, except the
-    bins of the fitted components; ``None`` when fewer than 6 bins qualify.
+    averaged over the periodogram bins within 25 % of the fundamental, except DC and the bins of the
+    fitted components, and over at least the :data:`MIN_NOISE_BINS` such bins nearest to it: a
+    window of few cycles (a low-frequency dwell, a settling test's half window) has few bins near
+    its fundamental, and taking the whole residual as white would understate the noise there by
+    the share of the band the anti-alias filter removes. ``None`` when the window has fewer than
+    :data:`MIN_NOISE_BINS` bins besides the fitted components.
     """
     n = res.shape[0]
     spec = np.fft.rfft(res, axis=0)
     k = np.arange(spec.shape[0])
     cycles = w_dt * n / (2 * np.pi)  # the fundamental's bin (whole cycles in the window)
-    near = (np.abs(k - cycles) <= max(0.25 * cycles, 8)) & (k > 0) & (k < n // 2)
+    eligible = (k > 0) & (k < n // 2)
     for h in range(1, n_harm + 1):
-        near &= np.abs(k - h * cycles) > 1.5
-    if near.sum() < 6:
+        eligible &= np.abs(k - h * cycles) > 1.5
+    if eligible.sum() < MIN_NOISE_BINS:
         return None
+    distance = np.where(eligible, np.abs(k - cycles), np.inf)
+    nearest = np.argsort(distance, kind="stable")[:MIN_NOISE_BINS]
+    near = eligible & (distance <= 0.25 * cycles)
+    near[nearest] = True
     # |R_k|^2 / n estimates the two-sided density times fs; E|dA|^2 = 2 G / T = 4 S / n^2 * n.
     density = np.mean(np.abs(spec[near]) ** 2, axis=0) / n
     return 4.0 * density / n * dof_factor

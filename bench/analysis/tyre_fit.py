@@ -66,7 +66,7 @@ RATE, HYST = RUBBER_PARAMETERS
 #: interval as its prior, so that its error is common to all points instead of independent noise.
 PLATE_MASS_OFFSET = "plate_mass_offset_kg"
 #: Relative floor on point uncertainties (model-form and rounding), so that no point gets infinite weight.
-RELATIVE_SIGMA_FLOOR = 1e-4
+RELATIVE_SIGMA_FLOOR = 1e-5
 #: Resolution of the rubber terms (95 % half-widths above it: not determined): a stiffness rise of
 #: 1 % per decade (2 % over the 0.5-70 Hz grid, the tolerance on k), a hysteretic loss of 1 % of k.
 #: A stiffness rise smaller than its resolution is not worth a parameter either.

@@ -341,9 +341,12 @@ class PlantSimulator:
         """Run a whole waveform from rest; channels aligned with the waveform's time axis.
 
         The record covers ``waveform.duration_s + extra_s``; a non-linear tyre is rescheduled as
-        a sweep's frequency moves. Returns the channels and ``t_s``.
+        a sweep's frequency moves. Returns the channels and ``t_s``. The mechanical state and the
+        filters start from rest; the noise stream carries on from the call before, as a bench's
+        noise does from one dwell to the next (the dwells of one seed share no noise; the same
+        calls on a simulator of the same seed give the same records).
         """
-        self.reset()
+        self.mount(self.setup)
         n_out = round((waveform.duration_s + extra_s) * self.output_rate_hz)
         n_total = n_out + self.latency_samples
         t_internal = np.arange(n_total * self.oversampling) / self.internal_rate_hz
