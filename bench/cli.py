@@ -18,7 +18,6 @@ from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
 from bench.cli_metadata import add_meta_option
-from bench.cli_show import add_show_command
 from drivers.errors import LinkError
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
@@ -44,9 +43,8 @@ def _run(args: argparse.Namespace) -> int:
     from sequences import SequenceError
 
     try:
-        plan = plan_campaign(
-            Path(args.sequence), Path(args.bench) if args.bench else None, realtime=args.realtime, metadata=args.meta
-        )
+        bench_config = Path(args.bench) if args.bench else None
+        plan = plan_campaign(Path(args.sequence), bench_config, realtime=args.realtime, metadata=args.meta)
         answers = load_answers(Path(args.answers), plan.sequence) if args.answers else None
     except (SequenceError, ConfigError, AnswersError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -395,7 +393,6 @@ def build_parser() -> argparse.ArgumentParser:
     status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
     status.set_defaults(run=_actuator_status)
     add_analysis_commands(sub)
-    add_show_command(sub)
     return parser
 
 

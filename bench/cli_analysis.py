@@ -91,7 +91,10 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
-    """Add ``analyze`` and ``report`` to the ``wfsbench`` subcommands."""
+    """Add ``analyze``, ``report`` and ``show`` (:mod:`bench.cli_show`) to the ``wfsbench``
+    subcommands: the commands that read a campaign file."""
+    from bench.cli_show import add_show_command
+
     analyze = sub.add_parser(
         "analyze", help="analyse a campaign file (any writer); results are stored in it under new names"
     )
@@ -102,3 +105,4 @@ def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
     report.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     report.add_argument("--out", required=True, help="directory for the PNG figures and report.html")
     report.set_defaults(run=_report)
+    add_show_command(sub)

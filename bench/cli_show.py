@@ -47,5 +47,7 @@ def add_show_command(sub: argparse._SubParsersAction) -> None:
         " campaign file exits 3 (docs/cli.md).",
     )
     show.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
-    show.add_argument("--json", action="store_true", help="JSON (schema wfs-bench-show, docs/cli.md) instead of text")
+    show.add_argument(
+        "--json", action="store_true", help="JSON (schema wfs-bench-show, docs/cli.md) instead of text"
+    )
     show.set_defaults(run=_show)

@@ -64,7 +64,9 @@ def _summary(campaign: CampaignFile) -> dict[str, Any]:
         "software_version": campaign.software_version,
         "created": campaign.created,
         "sequence_name": campaign.sequence_name,
-        "sequences": [{"name": name, "runs": n} for name, n in sequences_run(r.run_id for r in campaign.runs)],
+        "sequences": [
+            {"name": name, "runs": n} for name, n in sequences_run(run.run_id for run in campaign.runs)
+        ],
         "configuration": source,
         "configuration_error": config_problem or None,
         "metadata": dict(campaign.metadata),
@@ -104,7 +106,8 @@ def _excitation(run: RunView, step: Step | None) -> tuple[list[float], list[floa
     step's ``start_hz`` and ``end_hz``, which every sweep record has)."""
     if isinstance(step, DwellGrid | FreeRun):
         grid = step.grid if isinstance(step, FreeRun) else step
-        return sorted(map(float, set(grid.amplitudes_mm))), [float(min(grid.freqs_hz)), float(max(grid.freqs_hz))]
+        span_hz = [float(min(grid.freqs_hz)), float(max(grid.freqs_hz))]
+        return sorted(map(float, set(grid.amplitudes_mm))), span_hz
     if isinstance(step, SineDwell):
         return [float(step.amplitude_mm)], [float(step.freq_hz)] * 2
     if isinstance(step, Sweep):
@@ -207,7 +210,9 @@ def _metadata_lines(metadata: dict[str, str], indent: str) -> list[str]:
 def summary_lines(summary: dict[str, Any]) -> list[str]:
     """The summary as text: the file, its metadata and specimen, then one block per run."""
     runs = summary["runs"]
-    sequences = ", ".join(f"{s['name']} ({s['runs']} run{'' if s['runs'] == 1 else 's'})" for s in summary["sequences"])
+    sequences = ", ".join(
+        f"{s['name']} ({s['runs']} run{'' if s['runs'] == 1 else 's'})" for s in summary["sequences"]
+    )
     lines = [
         f"{summary['file']}: campaign file, schema version {summary['schema_version']}, written by"
         f" wfs-bench {summary['software_version']}, created {summary['created']}",

@@ -288,7 +288,8 @@ class CampaignWriter:
         # the run keeps the bench, operator and notes it began with; who resumed it is in the event
         resumer = {name: self.metadata[name] for name in s.RUN_METADATA_FIELDS if self.metadata[name]}
         if ended["status"] == RunStatus.INCOMPLETE:
-            self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable, **resumer)
+            text = f"writing resumed after sample {usable}"
+            self._run.add_event("resumed", text, samples=usable, **resumer)
         else:
             self._run.add_event(
                 "resumed",
