@@ -111,6 +111,7 @@ def analyze_campaign(
             hammer_record=hammer.hammer_record() if hammer is not None else None,
             sequences=sequences_run(run.run_id for run in campaign.runs),
             sweep_record=four_post[-1].sweep_record() if four_post and knowledge.four_post else None,
+            metadata=dict(campaign.metadata),
         )
 
 

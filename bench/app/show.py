@@ -23,11 +23,12 @@ from typing import Any
 from bench import locks
 from bench.app.analyze import CampaignFileError, sequences_run, stored_config
 from bench.config import BenchConfig
+from bench.report.metadata import metadata_lines
 from bench.store import CampaignFile, RunView, StoreError, open_campaign
 from bench.store.schema import CampaignInUseError, campaign_key
 from sequences import DwellGrid, FreeRun, HammerTest, Sequence, SequenceError, SineDwell, Step, Sweep
 from sequences.loader import step_from_fields
-from sequences.metadata import LABELS, METADATA_FIELDS
+from sequences.metadata import LABELS
 from sequences.points import PointStatus
 
 SCHEMA = "wfs-bench-show"
@@ -194,19 +195,6 @@ def _conditions(run: dict[str, Any]) -> str:
     return ", ".join([*parts, wheel])
 
 
-def _metadata_lines(metadata: dict[str, str], indent: str) -> list[str]:
-    given = [(LABELS[name], metadata[name]) for name in METADATA_FIELDS if metadata.get(name)]
-    if not given:
-        return [f"{indent}(none given)"]
-    width = max(len(label) for label, _ in given)
-    lines = []
-    for label, value in given:
-        first, *rest = value.splitlines() or [""]
-        lines.append(f"{indent}{label:<{width}}  {first}")
-        lines += [f"{indent}{'':<{width}}  {line}" for line in rest]
-    return lines
-
-
 def summary_lines(summary: dict[str, Any]) -> list[str]:
     """The summary as text: the file, its metadata and specimen, then one block per run."""
     runs = summary["runs"]
@@ -219,7 +207,7 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         f"sequence that created it: {summary['sequence_name']}; sequences run: {sequences or 'none'}",
         f"configuration: {summary['configuration']}",
         "metadata:",
-        *_metadata_lines(summary["metadata"], "  "),
+        *metadata_lines(summary["metadata"]),
     ]
     specimen = summary["specimen"]
     if specimen is None:
