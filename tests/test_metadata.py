@@ -144,3 +144,26 @@ def test_the_shipped_configuration_documents_the_table_and_gives_nothing():
     assert all(f"# {name} = " in text for name in METADATA_FIELDS)
     assert parse_bench_config(text, str(config_path)).metadata == {}
     assert parse_sequence(shipped_file("smoke.toml").read_text(), "smoke", BenchLimits()).metadata == {}
+
+
+def test_import_csv_records_the_configurations_metadata_with_meta_winning(tmp_path: Path):
+    from bench.store import open_campaign
+    from tests.test_csv_import import GOOD_CSV, MAPPING
+
+    (tmp_path / "mapping.toml").write_text(MAPPING)
+    (tmp_path / "free.csv").write_text(GOOD_CSV)
+    (tmp_path / "lab.toml").write_text('[metadata]\nbench_id = "B1"\noperator = "config"\n')
+    out = tmp_path / "imported.h5"
+    args = [
+        "import-csv",
+        str(tmp_path / "mapping.toml"),
+        "--out",
+        str(out),
+        "--bench",
+        str(tmp_path / "lab.toml"),
+    ]
+    assert main([*args, "--meta", "operator=Ann", "--meta", "tyre_size=205/55 R16"]) == 0
+    with open_campaign(out) as campaign:
+        assert campaign.metadata == merged({"bench_id": "B1", "operator": "Ann", "tyre_size": "205/55 R16"})
+        (run,) = campaign.runs
+        assert run.metadata == {"bench_id": "B1", "operator": "Ann", "notes": ""}
