@@ -181,3 +181,35 @@ def test_a_file_being_written_is_refused_and_shown_once_closed(tmp_path: Path, m
     assert writer.returncode == 0
     assert main(["show", str(path)]) == EXIT_COMPLETE
     assert "runs: none" in capsys.readouterr().out
+
+
+def test_a_run_whose_step_is_no_sequence_step_is_shown_from_its_points(tmp_path: Path, capsys) -> None:
+    """Another writer's step (here: a grid whose frequencies are no list) plans nothing known; the
+    run's excitation is read from the points it did (the nominal amplitude where a limit lowered it)."""
+    from bench.store import CampaignWriter
+    from sequences.channels import Channel
+    from sequences.points import PointAttempt
+
+    path = tmp_path / "other.h5"
+    with CampaignWriter.create(
+        path, software_version="t", config_toml="", sequence_toml="", sequence_name="other"
+    ) as writer:
+        run = writer.begin_run(
+            "r1",
+            kind="dwell_grid",
+            step={"type": "dwell_grid", "freqs_hz": 5, "amplitudes_mm": [1]},
+            conditions={"tyre_pressure_bar": float("nan")},
+            channels=(Channel("fz_wfs_n", "N"),),
+            sample_rate_hz=1e3,
+        )
+        run.append({"fz_wfs_n": [0.0] * 3000})
+        run.add_point(PointAttempt(0, 5.0, 1.0, 0, 100, 900, 1000))
+        run.add_point(PointAttempt(1, 40.0, 0.5, 1000, 1100, 1900, 2000, requested_amplitude_mm=1.0))
+        run.finish("complete")
+    assert main(["show", str(path), "--json"]) == EXIT_COMPLETE
+    (shown,) = json.loads(capsys.readouterr().out)["runs"]
+    assert (shown["points_done"], shown["points_planned"]) == (2, None)
+    assert (shown["freq_span_hz"], shown["amplitudes_mm"]) == ([5, 40], [1])
+    assert shown["conditions"] == {"tyre_pressure_bar": None} and shown["tyre_pressure_bar"] is None
+    assert main(["show", str(path)]) == EXIT_COMPLETE
+    assert "    points 2 done (planned: not recorded); 5-40 Hz, at 1 mm," in capsys.readouterr().out

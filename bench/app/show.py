@@ -92,19 +92,21 @@ def _specimen(config: BenchConfig | None) -> dict[str, Any] | None:
     }
 
 
-def _step(run: RunView) -> Step | None:
-    """The sequence step the run recorded, None when its ``step`` is no step of the vocabulary
-    (a CSV import's description, another writer's)."""
+#: The excitation of a run: its nominal amplitudes (mm) and frequency span (Hz; None: a hammer blow).
+Excitation = tuple[list[float], list[float] | None]
+
+
+def _planned(run: RunView) -> tuple[int, Excitation] | None:
+    """The points the run's step plans and its excitation, None when the run's ``step`` is no step
+    of the vocabulary (a CSV import's description, another writer's, values of the wrong type)."""
     try:
-        return step_from_fields(run.step, f"{run.path}:/runs/{run.run_id}@step")
+        step = step_from_fields(run.step, f"{run.path}:/runs/{run.run_id}@step")
+        return Sequence("", "", (step,)).points(), _step_excitation(step)
     except (SequenceError, TypeError, ValueError):
         return None
 
 
-def _excitation(run: RunView, step: Step | None) -> tuple[list[float], list[float] | None]:
-    """The nominal amplitudes (mm) and the frequency span (Hz, None for a hammer blow) of the
-    run: from its step, or, for a step of no known form, from the points it did (a sweep from the
-    step's ``start_hz`` and ``end_hz``, which every sweep record has)."""
+def _step_excitation(step: Step) -> Excitation:
     if isinstance(step, DwellGrid | FreeRun):
         grid = step.grid if isinstance(step, FreeRun) else step
         span_hz = [float(min(grid.freqs_hz)), float(max(grid.freqs_hz))]
@@ -115,6 +117,13 @@ def _excitation(run: RunView, step: Step | None) -> tuple[list[float], list[floa
         return [float(step.amplitude_mm)], [float(step.start_hz), float(step.end_hz)]
     if isinstance(step, HammerTest):
         return [], None
+    raise ValueError(f"a {step.kind} step records no run")
+
+
+def _recorded_excitation(run: RunView) -> Excitation:
+    """The excitation of a run whose step is of no known form: a sweep's from its step's
+    ``start_hz``, ``end_hz`` and ``amplitude_mm`` (which every sweep record has), else from the
+    points it did (their nominal amplitudes, their frequencies)."""
     if run.kind == "sweep" and all(isinstance(run.step.get(k), int | float) for k in ("start_hz", "end_hz")):
         amplitude = run.step.get("amplitude_mm")
         amplitudes = [float(amplitude)] if isinstance(amplitude, int | float) else []
@@ -129,11 +138,13 @@ def _excitation(run: RunView, step: Step | None) -> tuple[list[float], list[floa
 
 
 def _run(run: RunView) -> dict[str, Any]:
-    step = _step(run)
-    planned = Sequence("", "", (step,)).points() if step is not None else None
-    amplitudes_mm, span_hz = _excitation(run, step)
+    planned = _planned(run)
+    points_planned, (amplitudes_mm, span_hz) = planned if planned else (None, _recorded_excitation(run))
     wheel = run.conditions.get("wheel_fitted")
     pressure = run.conditions.get("tyre_pressure_bar")
+    pressure = (
+        _finite(pressure) if isinstance(pressure, int | float) and not isinstance(pressure, bool) else None
+    )
     return {
         "run_id": run.run_id,
         "kind": run.kind,
@@ -144,8 +155,8 @@ def _run(run: RunView) -> dict[str, Any]:
         "metadata": dict(run.metadata),
         "points_done": len({p.index for p in run.points if p.status == PointStatus.DONE}),
         "points_done_in_step": len(run.completed_point_indices()),
-        "points_planned": planned,
-        "tyre_pressure_bar": pressure if isinstance(pressure, int | float) else None,
+        "points_planned": points_planned,
+        "tyre_pressure_bar": pressure,
         "wheel_fitted": wheel if isinstance(wheel, bool) else None,
         "amplitudes_mm": amplitudes_mm,
         "freq_span_hz": span_hz,
