@@ -94,13 +94,34 @@ def test_show_tells_what_the_campaign_holds_and_changes_nothing(campaign: Path, 
 
 
 def test_analyze_no_store_prints_and_leaves_the_file_as_it_was(campaign: Path, capsys) -> None:
+    """The analysis with the campaign's metadata, as JSON, text and the report's heading; with
+    --no-store nothing of the file changes."""
+    from bench.app.analyze import analyze_campaign
+    from bench.report.html import report_html
+
     before = _state(campaign)
     assert main(["analyze", str(campaign), "--no-store", "--json"]) == EXIT_COMPLETE
     doc = json.loads(capsys.readouterr().out)
     assert [run["results_name"] for run in doc["runs"]] == [None, None, None]
     assert doc["metadata"]["operator"] == "Jürgen" and doc["metadata"]["notes"] == "new tyre\nrun in"
+    assert main(["analyze", str(campaign), "--no-store"]) == EXIT_COMPLETE
+    text = capsys.readouterr().out.splitlines()
+    assert text[:5] == [
+        f"== test metadata of {campaign}",
+        "  tyre identifier  T-0815",
+        "  operator         Jürgen",
+        "  notes            new tyre",
+        "                   run in",
+    ]
+    assert text[5] == "== smoke-s003-free_run (free_run: plate_mass)"  # no "stored as"
     assert _state(campaign) == before
     assert not (campaign.parent.parent / "locks").exists()
+    page = report_html(analyze_campaign(campaign), ())
+    heading = page[page.index("<h1>") : page.index("<h2>")]
+    assert heading.endswith(
+        '<table class="metadata"><tr><th>tyre identifier</th><td>T-0815</td></tr>'
+        "<tr><th>operator</th><td>Jürgen</td></tr><tr><th>notes</th><td>new tyre<br>run in</td></tr></table>"
+    )
 
 
 def _damaged(kind: str, tmp_path: Path, smoke_campaign: Path) -> Path:

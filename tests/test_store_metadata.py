@@ -229,8 +229,10 @@ def test_each_result_records_when_it_was_stored(tmp_path: Path) -> None:
     with _create(path, None) as writer:
         _run(writer, "001")
     add_results(path, {("001", "plate_mass"): {"m_comp_kg": 12.0}})
-    with pytest.raises(StoreError, match="is the attribute saying when it was stored"):
-        add_results(path, {("001", "other"): {"stored": "yesterday"}})
+    before = _sha256(path)
+    with pytest.raises(StoreError, match="other/stored: is the attribute saying when it was stored"):
+        add_results(path, {("001", "fine"): {"x": 1.0}, ("001", "other"): {"stored": "yesterday"}})
+    assert _sha256(path) == before  # refused as a whole: nothing written
     with open_campaign(path) as campaign:
         view = campaign.run("001")
         assert view.results("plate_mass") == {"m_comp_kg": 12.0}  # the time is not part of the result

@@ -633,11 +633,17 @@ def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, 
         raise StoreError(path, where, f"name {name!r} cannot name an HDF5 group")
     if name in results:
         raise StoreError(path, where, "exists already: results are never overwritten")
-    if s.RESULT_STORED in tree:
-        raise StoreError(path, f"{where}/{s.RESULT_STORED}", "is the attribute saying when it was stored")
+    _check_stored_key(path, where, tree)
     group = results.create_group(name)
     write_tree(group, tree, path=path)
     group.attrs[s.RESULT_STORED] = _now_iso()
+
+
+def _check_stored_key(path: Path, where: str, result: Mapping[str, Any] | object) -> None:
+    """A result's own top-level key may not take the name of the attribute that says when it was
+    stored (:data:`~bench.store.schema.RESULT_STORED`)."""
+    if s.RESULT_STORED in (as_mapping(result) or {}):
+        raise StoreError(path, f"{where}/{s.RESULT_STORED}", "is the attribute saying when it was stored")
 
 
 def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
@@ -696,12 +702,13 @@ def _add_results(path: Path, results: Mapping[tuple[str, str], Mapping[str, Any]
         raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
     with file:
         runs = file[s.RUNS]
-        for run_id, name in results:
+        for (run_id, name), result in results.items():
             where = f"/{s.RUNS}/{run_id}/{s.RESULTS}/{name}"
             if run_id not in runs:
                 raise StoreError(path, f"/{s.RUNS}/{run_id}", "no such run")
             if name in runs[run_id][s.RESULTS]:
                 raise StoreError(path, where, "exists already: results are never overwritten")
+            _check_stored_key(path, where, result)
         for (run_id, name), result in results.items():
             _write_results(path, runs[run_id], name, result)
         file.flush()
