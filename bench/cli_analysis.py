@@ -103,7 +103,9 @@ def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
     from bench.cli_show import add_show_command
 
     analyze = sub.add_parser(
-        "analyze", help="analyse a campaign file (any writer); results are stored in it under new names"
+        "analyze",
+        help="analyse a campaign file (any writer); results are stored in it under new names"
+        " (--no-store: only printed)",
     )
     analyze.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     analyze.add_argument("--json", action="store_true", help="JSON (docs/analysis-json.md) instead of text")
