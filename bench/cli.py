@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
+from bench.cli_metadata import add_meta_option
 from drivers.errors import LinkError
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
@@ -42,9 +43,8 @@ def _run(args: argparse.Namespace) -> int:
     from sequences import SequenceError
 
     try:
-        plan = plan_campaign(
-            Path(args.sequence), Path(args.bench) if args.bench else None, realtime=args.realtime
-        )
+        bench_config = Path(args.bench) if args.bench else None
+        plan = plan_campaign(Path(args.sequence), bench_config, realtime=args.realtime, metadata=args.meta)
         answers = load_answers(Path(args.answers), plan.sequence) if args.answers else None
     except (SequenceError, ConfigError, AnswersError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -141,6 +141,7 @@ def _import_csv(args: argparse.Namespace) -> int:
     from bench.store.csv_read import CsvError
     from sequences import SequenceError
     from sequences.limits import TYRE_PRESSURE_RANGE_BAR
+    from sequences.metadata import merged
 
     try:
         mapping = load_mapping(Path(args.mapping))
@@ -152,7 +153,14 @@ def _import_csv(args: argparse.Namespace) -> int:
         config_text = Path(args.bench).read_text() if args.bench else config.to_toml()
         limits = ImportLimits(config.limits.min_freq_hz, config.limits.max_freq_hz, *TYRE_PRESSURE_RANGE_BAR)
         out, version = Path(args.out), software_version()
-        runs = import_campaign(mapping, out, limits=limits, config_toml=config_text, software_version=version)
+        runs = import_campaign(
+            mapping,
+            out,
+            limits=limits,
+            config_toml=config_text,
+            software_version=version,
+            metadata=merged(config.metadata, args.meta),
+        )
     except InUseError as exc:  # another process writes that file
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
@@ -173,7 +181,7 @@ def _demo(args: argparse.Namespace) -> int:
             " analyses are not kept (--out DIR writes elsewhere)",
             flush=True,
         )
-    for line in run_demo(Path(args.out), seed=args.seed):
+    for line in run_demo(Path(args.out), seed=args.seed, metadata=args.meta):
         print(line)
     return 0
 
@@ -313,6 +321,7 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="directory for campaign.h5 and report/, replaced if there (default: %(default)s)",
     )
+    add_meta_option(demo, "the simulated benches' configurations")
     demo.set_defaults(run=_demo)
 
 
@@ -335,6 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--answers", metavar="FILE", help="answers to the prompts by id (TOML, docs/cli.md): unattended run"
     )
     run.add_argument("--realtime", action="store_true", help="pace the simulated bench in real time")
+    add_meta_option(run, "the configuration and the sequence")
     run.set_defaults(run=_run)
     check = sub.add_parser("check", help="validate and dry-run a sequence on the bench; nothing moves")
     check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
@@ -347,6 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--bench",
         help="bench configuration recorded with the campaign (default: the mapping's bench kind)",
     )
+    add_meta_option(imp, "the configuration")
     imp.set_defaults(run=_import_csv)
     tui = sub.add_parser("tui", help="the technician's terminal UI (docs/tui.md)")
     tui.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")

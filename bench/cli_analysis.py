@@ -8,7 +8,8 @@ Exit codes (both commands):
   cannot be used (a file, under a file, not writable; checked before the analysis): nothing was
   written;
 - 4 (``analyze`` only): analysed and printed, but the results could not be stored in the file
-  (read-only file or directory);
+  (read-only file or directory; never with ``--no-store``, which opens the file read-only and
+  writes nothing);
 - 5 (``analyze`` only): analysed, printed and stored, but not every run's analysis is complete: one
   failed (a channel it needs is missing from the file, its records are unusable, ...) or gave only
   part of what its run is for; each is flagged with why (``report`` writes its page either way).
@@ -53,16 +54,22 @@ def _analyze(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_NOT_CAMPAIGN
     code, names = EXIT_PARTIAL if analysis.not_complete else EXIT_OK, {}
-    try:
-        names = store_reanalysis(analysis)
-    except StoreError as exc:
-        print(f"error: results not stored: {exc}", file=sys.stderr)
-        code = EXIT_NOT_STORED
+    if args.store:
+        try:
+            names = store_reanalysis(analysis)
+        except StoreError as exc:
+            print(f"error: results not stored: {exc}", file=sys.stderr)
+            code = EXIT_NOT_STORED
     if args.json:
         from bench.report.json_out import analysis_json_text
 
         print(analysis_json_text(analysis, names))
         return code
+    from bench.report.metadata import metadata_lines
+
+    print(f"== test metadata of {analysis.path}")
+    for line in metadata_lines(analysis.metadata):
+        print(line)
     for run in analysis.runs:
         stored = f"; stored as results/{names[run.run_id]}" if run.run_id in names else ""
         print(f"== {run.run_id} ({run.kind}: {run.name}{stored})")
@@ -91,14 +98,26 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
-    """Add ``analyze`` and ``report`` to the ``wfsbench`` subcommands."""
+    """Add ``analyze``, ``report`` and ``show`` (:mod:`bench.cli_show`) to the ``wfsbench``
+    subcommands: the commands that read a campaign file."""
+    from bench.cli_show import add_show_command
+
     analyze = sub.add_parser(
-        "analyze", help="analyse a campaign file (any writer); results are stored in it under new names"
+        "analyze",
+        help="analyse a campaign file (any writer); results are stored in it under new names"
+        " (--no-store: only printed)",
     )
     analyze.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     analyze.add_argument("--json", action="store_true", help="JSON (docs/analysis-json.md) instead of text")
+    analyze.add_argument(
+        "--no-store",
+        dest="store",
+        action="store_false",
+        help="only print: store no results, open the file read-only (it is left byte for byte as it was)",
+    )
     analyze.set_defaults(run=_analyze)
     report = sub.add_parser("report", help="figures and a self-contained HTML page of a campaign file")
     report.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     report.add_argument("--out", required=True, help="directory for the PNG figures and report.html")
     report.set_defaults(run=_report)
+    add_show_command(sub)

@@ -14,6 +14,7 @@ import math
 import numbers
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -37,6 +38,7 @@ from sequences.channels import (
 )
 from sequences.errors import problems_text
 from sequences.limits import INTERLOCKS_ABOVE, BenchLimits
+from sequences.metadata import check_metadata
 from sequences.ranges import range_problem
 from sequences.toml_text import load_toml, toml_error_where, toml_table, toml_value
 
@@ -177,6 +179,9 @@ class BenchConfig:
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
     timing: EngineTiming = field(default_factory=EngineTiming)
+    #: the ``[metadata]`` table: the test metadata this bench states (bench, sensor, ...), only the
+    #: fields the file gives (:mod:`sequences.metadata`; a sequence's and ``--meta`` win over it)
+    metadata: Mapping[str, str] = field(default_factory=dict)
     source: str = "<default>"
 
     @property
@@ -218,6 +223,7 @@ class BenchConfig:
             toml_table("[specimen]", _as_dict(self.specimen)),
             toml_table("[simulation]", _as_dict(self.simulation)),
             toml_table("[timing]", _as_dict(self.timing)),
+            toml_table("[metadata]", self.metadata),
         ]
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
@@ -225,11 +231,12 @@ class BenchConfig:
 def measured_bench(config: BenchConfig) -> dict[str, object]:
     """What of ``config`` shapes a measurement, flat by dotted key (``limits.stroke_mm``): everything
     but how the devices are reached (the ``[actuator]`` table, the WFS's transport, device and baud
-    rate), whether the simulated bench is paced, the engine's timeouts and the file's name;
+    rate), whether the simulated bench is paced, the engine's timeouts, the test metadata (a resume
+    checks the sensor and tyre it names against the campaign's: docs/hdf5.md) and the file's name;
     ``simulated`` says whether the devices are simulated. Two configurations with equal values
     measure alike (a resume compares them)."""
     data = tomllib.loads(config.to_toml())
-    del data["actuator"], data["simulation"]["paced"], data["timing"]
+    del data["actuator"], data["simulation"]["paced"], data["timing"], data["metadata"]
     data["simulation"].pop("own_process", None)
     for key in ("transport", "device", "baudrate"):
         del data["wfs"][key]
@@ -410,6 +417,7 @@ class _Reader:
             "specimen",
             "simulation",
             "timing",
+            "metadata",
         )
         for name in data:
             if name not in top:
@@ -430,6 +438,7 @@ class _Reader:
             specimen=self.specimen(data),
             simulation=self.simulation(data),
             timing=self.timing(data),
+            metadata=self.metadata(data),
             source=self.source,
         )
         if self.problems:
@@ -619,6 +628,14 @@ class _Reader:
                 for f in fields(EngineTiming)
             }
         )
+
+    def metadata(self, data: dict) -> dict[str, str]:
+        """The ``[metadata]`` table: texts by the names of :data:`~sequences.metadata.METADATA_FIELDS`
+        (the calibration date ``YYYY-MM-DD``); each may be left out."""
+        given, problems = check_metadata(data.get("metadata", {}))
+        for key, reason in problems:
+            self.add(key, reason)
+        return given
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()

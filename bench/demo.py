@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 from bench.analysis.campaign import CampaignKnowledge
@@ -48,10 +49,11 @@ def _band(band) -> str:
     return f"{band.upper_hz:5.1f} Hz" if band.determined else "not determined"
 
 
-def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
+def run_demo(out_dir: Path, seed: int = 1, metadata: Mapping[str, str] | None = None) -> list[str]:
     """Run the campaign into ``out_dir/campaign.h5`` (a previous demo file there is replaced),
     write its report (figures and ``report.html``) to ``out_dir/report/``; return the summary's
-    lines, the last of which names the report page."""
+    lines, the last of which names the report page. ``metadata``: test metadata fields recorded
+    with the campaign and its every run (``--meta``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / "campaign.h5"
     out.unlink(missing_ok=True)
@@ -62,6 +64,7 @@ def run_demo(out_dir: Path, seed: int = 1) -> list[str]:
         config = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, seed=seed))
         path = shipped_file(name)
         plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text(), config.to_toml())
+        plan = plan.with_metadata(metadata or {})
         if knowledge is None:
             knowledge = initial_knowledge(config)
         outcome = run_campaign(plan, out, knowledge=knowledge)

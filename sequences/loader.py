@@ -12,16 +12,18 @@ from __future__ import annotations
 import dataclasses
 import re
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
 
 from sequences.channels import ChannelSet
 from sequences.errors import Problem, SequenceError
 from sequences.limits import BenchLimits
+from sequences.metadata import check_metadata
 from sequences.steps import STEP_TYPES, AdaptiveDwell, DwellGrid, FreeRun, Sequence, Step, step_fields
 from sequences.toml_text import load_toml, toml_error_where, toml_table
 from sequences.validation import check_channels, check_sequence_header, check_steps
 
-_TOP_KEYS = ("sequence", "steps")
+_TOP_KEYS = ("sequence", "steps", "metadata")
 _HEADER_KEYS = ("name", "description")
 #: Set by a grid's crossover on the dwells it expands to, never written in a file.
 _DERIVED_KEYS = frozenset({"requested_amplitude_mm", "amplitude_limited_by"})
@@ -70,6 +72,8 @@ def parse_sequence(
         # without a [sequence] table, its name and description are not checked one by one; a
         # misspelt one ([sequenc]) is named by its unknown key already: nothing more to say
         problems.append(Problem(source, "sequence", "missing [sequence] table with name and description"))
+    metadata, metadata_problems = check_metadata(data.get("metadata", {}))
+    problems += [Problem(source, key, message) for key, message in metadata_problems]
     raw_steps = data.get("steps")
     steps: list[tuple[int, Step]] = []
     if not isinstance(raw_steps, list) or not raw_steps:
@@ -84,7 +88,7 @@ def parse_sequence(
             problems += check_channels(steps, channels, source)
     if problems:
         raise SequenceError.of(sorted(problems, key=_file_order))
-    return Sequence(name, description, tuple(step for _, step in steps), source)
+    return Sequence(name, description, tuple(step for _, step in steps), source, metadata)
 
 
 def _file_order(problem: Problem) -> int:
@@ -141,6 +145,19 @@ def _build_step(index: int, raw: object, source: str, problems: list[Problem]) -
     return FreeRun(built) if STEP_TYPES[kind] is FreeRun else built
 
 
+def step_from_fields(values: Mapping[str, object], source: str = "<record>") -> Step:
+    """The step a run recorded (:func:`~sequences.steps.step_fields`, as a campaign file's
+    ``step`` attribute holds it) built again; :class:`SequenceError` naming ``source`` when the
+    fields are no step of this vocabulary. Its structure is checked, not its values against a
+    bench's limits."""
+    problems: list[Problem] = []
+    recorded = {key: value for key, value in values.items() if key not in _DERIVED_KEYS}
+    step = _build_step(0, recorded, source, problems)
+    if problems or step is None:
+        raise SequenceError.of(problems or [Problem(source, "steps[0]", "not a step")])
+    return step
+
+
 def _build_adaptive(
     key: str, kind: str, raw: object, source: str, problems: list[Problem]
 ) -> AdaptiveDwell | None:
@@ -169,6 +186,8 @@ def dump_sequence(sequence: Sequence) -> str:
     (for recording a scripted sequence with its run). A dwell's ``requested_amplitude_mm`` and
     ``amplitude_limited_by`` belong to the grid that expanded it and are not written."""
     lines = toml_table("[sequence]", {"name": sequence.name, "description": sequence.description})
+    if sequence.metadata:
+        lines += ["", *toml_table("[metadata]", sequence.metadata)]
     for step in sequence.steps:
         values = {k: v for k, v in step_fields(step).items() if k not in _DERIVED_KEYS}
         lines += ["", *toml_table("[[steps]]", values)]

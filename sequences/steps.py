@@ -12,8 +12,8 @@ The steps hold whatever they are given; :func:`sequences.validation.validate` ch
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from dataclasses import dataclass, fields
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
 from sequences.errors import AnswerError
@@ -436,12 +436,14 @@ def step_fields(step: Step) -> dict[str, object]:
 
 @dataclass(frozen=True, slots=True)
 class Sequence:
-    """A named list of steps; ``source`` is the file it came from (or ``<script>``)."""
+    """A named list of steps; ``source`` is the file it came from (or ``<script>``); ``metadata``:
+    the test metadata its ``[metadata]`` table gives (only the fields given, :mod:`sequences.metadata`)."""
 
     name: str
     description: str
     steps: tuple[Step, ...]
     source: str = "<script>"
+    metadata: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def estimated_duration_s(self) -> float:

@@ -83,6 +83,7 @@ def imported_campaign(tmp_path_factory) -> Path:
         (["analyze", "missing.h5"], EXIT_INVALID),
         (["analyze", "--json", "missing.h5"], EXIT_INVALID),
         (["import-csv", "missing.toml", "--out", "never.h5"], EXIT_INVALID),
+        (["show", "missing.h5"], EXIT_INVALID),
     ],
     ids=lambda value: " ".join(Path(a).name for a in value) if isinstance(value, list) else None,
 )

@@ -131,7 +131,7 @@ def test_a_misspelt_sequence_table_is_one_unknown_key_and_nothing_more(tmp_path)
     """``[sequenc]``: its unknown key names it and the allowed ``sequence``; neither a missing table
     nor an empty ``sequence.name`` is reported on top."""
     error = _refused(_file(tmp_path, '[[steps]]\ntype = "tare"\n', header='[sequenc]\nname = "x"\n'))
-    unknown = ("sequenc", "unknown key; allowed: sequence, steps")
+    unknown = ("sequenc", "unknown key; allowed: sequence, steps, metadata")
     assert [(p.key, p.message) for p in error.problems] == [unknown]
 
 

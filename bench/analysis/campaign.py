@@ -5,6 +5,7 @@ the post-run analysis and ``wfsbench analyze`` fill them, :mod:`bench.report` re
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
@@ -119,7 +120,8 @@ class CampaignAnalysis:
     hammer run) and the four-post sweep's (``sweep_record``, likewise). ``sequences``: every
     sequence whose runs the file holds, as (name in its run ids,
     number of runs) in the order they ran: the one that created the file (``sequence_name``) and
-    those appended to it later."""
+    those appended to it later. ``metadata``: the campaign's test metadata (field -> text, empty
+    when not given; :mod:`sequences.metadata`)."""
 
     path: Path
     software_version: str
@@ -133,6 +135,7 @@ class CampaignAnalysis:
     hammer_record: HammerRecord | None
     sequences: tuple[tuple[str, int], ...] = ()
     sweep_record: SweepRecord | None = None
+    metadata: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def status(self) -> AnalysisStatus:

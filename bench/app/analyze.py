@@ -38,7 +38,10 @@ class CampaignFileError(ValueError):
     file and what is wrong."""
 
 
-def _stored_config(path: Path, config_toml: str, name: str) -> tuple[BenchConfig, str]:
+def stored_config(path: Path, config_toml: str, name: str) -> tuple[BenchConfig, str]:
+    """The bench configuration a campaign file stored, and where it came from (its name,
+    ``"stored"``, or ``"defaults"`` when the file holds none); :class:`CampaignFileError` when the
+    stored text is no valid configuration."""
     if not config_toml.strip():
         return default_bench_config(), "defaults"
     try:
@@ -80,7 +83,7 @@ def analyze_campaign(
         from bench.app.run_analysis import RunAnalyser, initial_knowledge, replay_campaign
 
         if config is None:
-            config, source = _stored_config(path, campaign.config_toml, campaign.config_name)
+            config, source = stored_config(path, campaign.config_toml, campaign.config_name)
         else:
             source = config.source
         masses = config.masses
@@ -108,6 +111,7 @@ def analyze_campaign(
             hammer_record=hammer.hammer_record() if hammer is not None else None,
             sequences=sequences_run(run.run_id for run in campaign.runs),
             sweep_record=four_post[-1].sweep_record() if four_post and knowledge.four_post else None,
+            metadata=dict(campaign.metadata),
         )
 
 

@@ -10,12 +10,14 @@ engine, so ``wfsbench check`` and the front ends can plan without loading them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
 from sequences import Sequence, dump_sequence, load_sequence, validate
+from sequences.metadata import merged
 
 
 class PlanRefusedError(ValueError):
@@ -24,26 +26,40 @@ class PlanRefusedError(ValueError):
 
 @dataclass(frozen=True)
 class CampaignPlan:
-    """A validated sequence on a configured bench, with the texts that produced them."""
+    """A validated sequence on a configured bench, with the texts that produced them and the test
+    metadata its campaign is recorded with (every field: the configuration's, the sequence's and
+    the command line's merged, each key from the last that gives it)."""
 
     config: BenchConfig
     config_text: str
     sequence: Sequence
     sequence_text: str
+    metadata: Mapping[str, str] = field(default_factory=merged)
+
+    def with_metadata(self, given: Mapping[str, str]) -> CampaignPlan:
+        """This plan with the fields of ``given`` replacing its own (a front end's operator and
+        notes, as ``--meta`` does)."""
+        return replace(self, metadata=merged(self.metadata, given))
 
 
 def plan_campaign(
-    sequence_path: Path, config_path: Path | None = None, *, realtime: bool = False
+    sequence_path: Path,
+    config_path: Path | None = None,
+    *,
+    realtime: bool = False,
+    metadata: Mapping[str, str] | None = None,
 ) -> CampaignPlan:
     """Load and check everything before anything is opened: SequenceError / ConfigError name the
     file and the key; PlanRefusedError lists every point the dry run refuses. ``realtime`` paces the
-    simulated bench in real time (the configuration's ``simulation.paced``; no effect on hardware)."""
+    simulated bench in real time (the configuration's ``simulation.paced``; no effect on hardware).
+    ``metadata``: test metadata fields given on the command line, winning over the files'."""
     config = load_bench_config(config_path)
     if realtime:
         config = replace(config, simulation=replace(config.simulation, paced=True))
     sequence = load_sequence(sequence_path, config.limits)
     config_text = Path(config_path).read_text() if config_path else config.to_toml()
-    return plan_sequence(sequence, config, Path(sequence_path).read_text(), config_text)
+    plan = plan_sequence(sequence, config, Path(sequence_path).read_text(), config_text)
+    return plan.with_metadata(metadata or {})
 
 
 def plan_sequence(
@@ -61,4 +77,5 @@ def plan_sequence(
         config_text if config_text is not None else config.to_toml(),
         sequence,
         sequence_text if sequence_text is not None else dump_sequence(sequence),
+        merged(config.metadata, sequence.metadata),
     )

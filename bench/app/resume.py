@@ -19,6 +19,7 @@ from bench.app.progress import DoneBefore
 from bench.app.resume_check import check_resume
 from bench.engine.engine import Engine, is_measurement
 from bench.store import open_campaign
+from bench.store.writer import check_specimen
 from sequences import DwellGrid, FreeRun, SineDwell
 
 
@@ -48,11 +49,16 @@ class NothingToResumeError(Exception):
 
 
 def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFromFile | None:
-    """Refuse a campaign file that cannot take the sequence (before anything is opened); the resume
-    plan when resuming; :class:`NothingToResumeError` when the file holds the sequence complete."""
+    """Refuse a campaign file that cannot take the sequence (before anything is opened): one that
+    holds its runs when not resuming, one that records another sensor or tyre than the plan's
+    metadata states (:func:`~bench.store.writer.check_specimen`); the resume plan when resuming;
+    :class:`NothingToResumeError` when the file holds the sequence complete."""
     existing = _run_ids(out_path)
     if existing is None and resume:
         raise ValueError(f"{out_path}: no campaign file to resume")
+    if existing is not None:
+        with open_campaign(out_path) as campaign:
+            check_specimen(out_path, campaign.metadata, plan.metadata)
     if existing and not resume and existing & _planned_runs(plan):
         raise ValueError(
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"

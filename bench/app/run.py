@@ -159,7 +159,7 @@ def _run_on(
 
 def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> CampaignWriter:
     if exists:
-        return CampaignWriter.open_append(out_path)
+        return CampaignWriter.open_append(out_path, metadata=plan.metadata)
     return CampaignWriter.create(
         out_path,
         software_version=software_version(),
@@ -167,4 +167,5 @@ def _campaign_writer(plan: CampaignPlan, out_path: Path, exists: bool) -> Campai
         sequence_toml=plan.sequence_text,
         sequence_name=plan.sequence.name,
         config_name=plan.config.source,
+        metadata=plan.metadata,
     )

@@ -16,6 +16,7 @@ from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import ValidBand
 from bench.analysis.lsq import Z95
 from bench.report.figures import FigureFile
+from bench.report.metadata import metadata_html
 
 _STYLE = """
 body { font-family: sans-serif; max-width: 60em; margin: 1em auto; padding: 0 1em; color: #222; }
@@ -296,5 +297,6 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
     title = f"wfs-bench report: {analysis.path.name}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{escape(title)}</title>'
-        f"<style>{_STYLE}</style></head><body><h1>{escape(title)}</h1>{body}</body></html>\n"
+        f"<style>{_STYLE}</style></head><body><h1>{escape(title)}</h1>{metadata_html(analysis.metadata)}"
+        f"{body}</body></html>\n"
     )

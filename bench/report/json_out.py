@@ -25,6 +25,7 @@ from bench.analysis.runs import (
     ShakerRatiosResult,
 )
 from bench.report.text import free_run_lines
+from sequences.metadata import METADATA_FIELDS
 
 SCHEMA = "wfs-bench-analysis"
 VERSION = 1
@@ -245,6 +246,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "sequence_name": analysis.sequence_name,
         "sequences": [{"name": name, "runs": runs} for name, runs in analysis.sequences],
         "config_source": analysis.config_source,
+        "metadata": {name: analysis.metadata.get(name, "") for name in METADATA_FIELDS},
         "status": str(analysis.status),
         "given": {"sensor_mass_kg": analysis.sensor_mass_kg, "wheel_mass_kg": analysis.wheel_mass_kg},
         "sensor": {

@@ -20,7 +20,7 @@ import contextlib
 import itertools
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -233,10 +233,12 @@ def import_campaign(
     limits: ImportLimits,
     config_toml: str,
     software_version: str,
+    metadata: Mapping[str, str] | None = None,
 ) -> tuple[ImportedRun, ...]:
     """Read every CSV file of ``mapping`` and check the mapped values against them and ``limits``,
     then write the campaign file ``out_path`` (never over an existing file). ``config_toml``: the
-    bench configuration recorded with the campaign. Returns the runs as read (what each holds)."""
+    bench configuration recorded with the campaign; ``metadata``: its test metadata (field -> text,
+    recorded on the campaign and every run). Returns the runs as read (what each holds)."""
     out_path = Path(out_path)
     if out_path.exists():
         raise FileExistsError(f"{out_path} exists already: import into a new file")
@@ -252,6 +254,7 @@ def import_campaign(
             sequence_toml=mapping.text,
             sequence_name=mapping.name,
             config_name=f"CSV import {mapping.path.name}",
+            metadata=metadata,
         ) as campaign:
             campaign.add_event(
                 "import", f"imported from CSV with {mapping.path.name}", mapping=str(mapping.path)

@@ -173,6 +173,12 @@ def _attr(path: Path, obj: h5py.HLObject, name: str, kind: type) -> Any:
     return kind(value)
 
 
+def _optional_text(path: Path, obj: h5py.HLObject, name: str) -> str:
+    """A text attribute that files may lack (written before it was recorded, or by another
+    writer): empty when absent; refused when it holds something other than text."""
+    return _attr(path, obj, name, str) if name in obj.attrs else ""
+
+
 def _member(path: Path, group: h5py.Group, name: str, kind: type) -> Any:
     where = f"{group.name}/{name}".replace("//", "/")
     item = group.get(name)
@@ -207,6 +213,8 @@ class CampaignFile:
             self.software_version, self.created = info["software_version"], info["created"]
             self.config_name, self.config_toml = info["config_name"], info["config_toml"]
             self.sequence_name, self.sequence_toml = info["sequence_name"], info["sequence_toml"]
+            #: the test metadata (docs/hdf5.md): every field, empty when the file does not give it
+            self.metadata = {name: _optional_text(path, file, name) for name in s.METADATA_FIELDS}
             self.events = _read_events(path, _member(path, file, s.EVENTS, h5py.Dataset))
             runs = _member(path, file, s.RUNS, h5py.Group)
             self.runs = tuple(RunView(path, runs[run_id], self.run, version) for run_id in runs)
@@ -288,6 +296,8 @@ class RunView:
         self.step = s.from_json(text["step"], path=path, where=f"{where}@step")
         self.conditions = s.from_json(text["conditions"], path=path, where=f"{where}@conditions")
         self.sample_rate_hz = _attr(path, group, "sample_rate_hz", float)
+        #: the bench, operator and notes of the session that began the run (empty: not stated)
+        self.metadata = {name: _optional_text(path, group, name) for name in s.RUN_METADATA_FIELDS}
         if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
             raise StoreError(path, f"{where}@sample_rate_hz", f"{self.sample_rate_hz} must be positive")
         datasets = self._channel_datasets(_member(path, group, s.CHANNELS, h5py.Group))
@@ -339,11 +349,25 @@ class RunView:
 
     def results(self, name: str) -> dict[str, Any]:
         """The stored result ``name`` as the nested mapping it was written from."""
+        with _reading(self.path, f"{self._results.name}/{name}"):
+            tree = read_tree(self._result_group(name), path=self.path)
+        tree.pop(s.RESULT_STORED, None)
+        return tree
+
+    def result_stored(self, name: str) -> str:
+        """When the result ``name`` was stored (ISO 8601 UTC); empty when the file does not say
+        (results stored before the time was recorded, or by another writer)."""
+        with _reading(self.path, f"{self._results.name}/{name}"):
+            return _optional_text(self.path, self._result_group(name), s.RESULT_STORED)
+
+    def _result_group(self, name: str) -> h5py.Group:
         where = f"{self._results.name}/{name}"
         if name not in self._results:
             raise StoreError(self.path, where, f"no such result (has {', '.join(self._results) or 'none'})")
-        with _reading(self.path, where):
-            return read_tree(self._results[name], path=self.path)
+        group = self._results[name]
+        if not isinstance(group, h5py.Group):
+            raise StoreError(self.path, where, "must be a group")
+        return group
 
     def _chain(self) -> list[RunView]:
         """This run and the runs it resumes, oldest first."""

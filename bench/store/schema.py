@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 
 from bench.locks import Holder, InUseError, file_key
+from sequences import metadata
 from sequences.points import PointAttempt, PointStatus
 
 SCHEMA_NAME = "wfs-bench campaign"
@@ -46,17 +47,14 @@ TABLE_CHUNK_ROWS = 64
 GZIP_LEVEL = 1
 
 #: The test's metadata: attributes of the campaign (``/``), UTF-8 strings, empty when not given.
-#: They name what was tested and by whom, so that a campaign can be found among many.
-METADATA_FIELDS = (
-    "bench_id",
-    "sensor_serial",
-    "sensor_calibration_date",
-    "tyre_make",
-    "tyre_size",
-    "tyre_id",
-    "operator",
-    "notes",
-)
+#: They name what was tested and by whom, so that a campaign can be found among many. Defined with
+#: the bench's vocabulary (:mod:`sequences.metadata`), where the configuration and the sequence
+#: files check them too; a run records its own ``RUN_METADATA_FIELDS`` (who ran it, where, notes).
+METADATA_FIELDS = metadata.METADATA_FIELDS
+RUN_METADATA_FIELDS = metadata.RUN_FIELDS
+#: Attribute of ``results/<name>``: when the result was stored (ISO 8601 UTC); a result's own
+#: top-level key may not take this name.
+RESULT_STORED = "stored"
 
 RUNS = "runs"
 CHANNELS = "channels"

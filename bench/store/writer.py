@@ -45,6 +45,7 @@ from bench.store.reader import open_campaign
 from bench.store.results import as_mapping, write_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel
+from sequences.metadata import merged, metadata_value, specimen_conflicts
 from sequences.points import PointAttempt, PointStatus
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
 
@@ -63,10 +64,19 @@ class CampaignWriter:
     """
 
     def __init__(
-        self, file: h5py.File, path: Path, *, flush_interval_s: float, clock: Callable[[], float]
+        self,
+        file: h5py.File,
+        path: Path,
+        *,
+        flush_interval_s: float,
+        clock: Callable[[], float],
+        metadata: Mapping[str, str] | None = None,
     ) -> None:
         self._file = file
         self.path = path
+        #: the test metadata this session states (every field; empty: not stated): its runs record
+        #: their own fields of it (:data:`~bench.store.schema.RUN_METADATA_FIELDS`)
+        self.metadata = merged(metadata or {})
         self.flush_interval_s = flush_interval_s
         self._run: RunWriter | None = None
         self._clock = clock
@@ -82,15 +92,18 @@ class CampaignWriter:
         sequence_toml: str,
         sequence_name: str,
         config_name: str = "",
+        metadata: Mapping[str, str] | None = None,
         flush_interval_s: float = s.FLUSH_INTERVAL_S,
         clock: Callable[[], float] = time.monotonic,
     ) -> CampaignWriter:
         """A new campaign file at ``path`` (refused if one exists: a campaign is never overwritten)
         holding what produced it: the software version, the bench configuration and the sequence as
-        TOML text with their names (file names, or a description when they came from elsewhere).
-        ``flush_interval_s`` and ``clock`` (wall seconds) set the flush cadence; tests pass a
-        simulated clock."""
+        TOML text with their names (file names, or a description when they came from elsewhere),
+        and the test ``metadata`` (field -> text, :mod:`sequences.metadata`; a field not given is
+        recorded empty). ``flush_interval_s`` and ``clock`` (wall seconds) set the flush cadence;
+        tests pass a simulated clock."""
         path = Path(path)
+        stated = _checked_metadata(path, metadata)  # before the file exists: a refusal leaves none
         _hold(path, "choose another name")
         try:
             file = h5py.File(path, "x", libver=s.LIBVER, track_order=True, fs_strategy=s.FS_STRATEGY)
@@ -109,9 +122,10 @@ class CampaignWriter:
         attrs["config_toml"] = config_toml
         attrs["sequence_name"] = sequence_name
         attrs["sequence_toml"] = sequence_toml
+        attrs.update(stated)
         file.create_group(s.RUNS, track_order=True)
         _create_table(file, s.EVENTS, s.EVENT_DTYPE)
-        writer = cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
+        writer = cls(file, path, flush_interval_s=flush_interval_s, clock=clock, metadata=stated)
         writer.flush()
         return writer
 
@@ -120,12 +134,18 @@ class CampaignWriter:
         cls,
         path: str | Path,
         *,
+        metadata: Mapping[str, str] | None = None,
         flush_interval_s: float = s.FLUSH_INTERVAL_S,
         clock: Callable[[], float] = time.monotonic,
     ) -> CampaignWriter:
-        """Reopen a campaign file to resume it; the file is checked by the reader first, so a file
-        that does not follow the schema is refused before anything is written to it."""
+        """Reopen a campaign file to resume it or add runs to it; the file is checked by the reader
+        first, so a file that does not follow the schema is refused before anything is written to
+        it. ``metadata``: what this session states (docs/hdf5.md, *Test metadata*): a sensor or tyre
+        the campaign recorded otherwise is refused; a field the campaign left empty is filled in
+        (a ``metadata`` event of ``/events`` says so); the runs begun from here record this
+        session's bench, operator and notes."""
         path = Path(path)
+        stated = _checked_metadata(path, metadata)
         _hold(path, "wait until it has finished")
         try:
             with open_campaign(path) as campaign:
@@ -136,6 +156,8 @@ class CampaignWriter:
                         f"is {campaign.schema_version}: this software adds runs to version {s.SCHEMA_VERSION}"
                         " files only (it reads the file; record into a new campaign file)",
                     )
+                check_specimen(path, campaign.metadata, stated)
+                filled = {k: v for k, v in stated.items() if v and not campaign.metadata[k]}
             try:
                 file = h5py.File(path, "r+")
             except OSError as err:
@@ -144,7 +166,13 @@ class CampaignWriter:
         except BaseException:
             locks.release(s.campaign_key(path))
             raise
-        return cls(file, path, flush_interval_s=flush_interval_s, clock=clock)
+        writer = cls(file, path, flush_interval_s=flush_interval_s, clock=clock, metadata=stated)
+        if filled:
+            file.attrs.update(filled)
+            shown = ", ".join(f"{name} = {value!r}" for name, value in filled.items())
+            writer.add_event("metadata", f"recorded what the campaign had left empty: {shown}", **filled)
+            writer.flush()
+        return writer
 
     def __enter__(self) -> CampaignWriter:
         return self
@@ -204,6 +232,7 @@ class CampaignWriter:
                 "sample_rate_hz": float(sample_rate_hz),
                 "resumes": resumes or "",
                 "resumed_by": "",
+                **{name: self.metadata[name] for name in s.RUN_METADATA_FIELDS},
             }
         )
         channel_group = group.create_group(s.CHANNELS, track_order=True)
@@ -256,8 +285,11 @@ class CampaignWriter:
         _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
         _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
         self._run = RunWriter(self, group, done_before=done)
+        # the run keeps the bench, operator and notes it began with; who resumed it is in the event
+        resumer = {name: self.metadata[name] for name in s.RUN_METADATA_FIELDS if self.metadata[name]}
         if ended["status"] == RunStatus.INCOMPLETE:
-            self._run.add_event("resumed", f"writing resumed after sample {usable}", samples=usable)
+            text = f"writing resumed after sample {usable}"
+            self._run.add_event("resumed", text, samples=usable, **resumer)
         else:
             self._run.add_event(
                 "resumed",
@@ -266,6 +298,7 @@ class CampaignWriter:
                 samples=usable,
                 ended=ended["status"],
                 ended_reason=ended["reason"],
+                **resumer,
             )
         self.flush()
         return self._run
@@ -600,7 +633,17 @@ def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, 
         raise StoreError(path, where, f"name {name!r} cannot name an HDF5 group")
     if name in results:
         raise StoreError(path, where, "exists already: results are never overwritten")
-    write_tree(results.create_group(name), tree, path=path)
+    _check_stored_key(path, where, tree)
+    group = results.create_group(name)
+    write_tree(group, tree, path=path)
+    group.attrs[s.RESULT_STORED] = _now_iso()
+
+
+def _check_stored_key(path: Path, where: str, result: Mapping[str, Any] | object) -> None:
+    """A result's own top-level key may not take the name of the attribute that says when it was
+    stored (:data:`~bench.store.schema.RESULT_STORED`)."""
+    if s.RESULT_STORED in (as_mapping(result) or {}):
+        raise StoreError(path, f"{where}/{s.RESULT_STORED}", "is the attribute saying when it was stored")
 
 
 def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
@@ -614,6 +657,32 @@ def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str,
         _add_results(path, results)
     finally:
         locks.release(s.campaign_key(path))
+
+
+def _checked_metadata(path: Path, metadata: Mapping[str, str] | None) -> dict[str, str]:
+    """Every metadata field as stated (empty when not), each value checked
+    (:func:`~sequences.metadata.metadata_value`); a refusal names the attribute."""
+    for name, value in (metadata or {}).items():
+        try:
+            metadata_value(name, value)
+        except ValueError as err:
+            raise StoreError(path, f"/@{name}", str(err)) from None
+    return merged(metadata or {})
+
+
+def check_specimen(path: Path, recorded: Mapping[str, str], stated: Mapping[str, str]) -> None:
+    """Refuse a session that states another sensor or tyre than the campaign recorded
+    (:func:`~sequences.metadata.specimen_conflicts`): one campaign file, one specimen."""
+    conflicts = specimen_conflicts(recorded, stated)
+    if conflicts:
+        name, now, before = conflicts[0]
+        more = f" (and {', '.join(c[0] for c in conflicts[1:])})" if conflicts[1:] else ""
+        raise StoreError(
+            path,
+            f"/@{name}",
+            f"{now!r} now, {before!r} in the file{more}: one campaign file holds one sensor and one"
+            " tyre; record another specimen into another file",
+        )
 
 
 def _hold(path: Path, advice: str) -> None:
@@ -633,12 +702,13 @@ def _add_results(path: Path, results: Mapping[tuple[str, str], Mapping[str, Any]
         raise StoreError(path, "", f"cannot be opened for writing ({err})") from err
     with file:
         runs = file[s.RUNS]
-        for run_id, name in results:
+        for (run_id, name), result in results.items():
             where = f"/{s.RUNS}/{run_id}/{s.RESULTS}/{name}"
             if run_id not in runs:
                 raise StoreError(path, f"/{s.RUNS}/{run_id}", "no such run")
             if name in runs[run_id][s.RESULTS]:
                 raise StoreError(path, where, "exists already: results are never overwritten")
+            _check_stored_key(path, where, result)
         for (run_id, name), result in results.items():
             _write_results(path, runs[run_id], name, result)
         file.flush()

@@ -25,7 +25,7 @@ from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
 from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError
-from bench.tui.dialogs import ConfirmDialog, HelpDialog, PromptDialog
+from bench.tui.dialogs import ConfirmDialog, HelpDialog, MetadataDialog, PromptDialog
 from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane
 from bench.tui.session import (
     BenchFault,
@@ -111,6 +111,7 @@ class WfsBenchApp(App):
         Binding("t", "tare", "Tare"),
         Binding("x", "reset", "Reset"),
         Binding("g", "start", "Start"),
+        Binding("m", "metadata", "Operator/notes"),
         Binding("b", "reopen", "Open the bench again"),
         Binding("p", "pause", "Pause", priority=True),
         Binding("r", "resume", "Resume", priority=True),
@@ -137,6 +138,8 @@ class WfsBenchApp(App):
         self.tripped: dict[str, str] = {}
         self.failure: str | None = None  # why the last sequence failed, until a reset or a start
         self.unopened: str | None = None  # why the bench could not be opened, until it opens
+        #: the operator and notes typed in (m), recorded with the runs the next sequences begin
+        self.run_metadata: dict[str, str] = {}
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
 
     # -- layout ---------------------------------------------------------------------------------
@@ -202,6 +205,8 @@ class WfsBenchApp(App):
             return self.pane == "bench" and engine is not None and not running
         if action == "start":
             return self.pane == "sequence" and self.plan is not None and engine is not None and not running
+        if action == "metadata":
+            return self.pane == "sequence" and not running
         if action == "reopen":
             return self.unopened is not None
         if action in ("pause", "resume", "abort"):  # from dialogs too; p, r, a never while typing
@@ -285,6 +290,16 @@ class WfsBenchApp(App):
 
         self.push_screen(ConfirmDialog(question), answered)
 
+    def action_metadata(self) -> None:
+        """The operator and notes for the runs to come, in a dialog; kept until changed again."""
+
+        def answered(fields: dict[str, str] | None) -> None:
+            if fields is not None:
+                self.run_metadata = {name: value for name, value in fields.items() if value}
+                self.main.query_one(SequencePane).show_metadata(self.run_metadata)
+
+        self.push_screen(MetadataDialog(self.run_metadata), answered)
+
     def action_reopen(self) -> None:
         """Open the bench again after it could not be opened (the configuration is read again)."""
         if self.session.reopen():
@@ -339,6 +354,7 @@ class WfsBenchApp(App):
         )
 
     def _start(self, plan: CampaignPlan, *, resume: bool) -> None:
+        plan = plan.with_metadata(self.run_metadata)  # what was typed in wins over the files' values
         self.clear_banner()
         self.tripped.clear()
         self.failure = None

@@ -1,4 +1,5 @@
-"""Modal dialogs: a sequence's prompt, a confirmation before the bench moves, the help text."""
+"""Modal dialogs: a sequence's prompt, a confirmation before the bench moves, the operator and
+notes recorded with the runs to come, the help text."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from textual.widgets import Input, Label, Static
 
 from bench.app.terminal import prompt_hint
 from sequences import AnswerError, Prompt
+from sequences.metadata import LABELS
 
 #: Shown in every dialog: the e-stop key works there too.
 ESTOP_HINT = "[b white on red] F12 E-STOP [/]"
@@ -110,6 +112,41 @@ class ConfirmDialog(ModalScreen[bool]):
         self.dismiss(yes)
 
 
+class MetadataDialog(ModalScreen[dict[str, str] | None]):
+    """The operator and notes recorded with the runs the next sequences begin (docs/tui.md). Two
+    text fields filled with what is set now; Tab moves between them, Enter in either keeps both,
+    Escape keeps what was set before. Dismissed with the fields (an empty one: not given), or None."""
+
+    FIELDS = ("operator", "notes")
+    BINDINGS: ClassVar[list[Binding]] = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, current: dict[str, str]) -> None:
+        super().__init__(id="metadata-dialog")
+        self.current = current
+
+    def compose(self) -> ComposeResult:
+        with Vertical(classes="dialog"):
+            yield Label(ESTOP_HINT)
+            yield Static("[b]Operator and notes[/b], recorded with every run the next sequences begin")
+            for name in self.FIELDS:
+                yield Label(f"{LABELS[name]}:")
+                yield Input(
+                    self.current.get(name, ""),
+                    placeholder=f"{LABELS[name]} (empty: not given)",
+                    id=f"meta-{name}",
+                )
+            yield Label("Tab: next field    Enter: keep    Escape: cancel", id="metadata-keys")
+
+    def on_mount(self) -> None:
+        self.query_one(f"#meta-{self.FIELDS[0]}", Input).focus()
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        self.dismiss({name: self.query_one(f"#meta-{name}", Input).value.strip() for name in self.FIELDS})
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)
+
+
 HELP_TEXT = """\
 [b]Keys[/b] (also in the footer of each screen)
 
@@ -126,6 +163,7 @@ HELP_TEXT = """\
 [b]Sequence[/b]  Enter on a shipped sequence, or type a file's path and Enter:
           checked and dry-run; g starts it once it is valid
           (a file holding runs of it already: g offers to resume them)
+          m: the operator and notes recorded with its runs
 [b]Run[/b]       p pause   r resume   a abort   (F6 / F7 / F8 as well)
 [b]Prompts[/b]   a number: type it and Enter (a bad value is asked again);
           a confirmation: y or n;

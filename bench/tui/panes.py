@@ -9,6 +9,7 @@ import math
 import time
 
 import numpy as np
+from rich.markup import escape
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Input, Label, OptionList, Static
@@ -32,6 +33,14 @@ SHIPPED = tuple(sorted(shipped_files(), key=lambda name: name != "smoke.toml"))
 LIVE_AGE_S = 2.0
 #: What the live line says without samples, and after the values it shows from a past run.
 IDLE_NOTE = "the WFS streams during runs only"
+
+
+def metadata_text(given: dict[str, str]) -> str:
+    """The operator and notes typed in (m), as the Sequence screen shows them."""
+    if not given:
+        return "operator, notes: not given ([b]m[/b]: enter them; the files' \\[metadata] apply)"
+    shown = "; ".join(f"{name}: {escape(value)}" for name, value in given.items())
+    return f"{shown}  ([b]m[/b]: change)"
 
 
 def age_text(seconds: float) -> str:
@@ -125,8 +134,13 @@ class SequencePane(Vertical):
         yield Label("shipped sequences (Enter checks one), or a sequence file's path:")
         yield OptionList(*SHIPPED, id="seq-shipped")
         yield Input(placeholder="path/to/sequence.toml, then Enter", id="seq-path")
+        yield Static(metadata_text({}), id="seq-metadata")
         with VerticalScroll(id="seq-report-box"):
             yield Static("no sequence checked yet", id="seq-report")
+
+    def show_metadata(self, given: dict[str, str]) -> None:
+        """The operator and notes typed in for the runs to come."""
+        self.query_one("#seq-metadata", Static).update(metadata_text(given))
 
     def show_checking(self, path: str) -> None:
         self.query_one("#seq-report", Static).update(f"checking {path}…")

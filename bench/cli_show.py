@@ -1,0 +1,53 @@
+"""``wfsbench show FILE [--json]``: what a campaign file holds, read-only (docs/cli.md).
+
+Exit codes, in the command line's scheme: 0 shown; 2 a process is writing the file (its writer
+lock or HDF5's lock held: refused, nothing read); 3 the file is no campaign file (missing, not
+HDF5, another layout, truncated, damaged, a schema violation).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _show(args: argparse.Namespace) -> int:
+    from bench.app.show import campaign_summary, summary_lines
+    from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_LINK
+    from bench.store import StoreError
+    from bench.store.schema import CampaignInUseError
+
+    try:
+        summary = campaign_summary(Path(args.file))
+    except CampaignInUseError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+    except StoreError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    if args.json:
+        import json
+
+        print(json.dumps(summary, indent=2, allow_nan=False, ensure_ascii=False))
+    else:
+        print("\n".join(summary_lines(summary)))
+    return EXIT_COMPLETE
+
+
+def add_show_command(sub: argparse._SubParsersAction) -> None:
+    """Add ``show`` to the ``wfsbench`` subcommands."""
+    show = sub.add_parser(
+        "show",
+        help="what a campaign file holds (runs, points, conditions, metadata, analyses); read-only",
+        description="Show what a campaign file holds: its runs in order with kind, status and reason,"
+        " points done of planned, conditions (tyre pressure, wheel, amplitudes, frequency span), the"
+        " specimen as configured, the test metadata and the analyses stored with when. Read-only: the"
+        " file is never written. A file a process is writing is refused (exit 2); a file that is no"
+        " campaign file exits 3 (docs/cli.md).",
+    )
+    show.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
+    show.add_argument(
+        "--json", action="store_true", help="JSON (schema wfs-bench-show, docs/cli.md) instead of text"
+    )
+    show.set_defaults(run=_show)
