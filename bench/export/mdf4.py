@@ -27,11 +27,15 @@ MDF_VERSION = "4.10"
 MDF_SUFFIX = ".mf4"
 
 
-def _properties(tag: str, text: str, properties: dict[str, str]) -> str:
-    """An MDF 4 comment block: ``<tag><TX>text</TX><common_properties>`` with one ``<e name=...>``
-    per property (escaped as XML)."""
+def _comment(tag: str, text: str, properties: dict[str, str], names: tuple[str, ...] = ()) -> str:
+    """An MDF 4 comment block (escaped as XML): ``<tag><TX>text</TX>``, the block's ``names`` (a
+    channel group's) and ``<common_properties>`` with one ``<e name=...>`` per property."""
     root = Element(tag)
     SubElement(root, "TX").text = text
+    if names:
+        block_names = SubElement(root, "names")
+        for name in names:
+            SubElement(block_names, "name").text = name
     common = SubElement(root, "common_properties")
     for name, value in properties.items():
         SubElement(common, "e", name=name).text = value
@@ -47,19 +51,22 @@ def header_comment(campaign: CampaignFile) -> str:
         "config_name": campaign.config_name,
         **campaign_metadata(campaign.path),
     }
-    return _properties("HDcomment", f"wfs-bench campaign {campaign.path.name}", properties)
+    return _comment("HDcomment", f"wfs-bench campaign {campaign.path.name}", properties)
 
 
 def group_comment(run: RunView) -> str:
-    """A run's channel-group comment: what the run was as properties, its done points as text
-    (index, frequency, amplitude, samples of the point and of its hold)."""
-    lines = [f"run {run.run_id} ({run.kind}, {run.status}); done points:"]
+    """A run's channel-group comment: what the run was, as properties and as ``name: value`` lines
+    of its text (readers that show only the text see them too), then its done points (index,
+    frequency, amplitude, samples of the point and of its hold); the run id is the group's name."""
+    description = run_description(run)
+    lines = [f"{name}: {value}" for name, value in description.items()]
+    lines.append("done points:")
     lines += [
         f"point {p.index}: {p.freq_hz:g} Hz {p.amplitude_mm:g} mm, samples {p.start_sample}-{p.end_sample},"
         f" hold {p.hold_start_sample}-{p.hold_end_sample}"
         for p in done_points(run)
     ]
-    return _properties("CGcomment", "\n".join(lines), run_description(run))
+    return _comment("CGcomment", "\n".join(lines), description, names=(run.run_id,))
 
 
 def _channel_comment(description: str, role: str | None) -> str:
