@@ -135,7 +135,7 @@ def _shaker_functions(pressure_bar: float, result: ShakerCampaignResult, runs: s
     return out
 
 
-def _four_post_functions(result: FourPostResult, runs: str) -> list[UffFunction]:
+def four_post_functions(result: FourPostResult, runs: str) -> list[UffFunction]:
     frfs = result.frfs
     case = f"four-post sweep, {result.label}"
     over_z = [  # (what, response, the sweep estimate it comes from, FRF)
@@ -177,7 +177,7 @@ def campaign_functions(analysis: CampaignAnalysis, run_ids: set[str] | None = No
         if run.name == "shaker" and pressure in k.shaker:
             out += _shaker_functions(pressure, k.shaker[pressure], run.run_id)
         elif run.name == "four_post" and k.four_post is not None:
-            out += _four_post_functions(k.four_post, run.run_id)
+            out += four_post_functions(k.four_post, run.run_id)
     return out
 
 
