@@ -230,7 +230,7 @@ def test_csv_reads_back_through_import_csv_as_the_recorded_points(smoke_campaign
                     assert again.hold_start_sample - offset == point.hold_start_sample - point.start_sample
                     assert again.hold_end_sample - offset == point.hold_end_sample - point.start_sample
                 assert (again.freq_hz, again.amplitude_mm) == (point.freq_hz, point.amplitude_mm)
-                for name in back.channels:  # float32 written to 9 digits reads back bit-identical
+                for name in back.channels:  # float32 written as its shortest decimal reads back bit-identical
                     kept = run.channels[name][point.start_sample : point.end_sample]
                     assert np.array_equal(back.channels[name][offset : offset + n], kept), name
                 offset += n

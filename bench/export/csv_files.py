@@ -3,8 +3,8 @@ which ``wfsbench import-csv`` (docs/import.md) reads them back into a campaign f
 
 One file per run, ``<run_id>.csv``: a column ``time_s`` (seconds from the run's first sample),
 then every channel the run recorded under its name in the campaign file; the line under the header
-gives each column's unit. Values are written as recorded: a float32 with 9 significant digits
-(which read back give the same float32), an integer counter as an integer. A sweep's file holds the
+gives each column's unit. Values are written as recorded: a float32 as the shortest decimal that
+reads back as the same float32, an integer counter as an integer. A sweep's file holds the
 sweep (its done point) only, since the import takes a sweep's file as the sweep.
 
 Beside them ``mapping.toml``, one ``[[runs]]`` table per run with done points: each point's part of
@@ -36,7 +36,6 @@ MAPPING = "mapping.toml"
 DELIMITER = ","
 #: Data rows formatted at a time (bounded memory on an hour-long run).
 BLOCK_ROWS = 65536
-_FORMATS = {"f4": "%.9g", "u4": "%d", "u2": "%d"}
 
 
 def _string(text: str) -> str:
@@ -74,15 +73,16 @@ def write_run_csv(run: RunView, path: Path) -> None:
     specs = run.channel_specs
     header = DELIMITER.join([TIME_COLUMN, *(spec.name for spec in specs)])
     units = DELIMITER.join(["s", *(spec.unit for spec in specs)])
-    row_format = DELIMITER.join(["%.9g", *(_FORMATS[spec.dtype] for spec in specs)])
     with path.open("w", encoding="utf-8", newline="\n") as out:
         out.write(f"{header}\n{units}\n")
         for first in range(start, stop, BLOCK_ROWS):
             last = min(first + BLOCK_ROWS, stop)
             time_s = np.arange(first, last) / run.sample_rate_hz
-            block = [time_s, *(np.asarray(run.channels[spec.name][first:last]) for spec in specs)]
-            rows = np.rec.fromarrays(block)
-            np.savetxt(out, rows, fmt=row_format, delimiter=DELIMITER)
+            # numpy's str of a float is the shortest decimal that reads back as the same value
+            columns = [time_s, *(np.asarray(run.channels[spec.name][first:last]) for spec in specs)]
+            texts = [column.astype(str).tolist() for column in columns]
+            out.write("\n".join(map(DELIMITER.join, zip(*texts, strict=True))))
+            out.write("\n")
 
 
 def _run_table(run: RunView) -> Iterator[str]:
