@@ -119,7 +119,8 @@ class CampaignAnalysis:
     hammer run) and the four-post sweep's (``sweep_record``, likewise). ``sequences``: every
     sequence whose runs the file holds, as (name in its run ids,
     number of runs) in the order they ran: the one that created the file (``sequence_name``) and
-    those appended to it later."""
+    those appended to it later. ``run_pressures_bar``: the tyre pressure each run records (its
+    ``set_tyre_pressure`` answer), by run id; a run without one is absent."""
 
     path: Path
     software_version: str
@@ -133,6 +134,7 @@ class CampaignAnalysis:
     hammer_record: HammerRecord | None
     sequences: tuple[tuple[str, int], ...] = ()
     sweep_record: SweepRecord | None = None
+    run_pressures_bar: dict[str, float] = field(default_factory=dict)
 
     @property
     def status(self) -> AnalysisStatus:

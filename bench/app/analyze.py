@@ -108,6 +108,11 @@ def analyze_campaign(
             hammer_record=hammer.hammer_record() if hammer is not None else None,
             sequences=sequences_run(run.run_id for run in campaign.runs),
             sweep_record=four_post[-1].sweep_record() if four_post and knowledge.four_post else None,
+            run_pressures_bar={
+                run.run_id: float(pressure)
+                for run in campaign.runs
+                if (pressure := run.conditions.get("tyre_pressure_bar")) is not None
+            },
         )
 
 
