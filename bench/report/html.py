@@ -28,10 +28,12 @@ body { font-family: sans-serif; max-width: 72em; margin: 1em auto; padding: 0 1e
   overflow-wrap: break-word; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
 h1.part { font-size: 1.35em; margin-top: 3em; border-top: 3px double #999; padding-top: 0.5em; }
-table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.9em; max-width: 100%; }
+table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.9em; }
+div.wide { overflow-x: auto; } /* a table wider than a narrow window scrolls in its box, not the page */
 th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: left; vertical-align: top; }
 th { background: #f0f0f0; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
-table.summary td { white-space: nowrap; } table.summary td:last-child { white-space: normal; }
+@media (min-width: 60em) { table.summary td { white-space: nowrap; } }
+table.summary td:last-child { white-space: normal; } h3 { font-size: 1em; margin-top: 1.5em; }
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.9em; color: #444; } .flag { color: #a00; } .note { color: #555; }
 pre { background: #f7f7f7; padding: 0.5em; white-space: pre-wrap; font-size: 0.8em; }
@@ -39,7 +41,8 @@ pre { background: #f7f7f7; padding: 0.5em; white-space: pre-wrap; font-size: 0.8
 
 
 def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
-    """A table; floats and ints are right-aligned."""
+    """A table (in a box that scrolls by itself where a narrow window cannot hold it); floats and
+    ints are right-aligned."""
 
     def cell(value: object) -> str:
         numeric = isinstance(value, int | float) and not isinstance(value, bool)
@@ -47,7 +50,7 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
 
     head = "".join(f"<th>{escape(h)}</th>" for h in header)
     body = "".join(f"<tr>{''.join(cell(v) for v in row)}</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f'<div class="wide"><table><tr>{head}</tr>{body}</table></div>'
 
 
 def _g(value: float, digits: int = 4) -> str:
