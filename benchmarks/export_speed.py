@@ -19,8 +19,7 @@ import time
 from pathlib import Path
 
 from bench.cli_export import FORMATS, export
-from bench.demo import run_demo
-from benchmarks.report_speed import read_every_channel
+from benchmarks.report_speed import campaign_or_demo, read_every_channel
 from benchmarks.timing import best_time_s
 
 
@@ -52,11 +51,7 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        campaign = args.campaign
-        if campaign is None:
-            print("making the campaign file with the demo (not timed) ...", flush=True)
-            run_demo(work / "demo")
-            campaign = work / "demo" / "campaign.h5"
+        campaign = campaign_or_demo(args.campaign, work)
         import asammdf  # noqa: F401 - the writers' imports are not what is measured
         import pyuff  # noqa: F401
 

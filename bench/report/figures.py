@@ -300,6 +300,36 @@ def _panel_title(ax: Axes, amp: ShakerAmplitudeResult, bands: list[tuple[str, Va
     ax.set_title(f"{amp.label}: Model {int(amp.identification.best)} selected\nvalid: {valid}", fontsize=9)
 
 
+def _finish_panel(
+    mag: Axes, phase: Axes, amp: ShakerAmplitudeResult, bands: list[tuple[str, ValidBand]]
+) -> None:
+    """An amplitude's panels: its valid bands as strips, its title, the phase axis."""
+    _band_strips(mag, bands)
+    _panel_title(mag, amp, bands)
+    phase.set_xlabel("frequency (Hz)")
+    _phase_axis(phase)
+
+
+def _finish_panels(
+    fig: Figure,
+    mags: list[Axes],
+    phases: list[Axes],
+    *,
+    limits: tuple[float, float],
+    ylabel: str,
+    title: str,
+    handles: list,
+) -> None:
+    """The shared magnitude scale and labels, the title and one legend above every panel."""
+    mags[0].set(yscale="log", ylim=limits, ylabel=ylabel)
+    phases[0].set_ylabel("phase (deg)")
+    fig.suptitle(title, y=0.985)
+    fig.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3, fontsize=8, frameon=False
+    )
+    _frequency_axes(*mags, *phases)
+
+
 def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
     """|F_WFS/F_contact| (log) and phase, one column per amplitude: the measured dwells with 95 %
     bars, Models 1-3 as lines (the selected one thicker), the raw valid band as a strip."""
@@ -325,13 +355,7 @@ def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
             mag.plot(grid, np.abs(h), **style)
             phase.plot(grid, np.degrees(np.angle(h)), **style)
         _dots(mag, phase, ratio, _MEASURED, "measured", floor=limits[0])
-        bands = [("raw", amp.valid_band_raw)]
-        _band_strips(mag, bands)
-        _panel_title(mag, amp, bands)
-        phase.set_xlabel("frequency (Hz)")
-        _phase_axis(phase)
-    mags[0].set(yscale="log", ylim=limits, ylabel="|F_WFS / F_contact|")
-    phases[0].set_ylabel("phase (deg)")
+        _finish_panel(mag, phase, amp, [("raw", amp.valid_band_raw)])
     handles = [
         Line2D(
             [],
@@ -349,11 +373,10 @@ def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
         Line2D([], [], color="black", lw=2.2, label="thick: the selected model"),
         *_band_legend(("raw",)),
     ]
-    fig.suptitle(f"Shaker, tyre at {pressure_bar:g} bar: F_WFS / F_contact measured and Models 1-3", y=0.985)
-    fig.legend(
-        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3, fontsize=8, frameon=False
+    title = f"Shaker, tyre at {pressure_bar:g} bar: F_WFS / F_contact measured and Models 1-3"
+    _finish_panels(
+        fig, mags, phases, limits=limits, ylabel="|F_WFS / F_contact|", title=title, handles=handles
     )
-    _frequency_axes(*mags, *phases)
     return fig
 
 
@@ -383,12 +406,7 @@ def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult)
         phase.plot(compensated.freq_hz, compensated.phase_deg, color=_COMPENSATED, lw=0.8)
         _tolerance(mag, phase, amp.valid_band_raw)
         bands = [("raw", amp.valid_band_raw), ("model-compensated", amp.valid_band_compensated)]
-        _band_strips(mag, bands)
-        _panel_title(mag, amp, bands)
-        phase.set_xlabel("frequency (Hz)")
-        _phase_axis(phase)
-    mags[0].set(yscale="log", ylim=limits, ylabel="|F / F_contact|")
-    phases[0].set_ylabel("phase (deg)")
+        _finish_panel(mag, phase, amp, bands)
     handles = [
         Line2D(
             [], [], color=_BAND_COLOURS["raw"], marker="o", ls="none", ms=4, label="raw F_WFS (95 % bars)"
@@ -397,14 +415,8 @@ def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult)
         Line2D([], [], color="gray", ls="--", lw=0.8, label="tolerance of the valid band"),
         *_band_legend(("raw", "model-compensated")),
     ]
-    fig.suptitle(
-        f"Shaker, tyre at {pressure_bar:g} bar: raw and model-compensated force over the contact force",
-        y=0.985,
-    )
-    fig.legend(
-        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3, fontsize=8, frameon=False
-    )
-    _frequency_axes(*mags, *phases)
+    title = f"Shaker, tyre at {pressure_bar:g} bar: raw and model-compensated force over the contact force"
+    _finish_panels(fig, mags, phases, limits=limits, ylabel="|F / F_contact|", title=title, handles=handles)
     return fig
 
 
