@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
+from bench.cli_export import add_export_command
 from bench.cli_metadata import add_meta_option
 from drivers.errors import LinkError
 
@@ -325,6 +326,39 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     demo.set_defaults(run=_demo)
 
 
+def _add_device_commands(sub: argparse._SubParsersAction) -> None:
+    """``sim serve``, ``wfs monitor`` and ``actuator status``: the devices, without a sequence."""
+    sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
+    serve = sim.add_parser(
+        "serve",
+        help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)",
+        description="Serve the simulated shaker bench: the controller on Modbus TCP and on Modbus RTU"
+        " over a pty, the WFS on a pty. The operator's actions are typed on standard input, one per"
+        " line: remove_wheel, fit_wheel, set_tyre_pressure BAR, set_damper SETTING,"
+        " strike_hammer [PEAK_N] (docs/cli.md).",
+    )
+    serve.add_argument("--host", default="127.0.0.1")
+    serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
+    serve.add_argument("--seed", type=int, default=1)
+    serve.add_argument("--fast", action="store_true", help="as fast as the reader drains, not real time")
+    serve.set_defaults(run=_sim_serve)
+    wfs = sub.add_parser("wfs", help="WFS acquisition").add_subparsers(dest="action", required=True)
+    monitor = wfs.add_parser("monitor", help="show live values and link counters")
+    monitor.add_argument("--port", required=True, help="serial device or pty path")
+    monitor.add_argument("--baudrate", type=int, default=921600)
+    monitor.add_argument("--interval", type=float, default=1.0, help="seconds per line")
+    monitor.add_argument("--duration", type=float, default=0.0, help="seconds (0: until Ctrl-C)")
+    monitor.set_defaults(run=_wfs_monitor)
+    act = sub.add_parser("actuator", help="actuator controller").add_subparsers(dest="action", required=True)
+    status = act.add_parser("status", help="read the controller state (Modbus TCP, or RTU with --serial)")
+    link = status.add_mutually_exclusive_group(required=True)
+    link.add_argument("--port", type=int, help="Modbus TCP port on --host")
+    link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
+    status.add_argument("--host", default="127.0.0.1")
+    status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
+    status.set_defaults(run=_actuator_status)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="wfsbench",
@@ -363,36 +397,9 @@ def build_parser() -> argparse.ArgumentParser:
     tui.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     tui.add_argument("--out", help="campaign file (HDF5); default: campaign-<date>-<time>.h5 here")
     tui.set_defaults(run=_tui)
-    sim = sub.add_parser("sim", help="simulated devices").add_subparsers(dest="action", required=True)
-    serve = sim.add_parser(
-        "serve",
-        help="serve the simulated controller (TCP, RTU on a pty) and WFS (pty)",
-        description="Serve the simulated shaker bench: the controller on Modbus TCP and on Modbus RTU"
-        " over a pty, the WFS on a pty. The operator's actions are typed on standard input, one per"
-        " line: remove_wheel, fit_wheel, set_tyre_pressure BAR, set_damper SETTING,"
-        " strike_hammer [PEAK_N] (docs/cli.md).",
-    )
-    serve.add_argument("--host", default="127.0.0.1")
-    serve.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
-    serve.add_argument("--seed", type=int, default=1)
-    serve.add_argument("--fast", action="store_true", help="as fast as the reader drains, not real time")
-    serve.set_defaults(run=_sim_serve)
-    wfs = sub.add_parser("wfs", help="WFS acquisition").add_subparsers(dest="action", required=True)
-    monitor = wfs.add_parser("monitor", help="show live values and link counters")
-    monitor.add_argument("--port", required=True, help="serial device or pty path")
-    monitor.add_argument("--baudrate", type=int, default=921600)
-    monitor.add_argument("--interval", type=float, default=1.0, help="seconds per line")
-    monitor.add_argument("--duration", type=float, default=0.0, help="seconds (0: until Ctrl-C)")
-    monitor.set_defaults(run=_wfs_monitor)
-    act = sub.add_parser("actuator", help="actuator controller").add_subparsers(dest="action", required=True)
-    status = act.add_parser("status", help="read the controller state (Modbus TCP, or RTU with --serial)")
-    link = status.add_mutually_exclusive_group(required=True)
-    link.add_argument("--port", type=int, help="Modbus TCP port on --host")
-    link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
-    status.add_argument("--host", default="127.0.0.1")
-    status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
-    status.set_defaults(run=_actuator_status)
+    _add_device_commands(sub)
     add_analysis_commands(sub)
+    add_export_command(sub)
     return parser
 
 

@@ -35,6 +35,15 @@ def read_every_channel(path: Path) -> int:
     return n
 
 
+def campaign_or_demo(campaign: Path | None, work: Path) -> Path:
+    """``campaign``, or the campaign file the demo makes in ``work`` (not timed) when it is None."""
+    if campaign is not None:
+        return campaign
+    print("making the campaign file with the demo (not timed) ...", flush=True)
+    run_demo(work / "demo")
+    return work / "demo" / "campaign.h5"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--campaign", type=Path, help="campaign file (default: made with the demo)")
@@ -42,11 +51,7 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        campaign = args.campaign
-        if campaign is None:
-            print("making the campaign file with the demo (not timed) ...", flush=True)
-            run_demo(work / "demo")
-            campaign = work / "demo" / "campaign.h5"
+        campaign = campaign_or_demo(args.campaign, work)
         samples = read_every_channel(campaign)
         t_base = best_time_s(lambda: read_every_channel(campaign), args.repeats)
         t_report = best_time_s(lambda: write_report(campaign, work / "report"), args.repeats)

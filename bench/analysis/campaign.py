@@ -121,7 +121,8 @@ class CampaignAnalysis:
     sequence whose runs the file holds, as (name in its run ids,
     number of runs) in the order they ran: the one that created the file (``sequence_name``) and
     those appended to it later. ``metadata``: the campaign's test metadata (field -> text, empty
-    when not given; :mod:`sequences.metadata`)."""
+    when not given; :mod:`sequences.metadata`). ``run_pressures_bar``: the tyre pressure each run
+    records (its ``set_tyre_pressure`` answer), by run id; a run without one is absent."""
 
     path: Path
     software_version: str
@@ -136,6 +137,7 @@ class CampaignAnalysis:
     sequences: tuple[tuple[str, int], ...] = ()
     sweep_record: SweepRecord | None = None
     metadata: Mapping[str, str] = field(default_factory=dict)
+    run_pressures_bar: dict[str, float] = field(default_factory=dict)
 
     @property
     def status(self) -> AnalysisStatus:

@@ -112,6 +112,11 @@ def analyze_campaign(
             sequences=sequences_run(run.run_id for run in campaign.runs),
             sweep_record=four_post[-1].sweep_record() if four_post and knowledge.four_post else None,
             metadata=dict(campaign.metadata),
+            run_pressures_bar={
+                run.run_id: float(pressure)
+                for run in campaign.runs
+                if (pressure := run.conditions.get("tyre_pressure_bar")) is not None
+            },
         )
 
 

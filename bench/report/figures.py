@@ -4,10 +4,11 @@ paper's Figs. 3, 6, 7/9 and 8 from the analysis results.
 - ``hammer``: the blow's decay in time with the analysed free decay shaded, and its amplitude
   spectrum with the identified eigenfrequency marked (Fig. 3).
 - ``shaker_<p>bar``: |F_WFS/F_contact| (log) and its phase over frequency at one tyre pressure, one
-  colour per amplitude; measured dwells as dots with 95 % intervals (a magnitude's lower end no
-  lower than the axis, a phase's wrapped into -180..180 deg), Models 1 / 2 / 3 as lines (Fig. 6).
-- ``shaker_compensated_<p>bar``: the same ratio raw against model-compensated, with the tolerance
-  of the valid band.
+  column of panels per amplitude; measured dwells as dots with 95 % intervals (a magnitude's lower
+  end no lower than the axis, a phase's wrapped into -180..180 deg), Models 1 / 2 / 3 as lines, the
+  selected one thicker, the raw valid band as a strip along the frequency axis (Fig. 6).
+- ``shaker_compensated_<p>bar``: the same ratio raw against model-compensated per amplitude, with
+  the tolerance of the valid band and both valid bands as strips.
 - ``four_post_ratios``: raw, hub-acceleration compensated and model-compensated ratios over the
   true contact force, each valid band shaded (Figs. 7 and 9).
 - ``four_post_hub``: |F_WFS - F_contact| / |Z| against m_wheel |a_hub| / |Z| over frequency: the
@@ -24,6 +25,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 from matplotlib.ticker import FuncFormatter, Locator, MaxNLocator, NullFormatter
 
 from bench.analysis.campaign import CampaignAnalysis
@@ -54,7 +57,6 @@ _MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
 FREQUENCY_TICK_SUBS = ((1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0, 7.0), tuple(float(k) for k in range(1, 10)))
 #: Labelled frequencies a log axis shows at least (when the finest subdivision gives them).
 MIN_FREQUENCY_LABELS = 5
-_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 
 
 @dataclass(frozen=True)
@@ -249,41 +251,132 @@ def _dots(
         _phase_bars(phase, f, np.degrees(np.angle(h)), phase_half_width_deg(magnitude, sigma), dots)
 
 
+#: Colours of the models' lines and of the measured points in the shaker panels.
+_MODEL_COLOURS = {1: "tab:gray", 2: "tab:blue", 3: "tab:orange"}
+_MEASURED, _COMPENSATED = "black", "tab:green"
+#: Colours of the valid-band strips: raw and model-compensated ratio.
+_BAND_COLOURS = {"raw": "tab:red", "model-compensated": "tab:green"}
+#: Height of a valid-band strip, as a fraction of the magnitude axes' height.
+BAND_STRIP = 0.045
+
+
+def _amplitude_panels(n: int) -> tuple[Figure, list[Axes], list[Axes]]:
+    """One column per amplitude, magnitude above phase, the axes of a row sharing their scale; room
+    at the top for the title and one legend for all panels."""
+    fig = Figure(figsize=(9 if n == 1 else 12, 7), dpi=DPI)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(
+        left=0.08 if n == 1 else 0.06, right=0.98, top=0.83, bottom=0.08, hspace=0.1, wspace=0.05
+    )
+    axes = fig.subplots(2, n, sharex=True, sharey="row", squeeze=False)
+    return fig, list(axes[0]), list(axes[1])
+
+
+def _band_strips(mag: Axes, bands: list[tuple[str, ValidBand]]) -> None:
+    """Each valid band as a strip along the frequency axis at the bottom of ``mag``, one above the
+    other, in its colour (:data:`_BAND_COLOURS`); a band not determined draws nothing."""
+    for i, (name, band) in enumerate(bands):
+        if band.determined:
+            mag.axvspan(
+                band.lowest_hz,
+                band.upper_hz,
+                ymin=i * BAND_STRIP,
+                ymax=(i + 1) * BAND_STRIP,
+                color=_BAND_COLOURS[name],
+                alpha=0.55,
+                lw=0,
+            )
+
+
+def _band_legend(names: tuple[str, ...]) -> list[Patch]:
+    return [Patch(color=_BAND_COLOURS[n], alpha=0.55, label=f"valid band, {n} (strip)") for n in names]
+
+
+def _panel_title(ax: Axes, amp: ShakerAmplitudeResult, bands: list[tuple[str, ValidBand]]) -> None:
+    def text(band: ValidBand) -> str:
+        return f"{band.lowest_hz:.3g}-{band.upper_hz:.3g} Hz" if band.determined else "none"
+
+    valid = ", ".join(f"{name} {text(band)}" for name, band in bands)
+    ax.set_title(f"{amp.label}: Model {int(amp.identification.best)} selected\nvalid: {valid}", fontsize=9)
+
+
+def _finish_panel(
+    mag: Axes, phase: Axes, amp: ShakerAmplitudeResult, bands: list[tuple[str, ValidBand]]
+) -> None:
+    """An amplitude's panels: its valid bands as strips, its title, the phase axis."""
+    _band_strips(mag, bands)
+    _panel_title(mag, amp, bands)
+    phase.set_xlabel("frequency (Hz)")
+    _phase_axis(phase)
+
+
+def _finish_panels(
+    fig: Figure,
+    mags: list[Axes],
+    phases: list[Axes],
+    *,
+    limits: tuple[float, float],
+    ylabel: str,
+    title: str,
+    handles: list,
+) -> None:
+    """The shared magnitude scale and labels, the title and one legend above every panel."""
+    mags[0].set(yscale="log", ylim=limits, ylabel=ylabel)
+    phases[0].set_ylabel("phase (deg)")
+    fig.suptitle(title, y=0.985)
+    fig.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3, fontsize=8, frameon=False
+    )
+    _frequency_axes(*mags, *phases)
+
+
 def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
-    """|F_WFS/F_contact| (log) and phase per amplitude: measured dots, Models 1-3 as lines."""
-    fig, (mag, phase) = _new_figure(2)
+    """|F_WFS/F_contact| (log) and phase, one column per amplitude: the measured dwells with 95 %
+    bars, Models 1-3 as lines (the selected one thicker), the raw valid band as a strip."""
+    amplitudes = list(result.amplitudes.values())
+    fig, mags, phases = _amplitude_panels(len(amplitudes))
+    models = {}
     drawn = []
-    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
+    for amp in amplitudes:
         ratio = amp.frfs.wfs_per_contact
         grid = np.geomspace(ratio.freq_hz[0], ratio.freq_hz[-1], MODEL_GRID_POINTS)
         drawn.append(ratio.magnitude)
-        for model in amp.identification.fits:
-            h = _model_ratio(amp, int(model), result.sensor, grid)
-            drawn.append(np.abs(h))
-            chosen = " (selected)" if model == amp.identification.best else ""
-            mag.plot(
-                grid,
-                np.abs(h),
-                ls=_MODEL_STYLES[int(model)],
-                color=colour,
-                lw=1.1,
-                label=f"{amp.label} Model {int(model)}{chosen}",
-            )
-            phase.plot(grid, np.degrees(np.angle(h)), ls=_MODEL_STYLES[int(model)], color=colour, lw=1.1)
+        models[amp.amplitude_m] = {
+            int(m): _model_ratio(amp, int(m), result.sensor, grid) for m in amp.identification.fits
+        }
+        drawn += [np.abs(h) for h in models[amp.amplitude_m].values()]
     limits = magnitude_limits(drawn)
-    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
-        _dots(mag, phase, amp.frfs.wfs_per_contact, colour, f"{amp.label} measured", floor=limits[0])
-    mag.set(
-        yscale="log",
-        ylim=limits,
-        ylabel="|F_WFS / F_contact|",
-        title=f"Shaker, tyre at {pressure_bar:g} bar: measured (95 % bars) and Models 1 (dotted),"
-        " 2 (solid), 3 (dashed)",
+    for mag, phase, amp in zip(mags, phases, amplitudes, strict=True):
+        ratio = amp.frfs.wfs_per_contact
+        grid = np.geomspace(ratio.freq_hz[0], ratio.freq_hz[-1], MODEL_GRID_POINTS)
+        for model, h in models[amp.amplitude_m].items():
+            width = 2.2 if model == int(amp.identification.best) else 1.0
+            style = {"ls": _MODEL_STYLES[model], "color": _MODEL_COLOURS[model], "lw": width}
+            mag.plot(grid, np.abs(h), **style)
+            phase.plot(grid, np.degrees(np.angle(h)), **style)
+        _dots(mag, phase, ratio, _MEASURED, "measured", floor=limits[0])
+        _finish_panel(mag, phase, amp, [("raw", amp.valid_band_raw)])
+    handles = [
+        Line2D(
+            [],
+            [],
+            color=_MEASURED,
+            marker="o",
+            ls="none",
+            ms=4,
+            label="measured, 95 % bars (hollow: unsettled)",
+        ),
+        *(
+            Line2D([], [], color=_MODEL_COLOURS[m], ls=_MODEL_STYLES[m], label=f"Model {m}")
+            for m in (1, 2, 3)
+        ),
+        Line2D([], [], color="black", lw=2.2, label="thick: the selected model"),
+        *_band_legend(("raw",)),
+    ]
+    title = f"Shaker, tyre at {pressure_bar:g} bar: F_WFS / F_contact measured and Models 1-3"
+    _finish_panels(
+        fig, mags, phases, limits=limits, ylabel="|F_WFS / F_contact|", title=title, handles=handles
     )
-    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
-    _phase_axis(phase)
-    mag.legend(fontsize=7, ncol=3, loc="upper left")
-    _frequency_axes(mag, phase)
     return fig
 
 
@@ -294,37 +387,36 @@ def _tolerance(mag: Axes, phase: Axes, band: ValidBand) -> None:
 
 
 def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
-    """Raw against model-compensated ratio per amplitude, with the valid band's tolerances."""
-    fig, (mag, phase) = _new_figure(2)
+    """Raw against model-compensated ratio, one column per amplitude, with the valid band's
+    tolerances and both valid bands as strips."""
+    amplitudes = list(result.amplitudes.values())
+    fig, mags, phases = _amplitude_panels(len(amplitudes))
     limits = magnitude_limits(
         [
             frf.magnitude
-            for amp in result.amplitudes.values()
+            for amp in amplitudes
             for frf in (amp.frfs.wfs_per_contact, amp.compensated_per_contact)
         ]
     )
-    for colour, amp in zip(_COLOURS, result.amplitudes.values(), strict=False):
-        raw, compensated = amp.frfs.wfs_per_contact, amp.compensated_per_contact
-        _dots(mag, phase, raw, colour, f"{amp.label} raw", floor=limits[0], marker="o")
-        _dots(mag, phase, compensated, colour, f"{amp.label} model-compensated", floor=limits[0], marker="s")
-        for ax, values in (
-            (mag, amp.compensated_per_contact.magnitude),
-            (phase, amp.compensated_per_contact.phase_deg),
-        ):
-            ax.plot(amp.compensated_per_contact.freq_hz, values, color=colour, lw=0.8)
-    first = next(iter(result.amplitudes.values()))
-    _tolerance(mag, phase, first.valid_band_raw)
-    mag.set(
-        yscale="log",
-        ylim=limits,
-        ylabel="|F / F_contact|",
-        title=f"Shaker at {pressure_bar:g} bar: raw (circles), model-compensated (squares),"
-        " tolerance (dashed)",
-    )
-    phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
-    _phase_axis(phase)
-    mag.legend(fontsize=7, ncol=3, loc="upper left")
-    _frequency_axes(mag, phase)
+    for mag, phase, amp in zip(mags, phases, amplitudes, strict=True):
+        compensated = amp.compensated_per_contact
+        _dots(mag, phase, amp.frfs.wfs_per_contact, _BAND_COLOURS["raw"], "raw", floor=limits[0], marker="o")
+        _dots(mag, phase, compensated, _COMPENSATED, "model-compensated", floor=limits[0], marker="s")
+        mag.plot(compensated.freq_hz, compensated.magnitude, color=_COMPENSATED, lw=0.8)
+        phase.plot(compensated.freq_hz, compensated.phase_deg, color=_COMPENSATED, lw=0.8)
+        _tolerance(mag, phase, amp.valid_band_raw)
+        bands = [("raw", amp.valid_band_raw), ("model-compensated", amp.valid_band_compensated)]
+        _finish_panel(mag, phase, amp, bands)
+    handles = [
+        Line2D(
+            [], [], color=_BAND_COLOURS["raw"], marker="o", ls="none", ms=4, label="raw F_WFS (95 % bars)"
+        ),
+        Line2D([], [], color=_COMPENSATED, marker="s", ms=4, lw=0.8, label="model-compensated (95 % bars)"),
+        Line2D([], [], color="gray", ls="--", lw=0.8, label="tolerance of the valid band"),
+        *_band_legend(("raw", "model-compensated")),
+    ]
+    title = f"Shaker, tyre at {pressure_bar:g} bar: raw and model-compensated force over the contact force"
+    _finish_panels(fig, mags, phases, limits=limits, ylabel="|F / F_contact|", title=title, handles=handles)
     return fig
 
 
@@ -456,7 +548,8 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 f"shaker_{tag}",
                 f"Shaker at {pressure:g} bar (Fig. 6)",
                 "Measured F_WFS/F_contact per dwell with 95 % bars (hollow: not settled, unused) and"
-                " the three tyre models fitted to them, one colour per amplitude.",
+                " the three tyre models fitted to them, one column per amplitude (the selected model"
+                " thicker); the strip along the frequency axis is the raw valid band.",
                 lambda p=pressure, r=result: shaker_figure(p, r),
             )
         )
@@ -464,8 +557,9 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
             (
                 f"shaker_compensated_{tag}",
                 f"Shaker at {pressure:g} bar: raw and compensated",
-                "The raw ratio against the model-compensated one; within the dashed tolerances the"
-                " WFS force is the contact force.",
+                "The raw ratio against the model-compensated one, one column per amplitude; within the"
+                " dashed tolerances the WFS force is the contact force; the strips along the frequency"
+                " axis are the valid bands, raw (red) and model-compensated (green).",
                 lambda p=pressure, r=result: shaker_compensated_figure(p, r),
             )
         )

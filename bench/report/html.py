@@ -1,37 +1,49 @@
 """The campaign report as one self-contained HTML page: the figures embedded as base64 PNG data
 URIs, the style inline, no script, no link, no external reference of any kind, so the page reads
-the same offline, mailed or archived. Tables: the campaign and its givens, the sensor, m_comp,
-the identified parameters with their 95 % intervals and what is not determined, the amplitude
-dependence, m_wheel, the quarter car and its modes, every valid band with the reason it ends,
-every flag, and each run's text summary.
+the same offline, mailed or archived.
+
+Laid out to be read top-down: the heading (the campaign file), a summary (per tyre pressure and
+amplitude the selected model's parameters in kN/m, kg and Ns/m with their 95 % intervals and the
+valid bands; the sensor; the four-post result), the flags, the figures; then an appendix with the
+full tables: the campaign and its givens, the sensor, m_comp, every model's parameters and what is
+not determined, the amplitude dependence, m_wheel, the quarter car and its modes, every valid band
+with the reason it ends, and each run's text summary under a heading that names its tyre pressure.
+Text wraps to the page's width (no sideways scrolling).
 """
 
 from __future__ import annotations
 
 import base64
+import math
 from collections.abc import Iterable, Sequence
 from html import escape
 
-from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.campaign import CampaignAnalysis, RunAnalysis
 from bench.analysis.frf import ValidBand
 from bench.analysis.lsq import Z95
 from bench.report.figures import FigureFile
 from bench.report.metadata import metadata_html
 
 _STYLE = """
-body { font-family: sans-serif; max-width: 60em; margin: 1em auto; padding: 0 1em; color: #222; }
+body { font-family: sans-serif; max-width: 72em; margin: 1em auto; padding: 0 1em; color: #222;
+  overflow-wrap: break-word; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
+h1.part { font-size: 1.35em; margin-top: 3em; border-top: 3px double #999; padding-top: 0.5em; }
 table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.9em; }
+div.wide { overflow-x: auto; } /* a table wider than a narrow window scrolls in its box, not the page */
 th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: left; vertical-align: top; }
 th { background: #f0f0f0; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
+@media (min-width: 60em) { table.summary td { white-space: nowrap; } }
+table.summary td:last-child { white-space: normal; } h3 { font-size: 1em; margin-top: 1.5em; }
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
-figcaption { font-size: 0.9em; color: #444; } .flag { color: #a00; }
-pre { background: #f7f7f7; padding: 0.5em; overflow-x: auto; font-size: 0.8em; }
+figcaption { font-size: 0.9em; color: #444; } .flag { color: #a00; } .note { color: #555; }
+pre { background: #f7f7f7; padding: 0.5em; white-space: pre-wrap; font-size: 0.8em; }
 """
 
 
 def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
-    """A table; floats and ints are right-aligned."""
+    """A table (in a box that scrolls by itself where a narrow window cannot hold it); floats and
+    ints are right-aligned."""
 
     def cell(value: object) -> str:
         numeric = isinstance(value, int | float) and not isinstance(value, bool)
@@ -39,7 +51,7 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
 
     head = "".join(f"<th>{escape(h)}</th>" for h in header)
     body = "".join(f"<tr>{''.join(cell(v) for v in row)}</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f'<div class="wide"><table><tr>{head}</tr>{body}</table></div>'
 
 
 def _g(value: float, digits: int = 4) -> str:
@@ -264,6 +276,129 @@ def _bands(analysis: CampaignAnalysis) -> str:
     )
 
 
+#: A parameter's unit in the summary by its name's suffix: (factor from SI, unit).
+_UNITS = (
+    ("_n_per_m", 1e-3, "kN/m"),
+    ("_ns_per_m", 1.0, "Ns/m"),
+    ("_kg", 1.0, "kg"),
+    ("_per_decade", 100.0, "%/decade"),
+)
+#: The summary's own columns (every other parameter of the selected model goes under "more").
+_SUMMARY_PARAMETERS = (("stiffness_n_per_m", "k"), ("damping_ns_per_m", "d"), ("tread_mass_kg", "m_T"))
+
+
+def _unit(name: str) -> tuple[float, str]:
+    """A parameter's summary unit and the factor to it from SI, by its name's suffix."""
+    return next(((f, u) for suffix, f, u in _UNITS if name.endswith(suffix)), (1.0, ""))
+
+
+def _with_interval(name: str, value: float, ci: float, undetermined: bool, *, unit: bool = True) -> str:
+    """``390.014 ± 0.028 kN/m``: the parameter in its summary unit, to the digit its 95 % half-width
+    (two significant digits) reaches, with the unit unless ``unit`` is false; ``not determined``
+    where the data do not determine it."""
+    factor, symbol = _unit(name)
+    symbol = f" {symbol}" if unit and symbol else ""
+    value, ci = factor * value, factor * ci
+    if undetermined or not (math.isfinite(ci) and ci > 0):
+        return f"not determined ({_g(value, 4)}{symbol})"
+    decimals = max(0, 1 - math.floor(math.log10(ci)))
+    return f"{value:.{decimals}f} ± {ci:.{decimals}f}{symbol}"
+
+
+def _parameter_label(name: str) -> str:
+    """``stiffness_rise_per_decade``: ``stiffness rise``: the name without its unit, in words."""
+    suffix = next((suffix for suffix, _, _ in _UNITS if name.endswith(suffix)), "")
+    return name.removesuffix(suffix).replace("_", " ")
+
+
+def _band_cell(band: ValidBand) -> str:
+    if not band.determined:
+        return "not determined"
+    return f"{_g(band.lowest_hz, 3)}-{_g(band.upper_hz, 3)} Hz ({band.limited_by})"
+
+
+def _summary(analysis: CampaignAnalysis) -> str:
+    """Per tyre pressure and amplitude: the selected model, its k, d and m_T with 95 % intervals and
+    its other parameters, the raw and model-compensated valid bands; then the sensor and the four-post."""
+    rows = []
+    for pressure, result in sorted(analysis.knowledge.shaker.items()):
+        for amp in result.amplitudes.values():
+            fit = amp.identification.best_fit
+            cells = [
+                _with_interval(name, fit.values[name], fit.ci95[name], name in fit.undetermined, unit=False)
+                if name in fit.values
+                else "-"
+                for name, _ in _SUMMARY_PARAMETERS
+            ]
+            undetermined = set(fit.undetermined)
+            more = "; ".join(
+                f"{_parameter_label(name)} {_with_interval(name, v, fit.ci95[name], name in undetermined)}"
+                for name, v in fit.values.items()
+                if name not in dict(_SUMMARY_PARAMETERS)
+            )
+            rows.append(
+                (
+                    f"{pressure:g} bar",
+                    amp.label,
+                    f"Model {int(fit.model)}",
+                    *cells,
+                    _band_cell(amp.valid_band_raw),
+                    _band_cell(amp.valid_band_compensated),
+                    more,
+                )
+            )
+        for ratios in result.ratios_only.values():
+            rows.append((f"{pressure:g} bar", ratios.label, f"no fit: {ratios.why}", "", "", "", "", "", ""))
+    if rows:
+        header = (
+            "tyre",
+            "amplitude",
+            "selected",
+            *(f"{label} ({_unit(name)[1]}, ± 95 %)" for name, label in _SUMMARY_PARAMETERS),
+            "valid band raw",
+            "valid band compensated",
+            "more parameters (95 %)",
+        )
+        tyre = _table(header, rows).replace("<table>", '<table class="summary">', 1)
+    else:
+        tyre = "<p>No shaker identification in this file.</p>"
+    k = analysis.knowledge
+    sensor = (
+        f"Sensor: {k.sensor.eigenfrequency_hz:.5g} Hz, damping ratio {k.sensor.damping_ratio:.3g}"
+        f" ({escape(k.sensor_source.text)})."
+    )
+    lines = [sensor]
+    r = k.four_post
+    if r is not None:
+        m = r.wheel_mass
+        lines.append(
+            f"Four-post ({escape(r.label)}): m_wheel {m.mass_kg:.3f} ± {Z95 * m.sigma_kg:.2g} kg;"
+            f" valid bands raw {_band_cell(r.valid_band_raw)}, hub-acceleration compensated"
+            f" {_band_cell(r.valid_band_hub_compensated)}, model-compensated"
+            f" {_band_cell(r.valid_band_model_compensated)}."
+        )
+    note = (
+        '<p class="note">Parameters of the model the data select (lowest BIC among the determined'
+        " fits) with 95 % half-widths; a valid band runs from the lowest reliable point to where the"
+        " ratio leaves its tolerance (the reason in brackets). Every model: appendix.</p>"
+    )
+    return tyre + note + "".join(f"<p>{line}</p>" for line in lines)
+
+
+def run_heading(run: RunAnalysis, pressure_bar: float | None) -> str:
+    """A run's heading in the run summaries: its id, what it is and its tyre pressure (or why it
+    has none: the bare sensor, no wheel)."""
+    if pressure_bar is not None:
+        tyre = f"tyre at {pressure_bar:g} bar"
+    elif run.kind == "hammer":
+        tyre = "bare sensor, no tyre"
+    elif run.kind == "free_run":
+        tyre = "no wheel on the bench"
+    else:
+        tyre = "tyre pressure not recorded"
+    return f"{run.run_id} ({run.kind}: {run.name}; {tyre})"
+
+
 def _flags(analysis: CampaignAnalysis) -> str:
     rows = [(run.run_id, line) for run in analysis.runs for line in run.lines if "FLAG" in line]
     if not rows:
@@ -273,30 +408,43 @@ def _flags(analysis: CampaignAnalysis) -> str:
 
 def _summaries(analysis: CampaignAnalysis) -> str:
     return "".join(
-        f"<h3>{escape(run.run_id)} ({escape(run.kind)}: {escape(run.name)})</h3>"
+        f"<h3>{escape(run_heading(run, analysis.run_pressures_bar.get(run.run_id)))}</h3>"
         f"<pre>{escape(chr(10).join(run.lines))}</pre>"
         for run in analysis.runs
     )
 
 
+def _heading(analysis: CampaignAnalysis) -> str:
+    """The page's heading: its title and what the campaign is."""
+    title = f"wfs-bench report: {analysis.path.name}"
+    return (
+        f"<h1>{escape(title)}</h1>{metadata_html(analysis.metadata)}"
+        f"<p>{escape(str(analysis.path))}: {escape(_sequences_run(analysis))}.</p>"
+    )
+
+
 def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> str:
-    """The whole page."""
-    sections = [
+    """The whole page: heading, summary, flags and figures; the full tables in the appendix."""
+    main = [
+        ("Summary: tyre, sensor and valid bands", _summary(analysis)),
+        ("Flags", _flags(analysis)),
+        ("Figures", "".join(_figure(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
+    ]
+    appendix = [
         ("Campaign", _campaign(analysis)),
         ("Sensor", _sensor(analysis)),
         ("Plate masses m_comp", _plate_masses(analysis)),
-        ("Identified tyre parameters (95 % intervals)", _parameters(analysis)),
+        ("Identified tyre parameters, every model (95 % intervals)", _parameters(analysis)),
         ("Amplitude dependence (Model 2)", _dependence(analysis)),
         ("Four-post: m_wheel and the quarter car", _four_post(analysis)),
         ("Valid bands", _bands(analysis)),
-        ("Flags", _flags(analysis)),
-        ("Figures", "".join(_figure(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
         ("Run summaries", _summaries(analysis)),
     ]
-    body = "".join(f"<h2>{escape(title)}</h2>{content}" for title, content in sections)
+    body = "".join(f"<h2>{escape(title)}</h2>{content}" for title, content in main)
+    body += '<h1 class="part">Appendix: the full tables</h1>'
+    body += "".join(f"<h2>{escape(title)}</h2>{content}" for title, content in appendix)
     title = f"wfs-bench report: {analysis.path.name}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{escape(title)}</title>'
-        f"<style>{_STYLE}</style></head><body><h1>{escape(title)}</h1>{metadata_html(analysis.metadata)}"
-        f"{body}</body></html>\n"
+        f"<style>{_STYLE}</style></head><body>{_heading(analysis)}{body}</body></html>\n"
     )
