@@ -63,7 +63,7 @@ def export(path: Path, fmt: str, out: Path, run_id: str | None) -> list[str]:
 
 def _export_uff58(path: Path, out: Path, run_id: str | None, ids: set[str], created: str) -> list[str]:
     from bench.app.analyze import analyze_campaign
-    from bench.export.common import ExportError, campaign_metadata
+    from bench.export.common import ExportError
     from bench.export.uff58 import campaign_functions, id_date, write_uff58
 
     analysis = analyze_campaign(path)
@@ -74,7 +74,7 @@ def _export_uff58(path: Path, out: Path, run_id: str | None, ids: set[str], crea
             f"{path}: {which} has no FRF to write (UFF 58 holds the dwell grids' and the four-post"
             " sweep's FRFs; a free run, a hammer run and a sweep on the shaker have none)"
         )
-    metadata = "; ".join(f"{k} {v}" for k, v in campaign_metadata(path).items() if v)
+    metadata = "; ".join(f"{k} {v}" for k, v in analysis.metadata.items() if v)
     with_file = f"{path.name}; {metadata}" if metadata else path.name
     write_uff58(functions, (with_file, id_date(created)), out)
     return [f"uff58 {out}: {len(functions)} FRFs, each with its uncertainty (sweeps: and coherence)"]

@@ -16,10 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-import h5py
-
 from bench.store import CampaignFile, RunView
-from bench.store.schema import METADATA_FIELDS
 from sequences.points import PointAttempt, PointStatus
 
 
@@ -75,17 +72,6 @@ def selected_runs(campaign: CampaignFile, run_id: str | None) -> tuple[RunView, 
     return (campaign.run(run_id),)
 
 
-def campaign_metadata(path: Path) -> dict[str, str]:
-    """The campaign's metadata attributes (``METADATA_FIELDS``, docs/hdf5.md) by name, each empty
-    when the file does not have it (files written before they were recorded)."""
-    with h5py.File(path, "r") as file:
-        return {name: _text(file.attrs.get(name, "")) for name in METADATA_FIELDS}
-
-
-def _text(value: object) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
-
-
 def done_points(run: RunView) -> list[PointAttempt]:
     """The run's done points (each point's kept attempt), in the order they were recorded."""
     return sorted((p for p in run.points if p.status == PointStatus.DONE), key=lambda p: p.start_sample)
@@ -99,7 +85,8 @@ def amplitudes_mm(run: RunView) -> tuple[float, ...]:
 
 def run_description(run: RunView) -> dict[str, str]:
     """What the run was, as text by name: its kind, status (and why), start and end, the tyre
-    pressure and amplitudes, the conditions and the step (JSON)."""
+    pressure and amplitudes, the conditions and the step (JSON), and who ran it (the run's own
+    metadata: bench, operator, notes)."""
     pressure = run.conditions.get("tyre_pressure_bar")
     return {
         "run_id": run.run_id,
@@ -113,4 +100,5 @@ def run_description(run: RunView) -> dict[str, str]:
         "amplitudes_mm": ", ".join(f"{a:g}" for a in amplitudes_mm(run)),
         "conditions": json.dumps(run.conditions, sort_keys=True),
         "step": json.dumps(run.step, sort_keys=True),
+        **run.metadata,
     }

@@ -18,7 +18,7 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 
 import numpy as np
 
-from bench.export.common import campaign_metadata, done_points, output_file, run_description
+from bench.export.common import done_points, output_file, run_description
 from bench.store import CampaignFile, RunView
 
 #: The MDF version written (4.10: read by every current MDF 4 tool).
@@ -49,7 +49,7 @@ def header_comment(campaign: CampaignFile) -> str:
         "created": campaign.created,
         "sequence_name": campaign.sequence_name,
         "config_name": campaign.config_name,
-        **campaign_metadata(campaign.path),
+        **campaign.metadata,
     }
     return _comment("HDcomment", f"wfs-bench campaign {campaign.path.name}", properties)
 
