@@ -352,13 +352,15 @@ class PlantSimulator:
         t_internal = np.arange(n_total * self.oversampling) / self.internal_rate_hz
         command = waveform.value(t_internal)
         chunk = max(1, round(_RESCHEDULE_CHECK_S * self.output_rate_hz)) * self.oversampling
+        starts = np.arange(0, command.size, chunk)
+        freqs_hz = np.array([waveform.frequency_hz(t_internal[i]) for i in starts])
+        # the operating point is told at each chunk; chunks at the frequency of the one before (a
+        # dwell's, all of them) are stepped in one block, which only its noise draws tell apart
+        moved = np.flatnonzero(np.diff(freqs_hz) != 0) + 1
         blocks: list[dict[str, np.ndarray]] = []
-        start = 0
-        while start < command.size:
-            stop = min(start + chunk, command.size)
-            self.set_operating_point(waveform.frequency_hz(t_internal[start]), waveform.amplitude)
-            blocks.append(self.advance(command[start:stop]))
-            start = stop
+        for first, stop in zip(np.r_[0, moved], np.r_[moved, starts.size], strict=True):
+            self.set_operating_point(freqs_hz[first], waveform.amplitude)
+            blocks.append(self.advance(command[starts[first] : min(starts[stop - 1] + chunk, command.size)]))
         record = {c: np.concatenate([b[c] for b in blocks])[self.latency_samples :] for c in self.channels}
         record["t_s"] = np.arange(n_out) / self.output_rate_hz
         return record

@@ -1,7 +1,9 @@
 """The identified tyre's 95 % intervals cover the simulator's truth over seeds: at the default noise,
 with a free run that lacks its 100 Hz dwell, and with ten times the displacement noise. The errors
 the points share (the displacement's in F_wfs/Z and F_contact/Z, m_comp's in every F_contact/Z)
-are propagated; treated as independent, m_T was covered in 65-80 % of the seeds and k in 65 %."""
+are propagated; treated as independent, m_T was covered in 65-80 % of the seeds and k in 65 %. Over
+100 seeds at 2 mm: k 92, c 96, m_T 97 (before the dwells of a seed stopped sharing their noise and
+the fit's relative floor came down from 1e-4 to 1e-5: m_T 92, and 77 at 5 mm with a stated sensor)."""
 
 import pytest
 
@@ -11,10 +13,10 @@ from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, TAPER_S
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell
 
-N_SEEDS = 20
-#: The target: at least 90 % of the seeds hold the truth in each interval (18 of 20; a correct 95 %
-#: interval covers fewer than 18 of 20 with probability 7.5 %, and the seeds are fixed).
-MIN_COVERED = 18
+#: Seeds per case and the fewest of them whose interval must hold the truth: a correct 95 % interval
+#: covers fewer than 90 of 100 seeds with probability 1.2 %, fewer than 17 of 20 with 1.6 % (the
+#: seeds are fixed, so a pass is a pass). The default case takes 100 seeds, the others 20.
+SEEDS_AND_MIN_COVERED = {100: 90, 20: 17}
 
 
 def _dwells(setup, freqs_hz, realism) -> list[DwellRecord]:
@@ -31,16 +33,16 @@ def _dwells(setup, freqs_hz, realism) -> list[DwellRecord]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("free_run_grid_hz", "displacement_noise_m"),
-    [(FREE_RUN_GRID_HZ, 2e-6), (FREE_RUN_GRID_HZ[:-1], 2e-6), (FREE_RUN_GRID_HZ, 2e-5)],
+    ("free_run_grid_hz", "displacement_noise_m", "n_seeds"),
+    [(FREE_RUN_GRID_HZ, 2e-6, 100), (FREE_RUN_GRID_HZ[:-1], 2e-6, 20), (FREE_RUN_GRID_HZ, 2e-5, 20)],
     ids=["default", "free-run-without-100-hz", "displacement-noise-x10"],
 )
-def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m):
+def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m, n_seeds):
     setup = BenchSetup.paper_shaker(2.5, nonlinear=False)
     truth = setup.tyre
     names = ("stiffness_n_per_m", "damping_ns_per_m", "tread_mass_kg")
     covered = dict.fromkeys(names, 0)
-    for seed in range(N_SEEDS):
+    for seed in range(n_seeds):
         free = _dwells(
             BenchSetup.paper_free_run(),
             free_run_grid_hz,
@@ -56,5 +58,5 @@ def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m):
         )
         for name in names:
             covered[name] += abs(fit.values[name] - getattr(truth, name)) <= fit.ci95[name]
-    print(f"\n  coverage over {N_SEEDS} seeds: {covered}")
-    assert all(c >= MIN_COVERED for c in covered.values()), covered
+    print(f"\n  coverage over {n_seeds} seeds: {covered}")
+    assert all(c >= SEEDS_AND_MIN_COVERED[n_seeds] for c in covered.values()), covered

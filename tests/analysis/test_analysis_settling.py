@@ -2,13 +2,14 @@
 still catches a dwell analysed before its free vibration died out."""
 
 import numpy as np
+import pytest
 
 from bench.analysis.records import WHEEL_CHANNELS, DwellRecord, fit_dwell_record
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import SHAKER_GRID_HZ, TAPER_S
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell
 
-N_SEEDS = 10
+N_SEEDS = 20
 
 
 def _two_cycle_grid(seed: int) -> list[DwellRecord]:
@@ -24,10 +25,12 @@ def _two_cycle_grid(seed: int) -> list[DwellRecord]:
     return records
 
 
+@pytest.mark.slow
 def test_false_alarm_rate_of_good_two_cycle_dwells():
-    """220 good dwells of two cycles each (10 seeds x 22 frequencies): with the stated 1 % rate, more
-    than 6 flagged has a probability below 0.2 %; the fixed 1.5x residual limit flagged about 3 per
-    grid (about 30 here)."""
+    """440 good dwells of two cycles each (20 seeds x 22 frequencies): at most 1 % flagged (3 are,
+    the fixed seeds' figure). The fixed 1.5x residual limit flagged about 3 per grid (about 60 here);
+    a settling test told the white-noise level of the whole residual instead of the density at the
+    dwell's frequency, and dwells that shared one seed's noise, flagged 8."""
     flagged = []
     for seed in range(N_SEEDS):
         for record in _two_cycle_grid(seed):
@@ -36,7 +39,7 @@ def test_false_alarm_rate_of_good_two_cycle_dwells():
             if not fit.settled:
                 flagged.append((seed, record.label, fit.notes))
     print(f"\n  {len(flagged)} of {N_SEEDS * len(SHAKER_GRID_HZ)} good two-cycle dwells flagged")
-    assert len(flagged) <= 6, flagged
+    assert len(flagged) <= 0.01 * N_SEEDS * len(SHAKER_GRID_HZ), flagged
 
 
 def test_unsettled_short_dwell_still_caught():
