@@ -38,7 +38,7 @@ def _measurement(args: argparse.Namespace):
 
     try:
         mapping = load_channel_mapping(args.mapping) if args.mapping else None
-        measurement = read_measurement(args.measurement, run_id=args.run, mapping=mapping)
+        measurement = read_measurement(args.measurement, run_id=args.run_id, mapping=mapping)
     except MissingChannelError as exc:
         raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
     except (MappingError, MeasurementError, StoreError) as exc:
@@ -119,7 +119,7 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         help="the measurement: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign file (.h5) with --run",
     )
     cmd.add_argument("--out", required=True, help="output file (HDF5, docs/compensate.md); never replaced")
-    cmd.add_argument("--run", metavar="ID", help="the run of a campaign-file measurement")
+    cmd.add_argument("--run", dest="run_id", metavar="ID", help="the run of a campaign-file measurement")
     cmd.add_argument(
         "--pressure",
         type=float,
