@@ -22,7 +22,14 @@ import numpy as np
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.compensation import advance_acceleration, hub_acceleration_compensation
 from bench.analysis.records import DISPLACEMENT, HUB_ACCELERATION, PLATE_FORCE, WFS_FORCE
-from bench.analysis.road_validation import ERROR_BAND_HZ, ForceErrors, band_rms, coverage, force_errors
+from bench.analysis.road_validation import (
+    ERROR_BAND_HZ,
+    ForceErrors,
+    band_limited,
+    band_rms,
+    coverage,
+    force_errors,
+)
 from bench.app.compensate import prepare_compensation
 from bench.models.road import RoadDrive
 from bench.models.setup import BenchSetup
@@ -75,7 +82,8 @@ class RoadValidation:
     same band; ``coverage_valid_band``: the share of samples whose true force lies in the 95 % band,
     both limited to the valid band; ``coverage_whole``: the same unfiltered; ``median_u95_n``: the
     band's median half-width; ``traces``: the signals over the span where the filters are defined
-    (``t_s``, ``truth``, ``raw``, ``hub_compensated``, ``model_compensated``, ``u95``), for figures."""
+    (``t_s``, ``truth``, ``raw``, ``hub_compensated``, ``model_compensated``, ``u95``, and
+    ``error_in_band``: the model-compensated force's error limited to the valid band), for figures."""
 
     road_class: str
     speed_km_h: float
@@ -125,6 +133,7 @@ def validate_on_road(
         "hub_compensated": hub[span],
         "model_compensated": model[span],
         "u95": u95[span],
+        "error_in_band": band_limited(model[span] - truth, fs, (0.0, band[1])),
     }
     return RoadValidation(
         road_class=str(drive.road_class),
