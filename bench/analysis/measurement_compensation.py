@@ -33,6 +33,7 @@ All filters run together, block by block, by overlap-save FFT convolution
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
 
@@ -264,9 +265,9 @@ class CompensationStream:
         y = np.fft.irfft(spectrum, self.fft_size, axis=0)[self.filters.n_taps - 1 : size]
         p = self._n_parameters
         sens, dev = y[:, 1 : 1 + p], y[:, 1 + p :]
-        variance = np.einsum("ij,jk,ik->i", sens, self.filters.basis.covariance, sens)
-        if dev.shape[1]:
-            variance += np.max(dev**2, axis=1) / 3
+        variance = np.einsum("ij,ij->i", sens @ self.filters.basis.covariance, sens)  # s^T C s per sample
+        if dev.shape[1]:  # the largest deviation per sample, column by column (a row-wise max is slow)
+            variance += functools.reduce(np.maximum, (dev[:, j] ** 2 for j in range(dev.shape[1]))) / 3
         return y[:, 0].copy(), variance + self.filters.noise_variance_n2
 
 
