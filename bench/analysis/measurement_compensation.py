@@ -237,9 +237,12 @@ class CompensationStream:
         self._spectra_a = np.fft.rfft(taps_a, self.fft_size, axis=0)
         self._n_parameters = filters.sensitivity_wfs.shape[1]
 
-    def blocks(self, f_wfs: np.ndarray, a_hub: np.ndarray) -> Iterator[CompensatedBlock]:
-        """The compensated force of the record ``f_wfs`` (N), ``a_hub`` (m/s^2, its offset already
-        removed), in blocks of at most :attr:`hop` samples, in order."""
+    def blocks(
+        self, f_wfs: np.ndarray, a_hub: np.ndarray, accelerometer_offset_m_s2: float = 0.0
+    ) -> Iterator[CompensatedBlock]:
+        """The compensated force of the record ``f_wfs`` (N), ``a_hub`` (m/s^2; less
+        ``accelerometer_offset_m_s2``, block by block), in blocks of at most :attr:`hop` samples, in
+        order."""
         f_wfs, a_hub = np.asarray(f_wfs, dtype=float), np.asarray(a_hub, dtype=float)
         if f_wfs.shape != a_hub.shape or f_wfs.ndim != 1:
             raise AnalysisInputError(f"Fz and hub acceleration differ in shape: {f_wfs.shape}, {a_hub.shape}")
@@ -251,7 +254,8 @@ class CompensationStream:
             stop = min(start + self.hop, n)
             # stream outputs start + latency ... stop + latency describe instants start ... stop
             lo, hi = start + latency - (n_taps - 1), stop + latency
-            force, variance = self._convolve(_window(f_wfs, lo, hi), _window(a_hub, lo, hi), hi - lo)
+            x_a = _window(a_hub, lo, hi, accelerometer_offset_m_s2)
+            force, variance = self._convolve(_window(f_wfs, lo, hi), x_a, hi - lo)
             index = np.arange(start, stop)
             bad = (index < first_valid) | (index >= n - latency)
             force[bad], variance[bad] = np.nan, np.nan
@@ -271,10 +275,11 @@ class CompensationStream:
         return y[:, 0].copy(), variance + self.filters.noise_variance_n2
 
 
-def _window(x: np.ndarray, lo: int, hi: int) -> np.ndarray:
-    """``x[lo:hi]`` with zeros where the range leaves ``x`` (before its start, after its end)."""
+def _window(x: np.ndarray, lo: int, hi: int, offset: float = 0.0) -> np.ndarray:
+    """``x[lo:hi] - offset`` with zeros where the range leaves ``x`` (before its start, after its
+    end: no signal there, offset or not)."""
     out = np.zeros(hi - lo)
     a, b = max(lo, 0), min(hi, x.size)
     if b > a:
-        out[a - lo : b - lo] = x[a:b]
+        out[a - lo : b - lo] = x[a:b] - offset
     return out

@@ -59,9 +59,11 @@ class Compensation:
 
     def blocks(self):
         """The compensated force and its 95 % half-width, block by block (:class:`CompensatedBlock`)."""
-        f_wfs = self.measurement.channels[WFS_FORCE]
-        a_hub = self.measurement.channels[HUB_ACCELERATION] - self.accelerometer_offset_m_s2
-        yield from CompensationStream(self.filters).blocks(f_wfs, a_hub)
+        channels = self.measurement.channels
+        stream = CompensationStream(self.filters)
+        yield from stream.blocks(
+            channels[WFS_FORCE], channels[HUB_ACCELERATION], self.accelerometer_offset_m_s2
+        )
 
 
 def _shaker_at(analysis: CampaignAnalysis, pressure_bar: float | None):
