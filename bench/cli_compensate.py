@@ -108,7 +108,7 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         "compensate",
         help="compensate a measurement's WFS force with what a campaign identified (docs/compensate.md)",
         description="Compensate the WFS Fz of a measurement (MDF4, CSV or a campaign file's run) to the"
-        " contact force with the tyre, wheel mass and sensor a campaign identified, with a 95 %% band per"
+        " contact force with the tyre, wheel mass and sensor a campaign identified, with a 95 % band per"
         " sample; write it to an HDF5 file. A measurement the campaign does not cover (its tyre pressure,"
         " its sample rate, a channel) is refused, naming what is missing. Exit codes: 0 done, 3 an input"
         " cannot be used, 4 refused.",
