@@ -31,7 +31,7 @@ from bench.simulated_campaign import (
     simulate_sweep,
 )
 from bench.simulated_road import simulate_road, validate_on_road
-from bench.store.measurement import Measurement, MissingChannelError, read_measurement
+from bench.store.measurement import Measurement, MeasurementError, MissingChannelError, read_measurement
 from tests.campaign_files import StoredRun, write_campaign
 
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
@@ -204,6 +204,19 @@ def test_an_mdf4_measurement_reads_as_its_csv(road, tmp_path):
         MissingChannelError, match=r"no channel 'fz_wfs_n' for fz_wfs_n \(the file has Fz_FL, a_FL"
     ):
         read_measurement(tmp_path / "road.mf4")
+    # a gap marked NaN is refused, named
+    gap = columns[:, 1].copy()
+    gap[1234] = np.nan
+    mdf = MDF(version="4.10")
+    mdf.append(
+        [Signal(gap, t, name="fz_wfs_n", unit="N"), Signal(columns[:, 2], t, name="a_hub_m_s2", unit="m/s^2")]
+    )
+    mdf.save(tmp_path / "gap.mf4", overwrite=True)
+    with pytest.raises(
+        MeasurementError,
+        match=r"fz_wfs_n has 1 samples that are not finite numbers, the first at sample 1234",
+    ):
+        read_measurement(tmp_path / "gap.mf4")
 
 
 def test_a_measurement_the_campaign_does_not_cover_is_refused_naming_what_is_missing(

@@ -93,17 +93,31 @@ def read_measurement(
     if suffix in CAMPAIGN_SUFFIXES:
         if mapping is not None:
             raise MeasurementError(f"{path}: a campaign file's channels have their roles: no --mapping")
-        return _campaign_run(path, run_id)
+        return _finite(_campaign_run(path, run_id))
     if run_id is not None:
         raise MeasurementError(f"{path}: --run names a run of a campaign file (.h5), not of a {suffix} file")
     if suffix in MDF_SUFFIXES:
-        return _mdf(path, _wanted(mapping, path))
+        return _finite(_mdf(path, _wanted(mapping, path)))
     if suffix == ".csv":
-        return _csv(path, mapping)
+        return _csv(path, mapping)  # the CSV reader refuses a value that is not a finite number
     raise MeasurementError(
         f"{path}: unknown measurement format {suffix!r}: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign"
         " file's run (.h5 with --run)"
     )
+
+
+def _finite(measurement: Measurement) -> Measurement:
+    """``measurement``, refused when a channel holds a sample that is not a finite number (a gap,
+    an overload marked NaN): naming the channel, how many, and the first."""
+    for name, x in measurement.channels.items():
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise MeasurementError(
+                f"{measurement.source}: {name} has {bad.size} samples that are not finite numbers, the"
+                f" first at sample {bad[0]} (t = {bad[0] / measurement.sample_rate_hz:g} s): cut the"
+                " measurement around them"
+            )
+    return measurement
 
 
 def _campaign_run(path: Path, run_id: str | None) -> Measurement:
