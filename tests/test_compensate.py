@@ -262,3 +262,15 @@ def test_the_command_refuses_with_exit_4_and_names_what_is_missing(campaign, tmp
     )
     assert "run free: no fz_wfs_n, a_hub_m_s2 channel (it has z_base_m, f_plate_n)" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_command_loads_no_device_client_simulator_engine_or_plotting(campaign, road, tmp_path):
+    """``compensate`` is an offline command: in a fresh interpreter it loads none of
+    tests/test_cli_imports.py's heavy modules."""
+    from tests.test_cli_imports import run_offline
+
+    path, _, _ = road
+    code, loaded = run_offline(
+        tmp_path, "compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(tmp_path / "o.h5")
+    )
+    assert (code, loaded) == (EXIT_OK, [])
