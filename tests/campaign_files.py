@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.records import DwellRecord, HammerRecord
+from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.config import BenchConfig, default_bench_config
 from bench.store import CampaignWriter
 from sequences.channels import Channel
@@ -27,13 +27,13 @@ def _unit(name: str) -> str:
 
 @dataclass(frozen=True)
 class StoredRun:
-    """One run to write: ``kind`` (``free_run``, ``dwell_grid``, ``hammer``), its records, its
-    ``conditions`` and ``status``; ``channels``: the names written (default: every channel of
-    the first record)."""
+    """One run to write: ``kind`` (``free_run``, ``dwell_grid``, ``hammer``, ``sweep``: one record,
+    its step from the record), its records, its ``conditions`` and ``status``; ``channels``: the
+    names written (default: every channel of the first record)."""
 
     run_id: str
     kind: str
-    records: tuple[DwellRecord, ...] | tuple[HammerRecord, ...]
+    records: tuple[DwellRecord, ...] | tuple[HammerRecord, ...] | tuple[SweepRecord]
     conditions: dict[str, Any] = field(default_factory=dict)
     status: str = "complete"
     channels: tuple[str, ...] | None = None
@@ -54,10 +54,18 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
         for stored in runs:
             first = stored.records[0]
             names = stored.channels or tuple(first.channels)
+            step: dict[str, Any] = {"type": stored.kind}
+            if isinstance(first, SweepRecord):
+                step.update(
+                    start_hz=first.start_hz,
+                    end_hz=first.end_hz,
+                    duration_s=first.sweep_s,
+                    amplitude_mm=1e3 * first.amplitude_m,
+                )
             run = writer.begin_run(
                 stored.run_id,
                 kind=stored.kind,
-                step={"type": stored.kind},
+                step=step,
                 conditions=stored.conditions,
                 channels=tuple(Channel(name, _unit(name)) for name in names),
                 sample_rate_hz=first.sample_rate_hz,
@@ -66,7 +74,7 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
                 start = run.samples
                 run.append({name: record.channels[name] for name in names})
                 n = run.samples - start
-                if isinstance(record, HammerRecord):
+                if isinstance(record, HammerRecord | SweepRecord):
                     run.add_point(PointAttempt(index, math.nan, math.nan, start, start, start + n, start + n))
                     continue
                 hold = record.hold_s or (0.0, n / record.sample_rate_hz)

@@ -30,7 +30,7 @@ rolled off to zero above it, with a fixed latency: stable, causal and streamable
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import solve_triangular
@@ -177,6 +177,8 @@ class ModelCompensator:
     contact force ``latency_samples`` samples ago. ``band_hz``: upper end of the design band.
     ``design_error``: largest relative deviation of the FIR from the exact inverse over the band,
     ``max |G_fir - G| / max(|G|, 0.05)`` over both paths (``G_A`` relative to the wheel mass).
+    ``accelerometer_delay_s``: the lag of the hub acceleration behind the forces that ``taps_accel``
+    undoes (its target ``G_A exp(j w tau)``; 0: none).
     """
 
     model: TyreModel
@@ -189,9 +191,11 @@ class ModelCompensator:
     taps_wfs: np.ndarray
     taps_accel: np.ndarray
     design_error: float
+    accelerometer_delay_s: float = 0.0
 
     def response(self, freq_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The filters' responses with the latency removed (compare with :func:`inverse_response`)."""
+        """The filters' responses with the latency removed (compare with :func:`inverse_response`;
+        the hub acceleration's includes the advance ``exp(j w accelerometer_delay_s)``)."""
         f = np.asarray(freq_hz, dtype=float)
         shift = np.exp(2j * np.pi * f * self.latency_samples / self.fs_hz)
         return fir_response(self.taps_wfs, f, self.fs_hz) * shift, fir_response(
@@ -222,8 +226,10 @@ def design_model_compensator(
     band_hz: float = 100.0,
     n_taps: int = 160,
     latency_samples: int = 40,
+    accelerometer_delay_s: float = 0.0,
 ) -> ModelCompensator:
-    """Design the two FIR filters of the model-based inverse.
+    """Design the two FIR filters of the model-based inverse; the hub acceleration's path also
+    undoes the accelerometer's lag ``accelerometer_delay_s`` (target ``G_A exp(j w tau)``).
 
     In the band the error is weighted relative to the target (``1 / max(|G|, 0.05)^2`` for ``G_F``,
     ``1 / m_wheel^2`` for ``G_A``); above it the target rolls off to zero by a half cosine up to
@@ -235,6 +241,7 @@ def design_model_compensator(
     f = np.linspace(0, fs / 2, 6 * n_taps + 1)
     f[0] = min(0.01, band_hz / 100)  # the inverse is evaluated just above DC
     g_f, g_a = inverse_response(model, tyre, sensor, f, rubber)
+    g_a = g_a * np.exp(2j * np.pi * f * accelerometer_delay_s)
     stop = STOP_BAND_FACTOR * band_hz
     roll = half_cosine_rolloff(f, band_hz, stop)
     outside = np.where(f <= band_hz, 1.0, 1e-3)
@@ -243,11 +250,13 @@ def design_model_compensator(
     kw = {"n_taps": n_taps, "latency_samples": latency_samples, "fs_hz": fs, "ridge": 1e-6}
     taps_f = design_fir(f, g_f * roll, w_f, **kw)
     taps_a = design_fir(f, g_a * roll, w_a, **kw)
-    comp = ModelCompensator(model, tyre, sensor, rubber, fs, band_hz, latency_samples, taps_f, taps_a, 0.0)
+    comp = ModelCompensator(
+        model, tyre, sensor, rubber, fs, band_hz, latency_samples, taps_f, taps_a, 0.0, accelerometer_delay_s
+    )
     check = f[f <= band_hz]
     r_f, r_a = comp.response(check)
     err = max(
         float(np.max(np.abs(r_f - g_f[f <= band_hz]) / np.maximum(np.abs(g_f[f <= band_hz]), 0.05))),
         float(np.max(np.abs(r_a - g_a[f <= band_hz]) / tyre.wheel_mass_kg)),
     )
-    return ModelCompensator(model, tyre, sensor, rubber, fs, band_hz, latency_samples, taps_f, taps_a, err)
+    return replace(comp, design_error=err)

@@ -121,6 +121,48 @@ class BenchSetup:
         balance = brentq(lambda x: deflection_m(x) - x, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
         return law.linearised(self.tyre, freq_hz, balance)
 
+    def broadband_tyre(self, freq_hz: np.ndarray, drive_psd_m2_per_hz: np.ndarray) -> Tyre:
+        """The equivalent linear tyre under a broadband Gaussian base drive of one-sided density
+        ``drive_psd_m2_per_hz`` at ``freq_hz`` (a road), by statistical linearisation.
+
+        A Coulomb force ``F_c`` whose element slides at a Gaussian velocity of rms ``sigma_v`` has
+        the equivalent viscous damping ``sqrt(2 / pi) F_c / sigma_v`` (the rms-error-least linear
+        damper), which the sine law ``4 F_c / (pi w X)`` gives at ``w X = 4 sigma_v / sqrt(2 pi)``;
+        ``sigma_v`` depends on the damping, so the deflection is solved for by Brent's method as in
+        :meth:`linear_tyre`. The stiffness, whose rise with frequency a linear system cannot follow,
+        is taken at the deflection's equivalent frequency ``sigma_v / (2 pi sigma_x)`` (the sine
+        with the deflection's rms and rms rate), found with the nominal tyre. Linear tyres are
+        returned unchanged.
+        """
+        if self.nonlinearity is None or not self.has_tyre:
+            return self.tyre
+        law = self.nonlinearity
+        f = np.asarray(freq_hz, dtype=float)
+        weight = np.gradient(f) * np.asarray(drive_psd_m2_per_hz, dtype=float)
+        lower = "z_sidewall" if self.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
+
+        def deflection_rms(tyre: Tyre) -> tuple[float, float]:
+            """rms deflection (m) and deflection rate (m/s) of the friction element."""
+            response = self.network(tyre).frequency_response(f, outputs=(lower, "z_rim"))
+            gain2 = np.abs(response[lower] - response["z_rim"]) ** 2 * weight
+            return float(np.sqrt(np.sum(gain2))), float(np.sqrt(np.sum(gain2 * (2 * np.pi * f) ** 2)))
+
+        sigma_x, sigma_v = deflection_rms(self.tyre)
+        freq_eq_hz = sigma_v / (2 * np.pi * sigma_x)
+        to_sine = 4 / np.sqrt(2 * np.pi)  # sine amplitude of the Gaussian's equivalent friction damping
+
+        def assumed_minus_solved(assumed_m: float) -> float:
+            _, v = deflection_rms(law.linearised(self.tyre, freq_eq_hz, assumed_m))
+            return to_sine * v / (2 * np.pi * freq_eq_hz) - assumed_m
+
+        x_stick = law.stick_deflection_m
+        if assumed_minus_solved(x_stick) <= 0:
+            return law.linearised(self.tyre, freq_eq_hz, x_stick)
+        # friction only slows the deflection: the frictionless rate bounds the balance from above
+        x_high = 2.0 * to_sine * sigma_x + x_stick
+        balance = brentq(assumed_minus_solved, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
+        return law.linearised(self.tyre, freq_eq_hz, balance)
+
     def operating_network(self, freq_hz: float, amplitude_m: float) -> MechanicalNetwork:
         """The linear equivalent network at an operating point (the nominal one for linear tyres)."""
         return self.network(self.linear_tyre(freq_hz, amplitude_m))

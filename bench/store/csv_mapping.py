@@ -192,16 +192,7 @@ def load_mapping(path: str | Path) -> ImportMapping:
     """Read and check the mapping at ``path``; CSV file names are relative to its folder.
     :class:`MappingError` lists every problem of the file."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise MappingError(path, [("", f"cannot be read: {exc.strerror or exc}")]) from None
-    if not text.strip():
-        raise MappingError(path, [("", "empty file")])
-    try:
-        data = load_toml(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MappingError(path, [toml_error_where(text, str(exc))]) from None
+    text, data = _parsed(path)
     r = _Reader(path)
     r.keys(data, "", _TOP_KEYS)
     source = r.table(data, "source")
@@ -222,6 +213,52 @@ def load_mapping(path: str | Path) -> ImportMapping:
         bench=bench,
         dialect=r.dialect(r.table(data, "csv")),
         runs=r.runs(data.get("runs"), name or "import", defaults),
+    )
+    if r.problems:
+        raise mapping_error(path, data, r.problems)
+    return mapping
+
+
+def _parsed(path: Path) -> tuple[str, dict]:
+    """The text of the mapping file at ``path`` and its TOML parsed (MappingError: unreadable,
+    empty, or not TOML, naming the line)."""
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise MappingError(path, [("", f"cannot be read: {exc.strerror or exc}")]) from None
+    if not text.strip():
+        raise MappingError(path, [("", "empty file")])
+    try:
+        return text, load_toml(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MappingError(path, [toml_error_where(text, str(exc))]) from None
+
+
+@dataclass(frozen=True)
+class ChannelMapping:
+    """How one measurement file's channels are read (``wfsbench compensate --mapping``,
+    docs/compensate.md): the import's ``csv`` dialect, ``time`` table and ``channels`` table, with
+    the same keys; ``timing`` None when the mapping has no ``time`` table (an MDF4 file keeps its
+    own time stamps)."""
+
+    path: Path
+    dialect: Dialect
+    timing: Timing | None
+    channels: tuple[ChannelColumn, ...]
+
+
+def load_channel_mapping(path: str | Path) -> ChannelMapping:
+    """Read and check a measurement's mapping at ``path`` (tables ``csv``, ``time``,
+    ``channels``); :class:`MappingError` lists every problem of the file."""
+    path = Path(path)
+    _, data = _parsed(path)
+    r = _Reader(path)
+    r.keys(data, "", ("csv", "time", "channels"))
+    mapping = ChannelMapping(
+        path=path,
+        dialect=r.dialect(r.table(data, "csv")),
+        timing=r.timing(r.table(data, "time"), "time") if "time" in data else None,
+        channels=r.channels(r.table(data, "channels"), "channels"),
     )
     if r.problems:
         raise mapping_error(path, data, r.problems)

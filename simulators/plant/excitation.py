@@ -8,7 +8,7 @@ its operating point.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -157,3 +157,52 @@ class HalfSinePulse:
     def frequency_hz(self, t_s: float) -> float:
         """A pulse has no single frequency; its spectrum is flat to about 1 / width."""
         return 1.0 / self.width_s
+
+
+@dataclass(frozen=True, eq=False)
+class SampledDrive:
+    """A displacement drive given as samples (a road under the wheel, a post's drive file):
+    ``displacement_m`` at ``sample_rate_hz`` from t = 0, linear between samples (as the plant's
+    first-order hold takes its input), tapered in and out by raised cosines inside its duration, so
+    that a drive that does not start and end at rest still starts and stops smoothly.
+
+    A non-linear tyre is linearised at one operating point for the whole drive (a broadband drive
+    has no single frequency): the equivalent sine of the drive, the frequency ``sigma_v / (2 pi
+    sigma_z)`` and amplitude ``sqrt(2) sigma_z`` of the sine with the drive's rms displacement and
+    rms velocity, is what :meth:`frequency_hz` and :attr:`amplitude` report.
+    """
+
+    displacement_m: np.ndarray
+    sample_rate_hz: float
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+    amplitude: float = field(init=False)
+    equivalent_frequency_hz: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        z = np.asarray(self.displacement_m, dtype=float)
+        if z.ndim != 1 or z.size < 2 or not np.all(np.isfinite(z)) or not self.sample_rate_hz > 0:
+            raise ValueError("a sampled drive needs at least two finite samples and a positive rate")
+        _check_taper(self.duration_s, self.taper_in_s, self.taper_out_s)
+        sigma_z = float(np.std(z))
+        sigma_v = float(np.std(np.diff(z))) * self.sample_rate_hz
+        object.__setattr__(self, "displacement_m", z)
+        object.__setattr__(self, "amplitude", np.sqrt(2) * sigma_z)
+        frequency_hz = sigma_v / (2 * np.pi * sigma_z) if sigma_z else 0.0
+        object.__setattr__(self, "equivalent_frequency_hz", frequency_hz)
+
+    @property
+    def duration_s(self) -> float:
+        return (np.size(self.displacement_m) - 1) / self.sample_rate_hz
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        env = taper_envelope(t, self.duration_s, self.taper_in_s, self.taper_out_s)
+        position = np.clip(t * self.sample_rate_hz, 0, self.displacement_m.size - 1)
+        below = np.minimum(position.astype(int), self.displacement_m.size - 2)
+        z = self.displacement_m
+        return env * (z[below] + (position - below) * (z[below + 1] - z[below]))
+
+    def frequency_hz(self, t_s: float) -> float:
+        """The equivalent sine's frequency (see the class docstring), whatever ``t_s``."""
+        return self.equivalent_frequency_hz

@@ -1,0 +1,140 @@
+"""``wfsbench compensate``: a measurement's WFS force compensated to the contact force with what a
+campaign identified (docs/compensate.md).
+
+Exit codes:
+
+- 0: compensated, the output (and the filters) written;
+- 3: an input cannot be used: the campaign file is no campaign file, the measurement or its mapping
+  cannot be read, the output exists, the options contradict each other; nothing was written;
+- 4: refused: the campaign does not cover the measurement (no identification at its tyre pressure,
+  a sample rate the filters cannot serve, a channel the measurement lacks); the message names what
+  is missing; nothing was written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_OK = 0
+EXIT_INVALID = 3
+EXIT_REFUSED = 4
+
+
+class _StopError(Exception):
+    """The command ends early with ``code`` and ``message`` (on standard error)."""
+
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+def _measurement(args: argparse.Namespace):
+    """The measurement and its tyre pressure (the option's, else the one its source records)."""
+    from bench.store import StoreError
+    from bench.store.csv_mapping import MappingError, load_channel_mapping
+    from bench.store.measurement import MeasurementError, MissingChannelError, read_measurement
+
+    try:
+        mapping = load_channel_mapping(args.mapping) if args.mapping else None
+        measurement = read_measurement(args.measurement, run_id=args.run_id, mapping=mapping)
+    except MissingChannelError as exc:
+        raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
+    except (MappingError, MeasurementError, StoreError) as exc:
+        raise _StopError(EXIT_INVALID, f"error: {exc}") from None
+    recorded = measurement.tyre_pressure_bar
+    if args.pressure is None:
+        return measurement, recorded
+    if recorded is not None and abs(recorded - args.pressure) > 1e-9:
+        raise _StopError(
+            EXIT_INVALID,
+            f"error: --pressure {args.pressure:g} bar contradicts the {recorded:g} bar that"
+            f" {measurement.source} records",
+        )
+    return measurement, args.pressure
+
+
+def _compensation(args: argparse.Namespace):
+    """The compensation of the measurement with the campaign's analysis (refused: what is missing)."""
+    from bench.app.analyze import CampaignFileError, analyze_campaign
+    from bench.app.compensate import CompensationRefusedError, prepare_compensation
+    from bench.store import StoreError
+
+    out = Path(args.out)
+    if out.exists():
+        raise _StopError(
+            EXIT_INVALID, f"error: {out}: exists; the output is never replaced (choose another --out)"
+        )
+    if args.filters and Path(args.filters).suffix.lower() not in (".json", ".csv"):
+        raise _StopError(EXIT_INVALID, f"error: --filters {args.filters}: give a .json or .csv file")
+    measurement, pressure = _measurement(args)
+    try:
+        analysis = analyze_campaign(Path(args.campaign))
+    except (StoreError, CampaignFileError) as exc:
+        raise _StopError(EXIT_INVALID, f"error: {exc}") from None
+    try:
+        return prepare_compensation(analysis, measurement, pressure)
+    except CompensationRefusedError as exc:
+        raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
+
+
+def _compensate(args: argparse.Namespace) -> int:
+    from bench.app.compensate import write_output
+    from bench.report.filters import write_filters
+    from bench.store.compensated import OutputExistsError
+
+    try:
+        compensation = _compensation(args)
+        lines = write_output(compensation, Path(args.out), campaign=Path(args.campaign))
+    except _StopError as stop:
+        print(stop, file=sys.stderr)
+        return stop.code
+    except OutputExistsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    for line in lines:
+        print(line)
+    if args.filters:
+        offset = compensation.accelerometer_offset_m_s2
+        print(f"filters {write_filters(args.filters, compensation.filters, offset)}")
+    print(f"compensated {args.out}")
+    return EXIT_OK
+
+
+def add_compensate_command(sub: argparse._SubParsersAction) -> None:
+    """Add ``compensate`` to the ``wfsbench`` subcommands."""
+    cmd = sub.add_parser(
+        "compensate",
+        help="compensate a measurement's WFS force with what a campaign identified (docs/compensate.md)",
+        description="Compensate the WFS Fz of a measurement (MDF4, CSV or a campaign file's run) to the"
+        " contact force with the tyre, wheel mass and sensor a campaign identified, with a 95 % band per"
+        " sample; write it to an HDF5 file. A measurement the campaign does not cover (its tyre pressure,"
+        " its sample rate, a channel) is refused, naming what is missing. Exit codes: 0 done, 3 an input"
+        " cannot be used, 4 refused.",
+    )
+    cmd.add_argument("campaign", help="campaign file (HDF5) whose analysis gives the compensation")
+    cmd.add_argument(
+        "measurement",
+        help="the measurement: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign file (.h5) with --run",
+    )
+    cmd.add_argument("--out", required=True, help="output file (HDF5, docs/compensate.md); never replaced")
+    cmd.add_argument("--run", dest="run_id", metavar="ID", help="the run of a campaign-file measurement")
+    cmd.add_argument(
+        "--pressure",
+        type=float,
+        metavar="BAR",
+        help="the measurement's tyre pressure (a campaign file's run records its own)",
+    )
+    cmd.add_argument(
+        "--mapping",
+        metavar="FILE",
+        help="TOML: which column or MDF channel is fz_wfs_n and a_hub_m_s2, units, CSV dialect and time"
+        " (the import's csv, time and channels tables, docs/import.md)",
+    )
+    cmd.add_argument(
+        "--filters",
+        metavar="FILE",
+        help="also export the filters for a real-time DSP (.json or .csv): taps, latency, rate, band",
+    )
+    cmd.set_defaults(run=_compensate)

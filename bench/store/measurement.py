@@ -1,0 +1,235 @@
+"""A measurement to compensate, read from an MDF4 file, a CSV file or a campaign file's run: the WFS
+Fz and the hub acceleration in SI units at one sample rate (docs/compensate.md).
+
+- **MDF4** (``.mf4``, ``.mdf``; read with asammdf): the channels named by the mapping's
+  ``channels`` table (``column`` is the MDF channel's name), by default ``fz_wfs_n`` and
+  ``a_hub_m_s2``; the unit is the mapping's, else the channel's own (``kN``, ``g``, ...), which
+  must be one of the quantity's (docs/import.md's units); both channels on one time base.
+- **CSV**: the import's conventions (docs/import.md): the mapping's ``csv``, ``time`` and
+  ``channels`` tables; without a mapping, a comma-separated file whose header names the channels
+  and a time column ``t_s`` in seconds.
+- **A campaign file's run** (``.h5``, with ``run_id``): the run's Fz and hub acceleration by their
+  roles, and the tyre pressure its conditions record.
+
+A file that lacks a channel is refused naming the channel and what the file has.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
+from bench.store.csv_mapping import ChannelColumn, ChannelMapping, Dialect, Timing
+from bench.store.csv_read import TIME_STEP_TOLERANCE, CsvError, read_csv
+from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_named
+from bench.store.reader import open_campaign
+
+#: The channels a compensation reads.
+MEASUREMENT_CHANNELS = (WFS_FORCE, HUB_ACCELERATION)
+#: The time column of a CSV measurement read without a mapping.
+DEFAULT_TIME_COLUMN = "t_s"
+MDF_SUFFIXES = (".mf4", ".mdf")
+CAMPAIGN_SUFFIXES = (".h5", ".hdf5")
+
+
+class MeasurementError(ValueError):
+    """A measurement that cannot be read: the message names the file and what is wrong."""
+
+
+class MissingChannelError(MeasurementError):
+    """The measurement lacks a channel the compensation needs: the message names it and what the
+    file has."""
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """``channels`` (``fz_wfs_n`` in N, ``a_hub_m_s2`` in m/s^2) at ``sample_rate_hz`` from
+    ``source`` (the file, and the run); ``tyre_pressure_bar`` when the source records it."""
+
+    source: str
+    sample_rate_hz: float
+    channels: dict[str, np.ndarray]
+    tyre_pressure_bar: float | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return self.channels[WFS_FORCE].size
+
+
+def _default_columns() -> tuple[ChannelColumn, ...]:
+    """The channels under their own names, in their SI units."""
+    columns = []
+    for name in MEASUREMENT_CHANNELS:
+        si_unit = channel_si_unit(name) or ""
+        columns.append(ChannelColumn(name, si_unit, name, si_unit))
+    return tuple(columns)
+
+
+def _wanted(mapping: ChannelMapping | None, path: Path) -> tuple[ChannelColumn, ...]:
+    """The mapping's columns of the measurement's channels (the defaults without a mapping); a
+    mapping that names neither is refused."""
+    if mapping is None:
+        return _default_columns()
+    columns = tuple(c for c in mapping.channels if c.channel in MEASUREMENT_CHANNELS)
+    missing = [name for name in MEASUREMENT_CHANNELS if name not in {c.channel for c in columns}]
+    if missing:
+        raise MissingChannelError(
+            f"{mapping.path}: channels: no column mapped to {', '.join(missing)}, which a compensation"
+            f" of {path.name} needs"
+        )
+    return columns
+
+
+def read_measurement(
+    path: str | Path, *, run_id: str | None = None, mapping: ChannelMapping | None = None
+) -> Measurement:
+    """The measurement at ``path``: an MDF4 file, a CSV file, or ``run_id`` of a campaign file (by
+    the file's suffix)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in CAMPAIGN_SUFFIXES:
+        if mapping is not None:
+            raise MeasurementError(f"{path}: a campaign file's channels have their roles: no --mapping")
+        return _finite(_campaign_run(path, run_id))
+    if run_id is not None:
+        raise MeasurementError(f"{path}: --run names a run of a campaign file (.h5), not of a {suffix} file")
+    if suffix in MDF_SUFFIXES:
+        return _finite(_mdf(path, _wanted(mapping, path)))
+    if suffix == ".csv":
+        return _csv(path, mapping)  # the CSV reader refuses a value that is not a finite number
+    raise MeasurementError(
+        f"{path}: unknown measurement format {suffix!r}: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign"
+        " file's run (.h5 with --run)"
+    )
+
+
+def _finite(measurement: Measurement) -> Measurement:
+    """``measurement``, refused when a channel holds a sample that is not a finite number (a gap,
+    an overload marked NaN): naming the channel, how many, and the first."""
+    for name, x in measurement.channels.items():
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise MeasurementError(
+                f"{measurement.source}: {name} has {bad.size} samples that are not finite numbers, the"
+                f" first at sample {bad[0]} (t = {bad[0] / measurement.sample_rate_hz:g} s): cut the"
+                " measurement around them"
+            )
+    return measurement
+
+
+def _campaign_run(path: Path, run_id: str | None) -> Measurement:
+    with open_campaign(path) as campaign:
+        runs = ", ".join(run.run_id for run in campaign.runs)
+        if run_id is None:
+            raise MeasurementError(f"{path}: which run? give --run (the file holds {runs})")
+        if run_id not in {run.run_id for run in campaign.runs}:
+            raise MeasurementError(f"{path}: no run {run_id!r} (the file holds {runs})")
+        run = campaign.run(run_id)
+        channels = run.channels.slice(0, run.n_samples)
+        missing = [name for name in MEASUREMENT_CHANNELS if name not in channels]
+        if missing:
+            raise MissingChannelError(
+                f"{path}: run {run_id}: no {', '.join(missing)} channel (it has {', '.join(channels)})"
+            )
+        pressure = run.conditions.get("tyre_pressure_bar")
+        return Measurement(
+            f"{path} run {run_id}",
+            run.sample_rate_hz,
+            {name: np.asarray(channels[name], dtype=float) for name in MEASUREMENT_CHANNELS},
+            float(pressure) if pressure is not None else None,
+        )
+
+
+def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
+    columns = _wanted(mapping, path)
+    if mapping is None:
+        dialect, timing = Dialect(), Timing(column=DEFAULT_TIME_COLUMN, unit="s")
+    else:
+        dialect, timing = mapping.dialect, mapping.timing
+        if timing is None:
+            raise MeasurementError(f"{mapping.path}: time: missing (a CSV measurement needs its sample rate)")
+    try:
+        table = read_csv(path, dialect, timing, columns)
+    except CsvError as exc:
+        raise MeasurementError(str(exc)) from None
+    for column in columns:
+        if column.channel not in table.columns:
+            raise MissingChannelError(
+                str(table.missing(column, f": the compensation needs {column.channel}"))
+            )
+    return Measurement(
+        str(path), table.sample_rate_hz, {c.channel: table.columns[c.channel] for c in columns}
+    )
+
+
+def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
+    from asammdf import MDF  # only here: it takes a second to import
+
+    try:
+        mdf = MDF(path)
+    except Exception as exc:  # asammdf raises many kinds for a file it cannot read
+        raise MeasurementError(f"{path}: not a readable MDF file: {exc}") from None
+    with mdf:
+        names = sorted(name for name in mdf.channels_db if not name.startswith("$"))
+        signals = {}
+        for column in columns:
+            if column.column not in mdf.channels_db:
+                raise MissingChannelError(
+                    f"{path}: no channel {column.column!r} for {column.channel} (the file has"
+                    f" {', '.join(names)})"
+                )
+            if len(mdf.channels_db[column.column]) > 1:
+                raise MeasurementError(
+                    f"{path}: channel {column.column!r} is in {len(mdf.channels_db[column.column])}"
+                    " groups: which one is the measurement's is ambiguous"
+                )
+            signals[column.channel] = (column, mdf.get(column.column))
+    times = [signal.timestamps for _, signal in signals.values()]
+    if times[0].size != times[1].size or not np.allclose(times[0], times[1], rtol=0, atol=1e-9):
+        raise MeasurementError(
+            f"{path}: {' and '.join(c.column for c, _ in signals.values())} are not on one time base"
+            " (resample them to one rate first)"
+        )
+    rate = _rate(path, times[0])
+    channels = {
+        name: np.asarray(signal.samples, dtype=float) * _factor(path, column, signal.unit) * column.scale
+        for name, (column, signal) in signals.items()
+    }
+    return Measurement(str(path), rate, channels)
+
+
+def _rate(path: Path, t: np.ndarray) -> float:
+    if t.size < 2:
+        raise MeasurementError(f"{path}: fewer than two samples")
+    step = (t[-1] - t[0]) / (t.size - 1)
+    if step <= 0 or np.any(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * step):
+        raise MeasurementError(
+            f"{path}: the time stamps step unevenly (mean step {step:g} s): not one sample rate"
+        )
+    return 1.0 / step
+
+
+def _factor(path: Path, column: ChannelColumn, stated: str) -> float:
+    """The factor from the channel's unit (the mapping's, else the MDF channel's own) to SI."""
+    unit = column.unit
+    known = unit_named(stated) if stated.strip() else None
+    if unit is None:
+        if known is None:
+            raise MeasurementError(
+                f"{path}: channel {column.column!r}: unit {stated!r} is not one of {known_units()}"
+                " (give the unit in the mapping)"
+            )
+        unit = known
+    elif known is not None and known != unit:
+        raise MeasurementError(
+            f"{path}: channel {column.column!r}: the file gives the unit {stated}, the mapping {unit}"
+        )
+    si_unit, factor = UNITS[unit]
+    if si_unit != column.si_unit:
+        raise MeasurementError(
+            f"{path}: channel {column.column!r}: {stated or unit} is not a unit of {column.si_unit}"
+        )
+    return factor
