@@ -163,6 +163,22 @@ class Simulation:
 
 
 @dataclass(frozen=True)
+class AmplitudeConfig:
+    """How the engine brings a dwell's amplitude to its target (docs/engine.md, *Amplitude control*):
+    within the dwell by amplitude updates the controller takes while running (``hold_within_dwell``;
+    only where the controller's register map has them), to ``update_tolerance`` with at most
+    ``max_updates`` per attempt, each ramped over ``ramp_s``; and after it, a point whose amplitude
+    is beyond ``tolerance`` repeated at most ``max_repeats`` times."""
+
+    hold_within_dwell: bool = True
+    update_tolerance: float = 0.005
+    max_updates: int = 3
+    ramp_s: float = 0.1
+    tolerance: float = 0.02
+    max_repeats: int = 3
+
+
+@dataclass(frozen=True)
 class BenchConfig:
     """A whole bench configuration; ``source`` is its file (or ``<default>``)."""
 
@@ -177,6 +193,7 @@ class BenchConfig:
     specimen: Specimen = field(default_factory=Specimen)
     simulation: Simulation = field(default_factory=Simulation)
     timing: EngineTiming = field(default_factory=EngineTiming)
+    amplitude: AmplitudeConfig = field(default_factory=AmplitudeConfig)
     source: str = "<default>"
 
     @property
@@ -218,6 +235,7 @@ class BenchConfig:
             toml_table("[specimen]", _as_dict(self.specimen)),
             toml_table("[simulation]", _as_dict(self.simulation)),
             toml_table("[timing]", _as_dict(self.timing)),
+            toml_table("[amplitude]", _as_dict(self.amplitude)),
         ]
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
@@ -410,6 +428,7 @@ class _Reader:
             "specimen",
             "simulation",
             "timing",
+            "amplitude",
         )
         for name in data:
             if name not in top:
@@ -430,6 +449,7 @@ class _Reader:
             specimen=self.specimen(data),
             simulation=self.simulation(data),
             timing=self.timing(data),
+            amplitude=self.amplitude(data, limits),
             source=self.source,
         )
         if self.problems:
@@ -619,6 +639,30 @@ class _Reader:
                 for f in fields(EngineTiming)
             }
         )
+
+    def amplitude(self, data: dict, limits: BenchLimits) -> AmplitudeConfig:
+        """The ``[amplitude]`` table: tolerances within (0, 0.5), the update's below the repeat's
+        (an update must leave room for the noise); counts 0..10; the ramp no shorter than the
+        shortest taper and at most 10 s."""
+        d = AmplitudeConfig()
+        t = self.table(data, "amplitude", tuple(f.name for f in fields(AmplitudeConfig)))
+        config = AmplitudeConfig(
+            hold_within_dwell=self.boolean(t, "amplitude", "hold_within_dwell", d.hold_within_dwell),
+            update_tolerance=self.number(
+                t, "amplitude", "update_tolerance", d.update_tolerance, lo=0, hi=0.5, lo_open=True
+            ),
+            max_updates=self.number(t, "amplitude", "max_updates", d.max_updates, lo=0, hi=10, integer=True),
+            ramp_s=self.number(t, "amplitude", "ramp_s", d.ramp_s, lo=limits.min_taper_s, hi=10.0),
+            tolerance=self.number(t, "amplitude", "tolerance", d.tolerance, lo=0, hi=0.5, lo_open=True),
+            max_repeats=self.number(t, "amplitude", "max_repeats", d.max_repeats, lo=0, hi=10, integer=True),
+        )
+        if config.update_tolerance > config.tolerance:
+            self.add(
+                "amplitude.update_tolerance",
+                f"{config.update_tolerance:g} is above the tolerance {config.tolerance:g} of a repeat"
+                " (allowed <= tolerance)",
+            )
+        return config
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()

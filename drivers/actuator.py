@@ -58,7 +58,7 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
 from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
@@ -361,6 +361,22 @@ class ActuatorClient:
     def configured(self) -> bool:
         """Whether the last :meth:`configure` completed (START is refused otherwise)."""
         return self._configured
+
+    async def update_amplitude(self, update: AmplitudeUpdate) -> None:
+        """Give the sine dwell holding now a new amplitude, ramped (docs/protocols.md, *Amplitude
+        held within the dwell*): LimitError (nothing written) outside the bench's limits;
+        CommandRejectedError when the map has no such registers (nothing written) or the controller
+        refuses it (outside a dwell's hold, beyond its own limits), naming its reason."""
+        if not self.map.amplitude_updates:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no amplitude_update_mm: the controller takes no"
+                " amplitude update"
+            )
+        values = update.registers(self.limits)
+        try:
+            await self._write(values)
+        except DeviceExceptionError as exc:
+            raise await self._refusal(exc, "the amplitude update") from exc
 
     async def start(self) -> None:
         """Start the configured excitation; NotConfiguredError (nothing sent) unless the last

@@ -118,3 +118,24 @@ class SweepSetpoint:
             "taper_out_s": self.taper_out_s,
             "mean_mm": self.mean_mm,
         }
+
+
+@dataclass(frozen=True)
+class AmplitudeUpdate:
+    """A new amplitude for the sine dwell holding now, reached along a raised cosine of ``ramp_s``;
+    ``mean_mm`` is the running dwell's mean (the stroke holds both)."""
+
+    amplitude_mm: float
+    ramp_s: float
+    mean_mm: float = 0.0
+
+    def registers(self, limits: BenchLimits) -> dict[str, float]:
+        """The holding-register values of this update, after checking it against ``limits`` (the
+        ramp is a change of amplitude: no shorter than the shortest taper)."""
+        check_amplitude(limits, self.amplitude_mm, self.mean_mm)
+        _finite(ramp_s=self.ramp_s)
+        if self.ramp_s < limits.min_taper_s:
+            raise LimitError(
+                f"ramp_s={self.ramp_s} below the minimum taper {limits.min_taper_s} s (limits.min_taper_s)"
+            )
+        return {"amplitude_update_mm": self.amplitude_mm, "amplitude_ramp_s": self.ramp_s}

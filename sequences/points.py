@@ -44,6 +44,10 @@ class PointAttempt:
     exclusive). An adaptive dwell adds its ``verdict``, ``settle_s`` (hold time when it settled),
     ``measure_start_sample`` (where its measured part begins, within the hold; -1 when none), the
     FRF point's standard uncertainties and, for a point the refinement added, ``added_reason``.
+    A dwell whose amplitude was held within it (docs/engine.md) adds ``amplitude_updates``, the new
+    amplitudes the controller took during the hold, and ``held_amplitude_mm``, the command in force
+    over the measured part after them (NaN: no update); its measured part begins at
+    ``measure_start_sample``, the settling time after the last update's ramp.
     """
 
     index: int
@@ -65,6 +69,8 @@ class PointAttempt:
     magnitude_uncertainty_pct: float = math.nan
     phase_uncertainty_deg: float = math.nan
     added_reason: str = ""
+    amplitude_updates: int = 0
+    held_amplitude_mm: float = math.nan
 
     @property
     def settled(self) -> bool:

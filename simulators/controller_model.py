@@ -48,8 +48,10 @@ POWER_UP: dict[str, float] = {
     "watchdog_ms": POWER_UP_WATCHDOG_MS, "amplitude_mm": 0.0, "frequency_hz": 1.0, "dwell_s": 0.0,
     "sweep_start_hz": 1.0, "sweep_end_hz": 10.0, "sweep_duration_s": 10.0, "taper_in_s": 1.0,
     "taper_out_s": 1.0, "mean_mm": 0.0, "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
+    "amplitude_update_mm": 0.0, "amplitude_ramp_s": 0.1,
 }  # fmt: skip
 _NON_NEGATIVE = (
+    "amplitude_update_mm",
     "dwell_s",
     "sweep_duration_s",
     "amplitude_mm",
@@ -58,8 +60,9 @@ _NON_NEGATIVE = (
     "force_limit_n",
 )
 _FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")  # in (0, MAX_FREQUENCY_HZ]
-_TAPERS = ("taper_in_s", "taper_out_s")
-_STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm")  # within the hardware stroke (mm)
+_TAPERS = ("taper_in_s", "taper_out_s", "amplitude_ramp_s")  # each at least MIN_TAPER_S
+#: within the hardware stroke (mm)
+_STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm", "amplitude_update_mm")
 _IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
 #: the states each command is accepted in (a command in another state is refused)
 ALLOWED: dict[Command, tuple[ControllerState, ...]] = {
@@ -124,10 +127,17 @@ class ControllerModel:
         heartbeat runs beside its commands and would otherwise clear the reason of a refusal before
         the host reads it.
 
-        Setpoints take effect at the next start; a running excitation keeps its own.
+        Setpoints take effect at the next start; a running excitation keeps its own, except its
+        amplitude: ``amplitude_update_mm`` changes a sine dwell's during its hold
+        (:meth:`_update_refusal`).
         """
         if not all(self._valid(name, value) for name, value in values.items()):
             return self._refuse(ErrorCode.INVALID_SETPOINT)
+        if "amplitude_update_mm" in values:
+            ramp_s = values.get("amplitude_ramp_s", self.setpoints["amplitude_ramp_s"])
+            if (reason := self._update_refusal(values["amplitude_update_mm"])) is not None:
+                return self._refuse(reason)
+            self.generator.update_amplitude(values["amplitude_update_mm"] / 1000, ramp_s)
         # only a changed heartbeat proves the host alive: neither a frozen counter nor a rewritten
         # watchdog_ms (a host rewriting its configuration) restarts the watchdog's time
         if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:
@@ -151,6 +161,20 @@ class ControllerModel:
             or (name == "force_limit_n" and abs(value) > self.HARDWARE_FORCE_N)
         )
         return not violated
+
+    def _update_refusal(self, amplitude_mm: float) -> ErrorCode | None:
+        """Why an amplitude update to ``amplitude_mm`` would be refused: no sine dwell holds its
+        amplitude now (tapering in or out, a sweep, at rest: not allowed in state), or the new
+        amplitude would leave the stroke with the mean or pass the displacement interlock limit
+        (invalid setpoint)."""
+        if self.state != ControllerState.RUNNING or not self.generator.holding():
+            return ErrorCode.NOT_ALLOWED_IN_STATE
+        limit_mm = self.setpoints["displacement_limit_mm"] or self.HARDWARE_STROKE_MM
+        if self.generator.amplitude_m <= 0 or amplitude_mm > limit_mm:
+            return ErrorCode.INVALID_SETPOINT
+        if abs(self.generator.mean_m()) * 1000 + amplitude_mm > self.HARDWARE_STROKE_MM:
+            return ErrorCode.INVALID_SETPOINT
+        return None
 
     def command_refusal(self, code: int) -> ErrorCode | None:
         """Why the command ``code`` would be refused in the present state (None: it is allowed);
@@ -280,8 +304,8 @@ class ControllerModel:
 
     @property
     def amplitude_m(self) -> float:
-        waveform = self.generator.waveform
-        return float(waveform.amplitude) if waveform is not None else 0.0
+        """The running excitation's amplitude (an amplitude update's target once one was taken)."""
+        return self.generator.amplitude_m
 
     def observe(self, z_base_m: np.ndarray, f_plate_n: np.ndarray, rate_hz: float) -> None:
         """Update readbacks and the limit interlocks from a block measured at ``rate_hz``.

@@ -24,6 +24,7 @@ samples with them.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -60,7 +61,8 @@ def sync_flags(
 
 
 class MeanRamp:
-    """A position that moves between targets along raised cosines at :data:`MEAN_RATE_MM_S`."""
+    """A value that moves between targets along raised cosines: the mean position (m), at
+    :data:`MEAN_RATE_MM_S` on average, or an amplitude's scale over a stated length."""
 
     def __init__(self, rate_hz: float) -> None:
         self.rate_hz = rate_hz
@@ -78,10 +80,16 @@ class MeanRamp:
         t = (np.asarray(n, dtype=float) - self._start_n) / self.rate_hz
         return self._from_m + (self._to_m - self._from_m) * taper_envelope(t, math.inf, self._length_s, 0.0)
 
-    def move(self, n: int, from_m: float, to_m: float) -> None:
-        """Start at sample ``n`` a ramp from ``from_m`` to ``to_m`` (m)."""
+    def move(self, n: int, from_m: float, to_m: float, length_s: float | None = None) -> None:
+        """Start at sample ``n`` a ramp from ``from_m`` to ``to_m`` lasting ``length_s`` (None: a
+        mean position's, at :data:`MEAN_RATE_MM_S`)."""
         self._from_m, self._to_m, self._start_n = from_m, to_m, n
-        self._length_s = abs(to_m - from_m) * 1000 / MEAN_RATE_MM_S
+        self._length_s = abs(to_m - from_m) * 1000 / MEAN_RATE_MM_S if length_s is None else length_s
+
+    @property
+    def span(self) -> tuple[int, int]:
+        """The samples ``[start, end)`` of the last ramp."""
+        return self._start_n, self._start_n + math.ceil(self._length_s * self.rate_hz)
 
     def settled(self, n: int) -> bool:
         """True if sample ``n`` is on the target (always, for a ramp of no length)."""
@@ -102,6 +110,9 @@ class FunctionGenerator:
         self._stop_n: int | None = None
         self._stopping = False
         self._frozen_m: float | None = None
+        self._scale = MeanRamp(rate_hz)  # the excitation's amplitude over the waveform's own
+        self._scale.move(0, 1.0, 1.0, 0.0)
+        self._dwell_hold_s = 0.0  # the running dwell's hold as started (an update holds it again)
         self._sync: list[np.ndarray] = []  # sync outputs of the blocks generated since the last take
 
     # -- control ------------------------------------------------------------------------------
@@ -115,7 +126,38 @@ class FunctionGenerator:
             raise ValueError(f"taper_out_s must be > 0, got {taper_out_s}")
         self._waveform, self._start_n, self._taper_out_s = waveform, self.n, taper_out_s
         self._stop_n, self._stopping = None, False
+        self._scale.move(self.n, 1.0, 1.0, 0.0)
+        self._dwell_hold_s = waveform.hold_s if isinstance(waveform, SineDwell) else 0.0
         self._mean.move(self.n, self.mean_m(), mean_m)
+
+    def holding(self) -> bool:
+        """A sine dwell runs in its hold (an amplitude ramp included), not stopping."""
+        waveform = self._waveform
+        if not isinstance(waveform, SineDwell) or self._stopping or self._frozen_m is not None:
+            return False
+        hold_start_s, hold_end_s = hold_window_s(waveform)
+        return hold_start_s <= self.elapsed_s < hold_end_s
+
+    def update_amplitude(self, amplitude_m: float, ramp_s: float) -> None:
+        """Ramp the holding sine dwell's amplitude from where it is to ``amplitude_m`` along a raised
+        cosine of ``ramp_s`` from the next sample, then hold it for the dwell's hold time again (the
+        hold sync output is low during the ramp). Only while :meth:`holding` (ValueError otherwise)."""
+        if not self.holding():
+            raise ValueError("no sine dwell holds its amplitude")
+        waveform = self._waveform
+        assert isinstance(waveform, SineDwell)
+        if waveform.amplitude <= 0:
+            raise ValueError("a dwell of no amplitude has none to change")
+        scale_now = float(self._scale.values(np.array([self.n]))[0])
+        self._scale.move(self.n, scale_now, amplitude_m / waveform.amplitude, ramp_s)
+        hold_s = self.elapsed_s - waveform.taper_in_s + ramp_s + self._dwell_hold_s
+        self._waveform = replace(waveform, hold_s=hold_s)
+
+    @property
+    def amplitude_m(self) -> float:
+        """The excitation's amplitude, an update's target once one was made (0 without excitation)."""
+        waveform = self._waveform
+        return float(waveform.amplitude) * self._scale.target_m if waveform is not None else 0.0
 
     def stop(self) -> None:
         """Taper the excitation out over ``taper_out_s`` from the next sample; the mean ramps to 0."""
@@ -200,11 +242,14 @@ class FunctionGenerator:
         if self._waveform is None or self._frozen_m is not None:
             return np.zeros(len(n), np.uint8)
         stop_s = None if self._stop_n is None else (self._stop_n - self._start_n) / self.rate_hz
-        return sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
+        flags = sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
+        ramp_start, ramp_end = self._scale.span
+        flags[(n >= ramp_start) & (n < ramp_end)] &= ~np.uint8(AMPLITUDE_HOLD)  # an amplitude update ramps
+        return flags
 
     def _excitation(self, n: np.ndarray) -> np.ndarray:
         assert self._waveform is not None
-        value = self._waveform.value((n - self._start_n) / self.rate_hz)
+        value = self._waveform.value((n - self._start_n) / self.rate_hz) * self._scale.values(n)
         if self._stop_n is not None:
             tau = (n - self._stop_n) / self.rate_hz
             value = value * taper_envelope(tau, self._taper_out_s, 0.0, self._taper_out_s)

@@ -12,7 +12,7 @@ from typing import Protocol
 
 import numpy as np
 
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
 from sequences import Prompt
 
 
@@ -56,6 +56,15 @@ class Excitable(Protocol):
         """Take defensive action: taper the excitation out and ramp the mean back to rest.
 
         Safe to call in any state; returns once the controller accepted the stop (not at rest)."""
+        ...
+
+
+class AmplitudeAdjustable(Protocol):
+    def update_amplitude(self, update: AmplitudeUpdate) -> None:
+        """Give the sine dwell holding now a new amplitude, ramped; the dwell then holds its hold
+        time again at it. LimitError (nothing written) outside the soft limits; CommandRejectedError
+        when the controller refuses it (no dwell holding, beyond its own limits, no such registers).
+        Only an actuator whose controller takes amplitude updates is asked."""
         ...
 
 

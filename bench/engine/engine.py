@@ -27,6 +27,7 @@ import numpy as np
 
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
+from bench.engine.amplitude_hold import AmplitudeHold, AmplitudeStep, HeldAmplitude
 from bench.engine.channels import FrameChannels
 from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, RunGate, SampleBlockLike
 from bench.engine.interlocks import Interlock, Observation, first_trip
@@ -36,8 +37,8 @@ from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
-from drivers.errors import CommandRejectedError, LimitError, LinkError
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
     AnswerError,
@@ -201,6 +202,7 @@ class Engine:
         sync_bits: SyncBits,
         sample_rate_hz: float,
         amplitude_control: AmplitudeControl | None = None,
+        amplitude_hold: AmplitudeHold | None = None,
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
         tare: str = "never",
@@ -209,7 +211,9 @@ class Engine:
     ) -> None:
         """``tare``: "before_each_run" (the WFS is tared, at rest, before each run's stream starts),
         "once" (at the start of each sequence) or "never"; ``bench_kind``: "shaker" or
-        "four_post", recorded with every run's conditions."""
+        "four_post", recorded with every run's conditions; ``amplitude_hold``: hold a fixed-timing
+        dwell's amplitude within its hold by updates the actuator takes while running
+        (:mod:`bench.engine.amplitude_hold`; None: correct it by repeating the point)."""
         self.actuator = actuator
         self.acquisition = acquisition
         self.operator = operator
@@ -218,6 +222,7 @@ class Engine:
         self.sync_bits = sync_bits
         self.sample_rate_hz = sample_rate_hz
         self.amplitude_control = amplitude_control or AmplitudeControl()
+        self.amplitude_hold = amplitude_hold
         self.timing = timing or EngineTiming()
         self.bus = bus or ev.EventBus()
         if tare not in ("before_each_run", "once", "never"):
@@ -633,10 +638,11 @@ class Engine:
                 if plan is None
                 else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, self.channels.displacement)
             )
+            held = None if plan is not None else self._held_amplitude(run, index, attempt, dwell, command_mm)
             point = _PointPlan(index, dwell, requested, added_reason)
             try:
                 span = run.excite(
-                    setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch
+                    setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch, held=held
                 )
             except _PointInterruptedError as interrupted:
                 self._publish_point(
@@ -645,10 +651,14 @@ class Engine:
                 self._wait_paused()
                 continue
             verdict = None if watch is None else watch.verdict()
-            if verdict is None:
-                achieved = run.achieved_amplitude_mm(span, dwell)
-            else:
+            sent_mm = command_mm
+            if verdict is not None:
                 achieved = 1e3 * abs(verdict.displacement_m)
+            elif held is not None and held.updates:
+                achieved = run.achieved_amplitude_mm(span, dwell, measure_start=held.measure_start())
+                command_mm = held.command_mm
+            else:
+                achieved = run.achieved_amplitude_mm(span, dwell)
             if gains is not None:
                 gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
@@ -658,15 +668,66 @@ class Engine:
                 point,
                 attempt,
                 status,
-                command_mm=command_mm,
+                command_mm=sent_mm,
                 span=span,
                 achieved_mm=achieved,
-                note=decision.note,
+                note="; ".join(n for n in (held.refusal if held else "", decision.note) if n),
                 verdict=verdict,
+                held=held,
             )
             if decision.keep:
                 return verdict
             command_mm, corrections = decision.corrected_mm, corrections + 1
+
+    def _held_amplitude(
+        self, run: _RunRecording, index: int, attempt: int, dwell: SineDwell, command_mm: float
+    ) -> HeldAmplitude | None:
+        """The amplitude hold of one attempt at a fixed-timing dwell (None: the engine holds none)."""
+        settings = self.amplitude_hold
+        if settings is None:
+            return None
+        mean_mm = self._mean(dwell.mean_mm)
+
+        def update(amplitude_mm: float) -> str | None:
+            try:
+                self.actuator.update_amplitude(AmplitudeUpdate(amplitude_mm, settings.ramp_s, mean_mm))
+            except LimitError as exc:
+                return f"refused by the soft limits: {exc}"
+            except CommandOutcomeUnknownError as exc:
+                log.warning("amplitude update: %s; the hold sync output tells whether it came", exc)
+            except CommandRejectedError as exc:
+                return str(exc)
+            return None
+
+        def checked(step: AmplitudeStep) -> None:
+            self.bus.publish(
+                ev.AmplitudeChecked(
+                    run.run_id,
+                    index,
+                    attempt,
+                    step.sample,
+                    dwell.amplitude_mm,
+                    step.achieved_mm,
+                    step.command_mm,
+                    step.updated_mm,
+                    step.refusal,
+                )
+            )
+
+        return HeldAmplitude(
+            freq_hz=dwell.freq_hz,
+            target_mm=dwell.amplitude_mm,
+            command_mm=command_mm,
+            settle_s=dwell.settle_s,
+            hold_s=dwell.hold_s,
+            settings=settings,
+            max_command_mm=self.amplitude_control.max_command_mm,
+            sample_rate_hz=self.sample_rate_hz,
+            displacement=self.channels.displacement,
+            hold_bit=self.sync_bits.hold,
+            update=update,
+            on_step=checked,
+        )
 
     def _publish_point(
         self,
@@ -680,8 +741,15 @@ class Engine:
         achieved_mm: float = float("nan"),
         note: str = "",
         verdict: DwellVerdict | None = None,
+        held: HeldAmplitude | None = None,
     ) -> None:
         adaptive = {}
+        if held is not None and held.updates:
+            adaptive = {
+                "measure_start_sample": min(held.measure_start(), span.hold_end),
+                "amplitude_updates": held.updates,
+                "held_amplitude_mm": held.command_mm,
+            }
         if verdict is not None:
             measure_start = -1
             if np.isfinite(verdict.measure_start_s):
@@ -940,10 +1008,14 @@ class _RunRecording:
         self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
         return columns
 
-    def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
-        """The displacement's amplitude over the hold after its settling time (NaN: too short)."""
+    def achieved_amplitude_mm(
+        self, span: ExcitationSpan, dwell: SineDwell, *, measure_start: int = -1
+    ) -> float:
+        """The displacement's amplitude over the hold after its settling time, or from
+        ``measure_start`` on when given (NaN: too short)."""
         settle = round(dwell.settle_s * self.engine.sample_rate_hz)
-        start = min(span.hold_start + settle, span.hold_end)
+        start = span.hold_start + settle if measure_start < 0 else measure_start
+        start = min(start, span.hold_end)
         z = self._displacement(start, span.hold_end)
         return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
 
@@ -960,12 +1032,19 @@ class _RunRecording:
         return np.concatenate(parts[::-1]) if parts else np.zeros(0)
 
     def excite(
-        self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float, watch: OnlineDwell | None = None
+        self,
+        setpoint: DwellSetpoint | SweepSetpoint,
+        *,
+        planned_s: float,
+        watch: OnlineDwell | None = None,
+        held: HeldAmplitude | None = None,
     ) -> ExcitationSpan:
         """Configure, start and record one excitation until the controller's active output falls.
 
         ``watch`` follows an adaptive dwell's hold block by block: once it is done the excitation is
-        stopped with its taper (the hold ends where the controller's hold output falls). A pause
+        stopped with its taper (the hold ends where the controller's hold output falls). ``held``
+        holds a dwell's amplitude within its hold, block by block (each update it makes lengthens
+        the excitation's planned duration). A pause
         request (the table ``pausing``) stops it with a taper and raises
         :class:`_PointInterruptedError` once it is at rest; an abort (``aborting``) tapers it out and
         ends the run; an e-stop or a tripped interlock ends the run."""
@@ -990,6 +1069,8 @@ class _RunRecording:
                 watch.feed(first, columns, tracker.hold_start, tracker.hold_end)
                 if watch.done and not stopping:
                     e._defensive_stop()
+            if held is not None and not stopping:
+                held.feed(first, columns)
             e._publish_changes()
             state = e.state
             if state is RunState.ESTOPPED:
@@ -1001,7 +1082,8 @@ class _RunRecording:
             elapsed = self.elapsed_samples
             if not tracker.started and e._clock() > start_deadline_s and elapsed > start_deadline:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
-            if end_deadline is not None and not tracker.ended and elapsed > end_deadline:
+            extension = 0 if held is None else round(held.extension_s * e.sample_rate_hz)
+            if end_deadline is not None and not tracker.ended and elapsed > end_deadline + extension:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
         # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
         # excitation early: its status, read now, tells that from the planned end

@@ -89,6 +89,37 @@ class PointDone(PointAttempt):
 
 
 @dataclass(frozen=True)
+class AmplitudeChecked:
+    """The amplitude of point ``index`` (attempt ``attempt``) of run ``run_id`` looked at within its
+    hold (:mod:`bench.engine.amplitude_hold`): ``achieved_mm`` over the window ending at run sample
+    ``sample`` under the command ``command_mm``; ``updated_mm`` the new amplitude sent (NaN: none),
+    ``refusal`` why an update that was due was not made."""
+
+    run_id: str
+    index: int
+    attempt: int
+    sample: int
+    target_mm: float
+    achieved_mm: float
+    command_mm: float
+    updated_mm: float
+    refusal: str = ""
+
+    @property
+    def text(self) -> str:
+        """How a log and the campaign file's events say it."""
+        said = (
+            f"point {self.index} attempt {self.attempt}: {self.achieved_mm:.4g} mm achieved of"
+            f" {self.target_mm:g} mm under {self.command_mm:.4g} mm"
+        )
+        if self.refusal:
+            return f"{said}; not updated: {self.refusal}"
+        if self.updated_mm == self.updated_mm:  # not NaN
+            return f"{said}; updated to {self.updated_mm:.4g} mm"
+        return said
+
+
+@dataclass(frozen=True)
 class GridRefined:
     """An adaptive grid adds points to run ``run_id`` at the nominal ``amplitude_mm``: each
     ``(freq_hz, reason)`` in ``added``."""
@@ -168,6 +199,7 @@ Event = (
     | SamplesRecorded
     | PointStarted
     | PointDone
+    | AmplitudeChecked
     | GridRefined
     | PromptAsked
     | PromptAnswered

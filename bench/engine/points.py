@@ -33,7 +33,9 @@ class SpanTracker:
 
     ``feed(first_sample, status)`` with the run-sample index of the block's first sample; ``span``
     is set once the active bit has fallen after rising. A hold that never came (an excitation stopped
-    during its taper-in) leaves ``hold_start == hold_end == end``.
+    during its taper-in) leaves ``hold_start == hold_end == end``. The hold bit may fall and rise
+    again within one excitation (an amplitude update's ramp): ``hold_end`` is its last fall, and
+    None while the hold bit is up.
     """
 
     def __init__(self, active_bit: int, hold_bit: int) -> None:
@@ -68,14 +70,27 @@ class SpanTracker:
             found = np.flatnonzero(hold[offset:])
             if found.size:
                 self.hold_start = first_sample + offset + int(found[0])
-        if self.hold_start is not None and self.hold_end is None:
-            local = max(self.hold_start - first_sample, offset)
-            dropped = np.flatnonzero(~hold[local:])
-            if dropped.size:
-                self.hold_end = first_sample + local + int(dropped[0])
         falling = np.flatnonzero(~active[offset:])
+        stop = offset + int(falling[0]) if falling.size else len(status)
+        if self.hold_start is not None:
+            self._follow_hold(first_sample, hold, max(self.hold_start - first_sample, offset), stop)
         if falling.size:
-            end = first_sample + offset + int(falling[0])
+            end = first_sample + stop
             hold_start = self.hold_start if self.hold_start is not None else end
             hold_end = self.hold_end if self.hold_end is not None else end
             self.span = ExcitationSpan(self.start, hold_start, hold_end, end)
+
+    def _follow_hold(self, first_sample: int, hold: np.ndarray, lo: int, hi: int) -> None:
+        """Follow the hold bit over ``hold[lo:hi]`` (the block's part after the hold began and
+        before the excitation ended): ``hold_end`` its latest fall, None while it is up."""
+        part = hold[lo:hi]
+        if part.size == 0:
+            return
+        up = np.flatnonzero(part)
+        if up.size == 0:
+            if self.hold_end is None:
+                self.hold_end = first_sample + lo
+        elif up[-1] == part.size - 1 and hi == len(hold):
+            self.hold_end = None
+        else:
+            self.hold_end = first_sample + lo + int(up[-1]) + 1
