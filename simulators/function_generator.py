@@ -11,14 +11,18 @@ sample instants (time is counted in samples, never read from a clock):
   length is the distance over :data:`MEAN_RATE_MM_S` (so the mean moves at that rate on average
   and at pi/2 times it at most, with zero velocity at both ends).
 
+A sine dwell's amplitude may be changed during its hold (:meth:`FunctionGenerator.update_amplitude`,
+the controller's amplitude update): the excitation is scaled along a raised cosine to the new
+amplitude and the dwell then holds for its hold time again.
+
 An e-stop freezes the command at its last value; :meth:`FunctionGenerator.release` returns from
 there to rest along a mean-position ramp.
 
 Two digital sync outputs accompany the command, sample by sample (:func:`sync_flags`):
 :data:`EXCITATION_ACTIVE` while the excitation runs (its tapers included) and
 :data:`AMPLITUDE_HOLD` during its constant-amplitude part (a dwell's hold, a sweep between its
-tapers); they are wired to digital inputs of the WFS acquisition, which locates each point in its
-samples with them.
+tapers; not during an amplitude update's ramp); they are wired to digital inputs of the WFS
+acquisition, which locates each point in its samples with them.
 """
 
 from __future__ import annotations

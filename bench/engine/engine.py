@@ -458,10 +458,13 @@ class Engine:
             self._adaptive_run(run_id, step, held)
             return
         dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+        # held within the dwell, each point starts with the command the gains measured so far
+        # expect: an update costs the hold again, a good first command none
+        gains = None if self.amplitude_hold is None else ServoGains()
         with _RunRecording(self, run_id, step, held.samples) as run:
             for index, dwell in enumerate(dwells):
                 if index not in held.done_points:
-                    self._point(run, index, dwell)
+                    self._point(run, index, dwell, gains=gains)
 
     def _adaptive_run(self, run_id: str, grid: DwellGrid, held: RecordedRun) -> None:
         """An adaptive grid, amplitude by amplitude: the grid's frequencies (points 0, 1, ... in grid
