@@ -58,7 +58,7 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
+from drivers.setpoints import NO_NOTCH, AmplitudeUpdate, DwellSetpoint, SweepSetpoint
 from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
@@ -345,8 +345,16 @@ class ActuatorClient:
 
     async def configure(self, setpoint: DwellSetpoint | SweepSetpoint, channel_mask: int = ALL_POSTS) -> None:
         """Check ``setpoint`` against the bench's limits (LimitError before anything is written), then
-        write it with the controller's interlock thresholds."""
+        write it with the controller's interlock thresholds. A sweep's notch needs a controller whose
+        map has the notch registers (CommandRejectedError, nothing written); a sweep without one
+        clears the notch of the sweep before it there."""
         values = setpoint.registers(self.limits)
+        if isinstance(setpoint, SweepSetpoint) and self.map.sweep_notches:
+            values = {**NO_NOTCH, **values}
+        elif isinstance(setpoint, SweepSetpoint) and setpoint.notch is not None:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no notch registers: the controller notches no sweep"
+            )
         values["channel_mask"] = channel_mask
         values["displacement_limit_mm"] = self.limits.displacement_interlock_mm
         values["force_limit_n"] = self.limits.force_interlock_n

@@ -47,7 +47,11 @@ class PointAttempt:
     A dwell whose amplitude was held within it (docs/engine.md) adds ``amplitude_updates``, the new
     amplitudes the controller took during the hold, and ``held_amplitude_mm``, the command in force
     over the measured part after them (NaN: no update); its measured part begins at
-    ``measure_start_sample``, the settling time after the last update's ramp.
+    ``measure_start_sample``, the settling time after the last update's ramp. A point whose drive
+    a response limit lowered (a notch) names it in ``notched_by``, with the notched span
+    ``notch_start_hz``..``notch_end_hz`` (a dwell's: its frequency) and the amplitude commanded
+    there, ``notch_amplitude_mm`` (NaN: not notched); a notched sweep's ``achieved_amplitude_mm`` is
+    the displacement's amplitude reached within its notch.
     """
 
     index: int
@@ -71,6 +75,10 @@ class PointAttempt:
     added_reason: str = ""
     amplitude_updates: int = 0
     held_amplitude_mm: float = math.nan
+    notched_by: str = ""
+    notch_start_hz: float = math.nan
+    notch_end_hz: float = math.nan
+    notch_amplitude_mm: float = math.nan
 
     @property
     def settled(self) -> bool:

@@ -29,7 +29,7 @@ from drivers.register_map import (
     WaveformCode,
 )
 from simulators.function_generator import FunctionGenerator
-from simulators.plant.excitation import SineDwell, Sweep, Waveform
+from simulators.plant.excitation import NotchedSweep, SineDwell, Sweep, Waveform
 
 PROTOCOL_VERSION = 1
 #: hold time of a dwell that runs until a stop command (about 11 days)
@@ -49,9 +49,13 @@ POWER_UP: dict[str, float] = {
     "sweep_start_hz": 1.0, "sweep_end_hz": 10.0, "sweep_duration_s": 10.0, "taper_in_s": 1.0,
     "taper_out_s": 1.0, "mean_mm": 0.0, "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
     "amplitude_update_mm": 0.0, "amplitude_ramp_s": 0.1,
+    "notch_start_hz": 0.0, "notch_end_hz": 0.0, "notch_amplitude_mm": 0.0,
 }  # fmt: skip
 _NON_NEGATIVE = (
     "amplitude_update_mm",
+    "notch_start_hz",
+    "notch_end_hz",
+    "notch_amplitude_mm",
     "dwell_s",
     "sweep_duration_s",
     "amplitude_mm",
@@ -62,7 +66,15 @@ _NON_NEGATIVE = (
 _FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")  # in (0, MAX_FREQUENCY_HZ]
 _TAPERS = ("taper_in_s", "taper_out_s", "amplitude_ramp_s")  # each at least MIN_TAPER_S
 #: within the hardware stroke (mm)
-_STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm", "amplitude_update_mm")
+_STROKE = (
+    "mean_mm",
+    "amplitude_mm",
+    "displacement_limit_mm",
+    "amplitude_update_mm",
+    "notch_amplitude_mm",
+)
+#: a sweep's notch window (Hz): 0 (no notch) up to MAX_FREQUENCY_HZ
+_NOTCH_FREQUENCIES = ("notch_start_hz", "notch_end_hz")
 _IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
 #: the states each command is accepted in (a command in another state is refused)
 ALLOWED: dict[Command, tuple[ControllerState, ...]] = {
@@ -154,6 +166,7 @@ class ControllerModel:
         violated = (
             (name in _NON_NEGATIVE and value < 0)
             or (name in _FREQUENCIES and not 0 < value <= MAX_FREQUENCY_HZ)
+            or (name in _NOTCH_FREQUENCIES and value > MAX_FREQUENCY_HZ)
             or (name == "channel_mask" and not int(value) & self.existing_posts)
             or (name in _TAPERS and value < MIN_TAPER_S)
             or (name == "waveform" and value not in tuple(WaveformCode))
@@ -244,7 +257,13 @@ class ControllerModel:
         if code in (WaveformCode.LINEAR_SWEEP, WaveformCode.LOG_SWEEP):
             spacing = "linear" if code == WaveformCode.LINEAR_SWEEP else "log"
             start, end, duration = sp["sweep_start_hz"], sp["sweep_end_hz"], sp["sweep_duration_s"]
-            return Sweep(start, end, duration, amplitude_m, spacing, taper_in, taper_out)
+            sweep = Sweep(start, end, duration, amplitude_m, spacing, taper_in, taper_out)
+            if sp["notch_end_hz"] <= sp["notch_start_hz"]:
+                return sweep
+            # a notch outside the sweep's band or deeper than nothing is refused (ValueError)
+            notch_m = sp["notch_amplitude_mm"] / 1000
+            window = (sp["notch_start_hz"], sp["notch_end_hz"])
+            return NotchedSweep(sweep, *window, notch_m, sp["amplitude_ramp_s"])
         return None
 
     def _stop(self) -> None:

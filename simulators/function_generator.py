@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from simulators.plant.excitation import SineDwell, Sweep, Waveform, taper_envelope
+from simulators.plant.excitation import NotchedSweep, SineDwell, Sweep, Waveform, taper_envelope
 
 #: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
 MEAN_RATE_MM_S = 10.0
@@ -45,6 +45,8 @@ def hold_window_s(waveform: Waveform) -> tuple[float, float]:
     """Start and end (s from the excitation's start) of the waveform's constant-amplitude part."""
     if isinstance(waveform, SineDwell):
         return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
+    if isinstance(waveform, NotchedSweep):
+        waveform = waveform.sweep
     if isinstance(waveform, Sweep):
         return waveform.taper_in_s, waveform.sweep_s - waveform.taper_out_s
     return 0.0, 0.0

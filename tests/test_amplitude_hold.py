@@ -136,8 +136,9 @@ async def test_the_client_names_the_controllers_refusal(client, controller):
 
 
 def map_without_updates(tmp_path: Path) -> Path:
+    """The shipped map without the optional registers (the notch's use the update's ramp)."""
     text = default_map_path().read_text()
-    text = re.sub(r"\[holding\.amplitude_(update_mm|ramp_s)\][^\[]*", "", text)
+    text = re.sub(r"\[holding\.(amplitude_update_mm|amplitude_ramp_s|notch_\w+)\][^\[]*", "", text)
     path = tmp_path / "no_updates.toml"
     path.write_text(text)
     return path

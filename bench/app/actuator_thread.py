@@ -146,6 +146,11 @@ class ThreadedActuator:
         """Whether the controller takes amplitude updates (its register map names the registers)."""
         return self._client.map.amplitude_updates
 
+    @property
+    def sweep_notches(self) -> bool:
+        """Whether the controller lowers a sweep's amplitude over a notch (its map has the registers)."""
+        return self._client.map.sweep_notches
+
     def update_amplitude(self, update: AmplitudeUpdate) -> None:
         """A new amplitude for the dwell holding now. A reply too late to tell is not settled here:
         the hold sync output in the frames shows whether the ramp came (the engine looks there)."""

@@ -10,9 +10,10 @@ it for its one sequence (:mod:`bench.app.run`).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 from bench.app.devices import BenchDevices
+from bench.app.notching import ModelNotching
 from bench.app.simulated import UNPACED_BACKLOG_S, UNPACED_WFS_SILENCE_S
 from bench.config import BenchConfig
 from bench.engine.amplitude import AmplitudeControl
@@ -40,7 +41,11 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
         devices.operator,
         channels=channels,
         interlocks=standard_interlocks(
-            channels.recorded, config.limits, serial_timeout_s=timing.wfs_silence_s
+            channels.recorded,
+            config.limits,
+            serial_timeout_s=timing.wfs_silence_s,
+            actions={f.name: getattr(config.actions, f.name) for f in fields(config.actions)},
+            response_limits=config.response_limits,
         ),
         sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
         sample_rate_hz=float(config.wfs.rate_hz),
@@ -50,6 +55,7 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
             max_command_mm=config.limits.stroke_mm,
         ),
         amplitude_hold=_amplitude_hold(config, devices),
+        notching=ModelNotching(config) if any(limit.notch for limit in config.response_limits) else None,
         tare=config.calibration.tare,
         bench_kind=config.kind,
         timing=timing,

@@ -38,7 +38,7 @@ class Recorder:
                 )
             case ev.StateChanged():
                 self._event("state", f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value)
-            case ev.InterlockTripped() | ev.HostStalled() | ev.AmplitudeChecked():
+            case ev.InterlockTripped() | ev.HostStalled() | ev.AmplitudeChecked() | ev.LimitReached():
                 kind, text, fields = _described(event)
                 self._event(kind, text, **fields)
             case ev.RunFinished():
@@ -106,9 +106,13 @@ class Recorder:
         return self._run
 
 
-def _described(event: ev.InterlockTripped | ev.HostStalled | ev.AmplitudeChecked) -> tuple[str, str, dict]:
+def _described(
+    event: ev.InterlockTripped | ev.HostStalled | ev.AmplitudeChecked | ev.LimitReached,
+) -> tuple[str, str, dict]:
     """The kind, text and fields of the run event that records ``event``."""
     match event:
+        case ev.LimitReached():
+            return "limit", event.text, {"name": event.name, "action": event.action}
         case ev.InterlockTripped():
             return "interlock", f"{event.name}: {event.reason}", {"name": event.name}
         case ev.HostStalled():

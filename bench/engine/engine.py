@@ -29,16 +29,25 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
 from bench.engine.amplitude_hold import AmplitudeHold, AmplitudeStep, HeldAmplitude
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, RunGate, SampleBlockLike
-from bench.engine.interlocks import Interlock, Observation, first_trip
+from bench.engine.contracts import (
+    Acquisition,
+    Actuator,
+    Notch,
+    Notching,
+    Operator,
+    ResumePlan,
+    RunGate,
+    SampleBlockLike,
+)
+from bench.engine.interlocks import Interlock, Observation, Trip, trips
 from bench.engine.online import DwellVerdict, OnlineDwell
-from bench.engine.points import ExcitationSpan, SpanTracker
+from bench.engine.points import ExcitationSpan, SpanTracker, excitation_frequency_hz, sweep_time_s
 from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepNotch, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
     AnswerError,
@@ -56,6 +65,7 @@ from sequences import (
 )
 from sequences.channels import STANDARD_CHANNELS, Role
 from sequences.points import PointStatus
+from sequences.response_limits import LimitAction
 from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
@@ -178,6 +188,7 @@ class _PointPlan:
     dwell: SineDwell
     requested_mm: float
     added_reason: str = ""
+    notch: Notch | None = None
 
 
 class _PointInterruptedError(Exception):
@@ -203,6 +214,7 @@ class Engine:
         sample_rate_hz: float,
         amplitude_control: AmplitudeControl | None = None,
         amplitude_hold: AmplitudeHold | None = None,
+        notching: Notching | None = None,
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
         tare: str = "never",
@@ -213,7 +225,9 @@ class Engine:
         "once" (at the start of each sequence) or "never"; ``bench_kind``: "shaker" or
         "four_post", recorded with every run's conditions; ``amplitude_hold``: hold a fixed-timing
         dwell's amplitude within its hold by updates the actuator takes while running
-        (:mod:`bench.engine.amplitude_hold`; None: correct it by repeating the point)."""
+        (:mod:`bench.engine.amplitude_hold`; None: correct it by repeating the point); ``notching``:
+        lower the drive of dwells and sweeps where a response would pass a response limit's notch
+        level (sweeps only where the actuator notches them)."""
         self.actuator = actuator
         self.acquisition = acquisition
         self.operator = operator
@@ -223,6 +237,7 @@ class Engine:
         self.sample_rate_hz = sample_rate_hz
         self.amplitude_control = amplitude_control or AmplitudeControl()
         self.amplitude_hold = amplitude_hold
+        self.notching = notching
         self.timing = timing or EngineTiming()
         self.bus = bus or ev.EventBus()
         if tare not in ("before_each_run", "once", "never"):
@@ -508,6 +523,7 @@ class Engine:
                     added_index += 1
 
     def _sweep_run(self, run_id: str, step: Sweep, held: RecordedRun) -> None:
+        notch = self._sweep_notch(step)
         setpoint = SweepSetpoint(
             step.start_hz,
             step.end_hz,
@@ -517,6 +533,7 @@ class Engine:
             taper_in_s=step.taper_in_s,
             taper_out_s=step.taper_out_s,
             mean_mm=self._mean(step.mean_mm),
+            notch=None if notch is None else SweepNotch(notch.start_hz, notch.end_hz, notch.amplitude_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
             attempt = 0
@@ -526,31 +543,64 @@ class Engine:
                 try:
                     span = run.excite(setpoint, planned_s=step.duration_s)
                 except _PointInterruptedError as interrupted:
-                    self._publish_sweep(run_id, step, attempt, PointStatus.INTERRUPTED, interrupted.span)
+                    self._publish_sweep(
+                        run, setpoint, attempt, PointStatus.INTERRUPTED, interrupted.span, notch=notch
+                    )
                     self._wait_paused()
                     continue
-                self._publish_sweep(run_id, step, attempt, PointStatus.DONE, span)
+                self._publish_sweep(run, setpoint, attempt, PointStatus.DONE, span, notch=notch)
                 return
 
+    def _sweep_notch(self, step: Sweep) -> Notch | None:
+        """The notch of a sweep where a response would pass a limit's notch level, if the actuator
+        notches sweeps (a controller without the notch registers: none, the limits' actions guard)."""
+        if self.notching is None:
+            return None
+        notch = self.notching.sweep(step, self.conditions)
+        if notch is not None and not getattr(self.actuator, "sweep_notches", False):
+            log.warning("the controller notches no sweep: %s would be notched by %s", step, notch.limit)
+            return None
+        return notch
+
     def _publish_sweep(
-        self, run_id: str, step: Sweep, attempt: int, status: str, span: ExcitationSpan
+        self,
+        run: _RunRecording,
+        setpoint: SweepSetpoint,
+        attempt: int,
+        status: str,
+        span: ExcitationSpan,
+        *,
+        notch: Notch | None,
     ) -> None:
         """The sweep's one point: ``done``, or ``interrupted`` by a pause (the sweep is repeated from
-        its start on resume)."""
+        its start on resume); a notched sweep with its notch and the amplitude reached within it."""
+        notched = {}
+        if notch is not None:
+            t1, t2 = sorted(sweep_time_s(setpoint, f) for f in (notch.start_hz, notch.end_hz))
+            first, last = (span.start + round(t * self.sample_rate_hz) for t in (t1, t2))
+            z = run.displacement_between(first, min(last, span.end))
+            notched = {
+                "notched_by": notch.limit,
+                "notch_start_hz": notch.start_hz,
+                "notch_end_hz": notch.end_hz,
+                "notch_amplitude_mm": notch.amplitude_mm,
+                "achieved_amplitude_mm": 1e3 * float(np.ptp(z)) / 2 if z.size else float("nan"),
+            }
         self.bus.publish(
             ev.PointDone(
                 0,
-                step.start_hz,
-                step.amplitude_mm,
+                setpoint.start_hz,
+                setpoint.amplitude_mm,
                 span.start,
                 span.hold_start,
                 span.hold_end,
                 span.end,
                 status=status,
                 attempt=attempt,
-                requested_amplitude_mm=step.amplitude_mm,
-                commanded_amplitude_mm=step.amplitude_mm,
-                run_id=run_id,
+                requested_amplitude_mm=setpoint.amplitude_mm,
+                commanded_amplitude_mm=setpoint.amplitude_mm,
+                **notched,
+                run_id=run.run_id,
             )
         )
 
@@ -614,7 +664,16 @@ class Engine:
         With ``plan`` the hold lasts until the dwell's online verdicts (at most ``max_hold_s``) and
         the kept attempt's verdict is returned. With ``gains`` the first command is the one the
         servo gains measured so far expect to reach the target (within the command limit), and
-        every attempt adds its gain."""
+        every attempt adds its gain. Where a response would pass a response limit's notch level the
+        dwell's amplitude is lowered to what the notching allows (its nominal one recorded as
+        requested)."""
+        notch = None
+        if self.notching is not None:
+            specimen = not isinstance(run.step, FreeRun)
+            notch = self.notching.dwell(dwell.freq_hz, dwell.amplitude_mm, self.conditions, specimen=specimen)
+        if notch is not None:
+            nominal = dwell.requested_amplitude_mm or dwell.amplitude_mm
+            dwell = replace(dwell, amplitude_mm=notch.amplitude_mm, requested_amplitude_mm=nominal)
         command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
         if gains is not None:
             command_mm = min(
@@ -642,7 +701,7 @@ class Engine:
                 else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, self.channels.displacement)
             )
             held = None if plan is not None else self._held_amplitude(run, index, attempt, dwell, command_mm)
-            point = _PointPlan(index, dwell, requested, added_reason)
+            point = _PointPlan(index, dwell, requested, added_reason, notch)
             try:
                 span = run.excite(
                     setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch, held=held
@@ -746,9 +805,16 @@ class Engine:
         verdict: DwellVerdict | None = None,
         held: HeldAmplitude | None = None,
     ) -> None:
-        adaptive = {}
-        if held is not None and held.updates:
+        adaptive: dict[str, object] = {}  # what an adaptive dwell, a held amplitude or a notch adds
+        if point.notch is not None:
             adaptive = {
+                "notched_by": point.notch.limit,
+                "notch_start_hz": point.notch.start_hz,
+                "notch_end_hz": point.notch.end_hz,
+                "notch_amplitude_mm": point.notch.amplitude_mm,
+            }
+        if held is not None and held.updates:
+            adaptive |= {
                 "measure_start_sample": min(held.measure_start(), span.hold_end),
                 "amplitude_updates": held.updates,
                 "held_amplitude_mm": held.command_mm,
@@ -757,7 +823,7 @@ class Engine:
             measure_start = -1
             if np.isfinite(verdict.measure_start_s):
                 measure_start = span.hold_start + round(verdict.measure_start_s * self.sample_rate_hz)
-            adaptive = {
+            adaptive |= {
                 "verdict": verdict.verdict,
                 "settle_s": verdict.settle_s,
                 "measure_start_sample": min(measure_start, span.hold_end),
@@ -928,6 +994,7 @@ class _RunRecording:
         self._last_status_s = -np.inf
         self._stream_started_s = 0.0
         self._stall: tuple[float, float, int] | None = None  # open host stall: unread s, arrival, lost
+        self._limits_acted: set[str] = set()  # the limits milder than an interlock published this excitation
 
     def __enter__(self) -> _RunRecording:
         e = self.engine
@@ -1019,10 +1086,10 @@ class _RunRecording:
         settle = round(dwell.settle_s * self.engine.sample_rate_hz)
         start = span.hold_start + settle if measure_start < 0 else measure_start
         start = min(start, span.hold_end)
-        z = self._displacement(start, span.hold_end)
+        z = self.displacement_between(start, span.hold_end)
         return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
 
-    def _displacement(self, start: int, stop: int) -> np.ndarray:
+    def displacement_between(self, start: int, stop: int) -> np.ndarray:
         """The recorded displacement from run sample ``start`` to ``stop``."""
         parts, end = [], self.samples
         for block in reversed(self.displacement):
@@ -1054,6 +1121,7 @@ class _RunRecording:
         e = self.engine
         e.actuator.configure(setpoint)
         e.actuator.start()
+        self._limits_acted = set()
         tracker = SpanTracker(e.sync_bits.active, e.sync_bits.hold)
         # the start watchdog waits for start_timeout_s of wall time and of samples, whichever is
         # later: a consumer behind the stream sees the start only once it has read up to it
@@ -1078,7 +1146,11 @@ class _RunRecording:
             state = e.state
             if state is RunState.ESTOPPED:
                 raise RunStoppedError.estop()
-            self._guard(columns)
+            freq_hz = None
+            if tracker.started and columns:
+                t_s = (first + np.arange(len(columns["status"])) - tracker.start) / e.sample_rate_hz
+                freq_hz = excitation_frequency_hz(setpoint, t_s)
+            self._guard(columns, freq_hz=freq_hz)
             if not stopping and state in (RunState.PAUSING, RunState.ABORTING):
                 stopping = True
                 e._defensive_stop()
@@ -1145,8 +1217,15 @@ class _RunRecording:
                 " (a busy machine, not the link)",
             )
 
-    def _guard(self, columns: Mapping[str, np.ndarray], *, read_status: bool = False) -> None:
-        """Check every interlock; the first that trips stops the actuator and ends the run.
+    def _guard(
+        self,
+        columns: Mapping[str, np.ndarray],
+        *,
+        read_status: bool = False,
+        freq_hz: np.ndarray | None = None,
+    ) -> None:
+        """Check every interlock and limit (``freq_hz``: the excitation's frequency at each sample of
+        ``columns``, None while none runs); the most severe that trips acts (:meth:`_act`).
 
         The controller's status is read every ``status_period_s``, or now when ``read_status``."""
         e = self.engine
@@ -1161,10 +1240,26 @@ class _RunRecording:
         # the link's silence is judged at the port, bounded by this stream's age (bytes of an
         # earlier stream do not count): bytes waiting there unread are the host's delay
         silence_s = 0.0 if columns else min(e.acquisition.link_silence_s(), now - self._stream_started_s)
-        seen = Observation(columns, controller, e.actuator.link_fault(), silence_s)
-        tripped = first_trip(e.interlocks, seen)
-        if tripped is not None:
-            self._trip(*tripped)
+        seen = Observation(columns, controller, e.actuator.link_fault(), silence_s, freq_hz)
+        for trip in trips(e.interlocks, seen):
+            self._act(trip)
+
+    def _act(self, trip: Trip) -> None:
+        """Do what a tripped check's action says: an interlock ends the run interlocked, a stop ends
+        the sequence aborted (both after a taper); a hold pauses the sequence (the point under way
+        tapered out, repeated on resume); an indication is recorded only. Each limit milder than an
+        interlock is published once per excitation."""
+        if trip.action is LimitAction.INTERLOCK:
+            self._trip(trip.name, trip.reason)
+        if trip.name in self._limits_acted:
+            return
+        self._limits_acted.add(trip.name)
+        e = self.engine
+        e.bus.publish(ev.LimitReached(self.run_id, trip.name, trip.reason, str(trip.action)))
+        if trip.action is LimitAction.STOP:
+            raise RunStoppedError.abort(f"{trip.name} (stop): {trip.reason}")
+        if trip.action is LimitAction.HOLD:
+            e.request_pause()
 
     def _trip(self, name: str, reason: str) -> NoReturn:
         """End the run on a tripped interlock: the ending stops the actuator with a taper and

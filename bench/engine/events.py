@@ -162,6 +162,22 @@ def host_stall_text(event: HostStalled) -> str:
 
 
 @dataclass(frozen=True)
+class LimitReached:
+    """A limit tripped with an action milder than an interlock, during run ``run_id``: ``name`` (a
+    response limit's level, "wfs_fz alarm", or a graded interlock), why, and its ``action``
+    (indicate: recorded only; hold: the sequence pauses; stop: it ends, aborted)."""
+
+    run_id: str
+    name: str
+    reason: str
+    action: str
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} ({self.action}): {self.reason}"
+
+
+@dataclass(frozen=True)
 class InterlockTripped:
     name: str
     reason: str
@@ -204,6 +220,7 @@ Event = (
     | PromptAsked
     | PromptAnswered
     | HostStalled
+    | LimitReached
     | InterlockTripped
     | RunFinished
     | AnalysisDone

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.setpoints import DwellSetpoint, SweepSetpoint
+
 
 @dataclass(frozen=True)
 class ExcitationSpan:
@@ -94,3 +96,26 @@ class SpanTracker:
             self.hold_end = None
         else:
             self.hold_end = first_sample + lo + int(up[-1]) + 1
+
+
+def excitation_frequency_hz(setpoint: DwellSetpoint | SweepSetpoint, t_s: np.ndarray) -> np.ndarray:
+    """The excitation's frequency at ``t_s`` (s from its first active sample): a dwell's, or a
+    sweep's by its law (clipped to the sweep), as the controller's generator runs it."""
+    t = np.asarray(t_s, dtype=float)
+    if isinstance(setpoint, DwellSetpoint):
+        return np.full(t.shape, setpoint.freq_hz)
+    x = np.clip(t / setpoint.duration_s, 0.0, 1.0)
+    if setpoint.spacing == "linear" or setpoint.start_hz == setpoint.end_hz:
+        return setpoint.start_hz + (setpoint.end_hz - setpoint.start_hz) * x
+    return setpoint.start_hz * (setpoint.end_hz / setpoint.start_hz) ** x
+
+
+def sweep_time_s(setpoint: SweepSetpoint, freq_hz: float) -> float:
+    """When (s from its first active sample) a sweep passes ``freq_hz`` (clipped to the sweep)."""
+    if setpoint.start_hz == setpoint.end_hz:
+        return 0.0
+    if setpoint.spacing == "linear":
+        x = (freq_hz - setpoint.start_hz) / (setpoint.end_hz - setpoint.start_hz)
+    else:
+        x = float(np.log(freq_hz / setpoint.start_hz) / np.log(setpoint.end_hz / setpoint.start_hz))
+    return min(max(x, 0.0), 1.0) * setpoint.duration_s

@@ -8,6 +8,7 @@ its operating point.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -130,6 +131,59 @@ class Sweep:
         if self.spacing == "linear":
             return self.start_hz + (self.end_hz - self.start_hz) * x
         return self.start_hz * (self.end_hz / self.start_hz) ** x
+
+    def time_at_s(self, freq_hz: float) -> float:
+        """When (s from the start) the sweep passes ``freq_hz`` (clipped to the sweep)."""
+        if self.start_hz == self.end_hz:
+            return 0.0
+        if self.spacing == "linear":
+            x = (freq_hz - self.start_hz) / (self.end_hz - self.start_hz)
+        else:
+            x = math.log(freq_hz / self.start_hz) / math.log(self.end_hz / self.start_hz)
+        return min(max(x, 0.0), 1.0) * self.sweep_s
+
+
+@dataclass(frozen=True)
+class NotchedSweep:
+    """A sweep whose amplitude is lowered to ``notch_amplitude`` from ``notch_start_hz`` to
+    ``notch_end_hz`` (a response limit's notch): it ramps down along a raised cosine over ``ramp_s``
+    before the notch's first frequency and back up over ``ramp_s`` after its last."""
+
+    sweep: Sweep
+    notch_start_hz: float
+    notch_end_hz: float
+    notch_amplitude: float
+    ramp_s: float
+
+    def __post_init__(self) -> None:
+        lo, hi = sorted((self.sweep.start_hz, self.sweep.end_hz))
+        if not lo <= self.notch_start_hz < self.notch_end_hz <= hi or not self.ramp_s > 0:
+            raise ValueError(f"notch {self.notch_start_hz}-{self.notch_end_hz} Hz not within {lo}-{hi} Hz")
+        if not 0 <= self.notch_amplitude <= self.sweep.amplitude:
+            raise ValueError(f"notch amplitude {self.notch_amplitude} above the sweep's")
+
+    @property
+    def duration_s(self) -> float:
+        return self.sweep.duration_s
+
+    @property
+    def amplitude(self) -> float:
+        return self.sweep.amplitude
+
+    def frequency_hz(self, t_s: float) -> float:
+        return self.sweep.frequency_hz(t_s)
+
+    def notch_window_s(self) -> tuple[float, float]:
+        """When (s from the start) the sweep passes the notch's first and last frequency."""
+        t = sorted(self.sweep.time_at_s(f) for f in (self.notch_start_hz, self.notch_end_hz))
+        return t[0], t[1]
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        t1, t2 = self.notch_window_s()
+        dip = taper_envelope(t - (t1 - self.ramp_s), t2 - t1 + 2 * self.ramp_s, self.ramp_s, self.ramp_s)
+        scale = 1 - (1 - self.notch_amplitude / self.sweep.amplitude) * dip if self.sweep.amplitude else 1.0
+        return self.sweep.value(t) * scale
 
 
 @dataclass(frozen=True)
