@@ -16,7 +16,7 @@ posts) changes what stands on the bench, and a free run always runs without the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,7 +27,16 @@ from bench.models.setup import BenchKind, BenchSetup
 from sequences.channels import Role
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
-from sequences.steps import ACTION_BENCH_KIND, DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+from sequences.steps import (
+    ACTION_BENCH_KIND,
+    DwellGrid,
+    FreeRun,
+    Prompt,
+    Sequence,
+    SineDwell,
+    Sweep,
+    TrackedDwell,
+)
 
 STANDARD_GRAVITY_M_S2 = 9.80665
 #: Frequencies a sweep is evaluated at (log-spaced over its band, plus the model's resonances in it).
@@ -54,7 +63,7 @@ class PointPrediction:
 
     step_index: int
     point_index: int
-    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points)
+    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points) | "tracked"
     freq_hz: float  # the dwell's frequency; a sweep's (a refinement band's) highest
     amplitude_mm: float
     setup: str
@@ -73,6 +82,7 @@ class PointPrediction:
             "dwell": f"{self.freq_hz:g} Hz",
             "sweep": f"sweep to {self.freq_hz:g} Hz",
             "refinement": f"points an adaptive grid may add up to {self.freq_hz:g} Hz",
+            "tracked": f"tracked dwell up to {self.freq_hz:g} Hz",
         }[self.kind]
         return f"steps[{self.step_index}] point {self.point_index} ({what}, {self.amplitude_mm:g} mm)"
 
@@ -164,6 +174,12 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
                 ]
         elif isinstance(step, Sweep):
             points.append(world.predict_sweep(world.setup(free_run=False), index, step))
+        elif isinstance(step, TrackedDwell):
+            # the search and the track, wherever its band may take it: as a sweep over that band
+            top = step.search_end_hz * (1 + step.freq_band_pct / 100)
+            band = Sweep(step.search_start_hz, top, step.track_s, step.amplitude_mm, mean_mm=step.mean_mm)
+            prediction = world.predict_sweep(world.setup(free_run=False), index, band)
+            points.append(replace(prediction, kind="tracked"))
     refusals = tuple(r for point in points for r in _refusals(point, config))
     return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
 

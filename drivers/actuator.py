@@ -58,7 +58,7 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import NO_NOTCH, AmplitudeUpdate, DwellSetpoint, SweepSetpoint
+from drivers.setpoints import NO_NOTCH, AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
@@ -385,6 +385,20 @@ class ActuatorClient:
             await self._write(values)
         except DeviceExceptionError as exc:
             raise await self._refusal(exc, "the amplitude update") from exc
+
+    async def update_frequency(self, update: FrequencyUpdate) -> None:
+        """Glide the sine dwell holding now to a new frequency (docs/protocols.md, *Frequency
+        updates*): LimitError (nothing written) outside the bench's limits; CommandRejectedError when
+        the map has no such register or the controller refuses it, naming its reason."""
+        if not self.map.frequency_updates:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no frequency_update_hz: the controller takes no"
+                " frequency update"
+            )
+        try:
+            await self._write(update.registers(self.limits))
+        except DeviceExceptionError as exc:
+            raise await self._refusal(exc, "the frequency update") from exc
 
     async def start(self) -> None:
         """Start the configured excitation; NotConfiguredError (nothing sent) unless the last

@@ -43,10 +43,12 @@ REQUIRED: dict[str, frozenset[str]] = {
 }  # fmt: skip
 #: Registers a map may leave out, as one capability each: a controller without them lacks it.
 #: ``amplitude_update``: the amplitude of a sine dwell changed during its hold; ``sweep_notch``: a
-#: sweep's amplitude lowered over a band of its frequencies (docs/protocols.md).
+#: sweep's amplitude lowered over a band of its frequencies; ``frequency_update``: a sine dwell's
+#: frequency changed during its hold (docs/protocols.md).
 OPTIONAL: dict[str, frozenset[str]] = {
     "amplitude_update": frozenset({"amplitude_update_mm", "amplitude_ramp_s"}),
     "sweep_notch": frozenset({"notch_start_hz", "notch_end_hz", "notch_amplitude_mm", "amplitude_ramp_s"}),
+    "frequency_update": frozenset({"frequency_update_hz", "amplitude_ramp_s"}),
 }
 _REGISTER_KEYS = {"address", "type", "unit", "doc"}
 
@@ -175,6 +177,12 @@ class RegisterMap:
         """Whether the controller takes a new amplitude during a sine dwell's hold (the map names
         the registers of :data:`OPTIONAL` ``amplitude_update``)."""
         return OPTIONAL["amplitude_update"] <= self.holding.keys()
+
+    @property
+    def frequency_updates(self) -> bool:
+        """Whether the controller takes a new frequency during a sine dwell's hold (the map names
+        the registers of :data:`OPTIONAL` ``frequency_update``)."""
+        return OPTIONAL["frequency_update"] <= self.holding.keys()
 
     @property
     def sweep_notches(self) -> bool:

@@ -175,3 +175,19 @@ class AmplitudeUpdate:
                 f"ramp_s={self.ramp_s} below the minimum taper {limits.min_taper_s} s (limits.min_taper_s)"
             )
         return {"amplitude_update_mm": self.amplitude_mm, "amplitude_ramp_s": self.ramp_s}
+
+
+@dataclass(frozen=True)
+class FrequencyUpdate:
+    """A new frequency for the sine dwell holding now, reached by a linear glide of ``glide_s``."""
+
+    freq_hz: float
+    glide_s: float
+
+    def registers(self, limits: BenchLimits) -> dict[str, float]:
+        """The holding-register values of this update, after checking it against ``limits``."""
+        check_frequency(limits, "freq_hz", self.freq_hz)
+        _finite(glide_s=self.glide_s)
+        if self.glide_s < limits.min_taper_s:
+            raise LimitError(f"glide_s={self.glide_s} below the minimum taper {limits.min_taper_s} s")
+        return {"frequency_update_hz": self.freq_hz, "amplitude_ramp_s": self.glide_s}

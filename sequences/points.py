@@ -21,12 +21,14 @@ class PointStatus(enum.StrEnum):
 
 
 class Verdict(enum.StrEnum):
-    """How an adaptive dwell's hold ended (empty for fixed timing)."""
+    """How an adaptive dwell's hold ended (empty for fixed timing), or a tracked dwell's track."""
 
     NONE = ""  # a fixed-length hold: no online verdict
     TARGET = "target"  # settled and measured to the uncertainty targets
     MAX_LENGTH = "max length"  # settled, the targets not reached within the longest hold
     NOT_SETTLED = "not settled"
+    TRACKED = "tracked"  # a track that ran its length
+    STOPPED = "stopped"  # a track a stop rule ended (its note says why)
 
 
 @dataclass(frozen=True, slots=True)

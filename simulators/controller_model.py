@@ -49,7 +49,7 @@ POWER_UP: dict[str, float] = {
     "sweep_start_hz": 1.0, "sweep_end_hz": 10.0, "sweep_duration_s": 10.0, "taper_in_s": 1.0,
     "taper_out_s": 1.0, "mean_mm": 0.0, "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
     "amplitude_update_mm": 0.0, "amplitude_ramp_s": 0.1,
-    "notch_start_hz": 0.0, "notch_end_hz": 0.0, "notch_amplitude_mm": 0.0,
+    "notch_start_hz": 0.0, "notch_end_hz": 0.0, "notch_amplitude_mm": 0.0, "frequency_update_hz": 0.0,
 }  # fmt: skip
 _NON_NEGATIVE = (
     "amplitude_update_mm",
@@ -63,7 +63,8 @@ _NON_NEGATIVE = (
     "displacement_limit_mm",
     "force_limit_n",
 )
-_FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")  # in (0, MAX_FREQUENCY_HZ]
+#: in (0, MAX_FREQUENCY_HZ] when written
+_FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz", "frequency_update_hz")
 _TAPERS = ("taper_in_s", "taper_out_s", "amplitude_ramp_s")  # each at least MIN_TAPER_S
 #: within the hardware stroke (mm)
 _STROKE = (
@@ -141,15 +142,22 @@ class ControllerModel:
 
         Setpoints take effect at the next start; a running excitation keeps its own, except its
         amplitude: ``amplitude_update_mm`` changes a sine dwell's during its hold
-        (:meth:`_update_refusal`).
+        (:meth:`_update_refusal`), and its frequency: ``frequency_update_hz`` glides it there over
+        ``amplitude_ramp_s``, phase-continuously (a write carrying both is refused whole if either is).
         """
         if not all(self._valid(name, value) for name, value in values.items()):
             return self._refuse(ErrorCode.INVALID_SETPOINT)
+        ramp_s = values.get("amplitude_ramp_s", self.setpoints["amplitude_ramp_s"])
+        if "frequency_update_hz" in values and not (
+            self.state == ControllerState.RUNNING and self.generator.holding()
+        ):
+            return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
         if "amplitude_update_mm" in values:
-            ramp_s = values.get("amplitude_ramp_s", self.setpoints["amplitude_ramp_s"])
             if (reason := self._update_refusal(values["amplitude_update_mm"])) is not None:
                 return self._refuse(reason)
             self.generator.update_amplitude(values["amplitude_update_mm"] / 1000, ramp_s)
+        if "frequency_update_hz" in values:
+            self.generator.update_frequency(values["frequency_update_hz"], ramp_s)
         # only a changed heartbeat proves the host alive: neither a frozen counter nor a rewritten
         # watchdog_ms (a host rewriting its configuration) restarts the watchdog's time
         if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:

@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from simulators.plant.excitation import NotchedSweep, SineDwell, Sweep, Waveform, taper_envelope
+from simulators.plant.excitation import NotchedSweep, RetunedDwell, SineDwell, Sweep, Waveform, taper_envelope
 
 #: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
 MEAN_RATE_MM_S = 10.0
@@ -43,10 +43,12 @@ AMPLITUDE_HOLD = 0x02
 
 def hold_window_s(waveform: Waveform) -> tuple[float, float]:
     """Start and end (s from the excitation's start) of the waveform's constant-amplitude part."""
-    if isinstance(waveform, SineDwell):
-        return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
     if isinstance(waveform, NotchedSweep):
         waveform = waveform.sweep
+    if isinstance(waveform, RetunedDwell):
+        waveform = waveform.dwell
+    if isinstance(waveform, SineDwell):
+        return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
     if isinstance(waveform, Sweep):
         return waveform.taper_in_s, waveform.sweep_s - waveform.taper_out_s
     return 0.0, 0.0
@@ -119,6 +121,7 @@ class FunctionGenerator:
         self._scale = MeanRamp(rate_hz)  # the excitation's amplitude over the waveform's own
         self._scale.move(0, 1.0, 1.0, 0.0)
         self._dwell_hold_s = 0.0  # the running dwell's hold as started (an update holds it again)
+        self._glide = (0, 0)  # the samples of the last frequency glide
         self._sync: list[np.ndarray] = []  # sync outputs of the blocks generated since the last take
 
     # -- control ------------------------------------------------------------------------------
@@ -137,9 +140,10 @@ class FunctionGenerator:
         self._mean.move(self.n, self.mean_m(), mean_m)
 
     def holding(self) -> bool:
-        """A sine dwell runs in its hold (an amplitude ramp included), not stopping."""
+        """A sine dwell runs in its hold (an amplitude ramp or a frequency glide included), not
+        stopping."""
         waveform = self._waveform
-        if not isinstance(waveform, SineDwell) or self._stopping or self._frozen_m is not None:
+        if not isinstance(waveform, SineDwell | RetunedDwell) or self._stopping or self._frozen_m is not None:
             return False
         hold_start_s, hold_end_s = hold_window_s(waveform)
         return hold_start_s <= self.elapsed_s < hold_end_s
@@ -151,13 +155,26 @@ class FunctionGenerator:
         if not self.holding():
             raise ValueError("no sine dwell holds its amplitude")
         waveform = self._waveform
-        assert isinstance(waveform, SineDwell)
-        if waveform.amplitude <= 0:
+        dwell = waveform.dwell if isinstance(waveform, RetunedDwell) else waveform
+        assert isinstance(dwell, SineDwell)
+        if dwell.amplitude <= 0:
             raise ValueError("a dwell of no amplitude has none to change")
         scale_now = float(self._scale.values(np.array([self.n]))[0])
-        self._scale.move(self.n, scale_now, amplitude_m / waveform.amplitude, ramp_s)
-        hold_s = self.elapsed_s - waveform.taper_in_s + ramp_s + self._dwell_hold_s
-        self._waveform = replace(waveform, hold_s=hold_s)
+        self._scale.move(self.n, scale_now, amplitude_m / dwell.amplitude, ramp_s)
+        held = replace(dwell, hold_s=self.elapsed_s - dwell.taper_in_s + ramp_s + self._dwell_hold_s)
+        self._waveform = replace(waveform, dwell=held) if isinstance(waveform, RetunedDwell) else held
+
+    def update_frequency(self, freq_hz: float, glide_s: float) -> None:
+        """Glide the holding sine dwell's frequency linearly to ``freq_hz`` over ``glide_s`` from the
+        next sample, its phase continuous (the hold sync output is low during the glide); the hold
+        goes on. Only while :meth:`holding` (ValueError otherwise)."""
+        if not self.holding():
+            raise ValueError("no sine dwell holds its frequency")
+        waveform = self._waveform
+        retuned = waveform if isinstance(waveform, RetunedDwell) else RetunedDwell(waveform)
+        change = (self.elapsed_s, float(freq_hz), float(glide_s))
+        self._waveform = replace(retuned, changes=(*retuned.changes, change))
+        self._glide = (self.n, self.n + math.ceil(glide_s * self.rate_hz))
 
     @property
     def amplitude_m(self) -> float:
@@ -249,8 +266,8 @@ class FunctionGenerator:
             return np.zeros(len(n), np.uint8)
         stop_s = None if self._stop_n is None else (self._stop_n - self._start_n) / self.rate_hz
         flags = sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
-        ramp_start, ramp_end = self._scale.span
-        flags[(n >= ramp_start) & (n < ramp_end)] &= ~np.uint8(AMPLITUDE_HOLD)  # an amplitude update ramps
+        for first, end in (self._scale.span, self._glide):  # an amplitude ramps, a frequency glides
+            flags[(n >= first) & (n < end)] &= ~np.uint8(AMPLITUDE_HOLD)
         return flags
 
     def _excitation(self, n: np.ndarray) -> np.ndarray:

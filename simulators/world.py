@@ -12,8 +12,10 @@ Every change of setup happens at rest: the world refuses it while the actuator m
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from enum import StrEnum
+
+import numpy as np
 
 from bench.models.benches import TyreModel
 from bench.models.parameters import (
@@ -36,6 +38,37 @@ POST_RIG = Rig(plate_mass_kg=15.0)
 #: A hammer blow: a modally tuned hammer with a steel tip, about 3 kN over 0.15 ms.
 HAMMER_PEAK_N = 3000.0
 HAMMER_WIDTH_S = 1.5e-4
+
+
+#: The grid (s of bench time) of a drift's seeded random wander: a Brownian path sampled at these
+#: steps and interpolated between them, so that it does not depend on the bench's block size.
+WANDER_STEP_S = 0.1
+#: The smallest relative change of the stiffness that is applied to the plant (re-linearising the
+#: tyre costs a rebuild of the plant's system; a change this small moves a resonance by 0.025 %).
+DRIFT_RESOLUTION = 5e-4
+
+
+@dataclass(frozen=True)
+class TyreDrift:
+    """The tyre's stiffness drifting as the bench runs (a tyre warming up, slowly losing pressure):
+    ``k(t) = k0 (1 + rate_per_s t + wander_per_sqrt_s W(t))``, ``t`` the bench time since the drift
+    began and ``W`` a Brownian path of seed ``seed`` (deterministic in bench time)."""
+
+    rate_per_s: float
+    wander_per_sqrt_s: float = 0.0
+    seed: int = 0
+
+    def factor(self, t_s: float, path: list[float]) -> float:
+        """The stiffness over its nominal value at ``t_s``; ``path`` caches the wander's grid values
+        (extended as needed, from the seed)."""
+        if self.wander_per_sqrt_s == 0.0:
+            return 1.0 + self.rate_per_s * t_s
+        k = int(t_s / WANDER_STEP_S) + 2
+        if len(path) < k:
+            steps = np.random.default_rng(self.seed).standard_normal(max(k, 2 * len(path)))
+            path[:] = list(np.r_[0.0, np.cumsum(steps)[:-1]] * np.sqrt(WANDER_STEP_S))
+        wander = float(np.interp(t_s / WANDER_STEP_S, np.arange(len(path)), path))
+        return 1.0 + self.rate_per_s * t_s + self.wander_per_sqrt_s * wander
 
 
 class WorldBench(StrEnum):
@@ -181,6 +214,27 @@ class SimulatedWorld:
         self._require(WorldBench.FOUR_POST, "set_damper")
         self._check_damper(setting)
         self._change(damper=setting)
+
+    def drift_tyre(self, drift: TyreDrift | None) -> None:
+        """Let the mounted tyre's stiffness drift from now on as ``drift`` says (None: stop it); the
+        drift ends with the next action that mounts anything. ValueError without a tyre mounted."""
+        if drift is None:
+            self.bench.drift(None)
+            return
+        if not self.setup.has_tyre:
+            raise ValueError("drift_tyre: no tyre on the bench")
+        path: list[float] = []
+        applied: list = [1.0, self.bench.plant.setup]  # the factor in force and its setup
+
+        def setup_at(t_s: float) -> BenchSetup:
+            factor = drift.factor(t_s, path)
+            if abs(factor - applied[0]) >= DRIFT_RESOLUTION:
+                nominal = self.setup
+                tyre = replace(nominal.tyre, stiffness_n_per_m=nominal.tyre.stiffness_n_per_m * factor)
+                applied[:] = [factor, nominal.with_tyre(tyre)]
+            return applied[1]
+
+        self.bench.drift(setup_at)
 
     def strike_hammer(self, peak_n: float = HAMMER_PEAK_N, width_s: float = HAMMER_WIDTH_S) -> None:
         """Strike the bare sensor: a half-sine blow of ``peak_n`` lasting ``width_s`` from the next sample.

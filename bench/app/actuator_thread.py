@@ -26,7 +26,7 @@ from typing import Any, TypeVar
 from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError, ConnectionLostError, LinkTimeoutError
 from drivers.register_map import MOVING_STATES, ControllerState, InterlockFlag
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 
 T = TypeVar("T")
 log = logging.getLogger(__name__)
@@ -150,6 +150,15 @@ class ThreadedActuator:
     def sweep_notches(self) -> bool:
         """Whether the controller lowers a sweep's amplitude over a notch (its map has the registers)."""
         return self._client.map.sweep_notches
+
+    @property
+    def frequency_updates(self) -> bool:
+        """Whether the controller takes frequency updates (its register map names the register)."""
+        return self._client.map.frequency_updates
+
+    def update_frequency(self, update: FrequencyUpdate) -> None:
+        """A new frequency for the dwell holding now; a late reply is told by the hold sync output."""
+        self._call(self._client.update_frequency(update))
 
     def update_amplitude(self, update: AmplitudeUpdate) -> None:
         """A new amplitude for the dwell holding now. A reply too late to tell is not settled here:

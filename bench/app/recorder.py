@@ -38,7 +38,13 @@ class Recorder:
                 )
             case ev.StateChanged():
                 self._event("state", f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value)
-            case ev.InterlockTripped() | ev.HostStalled() | ev.AmplitudeChecked() | ev.LimitReached():
+            case (
+                ev.InterlockTripped()
+                | ev.HostStalled()
+                | ev.AmplitudeChecked()
+                | ev.LimitReached()
+                | ev.ResonanceTracked()
+            ):
                 kind, text, fields = _described(event)
                 self._event(kind, text, **fields)
             case ev.RunFinished():
@@ -107,10 +113,13 @@ class Recorder:
 
 
 def _described(
-    event: ev.InterlockTripped | ev.HostStalled | ev.AmplitudeChecked | ev.LimitReached,
+    event: ev.InterlockTripped | ev.HostStalled | ev.AmplitudeChecked | ev.LimitReached | ev.ResonanceTracked,
 ) -> tuple[str, str, dict]:
     """The kind, text and fields of the run event that records ``event``."""
     match event:
+        case ev.ResonanceTracked():
+            names = ("index", "sample", "drive_hz", "resonance_hz", "ratio", "phase_deg", "damping_ratio")
+            return "track", event.text, {name: getattr(event, name) for name in names}
         case ev.LimitReached():
             return "limit", event.text, {"name": event.name, "action": event.action}
         case ev.InterlockTripped():

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 from sequences import Prompt, Sweep
 
 
@@ -95,6 +95,14 @@ class AmplitudeAdjustable(Protocol):
         time again at it. LimitError (nothing written) outside the soft limits; CommandRejectedError
         when the controller refuses it (no dwell holding, beyond its own limits, no such registers).
         Only an actuator whose controller takes amplitude updates is asked."""
+        ...
+
+
+class FrequencyAdjustable(Protocol):
+    def update_frequency(self, update: FrequencyUpdate) -> None:
+        """Glide the sine dwell holding now to a new frequency, phase-continuously; the hold goes
+        on. LimitError (nothing written) outside the soft limits; CommandRejectedError when the
+        controller refuses it. Only an actuator whose controller takes frequency updates is asked."""
         ...
 
 

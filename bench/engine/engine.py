@@ -46,8 +46,9 @@ from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
+from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, SweepNotch, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepNotch, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
     AnswerError,
@@ -61,10 +62,11 @@ from sequences import (
     SineDwell,
     Sweep,
     Tare,
+    TrackedDwell,
     step_fields,
 )
 from sequences.channels import STANDARD_CHANNELS, Role
-from sequences.points import PointStatus
+from sequences.points import PointStatus, Verdict
 from sequences.response_limits import LimitAction
 from sequences.runs import RunKind
 
@@ -445,6 +447,8 @@ class Engine:
     def _measure(self, run_id: str, step: object, held: RecordedRun) -> None:
         if isinstance(step, Sweep):
             self._sweep_run(run_id, step, held)
+        elif isinstance(step, TrackedDwell):
+            self._tracked_run(run_id, step, held)
         elif isinstance(step, HammerTest):
             self._hammer_run(run_id, step, held)
         else:
@@ -550,6 +554,135 @@ class Engine:
                     continue
                 self._publish_sweep(run, setpoint, attempt, PointStatus.DONE, span, notch=notch)
                 return
+
+    def _tracked_run(self, run_id: str, step: TrackedDwell, held: RecordedRun) -> None:
+        """A tracked dwell: its search (points 0 .. n-1, adaptive dwells measuring the ratio), the
+        resonance found, then the track (point n). A resumed run searches again: the resonance
+        moves. A search that finds no resonance ends the sequence (aborted) with the reason."""
+        recorded = self.channels.recorded
+        output, input_ = recorded.resolve(step.output), recorded.resolve(step.input)
+        if output is None or input_ is None:
+            missing = [name for name in (step.output, step.input) if not recorded.resolve(name)]
+            raise RunStoppedError.fail(
+                f"tracked dwell: the bench records no channel {', '.join(missing)}"
+                f" (it has {', '.join(recorded.names)})"
+            )
+        if not getattr(self.actuator, "frequency_updates", False):
+            raise RunStoppedError.fail(
+                "tracked dwell: the controller takes no frequency update"
+                " (docs/protocols.md, *Frequency updates*)"
+            )
+        plan = replace(step.search_plan(), output=output, input=input_)
+        with _RunRecording(self, run_id, step, held.samples) as run:
+            freqs = step.search_freqs_hz()
+            frfs, gains = [], ServoGains()
+            for k, freq_hz in enumerate(freqs):
+                dwell = SineDwell(
+                    freq_hz,
+                    step.amplitude_mm,
+                    taper_in_s=step.taper_in_s,
+                    taper_out_s=step.taper_out_s,
+                    mean_mm=step.mean_mm,
+                )
+                frfs.append(self._point(run, k, dwell, plan=plan, gains=gains).frf)
+            resonance = find_resonance(np.array(freqs), np.array(frfs))
+            if resonance is None:
+                raise RunStoppedError.abort(
+                    f"tracked dwell {run_id}: no resonance of {output} / {input_} within"
+                    f" {freqs[0]:g}-{freqs[-1]:g} Hz (the largest ratio at an end of the search)"
+                )
+            self._track(run, len(freqs), step, resonance, (output, input_, self.channels.displacement))
+
+    def _track(
+        self,
+        run: _RunRecording,
+        index: int,
+        step: TrackedDwell,
+        resonance: Resonance,
+        channels: tuple[str, str, str],
+    ) -> None:
+        """The track: one dwell at the resonance until its length or a stop rule (repeated whole
+        after a pause), every look published; its point records the resonance found, the verdict
+        (tracked, or stopped with the reason) and the last look's resonance as achieved."""
+        attempt = 0
+        while True:
+            self._checkpoint()
+            attempt += 1
+            self.bus.publish(
+                ev.PointStarted(
+                    run.run_id, index, attempt, resonance.freq_hz, step.amplitude_mm, dict(self.conditions)
+                )
+            )
+
+            def update(freq_hz: float) -> str | None:
+                try:
+                    self.actuator.update_frequency(FrequencyUpdate(freq_hz, GLIDE_S))
+                except LimitError as exc:
+                    return f"refused by the soft limits: {exc}"
+                except CommandRejectedError as exc:
+                    return str(exc)
+                return None
+
+            def looked(window: TrackWindow) -> None:
+                self.bus.publish(
+                    ev.ResonanceTracked(
+                        run.run_id,
+                        index,
+                        window.sample,
+                        window.drive_hz,
+                        window.resonance_hz,
+                        abs(window.ratio),
+                        float(np.degrees(np.angle(window.ratio))),
+                        window.damping_ratio,
+                    )
+                )
+
+            watch = TrackWatch(
+                step,
+                resonance,
+                sample_rate_hz=self.sample_rate_hz,
+                channels=channels,
+                hold_bit=self.sync_bits.hold,
+                update=update,
+                on_window=looked,
+            )
+            setpoint = DwellSetpoint(
+                resonance.freq_hz,
+                step.amplitude_mm,
+                dwell_s=0.0,
+                taper_in_s=step.taper_in_s,
+                taper_out_s=step.taper_out_s,
+                mean_mm=self._mean(step.mean_mm),
+            )
+            # the track's length in cycles ends later at a lower frequency: allow for its band
+            track_s = step.track_length_s * (1 + step.freq_band_pct / 100)
+            planned_s = step.taper_in_s + track_s + step.taper_out_s
+            dwell = SineDwell(resonance.freq_hz, step.amplitude_mm)
+            point = _PointPlan(index, dwell, step.amplitude_mm)
+            try:
+                span = run.excite(setpoint, planned_s=planned_s, watch=watch)
+            except _PointInterruptedError as interrupted:
+                self._publish_point(
+                    run,
+                    point,
+                    attempt,
+                    PointStatus.INTERRUPTED,
+                    command_mm=step.amplitude_mm,
+                    span=interrupted.span,
+                )
+                self._wait_paused()
+                continue
+            self._publish_point(
+                run,
+                point,
+                attempt,
+                PointStatus.DONE,
+                command_mm=step.amplitude_mm,
+                span=span,
+                note=watch.reason,
+                tracked=Verdict.STOPPED if watch.reason else Verdict.TRACKED,
+            )
+            return
 
     def _sweep_notch(self, step: Sweep) -> Notch | None:
         """The notch of a sweep where a response would pass a limit's notch level, if the actuator
@@ -804,6 +937,7 @@ class Engine:
         note: str = "",
         verdict: DwellVerdict | None = None,
         held: HeldAmplitude | None = None,
+        tracked: str | None = None,
     ) -> None:
         adaptive: dict[str, object] = {}  # what an adaptive dwell, a held amplitude or a notch adds
         if point.notch is not None:
@@ -819,6 +953,8 @@ class Engine:
                 "amplitude_updates": held.updates,
                 "held_amplitude_mm": held.command_mm,
             }
+        if tracked is not None:
+            adaptive |= {"verdict": tracked}
         if verdict is not None:
             measure_start = -1
             if np.isfinite(verdict.measure_start_s):
@@ -973,7 +1109,7 @@ class Engine:
 
 
 def is_measurement(step: object) -> bool:
-    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | HammerTest)
+    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | HammerTest)
 
 
 class _RunRecording:

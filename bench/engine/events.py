@@ -120,6 +120,29 @@ class AmplitudeChecked:
 
 
 @dataclass(frozen=True)
+class ResonanceTracked:
+    """One look at the resonance point ``index`` of run ``run_id`` tracks
+    (:mod:`bench.engine.tracking`): the window's end (run sample), the drive frequency, the
+    resonance estimated there, the ratio's magnitude and phase, the damping ratio."""
+
+    run_id: str
+    index: int
+    sample: int
+    drive_hz: float
+    resonance_hz: float
+    ratio: float
+    phase_deg: float
+    damping_ratio: float
+
+    @property
+    def text(self) -> str:
+        return (
+            f"resonance {self.resonance_hz:.3f} Hz (drive {self.drive_hz:.3f} Hz), ratio {self.ratio:.4g}"
+            f" at {self.phase_deg:.1f} deg, damping ratio {self.damping_ratio:.4f}"
+        )
+
+
+@dataclass(frozen=True)
 class GridRefined:
     """An adaptive grid adds points to run ``run_id`` at the nominal ``amplitude_mm``: each
     ``(freq_hz, reason)`` in ``added``."""
@@ -216,6 +239,7 @@ Event = (
     | PointStarted
     | PointDone
     | AmplitudeChecked
+    | ResonanceTracked
     | GridRefined
     | PromptAsked
     | PromptAnswered

@@ -144,6 +144,52 @@ class Sweep:
 
 
 @dataclass(frozen=True)
+class RetunedDwell:
+    """A sine dwell whose frequency was changed during its hold, phase-continuously: each change
+    ``(t_s, to_hz, glide_s)`` glides linearly from the frequency before it to ``to_hz`` over
+    ``glide_s`` from ``t_s`` (s from the dwell's start), in order."""
+
+    dwell: SineDwell
+    changes: tuple[tuple[float, float, float], ...] = ()
+
+    @property
+    def duration_s(self) -> float:
+        return self.dwell.duration_s
+
+    @property
+    def amplitude(self) -> float:
+        return self.dwell.amplitude
+
+    def frequency_hz(self, t_s: float) -> float:
+        freq = self.dwell.freq_hz
+        for start_s, to_hz, glide_s in self.changes:
+            if t_s <= start_s:
+                break
+            if t_s < start_s + glide_s:
+                return freq + (to_hz - freq) * (t_s - start_s) / glide_s
+            freq = to_hz
+        return freq
+
+    def phase_rad(self, t_s: np.ndarray) -> np.ndarray:
+        """The sine's phase: the integral of the frequency from the start."""
+        t = np.asarray(t_s, dtype=float)
+        phase = 2 * np.pi * self.dwell.freq_hz * t
+        freq = self.dwell.freq_hz
+        for start_s, to_hz, glide_s in self.changes:
+            tau = np.clip(t - start_s, 0.0, None)
+            gliding = np.minimum(tau, glide_s)
+            phase = phase + 2 * np.pi * (to_hz - freq) * (gliding**2 / (2 * glide_s) + (tau - gliding))
+            freq = to_hz
+        return phase
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        d = self.dwell
+        env = taper_envelope(t, d.duration_s, d.taper_in_s, d.taper_out_s)
+        return d.amplitude * env * np.sin(self.phase_rad(t))
+
+
+@dataclass(frozen=True)
 class NotchedSweep:
     """A sweep whose amplitude is lowered to ``notch_amplitude`` from ``notch_start_hz`` to
     ``notch_end_hz`` (a response limit's notch): it ramps down along a raised cosine over ``ramp_s``
