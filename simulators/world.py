@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 from enum import StrEnum
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from bench.models.benches import TyreModel
 from bench.models.parameters import (
@@ -69,6 +70,25 @@ class TyreDrift:
             path[:] = list(np.r_[0.0, np.cumsum(steps)[:-1]] * np.sqrt(WANDER_STEP_S))
         wander = float(np.interp(t_s / WANDER_STEP_S, np.arange(len(path)), path))
         return 1.0 + self.rate_per_s * t_s + self.wander_per_sqrt_s * wander
+
+
+def wfs_contact_peak_hz(setup: BenchSetup, amplitude_m: float, band_hz: tuple[float, float]) -> float:
+    """Where ``|F_WFS / F_contact|`` of ``setup`` peaks within ``band_hz`` (the tread resonance on
+    the shaker), the tyre linearised at ``amplitude_m`` as the plant does: the simulated world's
+    truth, to 1 mHz, for what a tracked dwell finds."""
+
+    def ratio(freq_hz: float) -> float:
+        network = setup.operating_network(freq_hz, amplitude_m)
+        response = network.frequency_response(freq_hz, outputs=("f_wfs", "f_contact"))
+        return abs(response["f_wfs"][0] / response["f_contact"][0])
+
+    found = minimize_scalar(lambda f: -ratio(f), bounds=band_hz, method="bounded", options={"xatol": 1e-3})
+    return float(found.x)
+
+
+def drifted(setup: BenchSetup, factor: float) -> BenchSetup:
+    """``setup`` with its tyre's stiffness ``factor`` times its own."""
+    return setup.with_tyre(replace(setup.tyre, stiffness_n_per_m=setup.tyre.stiffness_n_per_m * factor))
 
 
 class WorldBench(StrEnum):
@@ -229,9 +249,7 @@ class SimulatedWorld:
         def setup_at(t_s: float) -> BenchSetup:
             factor = drift.factor(t_s, path)
             if abs(factor - applied[0]) >= DRIFT_RESOLUTION:
-                nominal = self.setup
-                tyre = replace(nominal.tyre, stiffness_n_per_m=nominal.tyre.stiffness_n_per_m * factor)
-                applied[:] = [factor, nominal.with_tyre(tyre)]
+                applied[:] = [factor, drifted(self.setup, factor)]
             return applied[1]
 
         self.bench.drift(setup_at)

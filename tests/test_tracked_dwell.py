@@ -16,11 +16,9 @@ the track must hold.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.optimize import minimize_scalar
 
 from bench.analysis.tracking import analyse_track
 from bench.engine import events as ev
@@ -29,7 +27,7 @@ from bench.models.setup import BenchSetup
 from bench.store import open_campaign
 from sequences import Hydraulics, Sequence, SequenceError, TrackedDwell, parse_sequence
 from sequences.limits import BenchLimits
-from simulators.world import TyreDrift
+from simulators.world import TyreDrift, drifted, wfs_contact_peak_hz
 from tests.campaign_lab import bench_config, lab_campaign
 
 RATE_HZ = 1000.0
@@ -57,17 +55,7 @@ def test_the_resonance_of_a_single_mode_is_found_from_a_coarse_search():
 
 def true_resonance_hz(factor: float) -> float:
     """The peak of the plant's F_WFS / F_contact at stiffness ``factor`` x nominal, at 1 mm."""
-    setup = BenchSetup.paper_shaker(2.5)
-    setup = setup.with_tyre(replace(setup.tyre, stiffness_n_per_m=setup.tyre.stiffness_n_per_m * factor))
-
-    def ratio(f: float) -> float:
-        response = setup.operating_network(f, 1e-3).frequency_response(f, outputs=("f_wfs", "f_contact"))
-        return abs(response["f_wfs"][0] / response["f_contact"][0])
-
-    peak = minimize_scalar(
-        lambda f: -ratio(f), bounds=(35.0, 45.0), method="bounded", options={"xatol": 1e-3}
-    )
-    return float(peak.x)
+    return wfs_contact_peak_hz(drifted(BenchSetup.paper_shaker(2.5), factor), 1e-3, (35.0, 45.0))
 
 
 @pytest.fixture(scope="module")
@@ -140,3 +128,18 @@ track_s = 10.0
     said = str(refused.value)
     assert "steps[0].search_end_hz: 34 Hz must lie above search_start_hz 48 Hz" in said
     assert "steps[0].search_points" in said and "steps[0].update_s" in said
+
+
+def test_a_drift_is_seeded_and_deterministic_in_bench_time():
+    """The wander is a Brownian path on a fixed 0.1 s grid: asked at any times in any order, one
+    seed gives one path; another seed another; without wander the drift is the straight rate."""
+    drift = TyreDrift(-0.001, wander_per_sqrt_s=0.002, seed=7)
+    times = [0.0, 0.05, 3.33, 12.7, 40.0]
+    forward = [drift.factor(t, []) for t in times]
+    shared: list[float] = []
+    backward = [drift.factor(t, shared) for t in reversed(times)][::-1]
+    assert forward == pytest.approx(backward, abs=1e-15)
+    assert forward[0] == 1.0
+    other = [TyreDrift(-0.001, wander_per_sqrt_s=0.002, seed=8).factor(t, []) for t in times]
+    assert other[1:] != pytest.approx(forward[1:], abs=1e-9)
+    assert TyreDrift(-0.001).factor(40.0, []) == pytest.approx(0.96)
