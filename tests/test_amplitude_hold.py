@@ -21,7 +21,6 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.analysis.records import DEFAULT_SETTLE_S
 from bench.store import open_campaign
 from drivers.errors import CommandRejectedError, LimitError, RegisterMapError
 from drivers.register_map import (
@@ -136,9 +135,10 @@ async def test_the_client_names_the_controllers_refusal(client, controller):
 
 
 def map_without_updates(tmp_path: Path) -> Path:
-    """The shipped map without the optional registers (the notch's use the update's ramp)."""
+    """The shipped map without its optional registers (they share the update's ramp)."""
     text = default_map_path().read_text()
-    text = re.sub(r"\[holding\.(amplitude_update_mm|amplitude_ramp_s|notch_\w+)\][^\[]*", "", text)
+    names = r"amplitude_update_mm|amplitude_ramp_s|notch_\w+|frequency_update_hz"
+    text = re.sub(rf"\[holding\.({names})\][^\[]*", "", text)
     path = tmp_path / "no_updates.toml"
     path.write_text(text)
     return path
@@ -180,19 +180,20 @@ def test_held_within_the_dwell_every_point_is_done_at_its_first_attempt_within_1
     updated = [p for p in points if p.amplitude_updates]
     assert {p.freq_hz for p in updated} >= {55.0, 70.0}  # +7 and +12 % uncorrected
     for p, record in zip(points, records, strict=True):
+        assert p.measure_start_sample == -1  # measured as any dwell: its hold after its settling
         if not p.amplitude_updates:
-            assert p.measure_start_sample == -1 and math.isnan(p.held_amplitude_mm)
+            assert math.isnan(p.held_amplitude_mm)
             continue
-        # each update's ramp shows as the hold bit low within the hold; the measured part begins
-        # the settling time after the last ramp, and the analysis is given that part
-        hold = (status[p.hold_start_sample : p.hold_end_sample] & int(Status.AMPLITUDE_HOLD)) != 0
-        rises = np.flatnonzero(np.diff(hold.astype(int)) == 1) + 1 + p.hold_start_sample
-        assert len(rises) == p.amplitude_updates
-        assert p.measure_start_sample == rises[-1] + round(0.1 * 1000)  # settle_min_s 0.1 s at >= 20 Hz
+        # each update's ramp shows as the hold bit low between the taper-in and the hold: the
+        # point's hold is the constant-amplitude part after the last ramp, as long as the dwell's
+        # planned hold, and the analysis is given that part
+        held = (status[p.start_sample : p.hold_end_sample] & int(Status.AMPLITUDE_HOLD)) != 0
+        rises = np.flatnonzero(np.diff(held.astype(int)) == 1) + 1 + p.start_sample
+        assert len(rises) == p.amplitude_updates + 1 and rises[-1] == p.hold_start_sample
+        assert p.hold_end_sample - p.hold_start_sample == pytest.approx(1100, abs=2)  # 0.1 + 1.0 s
         if p.freq_hz >= 40:  # the servo overshoots there: less command
             assert p.held_amplitude_mm < p.commanded_amplitude_mm
-        start = p.start_sample + round(record.hold_s[0] * 1000)
-        assert start == p.measure_start_sample - round(DEFAULT_SETTLE_S * 1000)
+        assert p.start_sample + round(record.hold_s[0] * 1000) == p.hold_start_sample
     # the history: every look at a point's amplitude, each update with the amplitude it sent
     assert len(steps) == len(points) + sum(p.amplitude_updates for p in points)
     for p in updated:

@@ -8,9 +8,10 @@ and sends the controller a new amplitude: the command scaled by target / achieve
 bounds as a repeat's correction and checked against the soft limits. The controller ramps to it
 (its hold sync output low during the ramp) and holds the dwell for its hold time again at the new
 amplitude (docs/protocols.md). The first cycles after the ramp are checked the same way, up to
-:attr:`AmplitudeHold.max_updates` updates; the dwell's measured part begins its settling time after
-the last ramp. A refused update, or none left, leaves the point to the repeat after it: a point is
-repeated only when the controller cannot get there.
+:attr:`AmplitudeHold.max_updates` updates; the dwell's hold is its part after the last ramp (the
+excitation's span follows the hold sync bit's last rise), measured after its settling time as any.
+A refused update, or none left, leaves the point to the repeat after it: a point is repeated only
+when the controller cannot get there.
 
 :class:`HeldAmplitude` follows one attempt block by block, from the frames' hold sync bit and the
 displacement channel: every segment of the hold (from the hold bit rising to its fall) is one
@@ -68,8 +69,7 @@ UpdateAmplitude = Callable[[float], "str | None"]
 
 class HeldAmplitude:
     """Holds one attempt's amplitude: :meth:`feed` every block of the excitation, then read
-    :attr:`updates`, :attr:`command_mm` (the command in force at the hold's end), :attr:`steps` and
-    :meth:`measure_start`."""
+    :attr:`updates`, :attr:`command_mm` (the command in force at the hold's end) and :attr:`steps`."""
 
     def __init__(
         self,
@@ -98,7 +98,6 @@ class HeldAmplitude:
         self._update = update
         self._on_step = on_step
         self._window = max(1, round(settings.window_s(freq_hz, settle_s) * sample_rate_hz))
-        self._settle = round(settle_s * sample_rate_hz)
         self._hold_s = hold_s
         self.updates = 0
         self.steps: list[AmplitudeStep] = []
@@ -115,13 +114,6 @@ class HeldAmplitude:
         after its ramp (at most the hold plus the ramp)."""
         sent = self.updates + (self._pending is not None)
         return sent * (self._hold_s + self.settings.ramp_s)
-
-    def measure_start(self) -> int:
-        """Where the measured part begins (run sample): the dwell's settling time after the last
-        update's ramp; -1 when no update was made (the hold is measured as planned)."""
-        if self.updates == 0 or self._segment_start is None:
-            return -1
-        return self._segment_start + self._settle
 
     def feed(self, first_sample: int, columns: Mapping[str, np.ndarray]) -> None:
         """One block of the excitation's frames from run sample ``first_sample``."""

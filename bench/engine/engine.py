@@ -849,11 +849,9 @@ class Engine:
             sent_mm = command_mm
             if verdict is not None:
                 achieved = 1e3 * abs(verdict.displacement_m)
-            elif held is not None and held.updates:
-                achieved = run.achieved_amplitude_mm(span, dwell, measure_start=held.measure_start())
-                command_mm = held.command_mm
-            else:
+            else:  # held within the dwell, the hold is the part after the last update's ramp
                 achieved = run.achieved_amplitude_mm(span, dwell)
+                command_mm = command_mm if held is None else held.command_mm
             if gains is not None:
                 gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
@@ -949,7 +947,6 @@ class Engine:
             }
         if held is not None and held.updates:
             adaptive |= {
-                "measure_start_sample": min(held.measure_start(), span.hold_end),
                 "amplitude_updates": held.updates,
                 "held_amplitude_mm": held.command_mm,
             }
@@ -1214,14 +1211,10 @@ class _RunRecording:
         self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
         return columns
 
-    def achieved_amplitude_mm(
-        self, span: ExcitationSpan, dwell: SineDwell, *, measure_start: int = -1
-    ) -> float:
-        """The displacement's amplitude over the hold after its settling time, or from
-        ``measure_start`` on when given (NaN: too short)."""
+    def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
+        """The displacement's amplitude over the hold after its settling time (NaN: too short)."""
         settle = round(dwell.settle_s * self.engine.sample_rate_hz)
-        start = span.hold_start + settle if measure_start < 0 else measure_start
-        start = min(start, span.hold_end)
+        start = min(span.hold_start + settle, span.hold_end)
         z = self.displacement_between(start, span.hold_end)
         return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
 

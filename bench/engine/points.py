@@ -36,8 +36,9 @@ class SpanTracker:
     ``feed(first_sample, status)`` with the run-sample index of the block's first sample; ``span``
     is set once the active bit has fallen after rising. A hold that never came (an excitation stopped
     during its taper-in) leaves ``hold_start == hold_end == end``. The hold bit may fall and rise
-    again within one excitation (an amplitude update's ramp): ``hold_end`` is its last fall, and
-    None while the hold bit is up.
+    again within one excitation (an amplitude update's ramp, a frequency's glide): the hold is the
+    last constant-amplitude part, ``hold_start`` its latest rise and ``hold_end`` its fall (None
+    while the hold bit is up).
     """
 
     def __init__(self, active_bit: int, hold_bit: int) -> None:
@@ -47,6 +48,7 @@ class SpanTracker:
         self.hold_start: int | None = None
         self.hold_end: int | None = None
         self.span: ExcitationSpan | None = None
+        self._held = False  # the hold bit of the last sample fed
 
     @property
     def started(self) -> bool:
@@ -68,12 +70,14 @@ class SpanTracker:
                 return
             offset = int(rising[0])
             self.start = first_sample + offset
-        if self.hold_start is None:
-            found = np.flatnonzero(hold[offset:])
-            if found.size:
-                self.hold_start = first_sample + offset + int(found[0])
         falling = np.flatnonzero(~active[offset:])
         stop = offset + int(falling[0]) if falling.size else len(status)
+        part = hold[offset:stop]
+        if part.size:
+            rising = np.flatnonzero(part & ~np.r_[self._held, part[:-1]])
+            if rising.size:  # the latest constant-amplitude part begins here
+                self.hold_start = first_sample + offset + int(rising[-1])
+            self._held = bool(part[-1])
         if self.hold_start is not None:
             self._follow_hold(first_sample, hold, max(self.hold_start - first_sample, offset), stop)
         if falling.size:
