@@ -48,10 +48,10 @@ class PointAttempt:
     FRF point's standard uncertainties and, for a point the refinement added, ``added_reason``.
     A dwell whose amplitude was held within it (docs/engine.md) adds ``amplitude_updates``, the new
     amplitudes the controller took during the hold, and ``held_amplitude_mm``, the command in force
-    over its hold after them (NaN: no update); its hold is the part after the last update's ramp. A point whose drive
-    a response limit lowered (a notch) names it in ``notched_by``, with the notched span
-    ``notch_start_hz``..``notch_end_hz`` (a dwell's: its frequency) and the amplitude commanded
-    there, ``notch_amplitude_mm`` (NaN: not notched); a notched sweep's ``achieved_amplitude_mm`` is
+    over its hold after them (NaN: no update); its hold is the part after the last update's ramp.
+    A point whose drive a response limit lowered (a notch) names it in ``notched_by``, with the span
+    notched ``notch_start_hz``..``notch_end_hz`` (a dwell's: its frequency) and the amplitude
+    commanded there, ``notch_amplitude_mm`` (NaN: not notched); a notched sweep's ``achieved_amplitude_mm`` is
     the displacement's amplitude reached within its notch.
     """
 

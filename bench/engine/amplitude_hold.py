@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.engine.amplitude import MAX_CORRECTION_FACTOR, achieved_amplitude_mm
+from bench.engine.points import hold_runs
 
 
 @dataclass(frozen=True)
@@ -121,19 +122,17 @@ class HeldAmplitude:
         if status is None or len(status) == 0:
             return
         z = np.asarray(columns[self.displacement], dtype=float)
-        hold = (np.asarray(status) & self.hold_bit) != 0
-        edges = np.flatnonzero(np.diff(hold.astype(np.int8))) + 1
-        for a, b in zip(np.r_[0, edges], np.r_[edges, len(hold)], strict=True):
-            if not hold[a]:
+        for a, b, holding in hold_runs(status, self.hold_bit):
+            if not holding:
                 self._in_hold = False
                 continue
             if not self._in_hold:
-                self._begin_segment(first_sample + int(a))
+                self._begin_segment(first_sample + a)
             self._in_hold = True
             if not self._checked:
                 self._segment.append(z[a:b])
                 if sum(len(part) for part in self._segment) >= self._window:
-                    self._check(first_sample + int(a))
+                    self._check(first_sample + a)
 
     def _begin_segment(self, sample: int) -> None:
         if self._segment_start is not None and self._pending is not None:

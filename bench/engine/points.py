@@ -8,6 +8,7 @@ are therefore known to the sample, in the same clock as the loads, whatever the 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,3 +124,13 @@ def sweep_time_s(setpoint: SweepSetpoint, freq_hz: float) -> float:
     else:
         x = float(np.log(freq_hz / setpoint.start_hz) / np.log(setpoint.end_hz / setpoint.start_hz))
     return min(max(x, 0.0), 1.0) * setpoint.duration_s
+
+
+def hold_runs(status: np.ndarray, hold_bit: int) -> Iterator[tuple[int, int, bool]]:
+    """The runs of a block's samples over which the hold sync bit stays the same: ``(first, end,
+    holding)`` in order, ``end`` exclusive (an amplitude update's ramp, a frequency's glide, end one
+    hold run and begin the next)."""
+    hold = (np.asarray(status) & hold_bit) != 0
+    edges = np.flatnonzero(np.diff(hold.astype(np.int8))) + 1
+    for first, end in zip(np.r_[0, edges], np.r_[edges, len(hold)], strict=True):
+        yield int(first), int(end), bool(hold[first])

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.engine.points import hold_runs
 from sequences import TrackedDwell
 
 #: The glide (s) of each change of the drive's frequency (the controller's ramp, docs/protocols.md).
@@ -142,16 +143,14 @@ class TrackWatch:
         if self.done or status is None or len(status) == 0:
             return
         data = np.column_stack([np.asarray(columns[name], float) for name in self.channels])
-        hold = (np.asarray(status) & self.hold_bit) != 0
-        edges = np.flatnonzero(np.diff(hold.astype(np.int8))) + 1
-        for a, b in zip(np.r_[0, edges], np.r_[edges, len(hold)], strict=True):
-            if not hold[a]:
+        for a, b, holding in hold_runs(status, self.hold_bit):
+            if not holding:
                 self._in_hold = False
                 continue
             if not self._in_hold:
                 self._segment_begins()
             self._in_hold = True
-            self._hold(first_sample + int(a), data[a:b])
+            self._hold(first_sample + a, data[a:b])
             if self.done:
                 return
 
