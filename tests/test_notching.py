@@ -75,12 +75,11 @@ def test_a_grid_point_at_the_resonance_is_notched_and_the_others_are_not(tmp_pat
         (30.0, 40.0, 50.0), (1.0,), settle_min_s=0.1, measure_min_s=0.3, taper_in_s=0.2, taper_out_s=0.2
     )
     points, (_, events) = run_steps(tmp_path, grid)
-    assert [(p.freq_hz, p.notched_by, p.status) for p in points] == [
-        (30.0, "", "done"),
-        (40.0, "plate", "done"),
-        (50.0, "", "done"),
-    ]
-    notched = points[1]
+    # (the short holds leave an amplitude update little time: a point may be repeated, notched alike)
+    done = [p for p in points if p.status == "done"]
+    assert [(p.freq_hz, p.notched_by) for p in done] == [(30.0, ""), (40.0, "plate"), (50.0, "")]
+    assert all(p.notched_by == ("plate" if p.freq_hz == 40.0 else "") for p in points)
+    notched = done[1]
     assert notched.requested_amplitude_mm == 1.0
     assert notched.amplitude_mm == notched.notch_amplitude_mm == pytest.approx(0.9 * ALARM_N / 740, rel=0.05)
     assert (notched.notch_start_hz, notched.notch_end_hz) == (40.0, 40.0)
