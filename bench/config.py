@@ -10,6 +10,7 @@ actuator client and the interlocks all check against.
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 import re
@@ -40,6 +41,13 @@ from sequences.errors import problems_text
 from sequences.limits import INTERLOCKS_ABOVE, BenchLimits
 from sequences.metadata import check_metadata
 from sequences.ranges import range_problem
+from sequences.response_limits import (
+    GRADED_INTERLOCKS,
+    LIMITED_ROLES,
+    LimitAction,
+    LimitProfile,
+    ResponseLimit,
+)
 from sequences.toml_text import load_toml, toml_error_where, toml_table, toml_value
 
 BENCH_KINDS = ("shaker", "four_post")
@@ -165,6 +173,32 @@ class Simulation:
 
 
 @dataclass(frozen=True)
+class AmplitudeConfig:
+    """How the engine brings a dwell's amplitude to its target (docs/engine.md, *Amplitude control*):
+    within the dwell by amplitude updates the controller takes while running (``hold_within_dwell``;
+    only where the controller's register map has them), to ``update_tolerance`` with at most
+    ``max_updates`` per attempt, each ramped over ``ramp_s``; and after it, a point whose amplitude
+    is beyond ``tolerance`` repeated at most ``max_repeats`` times."""
+
+    hold_within_dwell: bool = True
+    update_tolerance: float = 0.005
+    max_updates: int = 3
+    ramp_s: float = 0.1
+    tolerance: float = 0.02
+    max_repeats: int = 3
+
+
+@dataclass(frozen=True)
+class InterlockActions:
+    """The action of each of the bench's own interlocks a lab may grade (``[actions]``): the stroke,
+    the plate force and the WFS overload; "interlock" unless configured."""
+
+    displacement_limit: LimitAction = LimitAction.INTERLOCK
+    force_limit: LimitAction = LimitAction.INTERLOCK
+    wfs_overload: LimitAction = LimitAction.INTERLOCK
+
+
+@dataclass(frozen=True)
 class BenchConfig:
     """A whole bench configuration; ``source`` is its file (or ``<default>``)."""
 
@@ -182,6 +216,9 @@ class BenchConfig:
     #: the ``[metadata]`` table: the test metadata this bench states (bench, sensor, ...), only the
     #: fields the file gives (:mod:`sequences.metadata`; a sequence's and ``--meta`` win over it)
     metadata: Mapping[str, str] = field(default_factory=dict)
+    amplitude: AmplitudeConfig = field(default_factory=AmplitudeConfig)
+    actions: InterlockActions = field(default_factory=InterlockActions)
+    response_limits: tuple[ResponseLimit, ...] = ()
     source: str = "<default>"
 
     @property
@@ -224,6 +261,9 @@ class BenchConfig:
             toml_table("[simulation]", _as_dict(self.simulation)),
             toml_table("[timing]", _as_dict(self.timing)),
             toml_table("[metadata]", self.metadata),
+            toml_table("[amplitude]", _as_dict(self.amplitude)),
+            toml_table("[actions]", {k: str(v) for k, v in _as_dict(self.actions).items()}),
+            *(toml_table(f"[response_limits.{r.name}]", _limit_entry(r)) for r in self.response_limits),
         ]
         return "\n\n".join("\n".join(t) for t in tables) + "\n"
 
@@ -255,6 +295,19 @@ def measured_bench(config: BenchConfig) -> dict[str, object]:
 
 def _as_dict(value: object) -> dict[str, object]:
     return {f.name: getattr(value, f.name) for f in fields(value)}
+
+
+def _limit_entry(limit: ResponseLimit) -> dict[str, object]:
+    """A response limit as its ``[response_limits.NAME]`` table."""
+    return {
+        "role": limit.role.value,
+        "freqs_hz": list(limit.alarm.freqs_hz),
+        "alarm": list(limit.alarm.levels),
+        "abort": list(limit.abort.levels),
+        "alarm_action": str(limit.alarm_action),
+        "abort_action": str(limit.abort_action),
+        "notch": limit.notch,
+    }
 
 
 def _aux_entry(aux: AuxInput) -> dict[str, object]:
@@ -418,6 +471,9 @@ class _Reader:
             "simulation",
             "timing",
             "metadata",
+            "amplitude",
+            "actions",
+            "response_limits",
         )
         for name in data:
             if name not in top:
@@ -439,8 +495,17 @@ class _Reader:
             simulation=self.simulation(data),
             timing=self.timing(data),
             metadata=self.metadata(data),
+            amplitude=self.amplitude(data, limits),
+            actions=self.actions(data),
+            response_limits=self.response_limits(data),
             source=self.source,
         )
+        for limit in config.response_limits:
+            if not config.channels.bound(limit.role):
+                self.add(
+                    f"response_limits.{limit.name}.role",
+                    f"no recorded channel plays {limit.role.value} (bind it in [aux])",
+                )
         if self.problems:
             raise ConfigError(self.problems)
         return config
@@ -636,6 +701,105 @@ class _Reader:
         for key, reason in problems:
             self.add(key, reason)
         return given
+
+    def amplitude(self, data: dict, limits: BenchLimits) -> AmplitudeConfig:
+        """The ``[amplitude]`` table: tolerances within (0, 0.5), the update's below the repeat's
+        (an update must leave room for the noise); counts 0..10; the ramp no shorter than the
+        shortest taper and at most 10 s."""
+        d = AmplitudeConfig()
+        t = self.table(data, "amplitude", tuple(f.name for f in fields(AmplitudeConfig)))
+        config = AmplitudeConfig(
+            hold_within_dwell=self.boolean(t, "amplitude", "hold_within_dwell", d.hold_within_dwell),
+            update_tolerance=self.number(
+                t, "amplitude", "update_tolerance", d.update_tolerance, lo=0, hi=0.5, lo_open=True
+            ),
+            max_updates=self.number(t, "amplitude", "max_updates", d.max_updates, lo=0, hi=10, integer=True),
+            ramp_s=self.number(t, "amplitude", "ramp_s", d.ramp_s, lo=limits.min_taper_s, hi=10.0),
+            tolerance=self.number(t, "amplitude", "tolerance", d.tolerance, lo=0, hi=0.5, lo_open=True),
+            max_repeats=self.number(t, "amplitude", "max_repeats", d.max_repeats, lo=0, hi=10, integer=True),
+        )
+        if config.update_tolerance > config.tolerance:
+            self.add(
+                "amplitude.update_tolerance",
+                f"{config.update_tolerance:g} is above the tolerance {config.tolerance:g} of a repeat"
+                " (allowed <= tolerance)",
+            )
+        return config
+
+    def actions(self, data: dict) -> InterlockActions:
+        """The ``[actions]`` table: an action of :class:`LimitAction` per graded interlock."""
+        t = self.table(data, "actions", GRADED_INTERLOCKS)
+        d = InterlockActions()
+        choices = tuple(str(a) for a in LimitAction)
+        return InterlockActions(
+            **{
+                name: LimitAction(self.text(t, "actions", name, str(getattr(d, name)), choices))
+                for name in GRADED_INTERLOCKS
+            }
+        )
+
+    def response_limits(self, data: dict) -> tuple[ResponseLimit, ...]:
+        """The ``[response_limits.NAME]`` tables: a role to watch, ascending ``freqs_hz`` and at each
+        an ``alarm`` level below the ``abort`` level (both positive), their actions and ``notch``."""
+        tables = data.get("response_limits", {})
+        if not isinstance(tables, dict):
+            self.add("response_limits", f"must be a table of limits, got {tables!r}")
+            return ()
+        limits = []
+        keys = ("role", "freqs_hz", "alarm", "abort", "alarm_action", "abort_action", "notch")
+        for name, entry in tables.items():
+            key = f"response_limits.{name}"
+            if not isinstance(entry, dict):
+                self.add(key, f"must be a table ({', '.join(keys)}), got {entry!r}")
+                continue
+            t = self.table(tables, name, keys)
+            problems = len(self.problems)
+            roles = tuple(str(r) for r in LIMITED_ROLES)
+            role = self.text(t, key, "role", "", roles)
+            if "role" not in t:
+                self.add(f"{key}.role", f"missing: one of {list(roles)}")
+            freqs = self._levels(t, key, "freqs_hz")
+            alarm, abort = self._levels(t, key, "alarm"), self._levels(t, key, "abort")
+            choices = tuple(str(a) for a in LimitAction)
+            alarm_action = self.text(t, key, "alarm_action", str(LimitAction.INDICATE), choices)
+            abort_action = self.text(t, key, "abort_action", str(LimitAction.INTERLOCK), choices)
+            notch = self.boolean(t, key, "notch", True)
+            if len(self.problems) > problems:
+                continue
+            if any(b <= a for a, b in itertools.pairwise(freqs)):
+                self.add(f"{key}.freqs_hz", f"{list(freqs)} must ascend")
+            if not len(freqs) == len(alarm) == len(abort):
+                lengths = f"{len(freqs)}, {len(alarm)}, {len(abort)}"
+                self.add(key, f"freqs_hz, alarm and abort must be as long: {lengths}")
+            elif below := [f for f, a, b in zip(freqs, alarm, abort, strict=True) if not a < b]:
+                self.add(f"{key}.alarm", f"must lie below abort at every frequency; not at {below} Hz")
+            if len(self.problems) > problems:
+                continue
+            limits.append(
+                ResponseLimit(
+                    str(name),
+                    Role(role),
+                    LimitProfile(freqs, alarm),
+                    LimitProfile(freqs, abort),
+                    LimitAction(alarm_action),
+                    LimitAction(abort_action),
+                    notch,
+                )
+            )
+        return tuple(limits)
+
+    def _levels(self, table: dict, key: str, name: str) -> tuple[float, ...]:
+        """A non-empty list of positive finite numbers at ``key.name``."""
+        value = table.get(name)
+        ok = isinstance(value, list) and bool(value)
+        ok = ok and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+            for v in value
+        )
+        if not ok:
+            self.add(f"{key}.{name}", f"expected a non-empty list of positive numbers, got {value!r}")
+            return ()
+        return tuple(float(v) for v in value)
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()

@@ -16,7 +16,7 @@ posts) changes what stands on the bench, and a free run always runs without the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,9 +24,19 @@ from bench.config import BenchConfig
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity
 from bench.models.setup import BenchKind, BenchSetup
+from sequences.channels import Role
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
-from sequences.steps import ACTION_BENCH_KIND, DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+from sequences.steps import (
+    ACTION_BENCH_KIND,
+    DwellGrid,
+    FreeRun,
+    Prompt,
+    Sequence,
+    SineDwell,
+    Sweep,
+    TrackedDwell,
+)
 
 STANDARD_GRAVITY_M_S2 = 9.80665
 #: Frequencies a sweep is evaluated at (log-spaced over its band, plus the model's resonances in it).
@@ -53,7 +63,7 @@ class PointPrediction:
 
     step_index: int
     point_index: int
-    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points)
+    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points) | "tracked"
     freq_hz: float  # the dwell's frequency; a sweep's (a refinement band's) highest
     amplitude_mm: float
     setup: str
@@ -72,6 +82,7 @@ class PointPrediction:
             "dwell": f"{self.freq_hz:g} Hz",
             "sweep": f"sweep to {self.freq_hz:g} Hz",
             "refinement": f"points an adaptive grid may add up to {self.freq_hz:g} Hz",
+            "tracked": f"tracked dwell up to {self.freq_hz:g} Hz",
         }[self.kind]
         return f"steps[{self.step_index}] point {self.point_index} ({what}, {self.amplitude_mm:g} mm)"
 
@@ -163,6 +174,12 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
                 ]
         elif isinstance(step, Sweep):
             points.append(world.predict_sweep(world.setup(free_run=False), index, step))
+        elif isinstance(step, TrackedDwell):
+            # the search and the track, wherever its band may take it: as a sweep over that band
+            top = step.search_end_hz * (1 + step.freq_band_pct / 100)
+            band = Sweep(step.search_start_hz, top, step.track_s, step.amplitude_mm, mean_mm=step.mean_mm)
+            prediction = world.predict_sweep(world.setup(free_run=False), index, band)
+            points.append(replace(prediction, kind="tracked"))
     refusals = tuple(r for point in points for r in _refusals(point, config))
     return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
 
@@ -196,6 +213,39 @@ def tyre_at(pressure_bar: float, wheel_mass_kg: float) -> Tyre:
     return Tyre(stiffness_n_per_m=stiffness, wheel_mass_kg=wheel_mass_kg)
 
 
+def bench_model(config: BenchConfig, pressure_bar: float, *, specimen: bool) -> BenchSetup:
+    """The model of the configured bench with the tyre at ``pressure_bar``, or (``specimen``
+    False) its plate alone."""
+    rig = Rig(plate_mass_kg=config.masses.plate_kg)
+    if not specimen:
+        return BenchSetup(BenchKind.FREE_RUN, rig=rig)
+    return BenchSetup(
+        BenchKind.SHAKER if config.kind == "shaker" else BenchKind.QUARTER_CAR,
+        TyreModel(config.specimen.tyre_model),
+        tyre_at(pressure_bar, config.masses.wheel_below_sensor_kg),
+        sensor=config.wfs_sensor,
+        rig=rig,
+        nonlinearity=TyreNonlinearity() if config.specimen.nonlinear else None,
+    )
+
+
+#: The network output behind each role a response limit may watch.
+RESPONSE_OUTPUTS = {Role.WFS_FZ: "f_wfs", Role.PLATE_FORCE: "f_plate", Role.HUB_ACCELERATION: "a_hub"}
+
+
+def response_amplitudes(setup: BenchSetup, freq_hz: float, amplitude_m: float) -> dict[Role, float]:
+    """The steady-state amplitude of each role's response (its channel's unit) to a sine of
+    ``amplitude_m`` at ``freq_hz`` (the non-linear tyre linearised there); a role the setup has no
+    output for (the WFS on a free run) responds 0."""
+    network = setup.operating_network(freq_hz, amplitude_m)
+    outputs = tuple(o for o in RESPONSE_OUTPUTS.values() if o in network.output_names)
+    response = network.frequency_response(freq_hz, outputs=outputs)
+    return {
+        role: float(abs(response[output][0])) * amplitude_m if output in response else 0.0
+        for role, output in RESPONSE_OUTPUTS.items()
+    }
+
+
 class _World:
     """What the dry run assumes stands on the bench, as the sequence's prompts change it."""
 
@@ -221,18 +271,7 @@ class _World:
         return self._setups[key]
 
     def _build(self, specimen: bool) -> BenchSetup:
-        c = self.config
-        rig = Rig(plate_mass_kg=c.masses.plate_kg)
-        if not specimen:
-            return BenchSetup(BenchKind.FREE_RUN, rig=rig)
-        return BenchSetup(
-            BenchKind.SHAKER if c.kind == "shaker" else BenchKind.QUARTER_CAR,
-            TyreModel(c.specimen.tyre_model),
-            tyre_at(self.pressure_bar, c.masses.wheel_below_sensor_kg),
-            sensor=c.wfs_sensor,
-            rig=rig,
-            nonlinearity=TyreNonlinearity() if c.specimen.nonlinear else None,
-        )
+        return bench_model(self.config, self.pressure_bar, specimen=specimen)
 
     def static_wfs_load_n(self, setup: BenchSetup) -> float:
         """The load the WFS carries at rest: on the four-post bench the weight above it, on the

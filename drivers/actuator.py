@@ -58,7 +58,7 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.setpoints import NO_NOTCH, AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
@@ -345,8 +345,16 @@ class ActuatorClient:
 
     async def configure(self, setpoint: DwellSetpoint | SweepSetpoint, channel_mask: int = ALL_POSTS) -> None:
         """Check ``setpoint`` against the bench's limits (LimitError before anything is written), then
-        write it with the controller's interlock thresholds."""
+        write it with the controller's interlock thresholds. A sweep's notch needs a controller whose
+        map has the notch registers (CommandRejectedError, nothing written); a sweep without one
+        clears the notch of the sweep before it there."""
         values = setpoint.registers(self.limits)
+        if isinstance(setpoint, SweepSetpoint) and self.map.sweep_notches:
+            values = {**NO_NOTCH, **values}
+        elif isinstance(setpoint, SweepSetpoint) and setpoint.notch is not None:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no notch registers: the controller notches no sweep"
+            )
         values["channel_mask"] = channel_mask
         values["displacement_limit_mm"] = self.limits.displacement_interlock_mm
         values["force_limit_n"] = self.limits.force_interlock_n
@@ -361,6 +369,36 @@ class ActuatorClient:
     def configured(self) -> bool:
         """Whether the last :meth:`configure` completed (START is refused otherwise)."""
         return self._configured
+
+    async def update_amplitude(self, update: AmplitudeUpdate) -> None:
+        """Give the sine dwell holding now a new amplitude, ramped (docs/protocols.md, *Amplitude
+        held within the dwell*): LimitError (nothing written) outside the bench's limits;
+        CommandRejectedError when the map has no such registers (nothing written) or the controller
+        refuses it (outside a dwell's hold, beyond its own limits), naming its reason."""
+        if not self.map.amplitude_updates:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no amplitude_update_mm: the controller takes no"
+                " amplitude update"
+            )
+        values = update.registers(self.limits)
+        try:
+            await self._write(values)
+        except DeviceExceptionError as exc:
+            raise await self._refusal(exc, "the amplitude update") from exc
+
+    async def update_frequency(self, update: FrequencyUpdate) -> None:
+        """Glide the sine dwell holding now to a new frequency (docs/protocols.md, *Frequency
+        updates*): LimitError (nothing written) outside the bench's limits; CommandRejectedError when
+        the map has no such register or the controller refuses it, naming its reason."""
+        if not self.map.frequency_updates:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no frequency_update_hz: the controller takes no"
+                " frequency update"
+            )
+        try:
+            await self._write(update.registers(self.limits))
+        except DeviceExceptionError as exc:
+            raise await self._refusal(exc, "the frequency update") from exc
 
     async def start(self) -> None:
         """Start the configured excitation; NotConfiguredError (nothing sent) unless the last

@@ -41,6 +41,15 @@ REQUIRED: dict[str, frozenset[str]] = {
         }
     ),
 }  # fmt: skip
+#: Registers a map may leave out, as one capability each: a controller without them lacks it.
+#: ``amplitude_update``: the amplitude of a sine dwell changed during its hold; ``sweep_notch``: a
+#: sweep's amplitude lowered over a band of its frequencies; ``frequency_update``: a sine dwell's
+#: frequency changed during its hold (docs/protocols.md).
+OPTIONAL: dict[str, frozenset[str]] = {
+    "amplitude_update": frozenset({"amplitude_update_mm", "amplitude_ramp_s"}),
+    "sweep_notch": frozenset({"notch_start_hz", "notch_end_hz", "notch_amplitude_mm", "amplitude_ramp_s"}),
+    "frequency_update": frozenset({"frequency_update_hz", "amplitude_ramp_s"}),
+}
 _REGISTER_KEYS = {"address", "type", "unit", "doc"}
 
 
@@ -162,6 +171,24 @@ class RegisterMap:
 
     def table(self, table: str) -> Mapping[str, Register]:
         return self.holding if table == "holding" else self.input
+
+    @property
+    def amplitude_updates(self) -> bool:
+        """Whether the controller takes a new amplitude during a sine dwell's hold (the map names
+        the registers of :data:`OPTIONAL` ``amplitude_update``)."""
+        return OPTIONAL["amplitude_update"] <= self.holding.keys()
+
+    @property
+    def frequency_updates(self) -> bool:
+        """Whether the controller takes a new frequency during a sine dwell's hold (the map names
+        the registers of :data:`OPTIONAL` ``frequency_update``)."""
+        return OPTIONAL["frequency_update"] <= self.holding.keys()
+
+    @property
+    def sweep_notches(self) -> bool:
+        """Whether the controller lowers a sweep's amplitude over a notch (the map names the
+        registers of :data:`OPTIONAL` ``sweep_notch``)."""
+        return OPTIONAL["sweep_notch"] <= self.holding.keys()
 
     def encode(self, register: Register, value: float) -> list[int]:
         """The 16-bit register values for ``value``, in the map's word order."""
@@ -314,4 +341,13 @@ def parse_register_map(data: dict, source: str = "<built-in>") -> RegisterMap:
             raise _fail(source, table, f"missing required registers {sorted(missing)}")
         _check_overlaps(table, regs, source)
         tables[table] = regs
+    for capability, names in OPTIONAL.items():
+        present = names & tables["holding"].keys()
+        others = set().union(*(other for name, other in OPTIONAL.items() if name != capability))
+        if present - others and present != names:  # a register of its own named, not all of them
+            raise _fail(
+                source,
+                "holding",
+                f"{capability} needs all of {sorted(names)}: the map names only {sorted(present)}",
+            )
     return RegisterMap(name, version, order, device_id, tables["holding"], tables["input"], source)

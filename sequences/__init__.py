@@ -23,6 +23,7 @@ from sequences.steps import (
     Step,
     Sweep,
     Tare,
+    TrackedDwell,
     crossover_amplitude_mm,
     step_fields,
 )
@@ -62,6 +63,7 @@ __all__ = [
     "Step",
     "Sweep",
     "Tare",
+    "TrackedDwell",
     "crossover_amplitude_mm",
     "dump_sequence",
     "load_sequence",

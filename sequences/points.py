@@ -21,12 +21,14 @@ class PointStatus(enum.StrEnum):
 
 
 class Verdict(enum.StrEnum):
-    """How an adaptive dwell's hold ended (empty for fixed timing)."""
+    """How an adaptive dwell's hold ended (empty for fixed timing), or a tracked dwell's track."""
 
     NONE = ""  # a fixed-length hold: no online verdict
     TARGET = "target"  # settled and measured to the uncertainty targets
     MAX_LENGTH = "max length"  # settled, the targets not reached within the longest hold
     NOT_SETTLED = "not settled"
+    TRACKED = "tracked"  # a track that ran its length
+    STOPPED = "stopped"  # a track a stop rule ended (its note says why)
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,6 +46,13 @@ class PointAttempt:
     exclusive). An adaptive dwell adds its ``verdict``, ``settle_s`` (hold time when it settled),
     ``measure_start_sample`` (where its measured part begins, within the hold; -1 when none), the
     FRF point's standard uncertainties and, for a point the refinement added, ``added_reason``.
+    A dwell whose amplitude was held within it (docs/engine.md) adds ``amplitude_updates``, the new
+    amplitudes the controller took during the hold, and ``held_amplitude_mm``, the command in force
+    over its hold after them (NaN: no update); its hold is the part after the last update's ramp.
+    A point whose drive a response limit lowered (a notch) names it in ``notched_by``, with the span
+    notched ``notch_start_hz``..``notch_end_hz`` (a dwell's: its frequency) and the amplitude
+    commanded there, ``notch_amplitude_mm`` (NaN: not notched); a notched sweep's ``achieved_amplitude_mm`` is
+    the displacement's amplitude reached within its notch.
     """
 
     index: int
@@ -65,6 +74,12 @@ class PointAttempt:
     magnitude_uncertainty_pct: float = math.nan
     phase_uncertainty_deg: float = math.nan
     added_reason: str = ""
+    amplitude_updates: int = 0
+    held_amplitude_mm: float = math.nan
+    notched_by: str = ""
+    notch_start_hz: float = math.nan
+    notch_end_hz: float = math.nan
+    notch_amplitude_mm: float = math.nan
 
     @property
     def settled(self) -> bool:

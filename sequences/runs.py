@@ -14,6 +14,7 @@ class RunKind(enum.StrEnum):
     DWELL_GRID = "dwell_grid"
     FREE_RUN = "free_run"
     SWEEP = "sweep"
+    TRACKED_DWELL = "tracked_dwell"
     HAMMER = "hammer"
 
     @classmethod

@@ -281,6 +281,67 @@ class Sweep:
 
 
 @dataclass(frozen=True, slots=True)
+class TrackedDwell:
+    """A resonance found and dwelt on while it is tracked by phase (a tyre warming up moves it).
+
+    **Search**: sine dwells at ``search_points`` frequencies evenly from ``search_start_hz`` to
+    ``search_end_hz`` at ``amplitude_mm``, each ended by an adaptive dwell's verdicts (settled and
+    measured), measure the ratio ``output / (input + plate_mass_kg w^2 z)`` (F_WFS / F_contact with
+    the load cell under a plate of that mass; the hub acceleration over the post displacement with
+    ``input`` the displacement and no plate mass). A single-mode fit through the largest point and
+    its neighbours gives the resonance frequency, the ratio's peak and the damping ratio.
+    **Track**: one dwell at the resonance for ``track_s`` (or ``track_cycles`` cycles when given):
+    every ``update_s`` the ratio's phase is compared with its phase at the resonance, the resonance
+    frequency estimated from the difference (the mode's phase slope) and the drive moved there.
+    **Stop rules**: the tracked resonance leaving ``freq_band_pct`` of the one found, or the ratio's
+    magnitude leaving ``ratio_band_pct`` of the one found, ends the track with the reason.
+    """
+
+    kind: ClassVar[str] = "tracked_dwell"
+
+    search_start_hz: float
+    search_end_hz: float
+    amplitude_mm: float
+    search_points: int = 8
+    output: str = "fz_wfs_n"
+    input: str = "f_plate_n"
+    plate_mass_kg: float = 0.0
+    track_s: float = 30.0
+    track_cycles: float | None = None
+    update_s: float = 0.5
+    freq_band_pct: float = 5.0
+    ratio_band_pct: float = 50.0
+    taper_in_s: float = 0.3
+    taper_out_s: float = 0.3
+    mean_mm: float = 0.0
+    label: str = ""
+
+    def search_freqs_hz(self) -> tuple[float, ...]:
+        """The search's frequencies, evenly spaced, both ends included."""
+        n = max(int(self.search_points), 2)
+        step = (self.search_end_hz - self.search_start_hz) / (n - 1)
+        return tuple(round(self.search_start_hz + i * step, 6) for i in range(n))
+
+    def search_plan(self) -> AdaptiveDwell:
+        """The search dwells' verdicts: settled and measured to the adaptive dwell's default targets."""
+        return AdaptiveDwell(output=self.output, input=self.input, plate_mass_kg=self.plate_mass_kg)
+
+    @property
+    def track_length_s(self) -> float:
+        """The track's length: ``track_s``, or ``track_cycles`` at the search band's middle."""
+        if self.track_cycles is None:
+            return self.track_s
+        return self.track_cycles / (0.5 * (self.search_start_hz + self.search_end_hz))
+
+    @property
+    def estimated_duration_s(self) -> float:
+        """The search at its dwells' shortest hold, then the track, with every taper."""
+        plan, tapers_s = self.search_plan(), self.taper_in_s + self.taper_out_s
+        search_s = sum(tapers_s + plan.min_hold_at_s(f) for f in self.search_freqs_hz())
+        return search_s + tapers_s + self.track_length_s
+
+
+@dataclass(frozen=True, slots=True)
 class HammerTest:
     """Hammer blows on the bare sensor, each caught by a triggered capture of the WFS acquisition.
 
@@ -412,12 +473,34 @@ class MeanPosition:
         return MEAN_POSITION_S
 
 
-Step = SineDwell | DwellGrid | FreeRun | Sweep | HammerTest | Prompt | Hydraulics | Tare | MeanPosition
+Step = (
+    SineDwell
+    | DwellGrid
+    | FreeRun
+    | Sweep
+    | TrackedDwell
+    | HammerTest
+    | Prompt
+    | Hydraulics
+    | Tare
+    | MeanPosition
+)
 STEP_TYPES: dict[str, type] = {
     cls.kind: cls
-    for cls in (SineDwell, DwellGrid, FreeRun, Sweep, HammerTest, Prompt, Hydraulics, Tare, MeanPosition)
+    for cls in (
+        SineDwell,
+        DwellGrid,
+        FreeRun,
+        Sweep,
+        TrackedDwell,
+        HammerTest,
+        Prompt,
+        Hydraulics,
+        Tare,
+        MeanPosition,
+    )
 }
-MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, HammerTest)
+MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, TrackedDwell, HammerTest)
 
 
 def step_fields(step: Step) -> dict[str, object]:
@@ -463,11 +546,14 @@ class Sequence:
         return tuple(s for s in self.steps if isinstance(s, MEASUREMENT_TYPES))
 
     def points(self) -> int:
-        """Measured points: one per dwell, per sweep and per hammer blow."""
+        """Measured points: one per dwell, per sweep, per hammer blow, and a tracked dwell's search
+        dwells and its track."""
         count = 0
         for step in self.measurement_steps():
             if isinstance(step, DwellGrid | FreeRun):
                 count += len(step.dwells())
+            elif isinstance(step, TrackedDwell):
+                count += len(step.search_freqs_hz()) + 1  # the search's dwells, then the track
             elif isinstance(step, HammerTest):
                 count += step.blows
             else:

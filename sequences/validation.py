@@ -37,6 +37,7 @@ from sequences.steps import (
     Step,
     Sweep,
     Tare,
+    TrackedDwell,
     crossover_amplitude_mm,
 )
 
@@ -85,18 +86,20 @@ def check_channels(steps: Iterable[tuple[int, Step]], channels: ChannelSet, sour
     for index, step in steps:
         key = f"steps[{index}]"
         adaptive = getattr(step, "adaptive", None)
+        named = {}
         if isinstance(adaptive, AdaptiveDwell):
-            for name in ("output", "input"):
-                channel = getattr(adaptive, name)
-                if isinstance(channel, str) and channels.resolve(channel) is None:
-                    problems.append(
-                        Problem(
-                            source,
-                            f"{key}.adaptive.{name}",
-                            f"the bench records no channel {channel!r}"
-                            f" (it records {', '.join(channels.names)})",
-                        )
+            named = {f"{key}.adaptive.{name}": getattr(adaptive, name) for name in ("output", "input")}
+        elif isinstance(step, TrackedDwell):
+            named = {f"{key}.{name}": getattr(step, name) for name in ("output", "input")}
+        for where, channel in named.items():
+            if isinstance(channel, str) and channels.resolve(channel) is None:
+                problems.append(
+                    Problem(
+                        source,
+                        where,
+                        f"the bench records no channel {channel!r} (it records {', '.join(channels.names)})",
                     )
+                )
         for role in _ANALYSIS_ROLES.get(type(step), ()):
             if not channels.bound(role):
                 problems.append(
@@ -126,16 +129,8 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
     hydraulics = "off"  # a sequence brings the hydraulics up itself: they are off before its first step
     for index, step in steps:
         check = _Checker(source, f"steps[{index}]", limits)
-        if isinstance(step, SineDwell):
-            check.dwell(step)
-        elif isinstance(step, DwellGrid):
-            check.grid(step)
-        elif isinstance(step, FreeRun):
-            check.free_run(step)
-        elif isinstance(step, Sweep):
-            check.sweep(step)
-        elif isinstance(step, HammerTest):
-            check.hammer(step)
+        if type(step) in _STEP_CHECKS:
+            _STEP_CHECKS[type(step)](check, step)
         elif isinstance(step, Prompt):
             check.prompt(step)
             if isinstance(step.id, str) and step.id in prompt_ids:
@@ -144,8 +139,6 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
                 prompt_ids[step.id] = index
         elif isinstance(step, Hydraulics):
             hydraulics = check.hydraulics(step.level, hydraulics)
-        elif isinstance(step, MeanPosition):
-            check.mean(step.mean_mm)
         elif not isinstance(step, Tare):
             check.add("", f"{step!r} is not a step")
         problems += check.problems
@@ -451,6 +444,38 @@ class _Checker:
             remedy = "; a sweep is checked at its highest frequency"
             self.kinematics("amplitude_mm", max(start, end), amplitude, remedy)
 
+    def tracked(self, step: TrackedDwell) -> None:
+        """A tracked dwell: its search band within the bench's frequencies (start below end), at
+        least 3 search points, the amplitude within the stroke and the kinematic limits at the
+        band's top (the track may move past it by ``freq_band_pct``), the track's length within
+        one setpoint's, the update period and the stop bands positive."""
+        mean = self.mean(step.mean_mm)
+        start = self.frequency("search_start_hz", step.search_start_hz)
+        end = self.frequency("search_end_hz", step.search_end_hz)
+        if None not in (start, end) and not start < end:
+            self.add("search_end_hz", f"{_fmt(end)} Hz must lie above search_start_hz {_fmt(start)} Hz")
+        amplitude = self.amplitude("amplitude_mm", step.amplitude_mm, mean)
+        self.number("search_points", step.search_points, 3, 50, integer=True, unit="points")
+        self.text("output", step.output)
+        self.text("input", step.input)
+        self.number("plate_mass_kg", step.plate_mass_kg, 0.0, 1000.0, unit="kg")
+        self.tapers(step.taper_in_s, step.taper_out_s)
+        longest = "the controller's longest setpoint"
+        track = self.number(
+            "track_s", step.track_s, 0.0, self.limits.max_step_s, lo_open=True, unit="s", hi_why=longest
+        )
+        self.optional_number("track_cycles", step.track_cycles, lo=1.0, hi=1e6, unit="cycles")
+        update = self.number("update_s", step.update_s, 0.05, 10.0, unit="s")
+        band = self.number("freq_band_pct", step.freq_band_pct, 0.0, 50.0, lo_open=True, unit="%")
+        self.number("ratio_band_pct", step.ratio_band_pct, 0.0, 1000.0, lo_open=True, unit="%")
+        self.text("label", step.label, required=False)
+        if None not in (start, end, amplitude, band):
+            top = min(end * (1 + band / 100), self.limits.max_freq_hz)  # where the track may go
+            remedy = "; a tracked dwell is checked where its band may take it"
+            self.kinematics("amplitude_mm", top, amplitude, remedy)
+        if None not in (update, track) and update > track:
+            self.add("update_s", f"{_fmt(update)} s is longer than the track ({_fmt(track)} s)")
+
     def hammer(self, step: HammerTest) -> None:
         lim = self.limits
         self.number(
@@ -531,3 +556,16 @@ class _Checker:
             self.one_of("target", step.target, step.choices if choices_ok else ())
         else:
             self.add("target", f"answer = {step.answer!r} takes no target")
+
+
+#: The check of each step type that needs only its own values (prompts and hydraulics need the
+#: steps before them: :func:`check_steps` checks them itself).
+_STEP_CHECKS = {
+    SineDwell: _Checker.dwell,
+    DwellGrid: _Checker.grid,
+    FreeRun: _Checker.free_run,
+    Sweep: _Checker.sweep,
+    TrackedDwell: _Checker.tracked,
+    HammerTest: _Checker.hammer,
+    MeanPosition: lambda check, step: check.mean(step.mean_mm),
+}

@@ -111,6 +111,7 @@ class SimulatedBench:
         self.transducer = ControllerTransducer(plant.internal_rate_hz)
         self._internal_samples = 0
         self._blows: list[tuple[int, HalfSinePulse]] = []  # (first internal sample, pulse)
+        self._drift: tuple[Callable[[float], BenchSetup], int] | None = None  # setup at t, from sample
 
     @classmethod
     def paper_shaker(cls, pressure_bar: float = 2.5, seed: int = 1) -> SimulatedBench:
@@ -146,6 +147,15 @@ class SimulatedBench:
                 )
             self._blows.clear()
             self.plant.mount(setup)
+            self._drift = None  # a new specimen: what drifted was the old one
+
+    def drift(self, setup_at: Callable[[float], BenchSetup] | None) -> None:
+        """Let the values of what is mounted change as the bench runs (a tyre warming up):
+        ``setup_at(t_s)`` is the setup ``t_s`` seconds of bench time from now, applied before each
+        block (:meth:`PlantSimulator.retune`; it returns the same object while nothing changed);
+        None: no more change. Deterministic in bench time, whatever the blocks."""
+        with self.lock:
+            self._drift = None if setup_at is None else (setup_at, self._internal_samples)
 
     def strike(self, pulse: HalfSinePulse) -> None:
         """A hammer blow on the bare sensor, ``pulse.delay_s`` after the next sample.
@@ -182,6 +192,11 @@ class SimulatedBench:
                 for name in self.BENCH_CHANNELS:
                     channels[name] = np.zeros(n_samples)
             else:
+                if self._drift is not None:
+                    setup_at, since = self._drift
+                    setup = setup_at((self._internal_samples - since) / plant.internal_rate_hz)
+                    if setup is not plant.setup:
+                        plant.retune(setup)
                 plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
                 channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)

@@ -29,7 +29,7 @@ from drivers.register_map import (
     WaveformCode,
 )
 from simulators.function_generator import FunctionGenerator
-from simulators.plant.excitation import SineDwell, Sweep, Waveform
+from simulators.plant.excitation import NotchedSweep, SineDwell, Sweep, Waveform
 
 PROTOCOL_VERSION = 1
 #: hold time of a dwell that runs until a stop command (about 11 days)
@@ -48,8 +48,14 @@ POWER_UP: dict[str, float] = {
     "watchdog_ms": POWER_UP_WATCHDOG_MS, "amplitude_mm": 0.0, "frequency_hz": 1.0, "dwell_s": 0.0,
     "sweep_start_hz": 1.0, "sweep_end_hz": 10.0, "sweep_duration_s": 10.0, "taper_in_s": 1.0,
     "taper_out_s": 1.0, "mean_mm": 0.0, "displacement_limit_mm": 0.0, "force_limit_n": 0.0,
+    "amplitude_update_mm": 0.0, "amplitude_ramp_s": 0.1,
+    "notch_start_hz": 0.0, "notch_end_hz": 0.0, "notch_amplitude_mm": 0.0, "frequency_update_hz": 0.0,
 }  # fmt: skip
 _NON_NEGATIVE = (
+    "amplitude_update_mm",
+    "notch_start_hz",
+    "notch_end_hz",
+    "notch_amplitude_mm",
     "dwell_s",
     "sweep_duration_s",
     "amplitude_mm",
@@ -57,9 +63,19 @@ _NON_NEGATIVE = (
     "displacement_limit_mm",
     "force_limit_n",
 )
-_FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz")  # in (0, MAX_FREQUENCY_HZ]
-_TAPERS = ("taper_in_s", "taper_out_s")
-_STROKE = ("mean_mm", "amplitude_mm", "displacement_limit_mm")  # within the hardware stroke (mm)
+#: in (0, MAX_FREQUENCY_HZ] when written
+_FREQUENCIES = ("frequency_hz", "sweep_start_hz", "sweep_end_hz", "frequency_update_hz")
+_TAPERS = ("taper_in_s", "taper_out_s", "amplitude_ramp_s")  # each at least MIN_TAPER_S
+#: within the hardware stroke (mm)
+_STROKE = (
+    "mean_mm",
+    "amplitude_mm",
+    "displacement_limit_mm",
+    "amplitude_update_mm",
+    "notch_amplitude_mm",
+)
+#: a sweep's notch window (Hz): 0 (no notch) up to MAX_FREQUENCY_HZ
+_NOTCH_FREQUENCIES = ("notch_start_hz", "notch_end_hz")
 _IDLE = (ControllerState.OFF, ControllerState.HYDRAULICS_LOW, ControllerState.HYDRAULICS_HIGH)
 #: the states each command is accepted in (a command in another state is refused)
 ALLOWED: dict[Command, tuple[ControllerState, ...]] = {
@@ -124,10 +140,24 @@ class ControllerModel:
         heartbeat runs beside its commands and would otherwise clear the reason of a refusal before
         the host reads it.
 
-        Setpoints take effect at the next start; a running excitation keeps its own.
+        Setpoints take effect at the next start; a running excitation keeps its own, except its
+        amplitude: ``amplitude_update_mm`` changes a sine dwell's during its hold
+        (:meth:`_update_refusal`), and its frequency: ``frequency_update_hz`` glides it there over
+        ``amplitude_ramp_s``, phase-continuously (a write carrying both is refused whole if either is).
         """
         if not all(self._valid(name, value) for name, value in values.items()):
             return self._refuse(ErrorCode.INVALID_SETPOINT)
+        ramp_s = values.get("amplitude_ramp_s", self.setpoints["amplitude_ramp_s"])
+        if "frequency_update_hz" in values and not (
+            self.state == ControllerState.RUNNING and self.generator.holding()
+        ):
+            return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
+        if "amplitude_update_mm" in values:
+            if (reason := self._update_refusal(values["amplitude_update_mm"])) is not None:
+                return self._refuse(reason)
+            self.generator.update_amplitude(values["amplitude_update_mm"] / 1000, ramp_s)
+        if "frequency_update_hz" in values:
+            self.generator.update_frequency(values["frequency_update_hz"], ramp_s)
         # only a changed heartbeat proves the host alive: neither a frozen counter nor a rewritten
         # watchdog_ms (a host rewriting its configuration) restarts the watchdog's time
         if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:
@@ -144,6 +174,7 @@ class ControllerModel:
         violated = (
             (name in _NON_NEGATIVE and value < 0)
             or (name in _FREQUENCIES and not 0 < value <= MAX_FREQUENCY_HZ)
+            or (name in _NOTCH_FREQUENCIES and value > MAX_FREQUENCY_HZ)
             or (name == "channel_mask" and not int(value) & self.existing_posts)
             or (name in _TAPERS and value < MIN_TAPER_S)
             or (name == "waveform" and value not in tuple(WaveformCode))
@@ -151,6 +182,20 @@ class ControllerModel:
             or (name == "force_limit_n" and abs(value) > self.HARDWARE_FORCE_N)
         )
         return not violated
+
+    def _update_refusal(self, amplitude_mm: float) -> ErrorCode | None:
+        """Why an amplitude update to ``amplitude_mm`` would be refused: no sine dwell holds its
+        amplitude now (tapering in or out, a sweep, at rest: not allowed in state), or the new
+        amplitude would leave the stroke with the mean or pass the displacement interlock limit
+        (invalid setpoint)."""
+        if self.state != ControllerState.RUNNING or not self.generator.holding():
+            return ErrorCode.NOT_ALLOWED_IN_STATE
+        limit_mm = self.setpoints["displacement_limit_mm"] or self.HARDWARE_STROKE_MM
+        if self.generator.amplitude_m <= 0 or amplitude_mm > limit_mm:
+            return ErrorCode.INVALID_SETPOINT
+        if abs(self.generator.mean_m()) * 1000 + amplitude_mm > self.HARDWARE_STROKE_MM:
+            return ErrorCode.INVALID_SETPOINT
+        return None
 
     def command_refusal(self, code: int) -> ErrorCode | None:
         """Why the command ``code`` would be refused in the present state (None: it is allowed);
@@ -220,7 +265,13 @@ class ControllerModel:
         if code in (WaveformCode.LINEAR_SWEEP, WaveformCode.LOG_SWEEP):
             spacing = "linear" if code == WaveformCode.LINEAR_SWEEP else "log"
             start, end, duration = sp["sweep_start_hz"], sp["sweep_end_hz"], sp["sweep_duration_s"]
-            return Sweep(start, end, duration, amplitude_m, spacing, taper_in, taper_out)
+            sweep = Sweep(start, end, duration, amplitude_m, spacing, taper_in, taper_out)
+            if sp["notch_end_hz"] <= sp["notch_start_hz"]:
+                return sweep
+            # a notch outside the sweep's band or deeper than nothing is refused (ValueError)
+            notch_m = sp["notch_amplitude_mm"] / 1000
+            window = (sp["notch_start_hz"], sp["notch_end_hz"])
+            return NotchedSweep(sweep, *window, notch_m, sp["amplitude_ramp_s"])
         return None
 
     def _stop(self) -> None:
@@ -280,8 +331,8 @@ class ControllerModel:
 
     @property
     def amplitude_m(self) -> float:
-        waveform = self.generator.waveform
-        return float(waveform.amplitude) if waveform is not None else 0.0
+        """The running excitation's amplitude (an amplitude update's target once one was taken)."""
+        return self.generator.amplitude_m
 
     def observe(self, z_base_m: np.ndarray, f_plate_n: np.ndarray, rate_hz: float) -> None:
         """Update readbacks and the limit interlocks from a block measured at ``rate_hz``.

@@ -312,9 +312,11 @@ class ControllerServer:
             registers[address - start_address : address - start_address + len(words)] = words
 
     def _holding_values(self) -> dict[str, float]:
-        """The setpoints in force (``command`` reads 0: a command acts, it is not stored)."""
+        """The setpoints in force that the map names (``command`` reads 0: a command acts, it is not
+        stored; a map without the optional registers serves a controller without them)."""
         with self.bench.lock:
-            return {"command": 0, **self.bench.controller.setpoints}
+            setpoints = self.bench.controller.setpoints
+            return {"command": 0, **{name: setpoints[name] for name in self.map.holding if name in setpoints}}
 
     def _input_values(self) -> dict[str, float]:
         with self.bench.lock:

@@ -11,23 +11,28 @@ sample instants (time is counted in samples, never read from a clock):
   length is the distance over :data:`MEAN_RATE_MM_S` (so the mean moves at that rate on average
   and at pi/2 times it at most, with zero velocity at both ends).
 
+A sine dwell's amplitude may be changed during its hold (:meth:`FunctionGenerator.update_amplitude`,
+the controller's amplitude update): the excitation is scaled along a raised cosine to the new
+amplitude and the dwell then holds for its hold time again.
+
 An e-stop freezes the command at its last value; :meth:`FunctionGenerator.release` returns from
 there to rest along a mean-position ramp.
 
 Two digital sync outputs accompany the command, sample by sample (:func:`sync_flags`):
 :data:`EXCITATION_ACTIVE` while the excitation runs (its tapers included) and
 :data:`AMPLITUDE_HOLD` during its constant-amplitude part (a dwell's hold, a sweep between its
-tapers); they are wired to digital inputs of the WFS acquisition, which locates each point in its
-samples with them.
+tapers; not during an amplitude update's ramp); they are wired to digital inputs of the WFS
+acquisition, which locates each point in its samples with them.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from simulators.plant.excitation import SineDwell, Sweep, Waveform, taper_envelope
+from simulators.plant.excitation import NotchedSweep, RetunedDwell, SineDwell, Sweep, Waveform, taper_envelope
 
 #: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
 MEAN_RATE_MM_S = 10.0
@@ -38,6 +43,10 @@ AMPLITUDE_HOLD = 0x02
 
 def hold_window_s(waveform: Waveform) -> tuple[float, float]:
     """Start and end (s from the excitation's start) of the waveform's constant-amplitude part."""
+    if isinstance(waveform, NotchedSweep):
+        waveform = waveform.sweep
+    if isinstance(waveform, RetunedDwell):
+        waveform = waveform.dwell
     if isinstance(waveform, SineDwell):
         return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
     if isinstance(waveform, Sweep):
@@ -60,7 +69,8 @@ def sync_flags(
 
 
 class MeanRamp:
-    """A position that moves between targets along raised cosines at :data:`MEAN_RATE_MM_S`."""
+    """A value that moves between targets along raised cosines: the mean position (m), at
+    :data:`MEAN_RATE_MM_S` on average, or an amplitude's scale over a stated length."""
 
     def __init__(self, rate_hz: float) -> None:
         self.rate_hz = rate_hz
@@ -78,10 +88,16 @@ class MeanRamp:
         t = (np.asarray(n, dtype=float) - self._start_n) / self.rate_hz
         return self._from_m + (self._to_m - self._from_m) * taper_envelope(t, math.inf, self._length_s, 0.0)
 
-    def move(self, n: int, from_m: float, to_m: float) -> None:
-        """Start at sample ``n`` a ramp from ``from_m`` to ``to_m`` (m)."""
+    def move(self, n: int, from_m: float, to_m: float, length_s: float | None = None) -> None:
+        """Start at sample ``n`` a ramp from ``from_m`` to ``to_m`` lasting ``length_s`` (None: a
+        mean position's, at :data:`MEAN_RATE_MM_S`)."""
         self._from_m, self._to_m, self._start_n = from_m, to_m, n
-        self._length_s = abs(to_m - from_m) * 1000 / MEAN_RATE_MM_S
+        self._length_s = abs(to_m - from_m) * 1000 / MEAN_RATE_MM_S if length_s is None else length_s
+
+    @property
+    def span(self) -> tuple[int, int]:
+        """The samples ``[start, end)`` of the last ramp."""
+        return self._start_n, self._start_n + math.ceil(self._length_s * self.rate_hz)
 
     def settled(self, n: int) -> bool:
         """True if sample ``n`` is on the target (always, for a ramp of no length)."""
@@ -102,6 +118,10 @@ class FunctionGenerator:
         self._stop_n: int | None = None
         self._stopping = False
         self._frozen_m: float | None = None
+        self._scale = MeanRamp(rate_hz)  # the excitation's amplitude over the waveform's own
+        self._scale.move(0, 1.0, 1.0, 0.0)
+        self._dwell_hold_s = 0.0  # the running dwell's hold as started (an update holds it again)
+        self._glide = (0, 0)  # the samples of the last frequency glide
         self._sync: list[np.ndarray] = []  # sync outputs of the blocks generated since the last take
 
     # -- control ------------------------------------------------------------------------------
@@ -115,7 +135,52 @@ class FunctionGenerator:
             raise ValueError(f"taper_out_s must be > 0, got {taper_out_s}")
         self._waveform, self._start_n, self._taper_out_s = waveform, self.n, taper_out_s
         self._stop_n, self._stopping = None, False
+        self._scale.move(self.n, 1.0, 1.0, 0.0)
+        self._dwell_hold_s = waveform.hold_s if isinstance(waveform, SineDwell) else 0.0
         self._mean.move(self.n, self.mean_m(), mean_m)
+
+    def holding(self) -> bool:
+        """A sine dwell runs in its hold (an amplitude ramp or a frequency glide included), not
+        stopping."""
+        waveform = self._waveform
+        if not isinstance(waveform, SineDwell | RetunedDwell) or self._stopping or self._frozen_m is not None:
+            return False
+        hold_start_s, hold_end_s = hold_window_s(waveform)
+        return hold_start_s <= self.elapsed_s < hold_end_s
+
+    def update_amplitude(self, amplitude_m: float, ramp_s: float) -> None:
+        """Ramp the holding sine dwell's amplitude from where it is to ``amplitude_m`` along a raised
+        cosine of ``ramp_s`` from the next sample, then hold it for the dwell's hold time again (the
+        hold sync output is low during the ramp). Only while :meth:`holding` (ValueError otherwise)."""
+        if not self.holding():
+            raise ValueError("no sine dwell holds its amplitude")
+        waveform = self._waveform
+        dwell = waveform.dwell if isinstance(waveform, RetunedDwell) else waveform
+        assert isinstance(dwell, SineDwell)
+        if dwell.amplitude <= 0:
+            raise ValueError("a dwell of no amplitude has none to change")
+        scale_now = float(self._scale.values(np.array([self.n]))[0])
+        self._scale.move(self.n, scale_now, amplitude_m / dwell.amplitude, ramp_s)
+        held = replace(dwell, hold_s=self.elapsed_s - dwell.taper_in_s + ramp_s + self._dwell_hold_s)
+        self._waveform = replace(waveform, dwell=held) if isinstance(waveform, RetunedDwell) else held
+
+    def update_frequency(self, freq_hz: float, glide_s: float) -> None:
+        """Glide the holding sine dwell's frequency linearly to ``freq_hz`` over ``glide_s`` from the
+        next sample, its phase continuous (the hold sync output is low during the glide); the hold
+        goes on. Only while :meth:`holding` (ValueError otherwise)."""
+        if not self.holding():
+            raise ValueError("no sine dwell holds its frequency")
+        waveform = self._waveform
+        retuned = waveform if isinstance(waveform, RetunedDwell) else RetunedDwell(waveform)
+        change = (self.elapsed_s, float(freq_hz), float(glide_s))
+        self._waveform = replace(retuned, changes=(*retuned.changes, change))
+        self._glide = (self.n, self.n + math.ceil(glide_s * self.rate_hz))
+
+    @property
+    def amplitude_m(self) -> float:
+        """The excitation's amplitude, an update's target once one was made (0 without excitation)."""
+        waveform = self._waveform
+        return float(waveform.amplitude) * self._scale.target_m if waveform is not None else 0.0
 
     def stop(self) -> None:
         """Taper the excitation out over ``taper_out_s`` from the next sample; the mean ramps to 0."""
@@ -200,11 +265,14 @@ class FunctionGenerator:
         if self._waveform is None or self._frozen_m is not None:
             return np.zeros(len(n), np.uint8)
         stop_s = None if self._stop_n is None else (self._stop_n - self._start_n) / self.rate_hz
-        return sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
+        flags = sync_flags((n - self._start_n) / self.rate_hz, self._waveform, stop_s, self._taper_out_s)
+        for first, end in (self._scale.span, self._glide):  # an amplitude ramps, a frequency glides
+            flags[(n >= first) & (n < end)] &= ~np.uint8(AMPLITUDE_HOLD)
+        return flags
 
     def _excitation(self, n: np.ndarray) -> np.ndarray:
         assert self._waveform is not None
-        value = self._waveform.value((n - self._start_n) / self.rate_hz)
+        value = self._waveform.value((n - self._start_n) / self.rate_hz) * self._scale.values(n)
         if self._stop_n is not None:
             tau = (n - self._stop_n) / self.rate_hz
             value = value * taper_envelope(tau, self._taper_out_s, 0.0, self._taper_out_s)

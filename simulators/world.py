@@ -12,8 +12,11 @@ Every change of setup happens at rest: the world refuses it while the actuator m
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from enum import StrEnum
+
+import numpy as np
+from scipy.optimize import minimize_scalar
 
 from bench.models.benches import TyreModel
 from bench.models.parameters import (
@@ -36,6 +39,56 @@ POST_RIG = Rig(plate_mass_kg=15.0)
 #: A hammer blow: a modally tuned hammer with a steel tip, about 3 kN over 0.15 ms.
 HAMMER_PEAK_N = 3000.0
 HAMMER_WIDTH_S = 1.5e-4
+
+
+#: The grid (s of bench time) of a drift's seeded random wander: a Brownian path sampled at these
+#: steps and interpolated between them, so that it does not depend on the bench's block size.
+WANDER_STEP_S = 0.1
+#: The smallest relative change of the stiffness that is applied to the plant (re-linearising the
+#: tyre costs a rebuild of the plant's system; a change this small moves a resonance by 0.025 %).
+DRIFT_RESOLUTION = 5e-4
+
+
+@dataclass(frozen=True)
+class TyreDrift:
+    """The tyre's stiffness drifting as the bench runs (a tyre warming up, slowly losing pressure):
+    ``k(t) = k0 (1 + rate_per_s t + wander_per_sqrt_s W(t))``, ``t`` the bench time since the drift
+    began and ``W`` a Brownian path of seed ``seed`` (deterministic in bench time)."""
+
+    rate_per_s: float
+    wander_per_sqrt_s: float = 0.0
+    seed: int = 0
+
+    def factor(self, t_s: float, path: list[float]) -> float:
+        """The stiffness over its nominal value at ``t_s``; ``path`` caches the wander's grid values
+        (extended as needed, from the seed)."""
+        if self.wander_per_sqrt_s == 0.0:
+            return 1.0 + self.rate_per_s * t_s
+        k = int(t_s / WANDER_STEP_S) + 2
+        if len(path) < k:
+            steps = np.random.default_rng(self.seed).standard_normal(max(k, 2 * len(path)))
+            path[:] = list(np.r_[0.0, np.cumsum(steps)[:-1]] * np.sqrt(WANDER_STEP_S))
+        wander = float(np.interp(t_s / WANDER_STEP_S, np.arange(len(path)), path))
+        return 1.0 + self.rate_per_s * t_s + self.wander_per_sqrt_s * wander
+
+
+def wfs_contact_peak_hz(setup: BenchSetup, amplitude_m: float, band_hz: tuple[float, float]) -> float:
+    """Where ``|F_WFS / F_contact|`` of ``setup`` peaks within ``band_hz`` (the tread resonance on
+    the shaker), the tyre linearised at ``amplitude_m`` as the plant does: the simulated world's
+    truth, to 1 mHz, for what a tracked dwell finds."""
+
+    def ratio(freq_hz: float) -> float:
+        network = setup.operating_network(freq_hz, amplitude_m)
+        response = network.frequency_response(freq_hz, outputs=("f_wfs", "f_contact"))
+        return abs(response["f_wfs"][0] / response["f_contact"][0])
+
+    found = minimize_scalar(lambda f: -ratio(f), bounds=band_hz, method="bounded", options={"xatol": 1e-3})
+    return float(found.x)
+
+
+def drifted(setup: BenchSetup, factor: float) -> BenchSetup:
+    """``setup`` with its tyre's stiffness ``factor`` times its own."""
+    return setup.with_tyre(replace(setup.tyre, stiffness_n_per_m=setup.tyre.stiffness_n_per_m * factor))
 
 
 class WorldBench(StrEnum):
@@ -181,6 +234,25 @@ class SimulatedWorld:
         self._require(WorldBench.FOUR_POST, "set_damper")
         self._check_damper(setting)
         self._change(damper=setting)
+
+    def drift_tyre(self, drift: TyreDrift | None) -> None:
+        """Let the mounted tyre's stiffness drift from now on as ``drift`` says (None: stop it); the
+        drift ends with the next action that mounts anything. ValueError without a tyre mounted."""
+        if drift is None:
+            self.bench.drift(None)
+            return
+        if not self.setup.has_tyre:
+            raise ValueError("drift_tyre: no tyre on the bench")
+        path: list[float] = []
+        applied: list = [1.0, self.bench.plant.setup]  # the factor in force and its setup
+
+        def setup_at(t_s: float) -> BenchSetup:
+            factor = drift.factor(t_s, path)
+            if abs(factor - applied[0]) >= DRIFT_RESOLUTION:
+                applied[:] = [factor, drifted(self.setup, factor)]
+            return applied[1]
+
+        self.bench.drift(setup_at)
 
     def strike_hammer(self, peak_n: float = HAMMER_PEAK_N, width_s: float = HAMMER_WIDTH_S) -> None:
         """Strike the bare sensor: a half-sine blow of ``peak_n`` lasting ``width_s`` from the next sample.

@@ -43,7 +43,7 @@ async def _read_holding(controller, address: int, count: int) -> list[int]:
 
 
 async def _holding_image(controller) -> list[int]:
-    return await _read_holding(controller, 0, 5) + await _read_holding(controller, 10, 22)
+    return await _read_holding(controller, 0, 5) + await _read_holding(controller, 10, 34)
 
 
 @pytest.mark.parametrize(
@@ -89,7 +89,7 @@ async def test_write_multiple_with_a_bad_quantity_is_illegal_data_value(controll
     [
         (struct.pack(">BHH", 3, 5, 1), 3),  # holding gap 5-9
         (struct.pack(">BHH", 3, 0, 6), 3),  # a read running into the gap
-        (struct.pack(">BHH", 3, 32, 1), 3),  # past the last holding register
+        (struct.pack(">BHH", 3, 44, 1), 3),  # past the last holding register
         (struct.pack(">BHH", 4, 7, 2), 4),  # input gap 7-9
         (struct.pack(">BHH", 6, 7, 1), 6),
         (struct.pack(">BHHBHH", 16, 8, 2, 4, 0, 0), 16),
@@ -121,7 +121,7 @@ async def test_power_up_registers_show_the_values_in_force(controller, bench):
 
 
 def _words_of(image: list[int], address: int, width: int) -> list[int]:
-    """Words of the holding image read as addresses 0-4 then 10-31."""
+    """Words of the holding image read as addresses 0-4 then 10-43."""
     offset = address if address < 5 else address - 5
     return image[offset : offset + width]
 

@@ -121,6 +121,10 @@ def test_an_adaptive_dwell_round_trips_and_its_record_holds_its_measured_part(tm
     with open_campaign(path) as f:
         (read,) = f.runs[0].points
         (record,) = f.runs[0].dwell_records()
-    assert read == row
+    # the fields it leaves NaN (no update, no notch) are read back as NaN, each a new NaN object
+    assert all(
+        x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y))
+        for x, y in zip(astuple(read), astuple(row), strict=True)
+    )
     # the analysis leaves its settling allowance before the measured part, not before the hold
     assert record.hold_s == ((550 - round(DEFAULT_SETTLE_S * FS_HZ)) / FS_HZ, 2850 / FS_HZ)

@@ -77,6 +77,12 @@ def _write_grid(writer: CampaignWriter, run_id: str = "001-grid", *, block: int 
             magnitude_uncertainty_pct=0.4,
             phase_uncertainty_deg=0.2,
             added_reason=f"steep {index}",
+            amplitude_updates=index,
+            held_amplitude_mm=a * 0.98,
+            notched_by=f"limit {index}",
+            notch_start_hz=f,
+            notch_end_hz=f,
+            notch_amplitude_mm=a * 0.5,
         )
         run.add_point(row)
         written.append((row, columns))

@@ -26,7 +26,7 @@ from typing import Any, TypeVar
 from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError, ConnectionLostError, LinkTimeoutError
 from drivers.register_map import MOVING_STATES, ControllerState, InterlockFlag
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 
 T = TypeVar("T")
 log = logging.getLogger(__name__)
@@ -140,6 +140,30 @@ class ThreadedActuator:
             # not its own) waits it out, so the second write's reply is not queued behind it
             self.read_status()
             self._call(self._client.configure(setpoint))
+
+    @property
+    def amplitude_updates(self) -> bool:
+        """Whether the controller takes amplitude updates (its register map names the registers)."""
+        return self._client.map.amplitude_updates
+
+    @property
+    def sweep_notches(self) -> bool:
+        """Whether the controller lowers a sweep's amplitude over a notch (its map has the registers)."""
+        return self._client.map.sweep_notches
+
+    @property
+    def frequency_updates(self) -> bool:
+        """Whether the controller takes frequency updates (its register map names the register)."""
+        return self._client.map.frequency_updates
+
+    def update_frequency(self, update: FrequencyUpdate) -> None:
+        """A new frequency for the dwell holding now; a late reply is told by the hold sync output."""
+        self._call(self._client.update_frequency(update))
+
+    def update_amplitude(self, update: AmplitudeUpdate) -> None:
+        """A new amplitude for the dwell holding now. A reply too late to tell is not settled here:
+        the hold sync output in the frames shows whether the ramp came (the engine looks there)."""
+        self._call(self._client.update_amplitude(update))
 
     def start(self) -> None:
         self._settled("start", self._client.start(), lambda state: state in MOVING_STATES)

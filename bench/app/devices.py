@@ -81,6 +81,7 @@ def open_bench(
                 tyre_model=config.specimen.tyre_model,
                 nonlinear=config.specimen.nonlinear,
                 aux_roles=tuple(a.channel.role for a in config.aux),
+                register_map=config.actuator.register_map,
             )
             lab_class = LabProcess if config.simulation.in_own_process else SimulatedLab
             lab = stack.enter_context(lab_class(settings))

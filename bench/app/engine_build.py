@@ -10,12 +10,14 @@ it for its one sequence (:mod:`bench.app.run`).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 from bench.app.devices import BenchDevices
+from bench.app.notching import ModelNotching
 from bench.app.simulated import UNPACED_BACKLOG_S, UNPACED_WFS_SILENCE_S
 from bench.config import BenchConfig
 from bench.engine.amplitude import AmplitudeControl
+from bench.engine.amplitude_hold import AmplitudeHold
 from bench.engine.channels import FrameChannels
 from bench.engine.engine import Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
@@ -39,12 +41,33 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
         devices.operator,
         channels=channels,
         interlocks=standard_interlocks(
-            channels.recorded, config.limits, serial_timeout_s=timing.wfs_silence_s
+            channels.recorded,
+            config.limits,
+            serial_timeout_s=timing.wfs_silence_s,
+            actions={f.name: getattr(config.actions, f.name) for f in fields(config.actions)},
+            response_limits=config.response_limits,
         ),
         sync_bits=SyncBits(int(Status.EXCITATION_ACTIVE), int(Status.AMPLITUDE_HOLD)),
         sample_rate_hz=float(config.wfs.rate_hz),
-        amplitude_control=AmplitudeControl(max_command_mm=config.limits.stroke_mm),
+        amplitude_control=AmplitudeControl(
+            tolerance=config.amplitude.tolerance,
+            max_corrections=config.amplitude.max_repeats,
+            max_command_mm=config.limits.stroke_mm,
+        ),
+        amplitude_hold=_amplitude_hold(config, devices),
+        notching=ModelNotching(config) if any(limit.notch for limit in config.response_limits) else None,
         tare=config.calibration.tare,
         bench_kind=config.kind,
         timing=timing,
+    )
+
+
+def _amplitude_hold(config: BenchConfig, devices: BenchDevices) -> AmplitudeHold | None:
+    """The amplitude held within the dwell, as configured, where the controller takes amplitude
+    updates (its register map names their registers); None: amplitudes are corrected by repeats."""
+    settings = config.amplitude
+    if not settings.hold_within_dwell or not devices.actuator.amplitude_updates:
+        return None
+    return AmplitudeHold(
+        update_tolerance=settings.update_tolerance, max_updates=settings.max_updates, ramp_s=settings.ramp_s
     )

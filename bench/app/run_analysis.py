@@ -40,6 +40,7 @@ from bench.analysis.runs import (
     analyse_shaker_campaign,
     nominal_free_run,
 )
+from bench.analysis.tracking import TrackRecord, analyse_track
 from bench.analysis.validation import AnalysisInputError
 from bench.config import BenchConfig
 from bench.models.parameters import WfsSensor
@@ -69,7 +70,8 @@ class RunInputs:
     is not open (a process of its own): the run's ``run_id``, ``kind`` and ``conditions``, and its
     records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
     of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
-    (``sweep``). ``read_error``: why the records could not be read (the analysis is then flagged)."""
+    (``sweep``); a tracked dwell's looks (``track``). ``read_error``: why the records could not be
+    read (the analysis is then flagged)."""
 
     run_id: str
     kind: str
@@ -77,6 +79,7 @@ class RunInputs:
     hammer: HammerRecord | None = None
     dwells: tuple[DwellRecord, ...] = ()
     sweep: SweepRecord | None = None
+    track: TrackRecord | None = None
     read_error: str = ""
 
 
@@ -87,8 +90,12 @@ def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
     try:
         if run.kind == "hammer":
             return dataclasses.replace(inputs, hammer=run.hammer_record())
-        if run.kind == "free_run":
-            return dataclasses.replace(inputs, dwells=tuple(run.dwell_records()))
+        if run.kind in ("free_run", "tracked_dwell"):
+            return dataclasses.replace(
+                inputs,
+                dwells=tuple(run.dwell_records()) if run.kind == "free_run" else (),
+                track=run.track_record() if run.kind == "tracked_dwell" else None,
+            )
         if run.kind == "dwell_grid" and (pressure := conditions.get("tyre_pressure_bar")) is not None:
             grids = [
                 other
@@ -178,6 +185,19 @@ class RunAnalyser:
             return self._shaker(run)
         if run.kind == "sweep":
             return self._four_post(run)
+        if run.kind == "tracked_dwell" and run.track is not None:
+            result = analyse_track(run.track)
+            return (
+                "track",
+                result.summary_lines(),
+                {
+                    "first_hz": result.first_hz,
+                    "last_hz": result.last_hz,
+                    "drift_hz_per_s": result.drift_hz_per_s,
+                    "verdict": result.verdict,
+                    "reason": result.reason,
+                },
+            )
         raise ValueError(f"no analysis for a {run.kind} run")
 
     def _shaker(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:

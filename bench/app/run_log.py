@@ -38,7 +38,8 @@ class RunLog:
                 )
                 note = f" ({event.note})" if event.note else ""
                 u = f"{event.magnitude_uncertainty_pct:.2f} % / {event.phase_uncertainty_deg:.2f} deg"
-                verdict = f"; {event.verdict}, u {u}" if event.verdict else ""
+                u = f", u {u}" if math.isfinite(event.magnitude_uncertainty_pct) else ""  # a track has none
+                verdict = f"; {event.verdict}{u}" if event.verdict else ""
                 return (
                     f"  point {event.index} at {event.freq_hz:g} Hz: {event.status},"
                     f" commanded {event.commanded_amplitude_mm:.3f} mm{achieved}{note}{verdict}"

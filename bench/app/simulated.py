@@ -12,10 +12,12 @@ from __future__ import annotations
 import asyncio
 import threading
 from dataclasses import dataclass
+from pathlib import Path
 
 from bench.app.answers import WorldOperator
 from bench.models.benches import TyreModel
 from bench.models.setup import BenchSetup
+from drivers.register_map import load_register_map
 from sequences import Prompt
 from sequences.channels import DEFAULT_AUX_INPUTS, Role, standard_name
 from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
@@ -41,7 +43,9 @@ class SimulatedLabSettings:
     as the engine drains the WFS; ``seed``: sensor noise; what stands on the bench at power-up: the
     tyre pressure, whether the wheel (car) is mounted, the tyre model (1-3, None: the world's
     default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing);
-    ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's)."""
+    ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's);
+    ``register_map``: the map the controller serves (the configuration's; None: the drivers'), so
+    that a map without the optional registers serves a controller without what they do."""
 
     kind: str = "shaker"
     paced: bool = False
@@ -52,6 +56,7 @@ class SimulatedLabSettings:
     nonlinear: bool = True
     wheel_speed_rad_s: float = 0.0
     aux_roles: tuple[Role, ...] = tuple(a.channel.role for a in DEFAULT_AUX_INPUTS)
+    register_map: Path | None = None
 
 
 #: The bench signals the simulated plant gives the WFS's aux inputs, by role.
@@ -86,7 +91,7 @@ class SimulatedLab:
         )
         self.runner = BenchRunner(self.bench, paced=s.paced)
         self.runner.sinks.append(self.device)
-        self.server = ControllerServer(self.bench)
+        self.server = ControllerServer(self.bench, load_register_map(s.register_map))
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="sim-controller", daemon=True)
         self.address: tuple[str, int] = ("", 0)

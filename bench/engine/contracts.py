@@ -8,12 +8,42 @@ them may take longer than the link's documented timeouts.
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
-from sequences import Prompt
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
+from sequences import Prompt, Sweep
+
+
+@dataclass(frozen=True)
+class Notch:
+    """The drive lowered by the response limit ``limit``: to ``amplitude_mm`` from ``start_hz`` to
+    ``end_hz`` (a dwell's: its frequency)."""
+
+    limit: str
+    start_hz: float
+    end_hz: float
+    amplitude_mm: float
+
+
+class Notching(Protocol):
+    """Where a response would pass a response limit's notch level, the drive is lowered: a prediction
+    of the responses of what stands on the bench (the dry run's model), with the conditions the
+    sequence established (``tyre_pressure_bar``, ``wheel_fitted``, ...)."""
+
+    def dwell(
+        self, freq_hz: float, amplitude_mm: float, conditions: Mapping[str, Any], *, specimen: bool
+    ) -> Notch | None:
+        """The lowered amplitude of a dwell, or None when no response would pass its notch level;
+        ``specimen`` False for a free run (nothing on the plate)."""
+        ...
+
+    def sweep(self, step: Sweep, conditions: Mapping[str, Any]) -> Notch | None:
+        """The notch of a sweep (one band of its frequencies), or None."""
+        ...
 
 
 class ControllerStatus(Protocol):
@@ -56,6 +86,23 @@ class Excitable(Protocol):
         """Take defensive action: taper the excitation out and ramp the mean back to rest.
 
         Safe to call in any state; returns once the controller accepted the stop (not at rest)."""
+        ...
+
+
+class AmplitudeAdjustable(Protocol):
+    def update_amplitude(self, update: AmplitudeUpdate) -> None:
+        """Give the sine dwell holding now a new amplitude, ramped; the dwell then holds its hold
+        time again at it. LimitError (nothing written) outside the soft limits; CommandRejectedError
+        when the controller refuses it (no dwell holding, beyond its own limits, no such registers).
+        Only an actuator whose controller takes amplitude updates is asked."""
+        ...
+
+
+class FrequencyAdjustable(Protocol):
+    def update_frequency(self, update: FrequencyUpdate) -> None:
+        """Glide the sine dwell holding now to a new frequency, phase-continuously; the hold goes
+        on. LimitError (nothing written) outside the soft limits; CommandRejectedError when the
+        controller refuses it. Only an actuator whose controller takes frequency updates is asked."""
         ...
 
 

@@ -27,17 +27,28 @@ import numpy as np
 
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
+from bench.engine.amplitude_hold import AmplitudeHold, AmplitudeStep, HeldAmplitude
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Operator, ResumePlan, RunGate, SampleBlockLike
-from bench.engine.interlocks import Interlock, Observation, first_trip
+from bench.engine.contracts import (
+    Acquisition,
+    Actuator,
+    Notch,
+    Notching,
+    Operator,
+    ResumePlan,
+    RunGate,
+    SampleBlockLike,
+)
+from bench.engine.interlocks import Interlock, Observation, Trip, trips
 from bench.engine.online import DwellVerdict, OnlineDwell
-from bench.engine.points import ExcitationSpan, SpanTracker
+from bench.engine.points import ExcitationSpan, SpanTracker, excitation_frequency_hz, sweep_time_s
 from bench.engine.refinement import next_point
 from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
-from drivers.errors import CommandRejectedError, LimitError, LinkError
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
+from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
+from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepNotch, SweepSetpoint
 from sequences import (
     AdaptiveDwell,
     AnswerError,
@@ -51,10 +62,12 @@ from sequences import (
     SineDwell,
     Sweep,
     Tare,
+    TrackedDwell,
     step_fields,
 )
 from sequences.channels import STANDARD_CHANNELS, Role
-from sequences.points import PointStatus
+from sequences.points import PointStatus, Verdict
+from sequences.response_limits import LimitAction
 from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
@@ -180,6 +193,7 @@ class _PointPlan:
     dwell: SineDwell
     requested_mm: float
     added_reason: str = ""
+    notch: Notch | None = None
 
 
 class _PointInterruptedError(Exception):
@@ -204,6 +218,8 @@ class Engine:
         sync_bits: SyncBits,
         sample_rate_hz: float,
         amplitude_control: AmplitudeControl | None = None,
+        amplitude_hold: AmplitudeHold | None = None,
+        notching: Notching | None = None,
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
         tare: str = "never",
@@ -212,7 +228,11 @@ class Engine:
     ) -> None:
         """``tare``: "before_each_run" (the WFS is tared, at rest, before each run's stream starts),
         "once" (at the start of each sequence) or "never"; ``bench_kind``: "shaker" or
-        "four_post", recorded with every run's conditions."""
+        "four_post", recorded with every run's conditions; ``amplitude_hold``: hold a fixed-timing
+        dwell's amplitude within its hold by updates the actuator takes while running
+        (:mod:`bench.engine.amplitude_hold`; None: correct it by repeating the point); ``notching``:
+        lower the drive of dwells and sweeps where a response would pass a response limit's notch
+        level (sweeps only where the actuator notches them)."""
         self.actuator = actuator
         self.acquisition = acquisition
         self.operator = operator
@@ -221,6 +241,8 @@ class Engine:
         self.sync_bits = sync_bits
         self.sample_rate_hz = sample_rate_hz
         self.amplitude_control = amplitude_control or AmplitudeControl()
+        self.amplitude_hold = amplitude_hold
+        self.notching = notching
         self.timing = timing or EngineTiming()
         self.bus = bus or ev.EventBus()
         if tare not in ("before_each_run", "once", "never"):
@@ -454,6 +476,8 @@ class Engine:
     def _measure(self, run_id: str, step: object, held: RecordedRun) -> None:
         if isinstance(step, Sweep):
             self._sweep_run(run_id, step, held)
+        elif isinstance(step, TrackedDwell):
+            self._tracked_run(run_id, step, held)
         elif isinstance(step, HammerTest):
             self._hammer_run(run_id, step, held)
         else:
@@ -482,10 +506,13 @@ class Engine:
             self._adaptive_run(run_id, step, held)
             return
         dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+        # held within the dwell, each point starts with the command the gains measured so far
+        # expect: an update costs the hold again, a good first command none
+        gains = None if self.amplitude_hold is None else ServoGains()
         with _RunRecording(self, run_id, step, held.samples) as run:
             for index, dwell in enumerate(dwells):
                 if index not in held.done_points:
-                    self._point(run, index, dwell)
+                    self._point(run, index, dwell, gains=gains)
 
     def _adaptive_run(self, run_id: str, grid: DwellGrid, held: RecordedRun) -> None:
         """An adaptive grid, amplitude by amplitude: the grid's frequencies (points 0, 1, ... in grid
@@ -529,6 +556,7 @@ class Engine:
                     added_index += 1
 
     def _sweep_run(self, run_id: str, step: Sweep, held: RecordedRun) -> None:
+        notch = self._sweep_notch(step)
         setpoint = SweepSetpoint(
             step.start_hz,
             step.end_hz,
@@ -538,6 +566,7 @@ class Engine:
             taper_in_s=step.taper_in_s,
             taper_out_s=step.taper_out_s,
             mean_mm=self._mean(step.mean_mm),
+            notch=None if notch is None else SweepNotch(notch.start_hz, notch.end_hz, notch.amplitude_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
             attempt = 0
@@ -547,31 +576,193 @@ class Engine:
                 try:
                     span = run.excite(setpoint, planned_s=step.duration_s)
                 except _PointInterruptedError as interrupted:
-                    self._publish_sweep(run_id, step, attempt, PointStatus.INTERRUPTED, interrupted.span)
+                    self._publish_sweep(
+                        run, setpoint, attempt, PointStatus.INTERRUPTED, interrupted.span, notch=notch
+                    )
                     self._wait_paused()
                     continue
-                self._publish_sweep(run_id, step, attempt, PointStatus.DONE, span)
+                self._publish_sweep(run, setpoint, attempt, PointStatus.DONE, span, notch=notch)
                 return
 
+    def _tracked_run(self, run_id: str, step: TrackedDwell, held: RecordedRun) -> None:
+        """A tracked dwell: its search (points 0 .. n-1, adaptive dwells measuring the ratio), the
+        resonance found, then the track (point n). A resumed run searches again: the resonance
+        moves. A search that finds no resonance ends the sequence (aborted) with the reason."""
+        recorded = self.channels.recorded
+        output, input_ = recorded.resolve(step.output), recorded.resolve(step.input)
+        if output is None or input_ is None:
+            missing = [name for name in (step.output, step.input) if not recorded.resolve(name)]
+            raise RunStoppedError.fail(
+                f"tracked dwell: the bench records no channel {', '.join(missing)}"
+                f" (it has {', '.join(recorded.names)})"
+            )
+        if not getattr(self.actuator, "frequency_updates", False):
+            raise RunStoppedError.fail(
+                "tracked dwell: the controller takes no frequency update"
+                " (docs/protocols.md, *Frequency updates*)"
+            )
+        plan = replace(step.search_plan(), output=output, input=input_)
+        with _RunRecording(self, run_id, step, held.samples) as run:
+            freqs = step.search_freqs_hz()
+            frfs, gains = [], ServoGains()
+            for k, freq_hz in enumerate(freqs):
+                dwell = SineDwell(
+                    freq_hz,
+                    step.amplitude_mm,
+                    taper_in_s=step.taper_in_s,
+                    taper_out_s=step.taper_out_s,
+                    mean_mm=step.mean_mm,
+                )
+                frfs.append(self._point(run, k, dwell, plan=plan, gains=gains).frf)
+            resonance = find_resonance(np.array(freqs), np.array(frfs))
+            if resonance is None:
+                raise RunStoppedError.abort(
+                    f"tracked dwell {run_id}: no resonance of {output} / {input_} within"
+                    f" {freqs[0]:g}-{freqs[-1]:g} Hz (the largest ratio at an end of the search)"
+                )
+            self._track(run, len(freqs), step, resonance, (output, input_, self.channels.displacement))
+
+    def _track(
+        self,
+        run: _RunRecording,
+        index: int,
+        step: TrackedDwell,
+        resonance: Resonance,
+        channels: tuple[str, str, str],
+    ) -> None:
+        """The track: one dwell at the resonance until its length or a stop rule (repeated whole
+        after a pause), every look published; its point records the resonance found, the verdict
+        (tracked, or stopped with the reason) and the last look's resonance as achieved."""
+        attempt = 0
+        while True:
+            self._checkpoint()
+            attempt += 1
+            self.bus.publish(
+                ev.PointStarted(
+                    run.run_id, index, attempt, resonance.freq_hz, step.amplitude_mm, dict(self.conditions)
+                )
+            )
+
+            def update(freq_hz: float) -> str | None:
+                try:
+                    self.actuator.update_frequency(FrequencyUpdate(freq_hz, GLIDE_S))
+                except LimitError as exc:
+                    return f"refused by the soft limits: {exc}"
+                except CommandRejectedError as exc:
+                    return str(exc)
+                return None
+
+            def looked(window: TrackWindow) -> None:
+                self.bus.publish(
+                    ev.ResonanceTracked(
+                        run.run_id,
+                        index,
+                        window.sample,
+                        window.drive_hz,
+                        window.resonance_hz,
+                        abs(window.ratio),
+                        float(np.degrees(np.angle(window.ratio))),
+                        window.damping_ratio,
+                    )
+                )
+
+            watch = TrackWatch(
+                step,
+                resonance,
+                sample_rate_hz=self.sample_rate_hz,
+                channels=channels,
+                hold_bit=self.sync_bits.hold,
+                update=update,
+                on_window=looked,
+            )
+            setpoint = DwellSetpoint(
+                resonance.freq_hz,
+                step.amplitude_mm,
+                dwell_s=0.0,
+                taper_in_s=step.taper_in_s,
+                taper_out_s=step.taper_out_s,
+                mean_mm=self._mean(step.mean_mm),
+            )
+            # the track's length in cycles ends later at a lower frequency: allow for its band
+            track_s = step.track_length_s * (1 + step.freq_band_pct / 100)
+            planned_s = step.taper_in_s + track_s + step.taper_out_s
+            dwell = SineDwell(resonance.freq_hz, step.amplitude_mm)
+            point = _PointPlan(index, dwell, step.amplitude_mm)
+            try:
+                span = run.excite(setpoint, planned_s=planned_s, watch=watch)
+            except _PointInterruptedError as interrupted:
+                self._publish_point(
+                    run,
+                    point,
+                    attempt,
+                    PointStatus.INTERRUPTED,
+                    command_mm=step.amplitude_mm,
+                    span=interrupted.span,
+                )
+                self._wait_paused()
+                continue
+            self._publish_point(
+                run,
+                point,
+                attempt,
+                PointStatus.DONE,
+                command_mm=step.amplitude_mm,
+                span=span,
+                note=watch.reason,
+                tracked=Verdict.STOPPED if watch.reason else Verdict.TRACKED,
+            )
+            return
+
+    def _sweep_notch(self, step: Sweep) -> Notch | None:
+        """The notch of a sweep where a response would pass a limit's notch level, if the actuator
+        notches sweeps (a controller without the notch registers: none, the limits' actions guard)."""
+        if self.notching is None:
+            return None
+        notch = self.notching.sweep(step, self.conditions)
+        if notch is not None and not getattr(self.actuator, "sweep_notches", False):
+            log.warning("the controller notches no sweep: %s would be notched by %s", step, notch.limit)
+            return None
+        return notch
+
     def _publish_sweep(
-        self, run_id: str, step: Sweep, attempt: int, status: str, span: ExcitationSpan
+        self,
+        run: _RunRecording,
+        setpoint: SweepSetpoint,
+        attempt: int,
+        status: str,
+        span: ExcitationSpan,
+        *,
+        notch: Notch | None,
     ) -> None:
         """The sweep's one point: ``done``, or ``interrupted`` by a pause (the sweep is repeated from
-        its start on resume)."""
+        its start on resume); a notched sweep with its notch and the amplitude reached within it."""
+        notched = {}
+        if notch is not None:
+            t1, t2 = sorted(sweep_time_s(setpoint, f) for f in (notch.start_hz, notch.end_hz))
+            first, last = (span.start + round(t * self.sample_rate_hz) for t in (t1, t2))
+            z = run.displacement_between(first, min(last, span.end))
+            notched = {
+                "notched_by": notch.limit,
+                "notch_start_hz": notch.start_hz,
+                "notch_end_hz": notch.end_hz,
+                "notch_amplitude_mm": notch.amplitude_mm,
+                "achieved_amplitude_mm": 1e3 * float(np.ptp(z)) / 2 if z.size else float("nan"),
+            }
         self.bus.publish(
             ev.PointDone(
                 0,
-                step.start_hz,
-                step.amplitude_mm,
+                setpoint.start_hz,
+                setpoint.amplitude_mm,
                 span.start,
                 span.hold_start,
                 span.hold_end,
                 span.end,
                 status=status,
                 attempt=attempt,
-                requested_amplitude_mm=step.amplitude_mm,
-                commanded_amplitude_mm=step.amplitude_mm,
-                run_id=run_id,
+                requested_amplitude_mm=setpoint.amplitude_mm,
+                commanded_amplitude_mm=setpoint.amplitude_mm,
+                **notched,
+                run_id=run.run_id,
             )
         )
 
@@ -635,7 +826,16 @@ class Engine:
         With ``plan`` the hold lasts until the dwell's online verdicts (at most ``max_hold_s``) and
         the kept attempt's verdict is returned. With ``gains`` the first command is the one the
         servo gains measured so far expect to reach the target (within the command limit), and
-        every attempt adds its gain."""
+        every attempt adds its gain. Where a response would pass a response limit's notch level the
+        dwell's amplitude is lowered to what the notching allows (its nominal one recorded as
+        requested)."""
+        notch = None
+        if self.notching is not None:
+            specimen = not isinstance(run.step, FreeRun)
+            notch = self.notching.dwell(dwell.freq_hz, dwell.amplitude_mm, self.conditions, specimen=specimen)
+        if notch is not None:
+            nominal = dwell.requested_amplitude_mm or dwell.amplitude_mm
+            dwell = replace(dwell, amplitude_mm=notch.amplitude_mm, requested_amplitude_mm=nominal)
         command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
         if gains is not None:
             command_mm = min(
@@ -662,10 +862,11 @@ class Engine:
                 if plan is None
                 else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, self.channels.displacement)
             )
-            point = _PointPlan(index, dwell, requested, added_reason)
+            held = None if plan is not None else self._held_amplitude(run, index, attempt, dwell, command_mm)
+            point = _PointPlan(index, dwell, requested, added_reason, notch)
             try:
                 span = run.excite(
-                    setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch
+                    setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch, held=held
                 )
             except _PointInterruptedError as interrupted:
                 self._publish_point(
@@ -674,10 +875,12 @@ class Engine:
                 self._wait_paused()
                 continue
             verdict = None if watch is None else watch.verdict()
-            if verdict is None:
-                achieved = run.achieved_amplitude_mm(span, dwell)
-            else:
+            sent_mm = command_mm
+            if verdict is not None:
                 achieved = 1e3 * abs(verdict.displacement_m)
+            else:  # held within the dwell, the hold is the part after the last update's ramp
+                achieved = run.achieved_amplitude_mm(span, dwell)
+                command_mm = command_mm if held is None else held.command_mm
             if gains is not None:
                 gains.record(dwell.freq_hz, command_mm, achieved)
             decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
@@ -687,15 +890,66 @@ class Engine:
                 point,
                 attempt,
                 status,
-                command_mm=command_mm,
+                command_mm=sent_mm,
                 span=span,
                 achieved_mm=achieved,
-                note=decision.note,
+                note="; ".join(n for n in (held.refusal if held else "", decision.note) if n),
                 verdict=verdict,
+                held=held,
             )
             if decision.keep:
                 return verdict
             command_mm, corrections = decision.corrected_mm, corrections + 1
+
+    def _held_amplitude(
+        self, run: _RunRecording, index: int, attempt: int, dwell: SineDwell, command_mm: float
+    ) -> HeldAmplitude | None:
+        """The amplitude hold of one attempt at a fixed-timing dwell (None: the engine holds none)."""
+        settings = self.amplitude_hold
+        if settings is None:
+            return None
+        mean_mm = self._mean(dwell.mean_mm)
+
+        def update(amplitude_mm: float) -> str | None:
+            try:
+                self.actuator.update_amplitude(AmplitudeUpdate(amplitude_mm, settings.ramp_s, mean_mm))
+            except LimitError as exc:
+                return f"refused by the soft limits: {exc}"
+            except CommandOutcomeUnknownError as exc:
+                log.warning("amplitude update: %s; the hold sync output tells whether it came", exc)
+            except CommandRejectedError as exc:
+                return str(exc)
+            return None
+
+        def checked(step: AmplitudeStep) -> None:
+            self.bus.publish(
+                ev.AmplitudeChecked(
+                    run.run_id,
+                    index,
+                    attempt,
+                    step.sample,
+                    dwell.amplitude_mm,
+                    step.achieved_mm,
+                    step.command_mm,
+                    step.updated_mm,
+                    step.refusal,
+                )
+            )
+
+        return HeldAmplitude(
+            freq_hz=dwell.freq_hz,
+            target_mm=dwell.amplitude_mm,
+            command_mm=command_mm,
+            settle_s=dwell.settle_s,
+            hold_s=dwell.hold_s,
+            settings=settings,
+            max_command_mm=self.amplitude_control.max_command_mm,
+            sample_rate_hz=self.sample_rate_hz,
+            displacement=self.channels.displacement,
+            hold_bit=self.sync_bits.hold,
+            update=update,
+            on_step=checked,
+        )
 
     def _publish_point(
         self,
@@ -709,13 +963,29 @@ class Engine:
         achieved_mm: float = float("nan"),
         note: str = "",
         verdict: DwellVerdict | None = None,
+        held: HeldAmplitude | None = None,
+        tracked: str | None = None,
     ) -> None:
-        adaptive = {}
+        adaptive: dict[str, object] = {}  # what an adaptive dwell, a held amplitude or a notch adds
+        if point.notch is not None:
+            adaptive = {
+                "notched_by": point.notch.limit,
+                "notch_start_hz": point.notch.start_hz,
+                "notch_end_hz": point.notch.end_hz,
+                "notch_amplitude_mm": point.notch.amplitude_mm,
+            }
+        if held is not None and held.updates:
+            adaptive |= {
+                "amplitude_updates": held.updates,
+                "held_amplitude_mm": held.command_mm,
+            }
+        if tracked is not None:
+            adaptive |= {"verdict": tracked}
         if verdict is not None:
             measure_start = -1
             if np.isfinite(verdict.measure_start_s):
                 measure_start = span.hold_start + round(verdict.measure_start_s * self.sample_rate_hz)
-            adaptive = {
+            adaptive |= {
                 "verdict": verdict.verdict,
                 "settle_s": verdict.settle_s,
                 "measure_start_sample": min(measure_start, span.hold_end),
@@ -865,7 +1135,7 @@ class Engine:
 
 
 def is_measurement(step: object) -> bool:
-    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | HammerTest)
+    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | HammerTest)
 
 
 class _RunRecording:
@@ -886,6 +1156,7 @@ class _RunRecording:
         self._last_status_s = -np.inf
         self._stream_started_s = 0.0
         self._stall: tuple[float, float, int] | None = None  # open host stall: unread s, arrival, lost
+        self._limits_acted: set[str] = set()  # the limits milder than an interlock published this excitation
 
     def __enter__(self) -> _RunRecording:
         e = self.engine
@@ -973,10 +1244,10 @@ class _RunRecording:
         """The displacement's amplitude over the hold after its settling time (NaN: too short)."""
         settle = round(dwell.settle_s * self.engine.sample_rate_hz)
         start = min(span.hold_start + settle, span.hold_end)
-        z = self._displacement(start, span.hold_end)
+        z = self.displacement_between(start, span.hold_end)
         return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
 
-    def _displacement(self, start: int, stop: int) -> np.ndarray:
+    def displacement_between(self, start: int, stop: int) -> np.ndarray:
         """The recorded displacement from run sample ``start`` to ``stop``."""
         parts, end = [], self.samples
         for block in reversed(self.displacement):
@@ -989,18 +1260,26 @@ class _RunRecording:
         return np.concatenate(parts[::-1]) if parts else np.zeros(0)
 
     def excite(
-        self, setpoint: DwellSetpoint | SweepSetpoint, *, planned_s: float, watch: OnlineDwell | None = None
+        self,
+        setpoint: DwellSetpoint | SweepSetpoint,
+        *,
+        planned_s: float,
+        watch: OnlineDwell | None = None,
+        held: HeldAmplitude | None = None,
     ) -> ExcitationSpan:
         """Configure, start and record one excitation until the controller's active output falls.
 
         ``watch`` follows an adaptive dwell's hold block by block: once it is done the excitation is
-        stopped with its taper (the hold ends where the controller's hold output falls). A pause
+        stopped with its taper (the hold ends where the controller's hold output falls). ``held``
+        holds a dwell's amplitude within its hold, block by block (each update it makes lengthens
+        the excitation's planned duration). A pause
         request (the table ``pausing``) stops it with a taper and raises
         :class:`_PointInterruptedError` once it is at rest; an abort (``aborting``) tapers it out and
         ends the run; an e-stop or a tripped interlock ends the run."""
         e = self.engine
         e.actuator.configure(setpoint)
         e.actuator.start()
+        self._limits_acted = set()
         tracker = SpanTracker(e.sync_bits.active, e.sync_bits.hold)
         # the start watchdog waits for start_timeout_s of wall time and of samples, whichever is
         # later: a consumer behind the stream sees the start only once it has read up to it
@@ -1019,18 +1298,25 @@ class _RunRecording:
                 watch.feed(first, columns, tracker.hold_start, tracker.hold_end)
                 if watch.done and not stopping:
                     e._defensive_stop()
+            if held is not None and not stopping:
+                held.feed(first, columns)
             e._publish_changes()
             state = e.state
             if state is RunState.ESTOPPED:
                 raise RunStoppedError.estop()
-            self._guard(columns)
+            freq_hz = None
+            if tracker.started and columns:
+                t_s = (first + np.arange(len(columns["status"])) - tracker.start) / e.sample_rate_hz
+                freq_hz = excitation_frequency_hz(setpoint, t_s)
+            self._guard(columns, freq_hz=freq_hz)
             if not stopping and state in (RunState.PAUSING, RunState.ABORTING):
                 stopping = True
                 e._defensive_stop()
             elapsed = self.elapsed_samples
             if not tracker.started and e._clock() > start_deadline_s and elapsed > start_deadline:
                 self._trip("excitation watchdog", "the controller did not start the excitation")
-            if end_deadline is not None and not tracker.ended and elapsed > end_deadline:
+            extension = 0 if held is None else round(held.extension_s * e.sample_rate_hz)
+            if end_deadline is not None and not tracker.ended and elapsed > end_deadline + extension:
                 self._trip("excitation watchdog", "the excitation did not end when planned")
         # the controller's own stop (its e-stop button, a tripped limit, its watchdog) also ends the
         # excitation early: its status, read now, tells that from the planned end
@@ -1089,8 +1375,15 @@ class _RunRecording:
                 " (a busy machine, not the link)",
             )
 
-    def _guard(self, columns: Mapping[str, np.ndarray], *, read_status: bool = False) -> None:
-        """Check every interlock; the first that trips stops the actuator and ends the run.
+    def _guard(
+        self,
+        columns: Mapping[str, np.ndarray],
+        *,
+        read_status: bool = False,
+        freq_hz: np.ndarray | None = None,
+    ) -> None:
+        """Check every interlock and limit (``freq_hz``: the excitation's frequency at each sample of
+        ``columns``, None while none runs); the most severe that trips acts (:meth:`_act`).
 
         The controller's status is read every ``status_period_s``, or now when ``read_status``."""
         e = self.engine
@@ -1105,10 +1398,26 @@ class _RunRecording:
         # the link's silence is judged at the port, bounded by this stream's age (bytes of an
         # earlier stream do not count): bytes waiting there unread are the host's delay
         silence_s = 0.0 if columns else min(e.acquisition.link_silence_s(), now - self._stream_started_s)
-        seen = Observation(columns, controller, e.actuator.link_fault(), silence_s)
-        tripped = first_trip(e.interlocks, seen)
-        if tripped is not None:
-            self._trip(*tripped)
+        seen = Observation(columns, controller, e.actuator.link_fault(), silence_s, freq_hz)
+        for trip in trips(e.interlocks, seen):
+            self._act(trip)
+
+    def _act(self, trip: Trip) -> None:
+        """Do what a tripped check's action says: an interlock ends the run interlocked, a stop ends
+        the sequence aborted (both after a taper); a hold pauses the sequence (the point under way
+        tapered out, repeated on resume); an indication is recorded only. Each limit milder than an
+        interlock is published once per excitation."""
+        if trip.action is LimitAction.INTERLOCK:
+            self._trip(trip.name, trip.reason)
+        if trip.name in self._limits_acted:
+            return
+        self._limits_acted.add(trip.name)
+        e = self.engine
+        e.bus.publish(ev.LimitReached(self.run_id, trip.name, trip.reason, str(trip.action)))
+        if trip.action is LimitAction.STOP:
+            raise RunStoppedError.abort(f"{trip.name} (stop): {trip.reason}")
+        if trip.action is LimitAction.HOLD:
+            e.request_pause()
 
     def _trip(self, name: str, reason: str) -> NoReturn:
         """End the run on a tripped interlock: the ending stops the actuator with a taper and

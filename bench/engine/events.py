@@ -89,6 +89,60 @@ class PointDone(PointAttempt):
 
 
 @dataclass(frozen=True)
+class AmplitudeChecked:
+    """The amplitude of point ``index`` (attempt ``attempt``) of run ``run_id`` looked at within its
+    hold (:mod:`bench.engine.amplitude_hold`): ``achieved_mm`` over the window ending at run sample
+    ``sample`` under the command ``command_mm``; ``updated_mm`` the new amplitude sent (NaN: none),
+    ``refusal`` why an update that was due was not made."""
+
+    run_id: str
+    index: int
+    attempt: int
+    sample: int
+    target_mm: float
+    achieved_mm: float
+    command_mm: float
+    updated_mm: float
+    refusal: str = ""
+
+    @property
+    def text(self) -> str:
+        """How a log and the campaign file's events say it."""
+        said = (
+            f"point {self.index} attempt {self.attempt}: {self.achieved_mm:.4g} mm achieved of"
+            f" {self.target_mm:g} mm under {self.command_mm:.4g} mm"
+        )
+        if self.refusal:
+            return f"{said}; not updated: {self.refusal}"
+        if self.updated_mm == self.updated_mm:  # not NaN
+            return f"{said}; updated to {self.updated_mm:.4g} mm"
+        return said
+
+
+@dataclass(frozen=True)
+class ResonanceTracked:
+    """One look at the resonance point ``index`` of run ``run_id`` tracks
+    (:mod:`bench.engine.tracking`): the window's end (run sample), the drive frequency, the
+    resonance estimated there, the ratio's magnitude and phase, the damping ratio."""
+
+    run_id: str
+    index: int
+    sample: int
+    drive_hz: float
+    resonance_hz: float
+    ratio: float
+    phase_deg: float
+    damping_ratio: float
+
+    @property
+    def text(self) -> str:
+        return (
+            f"resonance {self.resonance_hz:.3f} Hz (drive {self.drive_hz:.3f} Hz), ratio {self.ratio:.4g}"
+            f" at {self.phase_deg:.1f} deg, damping ratio {self.damping_ratio:.4f}"
+        )
+
+
+@dataclass(frozen=True)
 class GridRefined:
     """An adaptive grid adds points to run ``run_id`` at the nominal ``amplitude_mm``: each
     ``(freq_hz, reason)`` in ``added``."""
@@ -131,6 +185,22 @@ def host_stall_text(event: HostStalled) -> str:
 
 
 @dataclass(frozen=True)
+class LimitReached:
+    """A limit tripped with an action milder than an interlock, during run ``run_id``: ``name`` (a
+    response limit's level, "wfs_fz alarm", or a graded interlock), why, and its ``action``
+    (indicate: recorded only; hold: the sequence pauses; stop: it ends, aborted)."""
+
+    run_id: str
+    name: str
+    reason: str
+    action: str
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} ({self.action}): {self.reason}"
+
+
+@dataclass(frozen=True)
 class InterlockTripped:
     name: str
     reason: str
@@ -168,10 +238,13 @@ Event = (
     | SamplesRecorded
     | PointStarted
     | PointDone
+    | AmplitudeChecked
+    | ResonanceTracked
     | GridRefined
     | PromptAsked
     | PromptAnswered
     | HostStalled
+    | LimitReached
     | InterlockTripped
     | RunFinished
     | AnalysisDone

@@ -27,6 +27,10 @@ from bench.store.csv_units import (
 from sequences.runs import RUN_KINDS, RunKind
 from sequences.toml_text import load_toml, toml_error_where
 
+#: The kinds of run a CSV export can hold: a tracked dwell's track is the engine's looks at its
+#: resonance, which no acquisition system's CSV carries.
+IMPORTED_KINDS = tuple(kind for kind in RUN_KINDS if kind is not RunKind.TRACKED_DWELL)
+
 SWEEP_LAWS = ("linear", "log")
 #: A run's own keys, by kind: the point-wise kinds list their points, a sweep is one file.
 _RUN_KEYS = {
@@ -449,7 +453,7 @@ class _Reader:
 
     def run(self, run: dict, i: int, name: str, defaults: _RunDefaults) -> RunMapping:
         where = f"runs[{i}]"
-        kind = self.choice(run, f"{where}.kind", RUN_KINDS, None)
+        kind = self.choice(run, f"{where}.kind", IMPORTED_KINDS, None)
         run_id = self.string(run, f"{where}.id", f"{name}-r{i:03d}-{kind}")
         pressure = run.get("tyre_pressure_bar")
         if pressure is not None:

@@ -32,6 +32,7 @@ from bench.analysis.records import (
     HammerRecord,
     SweepRecord,
 )
+from bench.analysis.tracking import TrackRecord
 from bench.store import schema as s
 from bench.store.results import read_tree
 from bench.store.schema import StoreError
@@ -46,6 +47,7 @@ REQUIRED_CHANNELS = {
     "free_run": FREE_RUN_CHANNELS,
     "sweep": WHEEL_CHANNELS,
     "hammer": (WFS_FORCE,),
+    "tracked_dwell": FREE_RUN_CHANNELS,
 }
 _ROOT_TEXT_ATTRS = (
     "software_version",
@@ -429,6 +431,27 @@ class RunView:
             if p.index == index:
                 return run, p
         raise StoreError(self.path, f"/{s.RUNS}/{self.run_id}/{s.POINTS}", f"no done point {index}")
+
+    def track_record(self) -> TrackRecord:
+        """The track of a tracked dwell: its looks (the run's ``track`` events) and how it ended
+        (its track point's verdict and note)."""
+        self._require(("tracked_dwell",), "track record")
+        looks = [e.fields for e in self.events if e.kind == "track"]
+        done = [p for run, p in self._done_points() if p.verdict in (Verdict.TRACKED, Verdict.STOPPED)]
+
+        def column(name: str) -> np.ndarray:
+            return np.array([float(look[name]) for look in looks])
+
+        return TrackRecord(
+            column("sample") / self.sample_rate_hz,
+            column("drive_hz"),
+            column("resonance_hz"),
+            column("ratio"),
+            column("phase_deg"),
+            column("damping_ratio"),
+            done[-1].verdict if done else "",
+            done[-1].note if done else "",
+        )
 
     def sweep_record(self) -> SweepRecord:
         """The sweep (point 0) with its start, end, duration and amplitude from the run's step."""

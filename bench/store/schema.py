@@ -72,8 +72,20 @@ _STR = h5py.string_dtype("utf-8")
 _COLUMN_TYPES = {"int": "<i8", "float": "<f8", "str": _STR}
 #: The points table: one column per field of :class:`~sequences.points.PointAttempt`, same names.
 POINT_DTYPE = np.dtype([(f.name, _COLUMN_TYPES[f.type]) for f in fields(PointAttempt)])
-#: Points-table fields of adaptive dwells, added to version-1 files after the first were written:
-#: a reader takes a version-1 table without them, with these values.
+#: Points-table fields added to version-2 files after the first were written (the amplitude held
+#: within the dwell, the notch of a response limit): a reader takes a table without them, with
+#: these values.
+VERSION_2_ADDED_POINT_FIELDS: dict[str, object] = {
+    "amplitude_updates": 0,
+    "held_amplitude_mm": math.nan,
+    "notched_by": "",
+    "notch_start_hz": math.nan,
+    "notch_end_hz": math.nan,
+    "notch_amplitude_mm": math.nan,
+}
+#: Points-table fields of adaptive dwells, added to version-1 files after the first were written,
+#: and the fields added to version 2 since: a reader takes a version-1 table without them, with
+#: these values.
 OPTIONAL_POINT_FIELDS: dict[str, object] = {
     "verdict": "",
     "settle_s": math.nan,
@@ -81,6 +93,7 @@ OPTIONAL_POINT_FIELDS: dict[str, object] = {
     "magnitude_uncertainty_pct": math.nan,
     "phase_uncertainty_deg": math.nan,
     "added_reason": "",
+    **VERSION_2_ADDED_POINT_FIELDS,
 }
 #: Version 1 stored ``corrected_amplitude_mm`` (NaN when the command was the step's amplitude) and
 #: ``settled`` where version 2 stores ``commanded_amplitude_mm`` and the verdict alone.
@@ -90,7 +103,7 @@ VERSION_1_POINT_FIELDS = ("corrected_amplitude_mm", "settled")
 def required_point_fields(version: int) -> tuple[str, ...]:
     """The columns a points table of schema ``version`` must have."""
     if version >= 2:
-        return POINT_DTYPE.names
+        return tuple(n for n in POINT_DTYPE.names if n not in VERSION_2_ADDED_POINT_FIELDS)
     kept = (n for n in POINT_DTYPE.names if n not in OPTIONAL_POINT_FIELDS and n != "commanded_amplitude_mm")
     return (*kept, *VERSION_1_POINT_FIELDS)
 

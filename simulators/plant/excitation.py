@@ -8,6 +8,7 @@ its operating point.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -130,6 +131,105 @@ class Sweep:
         if self.spacing == "linear":
             return self.start_hz + (self.end_hz - self.start_hz) * x
         return self.start_hz * (self.end_hz / self.start_hz) ** x
+
+    def time_at_s(self, freq_hz: float) -> float:
+        """When (s from the start) the sweep passes ``freq_hz`` (clipped to the sweep)."""
+        if self.start_hz == self.end_hz:
+            return 0.0
+        if self.spacing == "linear":
+            x = (freq_hz - self.start_hz) / (self.end_hz - self.start_hz)
+        else:
+            x = math.log(freq_hz / self.start_hz) / math.log(self.end_hz / self.start_hz)
+        return min(max(x, 0.0), 1.0) * self.sweep_s
+
+
+@dataclass(frozen=True)
+class RetunedDwell:
+    """A sine dwell whose frequency was changed during its hold, phase-continuously: each change
+    ``(t_s, to_hz, glide_s)`` glides linearly from the frequency before it to ``to_hz`` over
+    ``glide_s`` from ``t_s`` (s from the dwell's start), in order."""
+
+    dwell: SineDwell
+    changes: tuple[tuple[float, float, float], ...] = ()
+
+    @property
+    def duration_s(self) -> float:
+        return self.dwell.duration_s
+
+    @property
+    def amplitude(self) -> float:
+        return self.dwell.amplitude
+
+    def frequency_hz(self, t_s: float) -> float:
+        freq = self.dwell.freq_hz
+        for start_s, to_hz, glide_s in self.changes:
+            if t_s <= start_s:
+                break
+            if t_s < start_s + glide_s:
+                return freq + (to_hz - freq) * (t_s - start_s) / glide_s
+            freq = to_hz
+        return freq
+
+    def phase_rad(self, t_s: np.ndarray) -> np.ndarray:
+        """The sine's phase: the integral of the frequency from the start."""
+        t = np.asarray(t_s, dtype=float)
+        phase = 2 * np.pi * self.dwell.freq_hz * t
+        freq = self.dwell.freq_hz
+        for start_s, to_hz, glide_s in self.changes:
+            tau = np.clip(t - start_s, 0.0, None)
+            gliding = np.minimum(tau, glide_s)
+            phase = phase + 2 * np.pi * (to_hz - freq) * (gliding**2 / (2 * glide_s) + (tau - gliding))
+            freq = to_hz
+        return phase
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        d = self.dwell
+        env = taper_envelope(t, d.duration_s, d.taper_in_s, d.taper_out_s)
+        return d.amplitude * env * np.sin(self.phase_rad(t))
+
+
+@dataclass(frozen=True)
+class NotchedSweep:
+    """A sweep whose amplitude is lowered to ``notch_amplitude`` from ``notch_start_hz`` to
+    ``notch_end_hz`` (a response limit's notch): it ramps down along a raised cosine over ``ramp_s``
+    before the notch's first frequency and back up over ``ramp_s`` after its last."""
+
+    sweep: Sweep
+    notch_start_hz: float
+    notch_end_hz: float
+    notch_amplitude: float
+    ramp_s: float
+
+    def __post_init__(self) -> None:
+        lo, hi = sorted((self.sweep.start_hz, self.sweep.end_hz))
+        if not lo <= self.notch_start_hz < self.notch_end_hz <= hi or not self.ramp_s > 0:
+            raise ValueError(f"notch {self.notch_start_hz}-{self.notch_end_hz} Hz not within {lo}-{hi} Hz")
+        if not 0 <= self.notch_amplitude <= self.sweep.amplitude:
+            raise ValueError(f"notch amplitude {self.notch_amplitude} above the sweep's")
+
+    @property
+    def duration_s(self) -> float:
+        return self.sweep.duration_s
+
+    @property
+    def amplitude(self) -> float:
+        return self.sweep.amplitude
+
+    def frequency_hz(self, t_s: float) -> float:
+        return self.sweep.frequency_hz(t_s)
+
+    def notch_window_s(self) -> tuple[float, float]:
+        """When (s from the start) the sweep passes the notch's first and last frequency."""
+        t = sorted(self.sweep.time_at_s(f) for f in (self.notch_start_hz, self.notch_end_hz))
+        return t[0], t[1]
+
+    def value(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        t1, t2 = self.notch_window_s()
+        dip = taper_envelope(t - (t1 - self.ramp_s), t2 - t1 + 2 * self.ramp_s, self.ramp_s, self.ramp_s)
+        scale = 1 - (1 - self.notch_amplitude / self.sweep.amplitude) * dip if self.sweep.amplitude else 1.0
+        return self.sweep.value(t) * scale
 
 
 @dataclass(frozen=True)

@@ -336,6 +336,21 @@ class PlantSimulator:
         self.converter_fz_n = np.zeros(0)
         self.converter_z_base_m = np.zeros(0)
 
+    def retune(self, setup: BenchSetup) -> None:
+        """Change the values of what is mounted while it moves (a tyre warming up), not what it is:
+        the network keeps its states, so the mechanical state carries over; the operating point is
+        linearised anew at the next :meth:`set_operating_point`. ValueError for another kind of
+        setup (that is a :meth:`mount`, at rest)."""
+        if setup.kind is not self.setup.kind or setup.model is not self.setup.model:
+            raise ValueError(f"retune keeps the kind and model of the setup ({self.setup.kind.value})")
+        self.setup = setup
+        self._nominal_network = setup.network()
+        operating, self._operating_point = self._operating_point, None
+        if operating is None:
+            self._stepper = self._build_stepper(self._nominal_network, 1.0)
+        else:
+            self.set_operating_point(*operating)
+
     # ------------------------------------------------------------------ offline runs
     def simulate(self, waveform: Waveform, extra_s: float = 0.0) -> dict[str, np.ndarray]:
         """Run a whole waveform from rest; channels aligned with the waveform's time axis.
