@@ -28,8 +28,8 @@ def _unit(name: str) -> str:
 @dataclass(frozen=True)
 class StoredRun:
     """One run to write: ``kind`` (``free_run``, ``dwell_grid``, ``hammer``), its records, its
-    ``conditions`` and ``status``; ``channels``: the names written (default: every channel of
-    the first record)."""
+    ``conditions`` and ``status`` with its ``reason``; ``channels``: the names written (default:
+    every channel of the first record); ``events``: (kind, text) recorded after its records."""
 
     run_id: str
     kind: str
@@ -37,6 +37,8 @@ class StoredRun:
     conditions: dict[str, Any] = field(default_factory=dict)
     status: str = "complete"
     channels: tuple[str, ...] | None = None
+    reason: str = ""
+    events: tuple[tuple[str, str], ...] = ()
 
 
 def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None = None) -> Path:
@@ -86,5 +88,7 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
                         requested_amplitude_mm=nominal_mm,
                     )
                 )
-            run.finish(stored.status)
+            for kind, text in stored.events:
+                run.add_event(kind, text)
+            run.finish(stored.status, stored.reason)
     return path
