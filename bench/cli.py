@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
+from bench.cli_archive import add_archive_commands
 from drivers.errors import LinkError
 
 #: exit codes of ``wfsbench run`` (docs/cli.md)
@@ -382,6 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
     status.set_defaults(run=_actuator_status)
     add_analysis_commands(sub)
+    add_archive_commands(sub)
     return parser
 
 

@@ -162,6 +162,7 @@ def set_campaign(path: Path, campaign: ArchiveCampaign) -> None:
 def copy_campaign(source: Path, path: Path, campaign: ArchiveCampaign) -> Path:
     """A copy of the campaign file ``source`` given the metadata and dates of ``campaign`` (its
     measurements stay those of ``source``): another file of the archive at the cost of a copy."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(source, path)
     set_campaign(path, campaign)
     return path
