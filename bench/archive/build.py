@@ -161,24 +161,30 @@ def _read(path: str) -> tuple[FileStatus, str | None, Row, list[Row]]:
         return FileStatus.LOCKED, f"{err.message}: skipped", {}, []
     except StoreError as err:
         foreign = err.where == "/@schema" or not h5py.is_hdf5(path)
-        return (FileStatus.NOT_CAMPAIGN if foreign else FileStatus.DAMAGED), str(err), {}, []
+        return (FileStatus.NOT_CAMPAIGN if foreign else FileStatus.DAMAGED), _error(path, err), {}, []
     with campaign:
         try:
             columns = campaign_columns(campaign)
         except OSError as err:
-            return FileStatus.DAMAGED, f"{path}: unreadable attributes ({err})", {}, []
+            return FileStatus.DAMAGED, f"/: unreadable attributes ({err})", {}, []
         status, error, analysis = FileStatus.INDEXED, None, None
         try:
             analysis = analyze_campaign(path)
         except (StoreError, CampaignFileError) as err:
-            status, error = FileStatus.NOT_ANALYSED, str(err)
+            status, error = FileStatus.NOT_ANALYSED, _error(path, err)
         except Exception as err:  # a defect met in one file of an archive must not stop the others
             status, error = FileStatus.NOT_ANALYSED, f"the analysis raised {type(err).__name__}: {err}"
         try:
             rows = campaign_rows(campaign, analysis)
         except StoreError as err:  # a stored result that cannot be read
-            return FileStatus.DAMAGED, str(err), {}, []
+            return FileStatus.DAMAGED, _error(path, err), {}, []
     return status, error, columns, rows
+
+
+def _error(path: str, err: Exception) -> str:
+    """An error's message without the file's path in front (the row names the file)."""
+    text = str(err)
+    return text.removeprefix(f"{path}: ")
 
 
 class Executor(Protocol):
