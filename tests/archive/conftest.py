@@ -33,7 +33,7 @@ COPIES = (
 )
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def archive(tmp_path_factory) -> dict[Path, ArchiveCampaign]:
     """The archive's files and what each stands for."""
     directory = tmp_path_factory.mktemp("archive")
@@ -44,7 +44,7 @@ def archive(tmp_path_factory) -> dict[Path, ArchiveCampaign]:
     return files
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def archive_index(archive, tmp_path_factory) -> Path:
     """The archive's index, built in this process."""
     out = tmp_path_factory.mktemp("index") / "results"
