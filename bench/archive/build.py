@@ -354,7 +354,8 @@ class _Run:
         held = self.held.get(outcome.path)
         if outcome.rows is None:  # contents indexed already: their rows, under this path and stat
             assert outcome.sha256 is not None and outcome.stat is not None
-            source = self.held[self.by_contents[outcome.stat.size_bytes][outcome.sha256]]
+            same = held is not None and held.sha256 == outcome.sha256
+            source = held if same else self.held[self.by_contents[outcome.stat.size_bytes][outcome.sha256]]
             if source.path == outcome.path and source.stat == outcome.stat:
                 self.summary.unchanged += 1  # verified: nothing to rewrite
             else:

@@ -27,8 +27,9 @@ from bench.archive.files import FileStat
 
 PART_NAME = re.compile(r"^part-(?P<generation>[0-9]{6})-(?P<n>[0-9]{5})\.parquet$")
 _TEMPORARY = re.compile(r"^\.part-.*\.tmp$")
-#: Rows a part's row group holds (fewer at a part's end).
-ROWS_PER_GROUP = 8192
+#: Rows a part's row group holds (fewer at a part's end): few enough that the rows held before they are
+#: written stay a few MB (the client's memory must not grow with the archive), many enough for readers.
+ROWS_PER_GROUP = 2048
 #: Files whose rows one part holds at most: parts of a few MB, few enough files for a glob.
 FILES_PER_PART = 1024
 _FILE_VIEW = ("path", "size_bytes", "mtime_ns", "sha256", "file_status")
