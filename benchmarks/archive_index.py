@@ -10,6 +10,8 @@ from another's warm caches in the process (the files are in the page cache for a
 - ``in_process``: the baseline, every file read in the command's own process (``--workers 0``);
 - ``dask``: a ``dask.distributed`` local cluster of ``--workers`` processes (its start and stop
   timed apart), the index built on it;
+- ``split``: the machine's own parallel capacity, without Dask: ``--workers`` plain processes
+  started together, each indexing its share in itself (the cores may be busy with other work);
 - ``reindex``: the same archive again into the index just built: nothing changed, nothing read;
 - memory: the peak resident memory of the indexing process (and of the Dask workers), for the
   first ``--small`` files and for all of them: it must not grow with the number of files.
@@ -42,11 +44,12 @@ def _rchar() -> int:
         return next(int(line.split()[1]) for line in io if line.startswith("rchar:"))
 
 
-def measure(mode: str, archive: Path, files: int, out: Path, workers: int) -> dict:
-    """One measurement in this (fresh) process: index the first ``files`` files of ``archive``."""
+def measure(mode: str, archive: Path, files: int, out: Path, workers: int, *, first: int = 0) -> dict:
+    """One measurement in this (fresh) process: index ``files`` files of ``archive`` from the
+    ``first``."""
     from bench.archive.build import InProcess, OnDask, build_index, dask_client
 
-    roots = sorted(archive.glob("campaign-*.h5"))[:files]
+    roots = sorted(archive.glob("campaign-*.h5"))[first : first + files]
     start, cpu, rchar = time.perf_counter(), time.process_time(), _rchar()
     figures: dict = {}
     if mode == "dask":
@@ -81,13 +84,34 @@ def measure(mode: str, archive: Path, files: int, out: Path, workers: int) -> di
     }
 
 
+def _command(mode: str, archive: Path, files: int, out: Path, workers: int, *, first: int = 0) -> list[str]:
+    """The command line of :func:`measure` in a new Python process."""
+    command = [sys.executable, __file__, "--measure", mode, "--dir", str(archive), "--files", str(files)]
+    return [*command, "--first", str(first), "--out", str(out), "--workers", str(workers)]
+
+
+_ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
 def run_fresh(mode: str, archive: Path, files: int, out: Path, workers: int) -> dict:
     """:func:`measure` in a new Python process."""
-    command = [sys.executable, __file__, "--measure", mode, "--dir", str(archive), "--files", str(files)]
-    command += ["--out", str(out), "--workers", str(workers)]
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    done = subprocess.run(command, capture_output=True, text=True, check=True, env=env)
+    done = subprocess.run(
+        _command(mode, archive, files, out, workers), capture_output=True, text=True, check=True, env=_ENV
+    )
     return json.loads(done.stdout.splitlines()[-1])
+
+
+def run_split(archive: Path, files: int, out: Path, workers: int) -> dict:
+    """The machine's own parallel capacity, without Dask: ``workers`` plain processes started
+    together, each indexing its share of the archive in itself; the wall time of the slowest
+    (inside it, like every other figure: the interpreter's start is not counted)."""
+    share = -(-files // workers)
+    commands = [
+        _command("in_process", archive, share, out / str(n), workers, first=n * share) for n in range(workers)
+    ]
+    running = [subprocess.Popen(c, stdout=subprocess.PIPE, text=True, env=_ENV) for c in commands]
+    results = [json.loads(p.communicate()[0].splitlines()[-1]) for p in running]
+    return {"wall_s": max(r["wall_s"] for r in results), "cpu_s": sum(r["cpu_s"] for r in results)}
 
 
 def main() -> None:
@@ -98,9 +122,12 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--measure", choices=("in_process", "dask"), help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--first", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
-        print(json.dumps(measure(args.measure, args.dir, args.files, args.out, args.workers)))
+        print(
+            json.dumps(measure(args.measure, args.dir, args.files, args.out, args.workers, first=args.first))
+        )
         return
 
     from tests.archive_files import write_archive
@@ -118,6 +145,7 @@ def main() -> None:
     )
     try:
         runs = {name: run_fresh(mode, args.dir, n, work / out, args.workers) for name, mode, n, out in plan}
+        runs["split"] = run_split(args.dir, args.files, work / "split", args.workers)
     finally:
         shutil.rmtree(work)
     report(runs, args.workers)
@@ -138,6 +166,13 @@ def report(runs: dict[str, dict], workers: int) -> None:
         f"local Dask cluster, {workers} processes: {dask['wall_s']:.1f} s wall ({phases});"
         f" {base['wall_s'] / dask['wall_s']:.2f}x the baseline's speed, the index alone"
         f" {base['wall_s'] / dask['index_s']:.2f}x; workers' processor {dask['workers_cpu_s']:.1f} s"
+    )
+    split = runs["split"]
+    print(
+        f"{workers} plain processes, each its share, no Dask: {split['wall_s']:.1f} s wall,"
+        f" {base['wall_s'] / split['wall_s']:.2f}x the baseline's speed (what the machine's cores give now);"
+        f" the Dask cluster {split['wall_s'] / dask['wall_s']:.2f}x their speed, the index alone"
+        f" {split['wall_s'] / dask['index_s']:.2f}x"
     )
     print(
         f"re-index of the unchanged archive: {again['wall_s']:.2f} s, {again['opened']} files read,"
