@@ -28,8 +28,8 @@ def _unit(name: str) -> str:
 @dataclass(frozen=True)
 class StoredRun:
     """One run to write: ``kind`` (``free_run``, ``dwell_grid``, ``hammer``), its records, its
-    ``conditions`` and ``status`` with its ``reason``; ``channels``: the names written (default:
-    every channel of the first record); ``events``: (kind, text) recorded after its records."""
+    ``conditions`` and ``status``; ``channels``: the names written (default: every channel of
+    the first record)."""
 
     run_id: str
     kind: str
@@ -37,8 +37,8 @@ class StoredRun:
     conditions: dict[str, Any] = field(default_factory=dict)
     status: str = "complete"
     channels: tuple[str, ...] | None = None
-    reason: str = ""
-    events: tuple[tuple[str, str], ...] = ()
+    reason: str = ""  # why the run ended as it did (its ``status``)
+    events: tuple[tuple[str, str], ...] = ()  # (kind, text) of events recorded after its records
 
 
 def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None = None) -> Path:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections import Counter, defaultdict
 from dataclasses import dataclass
 from datetime import date, datetime
+from html import escape
 from pathlib import Path
 
 import pyarrow.compute as pc
@@ -28,7 +29,11 @@ from matplotlib.figure import Figure
 from bench.archive import columns as c
 from bench.archive.store import IndexDirError, check_part, part_paths
 from bench.report.figures import DPI, FigureFile
-from bench.report.html import figure_html, page_html, table_html
+
+# the report page's style and builders, so that both pages look alike
+from bench.report.html import _STYLE
+from bench.report.html import _figure as figure_html
+from bench.report.html import _table as table_html
 
 TRENDS_PAGE = "trends.html"
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -283,10 +288,18 @@ def write_trends(index_dir: str | Path, out_dir: str | Path) -> WrittenTrends:
             figures.append(FigureFile(name, title, caption, path))
     page = out_dir / TRENDS_PAGE
     page.write_text(
-        page_html(f"wfs-bench archive trends: {index_dir}", _sections(data, figures, points, freqs, stops)),
+        _page(f"wfs-bench archive trends: {index_dir}", _sections(data, figures, points, freqs, stops)),
         encoding="utf-8",
     )
     return WrittenTrends(page, tuple(figures))
+
+
+def _page(title: str, sections: list[tuple[str, str]]) -> str:
+    """The page: self-contained like the report's, in its style."""
+    body = "".join(f"<h2>{escape(heading)}</h2>{content}" for heading, content in sections)
+    head = f'<meta charset="utf-8"><title>{escape(title)}</title><style>{_STYLE}</style>'
+    page = f"<head>{head}</head><body><h1>{escape(title)}</h1>{body}</body>"
+    return f'<!DOCTYPE html><html lang="en">{page}</html>\n'
 
 
 def _sections(

@@ -29,7 +29,7 @@ pre { background: #f7f7f7; padding: 0.5em; overflow-x: auto; font-size: 0.8em; }
 """
 
 
-def table_html(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
+def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
     """A table; floats and ints are right-aligned."""
 
     def cell(value: object) -> str:
@@ -52,7 +52,7 @@ def _band_row(what: str, band: ValidBand) -> tuple[str, ...]:
     return what, lowest, upper, band.starts_at, band.limited_by, skipped
 
 
-def figure_html(fig: FigureFile) -> str:
+def _figure(fig: FigureFile) -> str:
     data = base64.b64encode(fig.path.read_bytes()).decode("ascii")
     return (
         f'<figure id="{escape(fig.name)}"><img alt="{escape(fig.title)}" src="data:image/png;base64,{data}">'
@@ -67,7 +67,7 @@ def _sequences_run(analysis: CampaignAnalysis) -> str:
 
 
 def _campaign(analysis: CampaignAnalysis) -> str:
-    return table_html(
+    return _table(
         ("item", "value"),
         (
             ("file", analysis.path),
@@ -94,7 +94,7 @@ def _sensor(analysis: CampaignAnalysis) -> str:
             f"<p>No hammer test: the sensor is taken as {k.sensor.eigenfrequency_hz:g} Hz, damping ratio"
             f" {k.sensor.damping_ratio:.3g} ({escape(k.sensor_source.text)}).</p>"
         )
-    return table_html(
+    return _table(
         ("quantity", "value", "unit"),
         (
             ("eigenfrequency (undamped)", _g(h.eigenfrequency_hz, 5), "Hz"),
@@ -122,7 +122,7 @@ def _plate_masses(analysis: CampaignAnalysis) -> str:
         for run in analysis.knowledge.plate_masses
     ]
     header = ("plate", "free run", "m_comp (kg)", "+/- 95 % (kg)", "dwells used")
-    return table_html(header, rows) if rows else "<p>none</p>"
+    return _table(header, rows) if rows else "<p>none</p>"
 
 
 def _parameters(analysis: CampaignAnalysis) -> str:
@@ -148,7 +148,7 @@ def _parameters(analysis: CampaignAnalysis) -> str:
                     )
     if not rows:
         return "<p>No shaker identification in this file.</p>"
-    return table_html(("pressure", "amplitude", "model", "parameter", "value", "+/- 95 %", "", "BIC"), rows)
+    return _table(("pressure", "amplitude", "model", "parameter", "value", "+/- 95 %", "", "BIC"), rows)
 
 
 def _dependence(analysis: CampaignAnalysis) -> str:
@@ -171,7 +171,7 @@ def _dependence(analysis: CampaignAnalysis) -> str:
             )
     if not rows:
         return "<p>none</p>"
-    return table_html(("pressure", "amplitude", "k (kN/m, 95 %)", "change", "d (Ns/m)", "change"), rows)
+    return _table(("pressure", "amplitude", "k (kN/m, 95 %)", "change", "d (Ns/m)", "change"), rows)
 
 
 def _four_post(analysis: CampaignAnalysis) -> str:
@@ -179,7 +179,7 @@ def _four_post(analysis: CampaignAnalysis) -> str:
     if r is None:
         return "<p>No four-post sweep in this file.</p>"
     m, car = r.wheel_mass, r.quarter_car
-    mass = table_html(
+    mass = _table(
         ("quantity", "value"),
         (
             ("run", r.label),
@@ -197,14 +197,14 @@ def _four_post(analysis: CampaignAnalysis) -> str:
             ("unreliable bins", f"{r.unreliable_bins} of {r.frfs.wfs_per_z.freq_hz.size}"),
         ),
     )
-    params = table_html(
+    params = _table(
         ("quarter-car parameter", "value", "+/- 95 %", ""),
         (
             (n, _g(v, 6), _g(car.ci95[n], 2), "NOT DETERMINED" if n in car.undetermined else "")
             for n, v in car.values.items()
         ),
     )
-    modes = table_html(
+    modes = _table(
         ("mode", "frequency (Hz)", "+/- 95 % (Hz)", "damping ratio"),
         (
             (
@@ -258,7 +258,7 @@ def _bands(analysis: CampaignAnalysis) -> str:
         f"<p>Tolerance: | |H| - 1 | &lt;= {100 * any_band.amplitude_tolerance:g} % and |phase| &lt;="
         f" {any_band.phase_tolerance_deg:g} deg, every point from the lowest reliable one on.</p>"
     )
-    return tolerance + table_html(
+    return tolerance + _table(
         ("ratio", "from (Hz)", "up to (Hz)", "starts", "ends because", "skips (Hz)"), rows
     )
 
@@ -267,7 +267,7 @@ def _flags(analysis: CampaignAnalysis) -> str:
     rows = [(run.run_id, line) for run in analysis.runs for line in run.lines if "FLAG" in line]
     if not rows:
         return "<p>No flags.</p>"
-    return table_html(("run", "flag"), rows).replace("<td>FLAG", '<td class="flag">FLAG')
+    return _table(("run", "flag"), rows).replace("<td>FLAG", '<td class="flag">FLAG')
 
 
 def _summaries(analysis: CampaignAnalysis) -> str:
@@ -289,15 +289,11 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
         ("Four-post: m_wheel and the quarter car", _four_post(analysis)),
         ("Valid bands", _bands(analysis)),
         ("Flags", _flags(analysis)),
-        ("Figures", "".join(figure_html(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
+        ("Figures", "".join(_figure(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
         ("Run summaries", _summaries(analysis)),
     ]
-    return page_html(f"wfs-bench report: {analysis.path.name}", sections)
-
-
-def page_html(title: str, sections: Sequence[tuple[str, str]]) -> str:
-    """A self-contained page: ``title``, then each section's heading and HTML content."""
-    body = "".join(f"<h2>{escape(heading)}</h2>{content}" for heading, content in sections)
+    body = "".join(f"<h2>{escape(title)}</h2>{content}" for title, content in sections)
+    title = f"wfs-bench report: {analysis.path.name}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{escape(title)}</title>'
         f"<style>{_STYLE}</style></head><body><h1>{escape(title)}</h1>{body}</body></html>\n"
