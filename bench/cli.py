@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from bench.cli_analysis import add_analysis_commands
+from bench.cli_archive import add_archive_commands
 from bench.cli_compensate import add_compensate_command
 from bench.cli_export import add_export_command
 from bench.cli_metadata import add_meta_option
@@ -402,6 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_analysis_commands(sub)
     add_export_command(sub)
     add_compensate_command(sub)
+    add_archive_commands(sub)
     return parser
 
 

@@ -37,6 +37,8 @@ class StoredRun:
     conditions: dict[str, Any] = field(default_factory=dict)
     status: str = "complete"
     channels: tuple[str, ...] | None = None
+    reason: str = ""  # why the run ended as it did (its ``status``)
+    events: tuple[tuple[str, str], ...] = ()  # (kind, text) of events recorded after its records
 
 
 def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None = None) -> Path:
@@ -94,5 +96,7 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
                         requested_amplitude_mm=nominal_mm,
                     )
                 )
-            run.finish(stored.status)
+            for kind, text in stored.events:
+                run.add_event(kind, text)
+            run.finish(stored.status, stored.reason)
     return path

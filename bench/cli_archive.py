@@ -1,0 +1,165 @@
+"""``wfsbench index`` and ``wfsbench trends``: campaign archives indexed into Parquet on Dask, and
+their trends drawn from the index (docs/index.md).
+
+Exit codes (both commands):
+
+- 0: done; for ``index``, every file found is in the index, those that could not be read listed
+  with their status and error (on standard output, and in the index);
+- 2: the Dask scheduler could not be reached, or another index run holds the index directory;
+- 3: invalid input: a path that does not exist, an index directory that cannot be used (a file,
+  not writable, or an index of another version); for ``trends``, an index missing or empty, or an
+  output directory that cannot be used: nothing was written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.archive.build import FileOutcome, IndexSummary
+
+EXIT_OK = 0
+EXIT_LINK = 2
+EXIT_INVALID = 3
+
+
+class _Bar:
+    """A progress bar on standard error while the index runs (files done of those to read so far:
+    the directories are walked as the files are read, so the total grows until the walk ends)."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.progress = Progress(
+            TextColumn("indexing"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            TextColumn("{task.fields[problems]}"),
+            console=Console(stderr=True),
+            transient=True,
+        )
+        self.task = self.progress.add_task("index", total=0, problems="")
+        self.to_read = self.problems = 0
+
+    def listed(self, path: str, *, to_read: bool) -> None:
+        if to_read:
+            self.to_read += 1
+            self.progress.update(self.task, total=self.to_read)
+
+    def done(self, outcome: FileOutcome) -> None:
+        if outcome.error is not None:
+            self.problems += 1
+        self.progress.update(
+            self.task, advance=1, problems=f"{self.problems} not indexed" if self.problems else ""
+        )
+
+
+def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
+    """What the run did, then each file not (fully) indexed with its status and error."""
+    read = ", ".join(f"{n} {status}" for status, n in sorted(summary.statuses.items())) or "none"
+    lines = [
+        f"index {out}: {summary.found} files found; {summary.unchanged} unchanged, not read; read: {read};"
+        f" {summary.same_contents} with the contents of indexed files; {summary.removed} gone from the index;"
+        f" {summary.rows_written} rows written"
+    ]
+    lines.extend(f"{status}: {path}: {error}" for path, status, error in summary.problems)
+    return lines
+
+
+def _index(args: argparse.Namespace) -> int:
+    from bench.archive.build import InProcess, OnDask, build_index, dask_client
+    from bench.archive.store import IndexDirError
+    from bench.locks import InUseError
+
+    roots = [Path(p) for p in args.paths]
+    missing = [str(p) for p in roots if not p.exists()]
+    if missing:
+        print(f"error: no such file or directory: {', '.join(missing)}", file=sys.stderr)
+        return EXIT_INVALID
+    out = Path(args.out)
+    bar = _Bar()
+    try:
+        with bar.progress:
+            if args.workers == 0 and not args.scheduler:
+                summary = build_index(roots, out, InProcess(), verify=args.verify, progress=bar)
+            else:
+                with dask_client(args.scheduler, args.workers or os.cpu_count() or 1) as client:
+                    summary = build_index(roots, out, OnDask(client), verify=args.verify, progress=bar)
+    except IndexDirError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except (InUseError, OSError) as exc:  # another index run; a scheduler that does not answer
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LINK
+    for line in summary_lines(summary, out):
+        print(line)
+    return EXIT_OK
+
+
+def _trends(args: argparse.Namespace) -> int:
+    from bench.app.report import ReportDirError, check_report_dir
+    from bench.archive.store import IndexDirError
+    from bench.archive.trends import write_trends
+
+    try:
+        check_report_dir(Path(args.out))
+        written = write_trends(Path(args.results), Path(args.out))
+    except (IndexDirError, ReportDirError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    for figure in written.figures:
+        print(f"figure {figure.path}")
+    print(f"trends {written.page}")
+    return EXIT_OK
+
+
+def add_archive_commands(sub: argparse._SubParsersAction) -> None:
+    """Add ``index`` and ``trends`` to the ``wfsbench`` subcommands."""
+    index = sub.add_parser(
+        "index",
+        help="index every campaign file under some directories into Parquet, on Dask",
+        description="Index every campaign file (*.h5, *.hdf5) under the PATHs into the index directory"
+        " RESULTS (Parquet parts, docs/index.md): metadata, runs, stored results and the identification"
+        " of an analysis made in memory (the files are only read). Files indexed before and unchanged"
+        " are not read again; files that are not campaigns, damaged, locked by a recording bench or being"
+        " written are listed with their error. Runs on a local Dask cluster of processes, or on the"
+        " cluster of --scheduler.",
+    )
+    index.add_argument(
+        "paths", nargs="+", metavar="PATH", help="a directory (searched recursively) or a file"
+    )
+    index.add_argument(
+        "--out", required=True, metavar="RESULTS", help="index directory (created, or brought up to date)"
+    )
+    index.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a dask.distributed scheduler (tcp://host:8786)"
+    )
+    index.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="processes of the local cluster (default: the machine's cores); 0: in this process, no cluster",
+    )
+    index.add_argument(
+        "--verify", action="store_true", help="hash every file, not only those whose size or time changed"
+    )
+    index.set_defaults(run=_index)
+    trends = sub.add_parser(
+        "trends",
+        help="figures of an index: tyres against pressure, sensors over time, interlocks per month",
+        description="Draw from the index RESULTS each tyre's stiffness and damping against pressure, each"
+        " sensor's eigenfrequency over time and the interlocks per bench and month, as PNG figures and"
+        " one self-contained trends.html in DIR (docs/index.md).",
+    )
+    trends.add_argument("results", metavar="RESULTS", help="index directory written by wfsbench index")
+    trends.add_argument(
+        "--out", required=True, metavar="DIR", help="directory for the figures and trends.html"
+    )
+    trends.set_defaults(run=_trends)
