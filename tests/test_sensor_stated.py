@@ -26,9 +26,9 @@ from tests.campaign_files import StoredRun, write_campaign
 TRUE_SENSOR = WfsSensor(eigenfrequency_hz=1600.0, damping_ratio=0.03)
 STATED = parse_bench_config("[sensor]\neigenfrequency_hz = 1600\ndamping_ratio = 0.03\n", "lab.toml")
 AMPLITUDE_M = 5e-3
-#: A correct 95 % interval covers the truth in at least 18 of 20 fixed seeds (as
-#: tests/analysis/test_analysis_coverage.py), and in 2 or 3 of 3 with probability 0.99.
-MIN_COVERED_OF_20, MIN_COVERED_OF_3 = 18, 2
+#: A correct 95 % interval covers the truth in fewer than 8 of 10 seeds with probability 1.2 %, and
+#: in fewer than 2 of 3 with probability 0.7 % (the seeds are fixed: a pass is a pass).
+MIN_COVERED_OF_10, MIN_COVERED_OF_3 = 8, 2
 
 
 def test_the_sensor_table_is_read_recorded_and_refused_naming_the_key():
@@ -81,12 +81,13 @@ def test_the_stated_sensor_gives_intervals_that_cover_the_truth_and_the_assumed_
 
 
 @pytest.mark.slow
-def test_over_20_seeds_the_stated_sensor_covers_and_the_assumed_one_never_does():
-    seeds = range(20)
+def test_over_10_seeds_the_stated_sensor_covers_and_the_assumed_one_never_does():
+    """The intervals' coverage over 100 seeds: tests/analysis/test_analysis_coverage.py."""
+    seeds = range(10)
     wrong, _ = _stiffness_covered(default_bench_config(), seeds)
     right, _ = _stiffness_covered(STATED, seeds)
-    print(f"\n  stiffness covered in {wrong} of 20 seeds told 2200 Hz, {right} of 20 told 1600 Hz")
-    assert wrong == 0 and right >= MIN_COVERED_OF_20
+    print(f"\n  stiffness covered in {wrong} of 10 seeds told 2200 Hz, {right} of 10 told 1600 Hz")
+    assert wrong == 0 and right >= MIN_COVERED_OF_10
 
 
 @pytest.fixture(scope="module")
