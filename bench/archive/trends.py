@@ -31,9 +31,7 @@ from bench.archive.store import IndexDirError, check_part, part_paths
 from bench.report.figures import DPI, FigureFile
 
 # the report page's style and builders, so that both pages look alike
-from bench.report.html import _STYLE
-from bench.report.html import _figure as figure_html
-from bench.report.html import _table as table_html
+from bench.report.html import PAGE_STYLE, figure_html, table_html
 
 TRENDS_PAGE = "trends.html"
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -297,7 +295,7 @@ def write_trends(index_dir: str | Path, out_dir: str | Path) -> WrittenTrends:
 def _page(title: str, sections: list[tuple[str, str]]) -> str:
     """The page: self-contained like the report's, in its style."""
     body = "".join(f"<h2>{escape(heading)}</h2>{content}" for heading, content in sections)
-    head = f'<meta charset="utf-8"><title>{escape(title)}</title><style>{_STYLE}</style>'
+    head = f'<meta charset="utf-8"><title>{escape(title)}</title><style>{PAGE_STYLE}</style>'
     page = f"<head>{head}</head><body><h1>{escape(title)}</h1>{body}</body>"
     return f'<!DOCTYPE html><html lang="en">{page}</html>\n'
 

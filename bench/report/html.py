@@ -24,7 +24,7 @@ from bench.analysis.lsq import Z95
 from bench.report.figures import FigureFile
 from bench.report.metadata import metadata_html
 
-_STYLE = """
+PAGE_STYLE = """
 body { font-family: sans-serif; max-width: 72em; margin: 1em auto; padding: 0 1em; color: #222;
   overflow-wrap: break-word; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
@@ -41,7 +41,7 @@ pre { background: #f7f7f7; padding: 0.5em; white-space: pre-wrap; font-size: 0.8
 """
 
 
-def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
+def table_html(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
     """A table (in a box that scrolls by itself where a narrow window cannot hold it); floats and
     ints are right-aligned."""
 
@@ -65,7 +65,7 @@ def _band_row(what: str, band: ValidBand) -> tuple[str, ...]:
     return what, lowest, upper, band.starts_at, band.limited_by, skipped
 
 
-def _figure(fig: FigureFile) -> str:
+def figure_html(fig: FigureFile) -> str:
     data = base64.b64encode(fig.path.read_bytes()).decode("ascii")
     return (
         f'<figure id="{escape(fig.name)}"><img alt="{escape(fig.title)}" src="data:image/png;base64,{data}">'
@@ -80,7 +80,7 @@ def _sequences_run(analysis: CampaignAnalysis) -> str:
 
 
 def _campaign(analysis: CampaignAnalysis) -> str:
-    return _table(
+    return table_html(
         ("item", "value"),
         (
             ("file", analysis.path),
@@ -107,7 +107,7 @@ def _sensor(analysis: CampaignAnalysis) -> str:
             f"<p>No hammer test: the sensor is taken as {k.sensor.eigenfrequency_hz:g} Hz, damping ratio"
             f" {k.sensor.damping_ratio:.3g} ({escape(k.sensor_source.text)}).</p>"
         )
-    return _table(
+    return table_html(
         ("quantity", "value", "unit"),
         (
             ("eigenfrequency (undamped)", _g(h.eigenfrequency_hz, 5), "Hz"),
@@ -135,7 +135,7 @@ def _plate_masses(analysis: CampaignAnalysis) -> str:
         for run in analysis.knowledge.plate_masses
     ]
     header = ("plate", "free run", "m_comp (kg)", "+/- 95 % (kg)", "dwells used")
-    return _table(header, rows) if rows else "<p>none</p>"
+    return table_html(header, rows) if rows else "<p>none</p>"
 
 
 def _parameters(analysis: CampaignAnalysis) -> str:
@@ -161,7 +161,7 @@ def _parameters(analysis: CampaignAnalysis) -> str:
                     )
     if not rows:
         return "<p>No shaker identification in this file.</p>"
-    return _table(("pressure", "amplitude", "model", "parameter", "value", "+/- 95 %", "", "BIC"), rows)
+    return table_html(("pressure", "amplitude", "model", "parameter", "value", "+/- 95 %", "", "BIC"), rows)
 
 
 def _dependence(analysis: CampaignAnalysis) -> str:
@@ -184,7 +184,7 @@ def _dependence(analysis: CampaignAnalysis) -> str:
             )
     if not rows:
         return "<p>none</p>"
-    return _table(("pressure", "amplitude", "k (kN/m, 95 %)", "change", "d (Ns/m)", "change"), rows)
+    return table_html(("pressure", "amplitude", "k (kN/m, 95 %)", "change", "d (Ns/m)", "change"), rows)
 
 
 def _four_post(analysis: CampaignAnalysis) -> str:
@@ -192,7 +192,7 @@ def _four_post(analysis: CampaignAnalysis) -> str:
     if r is None:
         return "<p>No four-post sweep in this file.</p>"
     m, car = r.wheel_mass, r.quarter_car
-    mass = _table(
+    mass = table_html(
         ("quantity", "value"),
         (
             ("run", r.label),
@@ -210,14 +210,14 @@ def _four_post(analysis: CampaignAnalysis) -> str:
             ("unreliable bins", f"{r.unreliable_bins} of {r.frfs.wfs_per_z.freq_hz.size}"),
         ),
     )
-    params = _table(
+    params = table_html(
         ("quarter-car parameter", "value", "+/- 95 %", ""),
         (
             (n, _g(v, 6), _g(car.ci95[n], 2), "NOT DETERMINED" if n in car.undetermined else "")
             for n, v in car.values.items()
         ),
     )
-    modes = _table(
+    modes = table_html(
         ("mode", "frequency (Hz)", "+/- 95 % (Hz)", "damping ratio"),
         (
             (
@@ -271,7 +271,7 @@ def _bands(analysis: CampaignAnalysis) -> str:
         f"<p>Tolerance: | |H| - 1 | &lt;= {100 * any_band.amplitude_tolerance:g} % and |phase| &lt;="
         f" {any_band.phase_tolerance_deg:g} deg, every point from the lowest reliable one on.</p>"
     )
-    return tolerance + _table(
+    return tolerance + table_html(
         ("ratio", "from (Hz)", "up to (Hz)", "starts", "ends because", "skips (Hz)"), rows
     )
 
@@ -359,7 +359,7 @@ def _summary(analysis: CampaignAnalysis) -> str:
             "valid band compensated",
             "more parameters (95 %)",
         )
-        tyre = _table(header, rows).replace("<table>", '<table class="summary">', 1)
+        tyre = table_html(header, rows).replace("<table>", '<table class="summary">', 1)
     else:
         tyre = "<p>No shaker identification in this file.</p>"
     k = analysis.knowledge
@@ -403,7 +403,7 @@ def _flags(analysis: CampaignAnalysis) -> str:
     rows = [(run.run_id, line) for run in analysis.runs for line in run.lines if "FLAG" in line]
     if not rows:
         return "<p>No flags.</p>"
-    return _table(("run", "flag"), rows).replace("<td>FLAG", '<td class="flag">FLAG')
+    return table_html(("run", "flag"), rows).replace("<td>FLAG", '<td class="flag">FLAG')
 
 
 def _summaries(analysis: CampaignAnalysis) -> str:
@@ -428,7 +428,7 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
     main = [
         ("Summary: tyre, sensor and valid bands", _summary(analysis)),
         ("Flags", _flags(analysis)),
-        ("Figures", "".join(_figure(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
+        ("Figures", "".join(figure_html(f) for f in figures) or "<p>No figure: nothing analysed.</p>"),
     ]
     appendix = [
         ("Campaign", _campaign(analysis)),
@@ -446,5 +446,5 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
     title = f"wfs-bench report: {analysis.path.name}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{escape(title)}</title>'
-        f"<style>{_STYLE}</style></head><body>{_heading(analysis)}{body}</body></html>\n"
+        f"<style>{PAGE_STYLE}</style></head><body>{_heading(analysis)}{body}</body></html>\n"
     )
