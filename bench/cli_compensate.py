@@ -34,12 +34,17 @@ def _measurement(args: argparse.Namespace):
     """The measurement and its tyre pressure (the option's, else the one its source records)."""
     from bench.store import StoreError
     from bench.store.csv_mapping import MappingError, load_channel_mapping
-    from bench.store.measurement import MeasurementError, MissingChannelError, read_measurement
+    from bench.store.measurement import (
+        MeasurementError,
+        MissingChannelError,
+        NotOnTheTyreError,
+        read_measurement,
+    )
 
     try:
         mapping = load_channel_mapping(args.mapping) if args.mapping else None
         measurement = read_measurement(args.measurement, run_id=args.run_id, mapping=mapping)
-    except MissingChannelError as exc:
+    except (MissingChannelError, NotOnTheTyreError) as exc:
         raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
     except (MappingError, MeasurementError, StoreError) as exc:
         raise _StopError(EXIT_INVALID, f"error: {exc}") from None

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bench.analysis.measurement_compensation import CompensationStream, design_filters
-from bench.analysis.records import FREE_RUN_CHANNELS
+from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
 from bench.app.analyze import analyze_campaign
 from bench.app.compensate import CompensationRefusedError, prepare_compensation
 from bench.cli import main
@@ -31,7 +31,13 @@ from bench.simulated_campaign import (
     simulate_sweep,
 )
 from bench.simulated_road import simulate_road, validate_on_road
-from bench.store.measurement import Measurement, MeasurementError, MissingChannelError, read_measurement
+from bench.store.measurement import (
+    Measurement,
+    MeasurementError,
+    MissingChannelError,
+    NotOnTheTyreError,
+    read_measurement,
+)
 from tests.campaign_files import StoredRun, write_campaign
 
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
@@ -274,3 +280,17 @@ def test_the_command_loads_no_device_client_simulator_engine_or_plotting(campaig
         tmp_path, "compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(tmp_path / "o.h5")
     )
     assert (code, loaded) == (EXIT_OK, [])
+
+
+def test_a_run_recorded_without_the_wheel_is_refused_even_with_every_channel(tmp_path, capsys):
+    """A free run (the wheel removed) records WFS Fz and the hub acceleration too, but no tyre's
+    contact force: refused (exit 4) whatever pressure is given, not compensated into noise."""
+    free = simulate_dwells(BenchSetup.paper_free_run(), FREE_RUN_GRID_HZ[:3], 2e-3, seed=4)
+    runs = [StoredRun("bare", "free_run", tuple(free), {"wheel_fitted": False}, channels=WHEEL_CHANNELS)]
+    path = write_campaign(tmp_path / "bare.h5", runs)
+    with pytest.raises(NotOnTheTyreError, match=r"run bare \(free_run\) was recorded without the wheel"):
+        read_measurement(path, run_id="bare")
+    out = tmp_path / "out.h5"
+    args = ["compensate", str(path), str(path), "--run", "bare", "--pressure", "2.5", "--out", str(out)]
+    assert main(args) == EXIT_REFUSED
+    assert "without the wheel on the bench" in capsys.readouterr().err and not out.exists()

@@ -109,7 +109,8 @@ class PostRunAnalysis:
         if findings:
             return (
                 f"the free run {last.run_id} gives an m_comp not to be trusted: {findings[0]};"
-                " the runs after it would correct their contact force with it (repeat the free run)"
+                " the runs after it would correct their contact force with it (repeat the free run into a"
+                " new campaign file: a resume of this one stops here again)"
             )
         return None
 

@@ -81,7 +81,17 @@ def _analysis_values(
         & (ds.field("analysis") == analysis)
         & ds.field("parameter").isin(parameters)
     )
-    return data.to_table(columns=columns, filter=where).to_pylist()
+    wanted = list(dict.fromkeys([*columns, "path", "sha256"]))
+    return one_copy_each(data.to_table(columns=wanted, filter=where).to_pylist())
+
+
+def one_copy_each(rows: list[dict]) -> list[dict]:
+    """The rows of one file per content: a campaign copied under other paths (the same SHA-256)
+    counts once, under the first of its paths in sort order."""
+    first: dict[str, str] = {}
+    for row in rows:
+        first[row["sha256"]] = min(first.get(row["sha256"], row["path"]), row["path"])
+    return [row for row in rows if row["path"] == first[row["sha256"]]]
 
 
 def tyre_label(row: dict) -> str:
@@ -163,7 +173,8 @@ def _date(text: str | None) -> date | None:
 def interlocks(data: ds.Dataset) -> Counter[tuple[str, str]]:
     """Runs that ended interlocked, by (bench, month ``YYYY-MM`` of the run's start)."""
     where = (ds.field("entry") == c.RUN) & (ds.field("run_status") == "interlocked")
-    rows = data.to_table(columns=["bench_id", "run_started", "created"], filter=where).to_pylist()
+    columns = ["bench_id", "run_started", "created", "path", "sha256"]
+    rows = one_copy_each(data.to_table(columns=columns, filter=where).to_pylist())
     return Counter(
         (row["bench_id"] or "unnamed bench", (row["run_started"] or row["created"]).strftime("%Y-%m"))
         for row in rows

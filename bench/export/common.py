@@ -47,6 +47,16 @@ def output_file(out: Path, suffix: str = "") -> Iterator[Path]:
         temporary.unlink(missing_ok=True)
 
 
+_FOLDER_MODE = 0o777
+
+
+def _umask() -> int:
+    """The process's file-mode creation mask (read by setting it, then put back)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def output_folder(out: Path) -> Iterator[Path]:
     """A temporary folder beside ``out`` to write the export's files into; renamed to ``out`` when
@@ -55,6 +65,7 @@ def output_folder(out: Path) -> Iterator[Path]:
     temporary = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent))
     try:
         yield temporary
+        temporary.chmod(_FOLDER_MODE & ~_umask())  # as a plain mkdir would: mkdtemp makes it private
         temporary.rename(out)
     finally:
         if temporary.exists():

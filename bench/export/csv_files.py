@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.engine.run_ids import RUN_ID
 from bench.export.common import done_points, output_folder
 from bench.store import CampaignFile, RunView
 from bench.store.csv_units import channel_si_unit, unit_named
@@ -122,8 +123,12 @@ def _run_table(run: RunView) -> Iterator[str]:
 
 
 def mapping_text(campaign: CampaignFile, runs: list[RunView], bench: str) -> str:
-    """The mapping that imports ``runs`` (all on ``bench``) from their CSV files."""
-    name = re.sub(r"[^A-Za-z0-9_.-]", "_", campaign.sequence_name) or "campaign"
+    """The mapping that imports ``runs`` (all on ``bench``) from their CSV files, named after the
+    sequence that recorded the first of them (its run id's; the campaign's first sequence for a
+    run id of another writer)."""
+    recorded = RUN_ID.match(runs[0].run_id) if runs else None
+    sequence = recorded.group("sequence") if recorded else campaign.sequence_name
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", sequence) or "campaign"
     lines = [
         f"# wfsbench export of {campaign.path.name}: import with  wfsbench import-csv THIS_FILE --out FILE",
         "[source]",

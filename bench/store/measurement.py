@@ -1,7 +1,7 @@
 """A measurement to compensate, read from an MDF4 file, a CSV file or a campaign file's run: the WFS
 Fz and the hub acceleration in SI units at one sample rate (docs/compensate.md).
 
-- **MDF4** (``.mf4``, ``.mdf``; read with asammdf): the channels named by the mapping's
+- **MDF4** (``.mf4``, ``.mdf``, ``.mdf4``; read with asammdf): the channels named by the mapping's
   ``channels`` table (``column`` is the MDF channel's name), by default ``fz_wfs_n`` and
   ``a_hub_m_s2``; the unit is the mapping's, else the channel's own (``kN``, ``g``, ...), which
   must be one of the quantity's (docs/import.md's units); both channels on one time base.
@@ -31,7 +31,7 @@ from bench.store.reader import open_campaign
 MEASUREMENT_CHANNELS = (WFS_FORCE, HUB_ACCELERATION)
 #: The time column of a CSV measurement read without a mapping.
 DEFAULT_TIME_COLUMN = "t_s"
-MDF_SUFFIXES = (".mf4", ".mdf")
+MDF_SUFFIXES = (".mf4", ".mdf", ".mdf4")
 CAMPAIGN_SUFFIXES = (".h5", ".hdf5")
 
 
@@ -42,6 +42,11 @@ class MeasurementError(ValueError):
 class MissingChannelError(MeasurementError):
     """The measurement lacks a channel the compensation needs: the message names it and what the
     file has."""
+
+
+class NotOnTheTyreError(MeasurementError):
+    """The measurement was recorded without a tyre on the sensor (a free run): refused like a
+    measurement the campaign does not cover."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +106,7 @@ def read_measurement(
     if suffix == ".csv":
         return _csv(path, mapping)  # the CSV reader refuses a value that is not a finite number
     raise MeasurementError(
-        f"{path}: unknown measurement format {suffix!r}: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign"
+        f"{path}: unknown measurement format {suffix!r}: MDF4 (.mf4, .mdf, .mdf4), CSV (.csv) or a campaign"
         " file's run (.h5 with --run)"
     )
 
@@ -133,6 +138,11 @@ def _campaign_run(path: Path, run_id: str | None) -> Measurement:
         if missing:
             raise MissingChannelError(
                 f"{path}: run {run_id}: no {', '.join(missing)} channel (it has {', '.join(channels)})"
+            )
+        if run.kind == "free_run" or run.conditions.get("wheel_fitted") is False:
+            raise NotOnTheTyreError(
+                f"{path}: run {run_id} ({run.kind}) was recorded without the wheel on the bench: its WFS"
+                " measured no tyre's contact force, there is nothing to compensate"
             )
         pressure = run.conditions.get("tyre_pressure_bar")
         return Measurement(
@@ -184,7 +194,8 @@ def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
             if len(mdf.channels_db[column.column]) > 1:
                 raise MeasurementError(
                     f"{path}: channel {column.column!r} is in {len(mdf.channels_db[column.column])}"
-                    " groups: which one is the measurement's is ambiguous"
+                    " groups: which one is the measurement's is ambiguous (a file of one measurement"
+                    " is needed; of a campaign's MDF4 export: `wfsbench export --run ID` writes one run)"
                 )
             signals[column.channel] = (column, mdf.get(column.column))
     times = [signal.timestamps for _, signal in signals.values()]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from bench.archive.trends import _dataset, eigenfrequencies, interlocks, tyre_points
+from bench.archive.trends import _dataset, eigenfrequencies, interlocks, one_copy_each, tyre_points
 from bench.cli import main
 from tests.archive.conftest import COPIES, SIMULATED
 
@@ -37,3 +37,14 @@ def test_trends_refuses_an_empty_index(tmp_path, capsys):
     assert main(["trends", str(tmp_path / "empty"), "--out", str(tmp_path / "out")]) == 3
     assert "an empty index" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_campaign_copied_under_another_path_counts_once():
+    """The index lists every path (a copy is a file of its own); the trends count each content once,
+    under its first path."""
+    rows = [
+        {"path": "/b/copy.h5", "sha256": "aa", "value": 1.0},
+        {"path": "/a/campaign.h5", "sha256": "aa", "value": 1.0},
+        {"path": "/a/other.h5", "sha256": "bb", "value": 2.0},
+    ]
+    assert one_copy_each(rows) == rows[1:]
