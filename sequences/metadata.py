@@ -61,12 +61,12 @@ def metadata_value(name: str, value: object) -> str:
         kind = "a date and time" if isinstance(value, datetime.datetime) else type(value).__name__
         raise ValueError(f"expected text (a string in quotes), got {value!r} ({kind})")
     if name in DATE_FIELDS and value:
-        try:
-            ok = _ISO_DATE.fullmatch(value) is not None and datetime.date.fromisoformat(value)
-        except ValueError:
-            ok = False
-        if not ok:
+        if _ISO_DATE.fullmatch(value) is None:
             raise ValueError(f"{value!r} is not a date written YYYY-MM-DD (e.g. 2026-03-01)")
+        try:
+            datetime.date.fromisoformat(value)
+        except ValueError:
+            raise ValueError(f"{value!r} is no date of the calendar (month 1-12, its days)") from None
     return value
 
 

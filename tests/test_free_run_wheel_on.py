@@ -86,7 +86,8 @@ def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped
         "smoke: aborted: stopped before smoke-s008-dwell_grid: the free run smoke-s002-free_run gives an"
         " m_comp not to be trusted: m_comp misses the free run far outside its noise"
     ) in run.stdout
-    assert "(was the specimen removed?)" in run.stdout and "(repeat the free run into a new campaign file" in run.stdout
+    assert "(was the specimen removed?)" in run.stdout
+    assert "(repeat the free run into a new campaign file" in run.stdout
     with open_campaign(path) as campaign:
         assert [(r.kind, r.status) for r in campaign.runs] == [("free_run", "complete")]
 

@@ -27,7 +27,7 @@ GARBAGE = [
     ('notes = ["a", "b"]', "metadata.notes", "(list)"),
     ("bench_id = 2026-03-01", "metadata.bench_id", "(date)"),
     ('sensor_calibration_date = "01.03.2026"', "metadata.sensor_calibration_date", "not a date written"),
-    ('sensor_calibration_date = "2026-02-30"', "metadata.sensor_calibration_date", "not a date written"),
+    ('sensor_calibration_date = "2026-02-30"', "metadata.sensor_calibration_date", "no date of the calendar"),
     ('sensor_calibration_date = "20260301"', "metadata.sensor_calibration_date", "YYYY-MM-DD"),
     ("sensor_calibration_date = 2026-03-01T10:00:00", "metadata.sensor_calibration_date", "a date and time"),
 ]
@@ -120,7 +120,7 @@ def test_meta_on_the_command_line_collects_its_keys_and_refuses_garbage(capsys):
     for bad, words in (
         ("tyre_idd=1", "tyre_idd: unknown key; allowed: bench_id"),
         ("operator", "'operator': expected KEY=VALUE, one of bench_id"),
-        ("sensor_calibration_date=2026-13-01", "sensor_calibration_date: '2026-13-01' is not a date written"),
+        ("sensor_calibration_date=2026-13-01", "'2026-13-01' is no date of the calendar"),
     ):
         for command in (
             ["run", "s.toml", "--out", "a.h5"],
