@@ -120,7 +120,7 @@ def test_meta_on_the_command_line_collects_its_keys_and_refuses_garbage(capsys):
     for bad, words in (
         ("tyre_idd=1", "tyre_idd: unknown key; allowed: bench_id"),
         ("operator", "'operator': expected KEY=VALUE, one of bench_id"),
-        ("sensor_calibration_date=2026-13-01", "'2026-13-01' is no date of the calendar"),
+        ("sensor_calibration_date=2026-13-01", "sensor_calibration_date: '2026-13-01' is no date of"),
     ):
         for command in (
             ["run", "s.toml", "--out", "a.h5"],
