@@ -113,7 +113,7 @@ class AmplitudeChecked:
             f" {self.target_mm:g} mm under {self.command_mm:.4g} mm"
         )
         if self.refusal:
-            return f"{said}; not updated: {self.refusal}"
+            return f"{said}; not updated ({self.refusal}): the amplitude control's repeat takes over"
         if self.updated_mm == self.updated_mm:  # not NaN
             return f"{said}; updated to {self.updated_mm:.4g} mm"
         return said
