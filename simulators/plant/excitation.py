@@ -15,6 +15,8 @@ from typing import Protocol
 import numpy as np
 from scipy import signal
 
+from drivers.setpoints import equivalent_sine
+
 
 class Waveform(Protocol):
     """A finite excitation starting at t = 0."""
@@ -269,7 +271,8 @@ class SampledDrive:
     A non-linear tyre is linearised at one operating point for the whole drive (a broadband drive
     has no single frequency): the equivalent sine of the drive, the frequency ``sigma_v / (2 pi
     sigma_z)`` and amplitude ``sqrt(2) sigma_z`` of the sine with the drive's rms displacement and
-    rms velocity, is what :meth:`frequency_hz` and :attr:`amplitude` report.
+    rms velocity (:func:`drivers.setpoints.equivalent_sine`), is what :meth:`frequency_hz` and
+    :attr:`amplitude` report.
     """
 
     displacement_m: np.ndarray
@@ -284,11 +287,9 @@ class SampledDrive:
         if z.ndim != 1 or z.size < 2 or not np.all(np.isfinite(z)) or not self.sample_rate_hz > 0:
             raise ValueError("a sampled drive needs at least two finite samples and a positive rate")
         _check_taper(self.duration_s, self.taper_in_s, self.taper_out_s)
-        sigma_z = float(np.std(z))
-        sigma_v = float(np.std(np.diff(z))) * self.sample_rate_hz
         object.__setattr__(self, "displacement_m", z)
-        object.__setattr__(self, "amplitude", np.sqrt(2) * sigma_z)
-        frequency_hz = sigma_v / (2 * np.pi * sigma_z) if sigma_z else 0.0
+        amplitude, frequency_hz = equivalent_sine(z, self.sample_rate_hz)
+        object.__setattr__(self, "amplitude", amplitude)
         object.__setattr__(self, "equivalent_frequency_hz", frequency_hz)
 
     @property
