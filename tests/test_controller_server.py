@@ -121,8 +121,9 @@ async def test_power_up_registers_show_the_values_in_force(controller, bench):
         if name != "command"
     }
     # the drive memory at power-up: empty, its rate the default 1 kHz
-    drive = {name: values.pop(name) for name in ("drive_rate_hz", "drive_length", "drive_offset", "drive_block")}
-    assert drive == {"drive_rate_hz": 1000.0, "drive_length": 0, "drive_offset": 0, "drive_block": (0.0,) * 60}
+    names = ("drive_rate_hz", "drive_length", "drive_offset", "drive_block")
+    drive = {name: values.pop(name) for name in names}
+    assert drive == dict(zip(names, (1000.0, 0, 0, (0.0,) * 60), strict=True))
     assert values == pytest.approx(POWER_UP)
     assert values["watchdog_ms"] > 0  # the watchdog is armed at power-up
     assert values == pytest.approx(bench.controller.setpoints)

@@ -297,6 +297,9 @@ class RunView:
             raise StoreError(path, f"{where}@status", f"{self.status!r} is not a run status")
         self.step = s.from_json(text["step"], path=path, where=f"{where}@step")
         self.conditions = s.from_json(text["conditions"], path=path, where=f"{where}@conditions")
+        #: a road replay's drive: where it came from and its checksum (empty for any other run)
+        drive_text = _optional_text(path, group, "drive")
+        self.drive = s.from_json(drive_text, path=path, where=f"{where}@drive") if drive_text else {}
         self.sample_rate_hz = _attr(path, group, "sample_rate_hz", float)
         #: the bench, operator and notes of the session that began the run (empty: not stated)
         self.metadata = {name: _optional_text(path, group, name) for name in s.RUN_METADATA_FIELDS}
