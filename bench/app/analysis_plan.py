@@ -10,8 +10,9 @@ pressure and the tyre's shaker identification, which only an earlier sequence ru
 campaign file can give; for a road replay the same (its contact force is the post's plate force
 corrected with m_comp, its model compensation the tyre's shaker identification at its pressure:
 without one it gives the raw and hub-acceleration compensated forces only). A shaker's grid on a
-bench without a hub accelerometer is analysed with the clamped hub taken as not moving. A sweep on the shaker is recorded, not analysed. A campaign file that holds
-runs already (another sequence's) may supply what a step lacks here: each line says so.
+bench without a hub accelerometer is analysed with the clamped hub taken as not moving. A sweep on
+the shaker is recorded, not analysed. A campaign file that holds runs already (another sequence's)
+may supply what a step lacks here: each line says so.
 """
 
 from __future__ import annotations
