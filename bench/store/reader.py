@@ -30,6 +30,7 @@ from bench.analysis.records import (
     WHEEL_CHANNELS,
     DwellRecord,
     HammerRecord,
+    RoadReplayRecord,
     SweepRecord,
 )
 from bench.analysis.tracking import TrackRecord
@@ -48,6 +49,7 @@ REQUIRED_CHANNELS = {
     "sweep": WHEEL_CHANNELS,
     "hammer": (WFS_FORCE,),
     "tracked_dwell": FREE_RUN_CHANNELS,
+    "road_replay": WHEEL_CHANNELS,
 }
 _ROOT_TEXT_ATTRS = (
     "software_version",
@@ -475,6 +477,16 @@ class RunView:
             run.sample_rate_hz,
             channels,
         )
+
+    def road_replay_record(self) -> RoadReplayRecord:
+        """The road replay (point 0): the run's channels over the drive, its hold (the part between
+        its tapers) and the drive's source."""
+        self._require(("road_replay",), "road replay record")
+        run, p = self._single_point(0)
+        fs = run.sample_rate_hz
+        hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
+        source = self.drive.get("source", "")
+        return RoadReplayRecord(fs, run.channels.slice(p.start_sample, p.end_sample), hold_s, str(source))
 
     def hammer_record(self, blow: int = 0) -> HammerRecord:
         """Hammer blow ``blow`` (its point index) at the run's sample rate."""
