@@ -89,7 +89,8 @@ class RunAnalysis:
     ``shaker``, ``four_post``, ``sweep``, ``track``, ``road_replay``, or ``analysis`` when it
     failed), the text ``lines``, the scalar ``results`` stored beside the run, ``error`` (empty
     when the analysis succeeded) and ``omitted``: what the data did not allow, each with why
-    (empty when the analysis gave everything the run is for). The result objects go into the analyser's knowledge."""
+    (empty when the analysis gave everything the run is for). The result objects go into the
+    analyser's knowledge."""
 
     run_id: str
     kind: str
