@@ -49,8 +49,8 @@ FORCES = (
     ("hub_compensated", "hub-acceleration compensated"),
     ("model_compensated", "model-compensated"),
 )
-#: Longest Welch segment of the spectra (s): 0.25 Hz bins; a shorter drive gets segments of a
-#: quarter of its span (at least seven averages with half overlap).
+#: Longest Welch segment of the spectra (s): 0.25 Hz bins; a shorter drive gets segments of half
+#: its span (three averages with half overlap).
 SPECTRUM_SEGMENT_S = 4.0
 #: The stretch of the forces kept for a figure (s), from the middle of the span.
 TRACE_S = 1.0
@@ -114,7 +114,7 @@ class RoadReplayResult:
 
 def _spectra(signals: dict[str, np.ndarray], fs_hz: float) -> dict[str, np.ndarray]:
     n = next(iter(signals.values())).size
-    segment = min(round(SPECTRUM_SEGMENT_S * fs_hz), max(n // 4, 16))
+    segment = min(round(SPECTRUM_SEGMENT_S * fs_hz), max(n // 2, 16))
     out: dict[str, np.ndarray] = {}
     for name, x in signals.items():
         f, psd = welch(x, fs=fs_hz, nperseg=segment)
