@@ -602,10 +602,11 @@ class Engine:
     def _replay_run(
         self, run_id: str, step: RoadReplay, held: RecordedRun, drive: PlannedDrive | None
     ) -> None:
-        """A road replay: the drive given to the controller (before the run's stream starts: an
-        upload takes as long as the drive needs), then played once as the run's one point, on the
-        step's mean. A pause stops it with its taper and plays it again from its start on resume,
-        as a sweep; an abort, an e-stop or a lost link end it as they end a sweep."""
+        """A road replay: the drive given to the controller once the run has begun, before its
+        stream starts (an upload takes as long as the drive needs; a refused one ends the run), then
+        played once as the run's one point, on the step's mean. A pause stops it with its taper and
+        plays it again from its start on resume, as a sweep; an abort, an e-stop or a lost link end
+        it as they end a sweep."""
         if drive is None:
             raise RunStoppedError.fail(f"road replay {run_id}: no drive was planned for it")
         if not getattr(self.actuator, "drive_files", False):
@@ -613,8 +614,9 @@ class Engine:
                 f"road replay {run_id}: the controller plays no drive file (docs/protocols.md, *Drive files*)"
             )
         setpoint = replace(drive.setpoint, mean_mm=self._mean(step.mean_mm))
-        self.actuator.load_drive(setpoint)
-        with _RunRecording(self, run_id, step, held.samples, drive=drive.record) as run:
+        upload = _RunRecording(self, run_id, step, held.samples, drive=drive.record)
+        upload.before_stream = lambda: self.actuator.load_drive(setpoint)
+        with upload as run:
             attempt = 0
             while True:
                 self._checkpoint()
@@ -1224,6 +1226,8 @@ class _RunRecording:
         self.run_id = run_id
         self.step = step
         self.drive = drive or {}
+        #: called once the run has begun, before its stream starts (a road replay's upload)
+        self.before_stream: Callable[[], None] | None = None
         self.samples = first_sample  # the run's samples so far: the index of the next one
         # the acquisition's sample time since this recording began: the samples received and those
         # the link reported lost (what the watchdogs count, so that a link that lets only a few
@@ -1250,6 +1254,8 @@ class _RunRecording:
             )
         )
         try:
+            if self.before_stream is not None:
+                self.before_stream()
             self._start_stream()
             e._recording = self
         except BaseException as exc:  # the run began: it ends too, with the sequence's ending

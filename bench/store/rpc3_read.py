@@ -11,10 +11,11 @@ The layout read (the writer's, docs/export.md, in general):
   (a whole number of frames of ``PTS_PER_FRAME``), the channels one after the other within a group;
   the last group holds the frames that are left. ``FRAMES x PTS_PER_FRAME`` points per channel.
 - **Values**: ``DATA_TYPE`` ``SHORT_INTEGER`` (int16 times ``SCALE.CHAN_n``) or ``FLOATING_POINT``
-  (float32 as they are), little-endian (``FORMAT`` ``BINARY_IEEE_LITTLE_END``) or big-endian
-  (``BINARY_IEEE_BIG_END``); ``DELTA_T`` the sample interval (s).
+  (float32 as they are), little-endian (``FORMAT`` ``BINARY_IEEE_LITTLE_END``, or ``BINARY`` as PC
+  programs write it: rpc3-file, for one) or big-endian (``BINARY_IEEE_BIG_END``); ``DELTA_T`` the
+  sample interval (s).
 
-Not read: half frames (``HALF_FRAMES`` other than 0), other formats (``BINARY``, ``ASCII``).
+Not read: half frames (``HALF_FRAMES`` other than 0), ``ASCII`` files.
 Every refusal names the file and the record or byte.
 """
 
@@ -28,7 +29,7 @@ import numpy as np
 RECORD_BYTES = 128
 KEY_BYTES = 32
 BLOCK_BYTES = 512
-_FORMATS = {"BINARY_IEEE_LITTLE_END": "<", "BINARY_IEEE_BIG_END": ">"}
+_FORMATS = {"BINARY_IEEE_LITTLE_END": "<", "BINARY": "<", "BINARY_IEEE_BIG_END": ">"}
 _DATA_TYPES = {"SHORT_INTEGER": "i2", "FLOATING_POINT": "f4"}
 _LEADING = ("FORMAT", "NUM_HEADER_BLOCKS", "NUM_PARAMS")
 
