@@ -459,7 +459,8 @@ class _World:
     ) -> tuple[PointPrediction, list[DriveRefusal]]:
         """A drive's peaks and its first sample beyond each limit: the post's displacement (the
         tapered drive on its mean), velocity and acceleration (its differences at its rate, as the
-        controller's generator plays it: linear between samples), and the plate and WFS forces (the
+        controller's generator plays it: linear between samples; a sample's velocity is the one
+        that reaches it from the sample before), and the plate and WFS forces (the
         bench model's response to it, computed over its spectrum, the tyre linearised at the
         drive's equivalent sine as the simulated plant takes it; the WFS with its static load)."""
         limits = self.config.limits
@@ -475,7 +476,7 @@ class _World:
         t = np.arange(n) / rate
         envelope = taper_envelope(t, drive.duration_s, drive.taper_in_s, drive.taper_out_s)
         z_m = 1e-3 * drive.samples_mm.astype(float) * envelope
-        velocity = np.r_[np.diff(z_m), 0.0] * rate
+        velocity = np.r_[0.0, np.diff(z_m)] * rate  # from the sample before to this one
         acceleration = np.r_[0.0, np.diff(z_m, 2), 0.0] * rate**2
         forces = self._drive_forces(setup, z_m, rate)
         static_n = self.static_wfs_load_n(setup)
