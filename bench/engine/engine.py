@@ -638,19 +638,36 @@ class Engine:
         frequency: 0)."""
         z = run.displacement_between(span.hold_start, span.hold_end)
         achieved_mm = 1e3 * float(np.max(np.abs(z - np.mean(z)))) if z.size else float("nan")
+        achieved = {"achieved_amplitude_mm": achieved_mm}
+        self._publish_whole(run, (0.0, setpoint.peak_mm), span, status, attempt, **achieved)
+
+    def _publish_whole(
+        self,
+        run: _RunRecording,
+        commanded: tuple[float, float],
+        span: ExcitationSpan,
+        status: str,
+        attempt: int,
+        **measured: object,
+    ) -> None:
+        """The one point (index 0) of a run that is one excitation (a sweep, a road replay), as
+        ``commanded``: at a frequency (a sweep's start) and an amplitude (mm), over ``span``;
+        ``measured``: what the excitation showed (its achieved amplitude, a notch)."""
+        freq_hz, amplitude_mm = commanded
         self.bus.publish(
             ev.PointDone(
                 0,
-                0.0,
-                setpoint.peak_mm,
+                freq_hz,
+                amplitude_mm,
                 span.start,
                 span.hold_start,
                 span.hold_end,
                 span.end,
                 status=status,
                 attempt=attempt,
-                commanded_amplitude_mm=setpoint.peak_mm,
-                achieved_amplitude_mm=achieved_mm,
+                requested_amplitude_mm=amplitude_mm,
+                commanded_amplitude_mm=amplitude_mm,
+                **measured,
                 run_id=run.run_id,
             )
         )
@@ -819,23 +836,7 @@ class Engine:
                 "notch_amplitude_mm": notch.amplitude_mm,
                 "achieved_amplitude_mm": 1e3 * float(np.ptp(z)) / 2 if z.size else float("nan"),
             }
-        self.bus.publish(
-            ev.PointDone(
-                0,
-                setpoint.start_hz,
-                setpoint.amplitude_mm,
-                span.start,
-                span.hold_start,
-                span.hold_end,
-                span.end,
-                status=status,
-                attempt=attempt,
-                requested_amplitude_mm=setpoint.amplitude_mm,
-                commanded_amplitude_mm=setpoint.amplitude_mm,
-                **notched,
-                run_id=run.run_id,
-            )
-        )
+        self._publish_whole(run, (setpoint.start_hz, setpoint.amplitude_mm), span, status, attempt, **notched)
 
     def _hammer_run(self, run_id: str, step: HammerTest, held: RecordedRun) -> None:
         """Per blow: arm the triggered capture, ask for the blow, record the captured block.

@@ -72,13 +72,9 @@ def _csv(path: Path, channel: str, time_column: str) -> DriveSamples:
             f"{path}: line 1: no time column {time_column!r} (the header has: {', '.join(header)})"
         )
     others = [name for name in header if name != time_column]
-    if not channel:
-        if len(others) != 1:
-            raise DriveFileError(
-                f"{path}: line 1: which column is the displacement? {len(others)} columns besides the"
-                f" time column {time_column!r}: name one as the step's channel ({', '.join(others)})"
-            )
-        channel = others[0]
+    channel = channel or _the_only(
+        others, f"{path}: line 1", f"columns besides the time column {time_column!r}"
+    )
     column = ChannelColumn(_DISPLACEMENT, "m", channel, None)
     try:
         table = read_csv(path, Dialect(units_row=units_row), Timing(column=time_column), (column,))
@@ -87,6 +83,16 @@ def _csv(path: Path, channel: str, time_column: str) -> DriveSamples:
     if _DISPLACEMENT not in table.columns:
         raise DriveFileError(str(table.missing(column)))
     return DriveSamples(table.columns[_DISPLACEMENT], table.sample_rate_hz, f"{path} column {channel!r}")
+
+
+def _the_only(names: list[str], where: str, what: str) -> str:
+    """The displacement's column or channel when the step names none: the only one there is."""
+    if len(names) != 1:
+        raise DriveFileError(
+            f"{where}: which is the displacement? {len(names)} {what}: name one as the step's channel"
+            f" ({', '.join(names)})"
+        )
+    return names[0]
 
 
 def _csv_header(path: Path) -> tuple[list[str], bool]:
@@ -115,13 +121,7 @@ def _rpc3(path: Path, channel: str) -> DriveSamples:
     except Rpc3Error as exc:
         raise DriveFileError(str(exc)) from None
     names = [c.name for c in rpc.channels]
-    if not channel:
-        if len(names) != 1:
-            raise DriveFileError(
-                f"{path}: which channel is the displacement? {len(names)} channels: name one as the"
-                f" step's channel ({', '.join(names)})"
-            )
-        channel = names[0]
+    channel = channel or _the_only(names, str(path), "channels")
     if channel not in names:
         raise DriveFileError(f"{path}: no channel {channel!r} (DESC.CHAN_n: {', '.join(names)})")
     k = names.index(channel)
