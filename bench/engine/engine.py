@@ -584,20 +584,34 @@ class Engine:
             notch=None if notch is None else SweepNotch(notch.start_hz, notch.end_hz, notch.amplitude_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
-            attempt = 0
-            while True:
-                self._checkpoint()
-                attempt += 1
-                try:
-                    span = run.excite(setpoint, planned_s=step.duration_s)
-                except _PointInterruptedError as interrupted:
-                    self._publish_sweep(
-                        run, setpoint, attempt, PointStatus.INTERRUPTED, interrupted.span, notch=notch
-                    )
-                    self._wait_paused()
-                    continue
-                self._publish_sweep(run, setpoint, attempt, PointStatus.DONE, span, notch=notch)
-                return
+
+            def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
+                self._publish_sweep(run, setpoint, attempt, status, span, notch=notch)
+
+            self._one_excitation(run, setpoint, step.duration_s, publish)
+
+    def _one_excitation(
+        self,
+        run: _RunRecording,
+        setpoint: SweepSetpoint | DriveSetpoint,
+        planned_s: float,
+        publish: Callable[[str, int, ExcitationSpan], None],
+    ) -> None:
+        """A run that is one excitation (a sweep, a road replay), its point published with
+        ``publish(status, attempt, span)``: a pause interrupts it (``interrupted``), and on resume it
+        runs again whole, from its start, until it is ``done``."""
+        attempt = 0
+        while True:
+            self._checkpoint()
+            attempt += 1
+            try:
+                span = run.excite(setpoint, planned_s=planned_s)
+            except _PointInterruptedError as interrupted:
+                publish(PointStatus.INTERRUPTED, attempt, interrupted.span)
+                self._wait_paused()
+                continue
+            publish(PointStatus.DONE, attempt, span)
+            return
 
     def _replay_run(
         self, run_id: str, step: RoadReplay, held: RecordedRun, drive: PlannedDrive | None
@@ -617,18 +631,11 @@ class Engine:
         upload = _RunRecording(self, run_id, step, held.samples, drive=drive.record)
         upload.before_stream = lambda: self.actuator.load_drive(setpoint)
         with upload as run:
-            attempt = 0
-            while True:
-                self._checkpoint()
-                attempt += 1
-                try:
-                    span = run.excite(setpoint, planned_s=setpoint.duration_s)
-                except _PointInterruptedError as interrupted:
-                    self._publish_drive(run, setpoint, attempt, PointStatus.INTERRUPTED, interrupted.span)
-                    self._wait_paused()
-                    continue
-                self._publish_drive(run, setpoint, attempt, PointStatus.DONE, span)
-                return
+
+            def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
+                self._publish_drive(run, setpoint, attempt, status, span)
+
+            self._one_excitation(run, setpoint, setpoint.duration_s, publish)
 
     def _publish_drive(
         self, run: _RunRecording, setpoint: DriveSetpoint, attempt: int, status: str, span: ExcitationSpan
