@@ -21,21 +21,24 @@ import rpc3
 from bench.analysis.campaign import CampaignKnowledge, PlateMassRun
 from bench.analysis.runs import analyse_free_run, analyse_shaker_campaign
 from bench.app.plan import plan_campaign
+from bench.app.resume_check import ResumeMismatchError, check_resume
 from bench.app.run import run_campaign
 from bench.app.run_analysis import POST_PLATE
 from bench.cli import EXIT_INVALID, EXIT_REFUSED, main
 from bench.config import load_bench_config
 from bench.dry_run import _World, dry_run
+from bench.engine.engine import Engine
 from bench.export.rpc3 import BLOCK_BYTES, header_bytes
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
 from bench.replay_drive import load_drives
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
-from bench.store import open_campaign
+from bench.store import CampaignWriter, open_campaign
 from bench.store.drive_files import read_drive_file
 from drivers.register_map import ControllerState, ErrorCode
 from drivers.setpoints import DriveSetpoint
 from sequences import Sequence, SequenceError, load_sequence
+from sequences.channels import Channel
 from simulators.controller_model import ControllerModel
 from simulators.world import POST_RIG
 
@@ -362,3 +365,36 @@ def test_the_drive_dry_run_is_the_drive_played(tmp_path):
     assert drive.record["sha256"] == hashlib.sha256((tmp_path / "drive.csv").read_bytes()).hexdigest()
     again = load_drives(Sequence("road", "", plan.sequence.steps, str(seq)))
     assert again[4].setpoint.crc32 == drive.setpoint.crc32
+
+
+def test_a_road_replay_is_not_resumed_with_another_drive_than_its_run_played(tmp_path):
+    """The drive file changed after the run that played it was interrupted: its SHA-256 differs
+    from the one the run recorded, and the resume is refused naming the step and both."""
+    z = 2.0 * np.sin(2 * np.pi * 4.0 * np.arange(3001) / RATE_HZ)
+    write_csv_drive(tmp_path / "drive.csv", z)
+    seq = sequence_file(tmp_path, 'file = "drive.csv"\n')
+    plan = plan_campaign(seq, FOUR_POST)
+    played = plan.drives[4].record
+    run_id = Engine.run_id(plan.sequence, 4)
+    path = tmp_path / "c.h5"
+    texts = {"config_toml": plan.config_text, "sequence_toml": plan.sequence_text, "sequence_name": "road"}
+    with CampaignWriter.create(path, software_version="test", **texts) as writer:
+        run = writer.begin_run(
+            run_id,
+            kind="road_replay",
+            step={},
+            conditions={},
+            channels=(Channel("z_base_m", "m"),),
+            sample_rate_hz=RATE_HZ,
+            drive=played,
+        )
+        run.finish("aborted", "aborted by the operator")
+    write_csv_drive(tmp_path / "drive.csv", 1.5 * z)  # the file changed since
+    again = plan_campaign(seq, FOUR_POST)
+    with open_campaign(path) as campaign, pytest.raises(ResumeMismatchError) as refused:
+        check_resume(campaign, again.sequence, again.config, again.drives)
+    assert (
+        f"steps[4]: the drive ({tmp_path / 'drive.csv'!s} column 'z [mm]') is not the one run {run_id}"
+        in str(refused.value)
+    )
+    assert f"{again.drives[4].record['sha256']} now, {played['sha256']} in the file" in str(refused.value)
