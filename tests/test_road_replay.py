@@ -20,6 +20,7 @@ import rpc3
 
 from bench.analysis.campaign import CampaignKnowledge, PlateMassRun
 from bench.analysis.runs import analyse_free_run, analyse_shaker_campaign
+from bench.app.analyze import analyze_campaign
 from bench.app.plan import plan_campaign
 from bench.app.resume_check import ResumeMismatchError, check_resume
 from bench.app.run import run_campaign
@@ -32,6 +33,8 @@ from bench.export.rpc3 import BLOCK_BYTES, header_bytes
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
 from bench.replay_drive import load_drives
+from bench.report.figures import write_figures
+from bench.report.json_out import analysis_json
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from bench.store import CampaignWriter, open_campaign
 from bench.store.drive_files import read_drive_file
@@ -352,6 +355,18 @@ def test_a_class_c_road_at_60_km_h_runs_records_and_is_analysed(tmp_path, identi
     )
     assert r["m_comp_kg"] == pytest.approx(POST_RIG.plate_mass_kg, rel=1e-3)
     assert "model compensation: tyre at 2.5 bar, 2 mm" in r["summary"]
+
+    # shown: in the analysis JSON and the report's figure (the file analysed with what the campaign
+    # established as it ran, as `wfsbench report` after `wfsbench run` does)
+    shown = analyze_campaign(path, knowledge=identified)
+    (entry,) = analysis_json(shown)["road_replays"]
+    assert entry["run_id"] == run.run_id
+    assert entry["errors"]["raw"]["rms_n"] == r["rms_error_raw_n"]
+    assert entry["errors"]["model_compensated"]["octave_rms_n"] == r["octave_rms_error_model_compensated_n"]
+    (figure,) = [
+        f for f in write_figures(shown, tmp_path / "report") if f.name == f"road_replay_{run.run_id}"
+    ]
+    assert figure.path.stat().st_size > 10_000
 
 
 def test_the_drive_dry_run_is_the_drive_played(tmp_path):

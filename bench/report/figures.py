@@ -597,7 +597,7 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 f"Road replay {run_id}",
                 "The WFS force raw, hub-acceleration compensated and model-compensated against the"
                 " post's contact force (post force less m_comp z''), in time and as power spectral"
-                " densities; the legends give each force's rms error in 0-30 Hz.",
+                " densities; the errors' panel gives each force's rms error in 0-30 Hz.",
                 lambda r=run_id, x=replay: road_replay_figure(r, x),
             )
         )
