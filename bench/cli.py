@@ -120,15 +120,17 @@ def _check(args: argparse.Namespace) -> int:
     from bench.app.check import check_lines
     from bench.config import ConfigError, load_bench_config
     from bench.dry_run import dry_run
+    from bench.replay_drive import load_drives
     from sequences import SequenceError, load_sequence
 
     try:
         config = load_bench_config(Path(args.bench) if args.bench else None)
         sequence = load_sequence(Path(args.sequence), config.limits, config.channels)
+        drives = load_drives(sequence)
     except (SequenceError, ConfigError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    dry = dry_run(sequence, config)
+    dry = dry_run(sequence, config, drives)
     for line in check_lines(sequence, config, dry):
         print(line)
     return EXIT_REFUSED if dry.refusals else EXIT_COMPLETE

@@ -8,6 +8,12 @@ plate, the actuator's peak dynamic force (the plate force, plate mass included) 
 vertical load (dynamic amplitude plus the static load it carries at rest). A point beyond a limit
 of :class:`~sequences.limits.BenchLimits` is refused, naming the point and the limit.
 
+A road replay's drive is predicted sample by sample instead (:meth:`_World.predict_drive`): the
+post's displacement (the drive, tapered, on its mean), its velocity and acceleration as the
+controller plays it, and the plate and WFS forces of the bench model's frequency response to it;
+a drive beyond a limit is refused naming its first sample beyond it (index and time) and the limit
+(:class:`DriveRefusal`).
+
 The dry run follows the sequence as the operator will: a pressure prompt's target sets the tyre
 pressure of the points after it, removing or fitting the wheel (or driving the car off or on the
 posts) changes what stands on the bench, and a free run always runs without the specimen.
@@ -16,14 +22,19 @@ posts) changes what stands on the bench, and a free run always runs without the 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from bench.config import BenchConfig
+from bench.engine.contracts import PlannedDrive
 from bench.models.benches import TyreModel
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity
 from bench.models.setup import BenchKind, BenchSetup
+from bench.models.taper import taper_envelope
+from drivers.errors import LimitError
+from drivers.setpoints import DriveSetpoint, equivalent_sine
 from sequences.channels import Role
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
@@ -32,6 +43,7 @@ from sequences.steps import (
     DwellGrid,
     FreeRun,
     Prompt,
+    RoadReplay,
     Sequence,
     SineDwell,
     Sweep,
@@ -43,6 +55,12 @@ STANDARD_GRAVITY_M_S2 = 9.80665
 SWEEP_EVALUATION_POINTS = 120
 #: ... and the band where an adaptive grid may add points, at each of its amplitudes.
 REFINEMENT_EVALUATION_POINTS = 60
+#: Frequencies the bench model's response to a drive is evaluated at (evenly from 0 to half the
+#: drive's rate, interpolated onto its spectrum's bins): 0.12 Hz apart at 1 kHz, finer than the
+#: half-power width of any mode of the bench (the wheel hop's, about 1.5 Hz, is the narrowest).
+DRIVE_RESPONSE_POINTS = 4096
+#: Rest after a drive over which its response is predicted (s): the wheel hop and the body decay.
+DRIVE_RINGDOWN_S = 2.0
 
 #: (prediction attribute, BenchLimits attribute, what it is, unit)
 _CHECKS = (
@@ -63,7 +81,8 @@ class PointPrediction:
 
     step_index: int
     point_index: int
-    kind: str  # "dwell" | "sweep" | "refinement" (where an adaptive grid may add points) | "tracked"
+    #: "dwell" | "sweep" | "refinement" (where an adaptive grid may add points) | "tracked" | "drive"
+    kind: str
     freq_hz: float  # the dwell's frequency; a sweep's (a refinement band's) highest
     amplitude_mm: float
     setup: str
@@ -83,6 +102,7 @@ class PointPrediction:
             "sweep": f"sweep to {self.freq_hz:g} Hz",
             "refinement": f"points an adaptive grid may add up to {self.freq_hz:g} Hz",
             "tracked": f"tracked dwell up to {self.freq_hz:g} Hz",
+            "drive": "road replay",
         }[self.kind]
         return f"steps[{self.step_index}] point {self.point_index} ({what}, {self.amplitude_mm:g} mm)"
 
@@ -119,17 +139,49 @@ class ActionRefusal:
     bench: str
 
     def __str__(self) -> str:
+        what = "prompt" if self.prompt_id != RoadReplay.kind else "step"
         return (
-            f"steps[{self.step_index}] prompt {self.prompt_id!r}: {self.action} is done on a {self.needs}"
+            f"steps[{self.step_index}] {what} {self.prompt_id!r}: {self.action} is done on a {self.needs}"
             f" bench, and the configured bench is a {self.bench} bench (give a {self.needs} bench"
             f" configuration with --bench: the simulated one is configs/simulated_{self.needs}.toml)"
         )
 
 
+@dataclass(frozen=True)
+class DriveRefusal:
+    """A road replay's drive beyond a limit: the first sample beyond it (``sample``, its index in
+    the drive; ``time_s`` from the drive's start), the limit's name in BenchLimits (``setpoint`` when
+    the controller would refuse the drive itself: its rate, length, tapers), what, predicted and
+    allowed."""
+
+    step_index: int
+    source: str
+    sample: int
+    time_s: float
+    limit: str
+    quantity: str
+    predicted: float
+    allowed: float
+    unit: str
+
+    def __str__(self) -> str:
+        where = f"steps[{self.step_index}] road replay ({self.source})"
+        if self.limit == "setpoint":
+            return f"{where}: {self.quantity}"
+        return (
+            f"{where}: sample {self.sample} (t = {self.time_s:.4g} s): predicted {self.quantity}"
+            f" {self.predicted:.5g} {self.unit} is beyond the limit {self.limit} ="
+            f" {self.allowed:g} {self.unit}"
+        )
+
+
+Refusals = tuple["ActionRefusal | Refusal | DriveRefusal", ...]
+
+
 class DryRunError(ValueError):
     """The dry run refused points; ``refusals`` lists them all, the first in the str."""
 
-    def __init__(self, source: str, refusals: tuple[ActionRefusal | Refusal, ...]) -> None:
+    def __init__(self, source: str, refusals: Refusals) -> None:
         self.refusals = refusals
         super().__init__(problems_text(f"{source}: {refusal}" for refusal in refusals))
 
@@ -140,7 +192,7 @@ class DryRun:
 
     source: str
     points: tuple[PointPrediction, ...]
-    refusals: tuple[ActionRefusal | Refusal, ...]
+    refusals: Refusals
 
     @property
     def ok(self) -> bool:
@@ -152,11 +204,20 @@ class DryRun:
             raise DryRunError(self.source, self.refusals)
 
 
-def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
-    """Predict every dwell and sweep of ``sequence`` on the bench of ``config`` and check its limits."""
+def dry_run(
+    sequence: Sequence, config: BenchConfig, drives: Mapping[int, PlannedDrive] | None = None
+) -> DryRun:
+    """Predict every dwell, sweep and drive of ``sequence`` on the bench of ``config`` and check its
+    limits. ``drives``: each road replay's drive by its step's index, as the plan loaded them
+    (:func:`bench.replay_drive.load_drives`, which loads them when not given: SequenceError when a
+    drive cannot be had)."""
+    if drives is None and any(isinstance(step, RoadReplay) for step in sequence.steps):
+        from bench.replay_drive import load_drives
+
+        drives = load_drives(sequence)
     world = _World(config)
     points: list[PointPrediction] = []
-    impossible: list[ActionRefusal] = []
+    impossible: list[ActionRefusal | DriveRefusal] = []
     for index, step in enumerate(sequence.steps):
         if isinstance(step, Prompt):
             needs = ACTION_BENCH_KIND.get(step.action or "")
@@ -180,7 +241,17 @@ def dry_run(sequence: Sequence, config: BenchConfig) -> DryRun:
             band = Sweep(step.search_start_hz, top, step.track_s, step.amplitude_mm, mean_mm=step.mean_mm)
             prediction = world.predict_sweep(world.setup(free_run=False), index, band)
             points.append(replace(prediction, kind="tracked"))
-    refusals = tuple(r for point in points for r in _refusals(point, config))
+        elif isinstance(step, RoadReplay):
+            if config.kind != "four_post":
+                impossible.append(ActionRefusal(index, step.kind, "a road replay", "four_post", config.kind))
+                continue
+            assert drives is not None
+            drive = drives[index]
+            setpoint = replace(drive.setpoint, mean_mm=step.mean_mm)
+            prediction, beyond = world.predict_drive(world.setup(free_run=False), index, setpoint)
+            points.append(prediction)
+            impossible += [replace(r, source=str(drive.record.get("source", ""))) for r in beyond]
+    refusals = tuple(r for point in points if point.kind != "drive" for r in _refusals(point, config))
     return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
 
 
@@ -382,3 +453,86 @@ class _World:
             wfs_static_n=static_n,
             at_hz={"actuator_force_n": float(freqs[i_plate]), "wfs_load_n": float(freqs[i_wfs])},
         )
+
+    def predict_drive(
+        self, setup: BenchSetup, index: int, drive: DriveSetpoint
+    ) -> tuple[PointPrediction, list[DriveRefusal]]:
+        """A drive's peaks and its first sample beyond each limit: the post's displacement (the
+        tapered drive on its mean), velocity and acceleration (its differences at its rate, as the
+        controller's generator plays it: linear between samples; a sample's velocity is the one
+        that reaches it from the sample before), and the plate and WFS forces (the
+        bench model's response to it, computed over its spectrum, the tyre linearised at the
+        drive's equivalent sine as the simulated plant takes it; the WFS with its static load)."""
+        limits = self.config.limits
+        try:
+            drive.check(limits)
+        except LimitError as exc:
+            why = f"the controller would refuse it: {exc}"
+            return self._drive_prediction(setup, index, drive, {}), [
+                DriveRefusal(index, "", 0, 0.0, "setpoint", why, 0.0, 0.0, "")
+            ]
+        rate = drive.sample_rate_hz
+        n = drive.n_samples
+        t = np.arange(n) / rate
+        envelope = taper_envelope(t, drive.duration_s, drive.taper_in_s, drive.taper_out_s)
+        z_m = 1e-3 * drive.samples_mm.astype(float) * envelope
+        velocity = np.r_[0.0, np.diff(z_m)] * rate  # from the sample before to this one
+        acceleration = np.r_[0.0, np.diff(z_m, 2), 0.0] * rate**2
+        forces = self._drive_forces(setup, z_m, rate)
+        static_n = self.static_wfs_load_n(setup)
+        series = {
+            "displacement_mm": np.abs(1e3 * z_m + drive.mean_mm),
+            "velocity_mm_s": 1e3 * np.abs(velocity),
+            "acceleration_m_s2": np.abs(acceleration),
+            "actuator_force_n": np.abs(forces["f_plate"]),
+            "wfs_load_n": np.abs(forces["f_wfs"] + static_n) if "f_wfs" in forces else np.zeros(n),
+        }
+        refusals = []
+        for attribute, limit, quantity, unit in _CHECKS:
+            allowed = getattr(limits, limit)
+            beyond = np.flatnonzero(series[attribute] > allowed)
+            if beyond.size:
+                k = int(beyond[0])
+                predicted = float(series[attribute][k])
+                where = (index, "", k, k / rate)
+                refusals.append(DriveRefusal(*where, limit, quantity, predicted, allowed, unit))
+        peaks = {attribute: float(np.max(values)) for attribute, values in series.items()}
+        return self._drive_prediction(setup, index, drive, peaks), refusals
+
+    def _drive_prediction(
+        self, setup: BenchSetup, index: int, drive: DriveSetpoint, peaks: dict[str, float]
+    ) -> PointPrediction:
+        static_n = self.static_wfs_load_n(setup)
+        return PointPrediction(
+            step_index=index,
+            point_index=0,
+            kind="drive",
+            freq_hz=drive.equivalent_frequency_hz,
+            amplitude_mm=drive.peak_mm,
+            setup=setup.kind.value,
+            pressure_bar=self.pressure_bar if setup.has_tyre else None,
+            displacement_mm=peaks.get("displacement_mm", abs(drive.mean_mm) + drive.peak_mm),
+            velocity_mm_s=peaks.get("velocity_mm_s", 0.0),
+            acceleration_m_s2=peaks.get("acceleration_m_s2", 0.0),
+            actuator_force_n=peaks.get("actuator_force_n", 0.0),
+            wfs_load_n=peaks.get("wfs_load_n", static_n if setup.has_tyre else 0.0),
+            wfs_static_n=static_n,
+        )
+
+    def _drive_forces(self, setup: BenchSetup, z_m: np.ndarray, rate_hz: float) -> dict[str, np.ndarray]:
+        """The plate (and WFS) force of the bench model under the displacement ``z_m`` (N), sample
+        by sample: its spectrum (with :data:`DRIVE_RINGDOWN_S` of rest after it, so that the response
+        does not wrap round) times the model's frequency response."""
+        amplitude_m, freq_hz = equivalent_sine(z_m, rate_hz)
+        network = setup.operating_network(freq_hz or 1.0, amplitude_m)
+        outputs = ("f_plate", "f_wfs") if "f_wfs" in network.output_names else ("f_plate",)
+        size = z_m.size + round(DRIVE_RINGDOWN_S * rate_hz)
+        bins = np.fft.rfftfreq(size, 1 / rate_hz)
+        grid = np.linspace(0.0, rate_hz / 2, min(DRIVE_RESPONSE_POINTS, bins.size))
+        response = network.frequency_response(grid, outputs=outputs)
+        spectrum = np.fft.rfft(z_m, size)
+        out = {}
+        for name in outputs:
+            h = np.interp(bins, grid, response[name].real) + 1j * np.interp(bins, grid, response[name].imag)
+            out[name] = np.fft.irfft(spectrum * h, size)[: z_m.size]
+        return out

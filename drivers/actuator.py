@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import TypeVar
 
+import numpy as np
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.client.base import ModbusBaseClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
@@ -37,6 +38,7 @@ from drivers.errors import (
     CommandRejectedError,
     ConnectionLostError,
     DeviceExceptionError,
+    DriveMismatchError,
     LinkError,
     LinkTimeoutError,
     MalformedReplyError,
@@ -58,7 +60,14 @@ from drivers.register_map import (
     RegisterMap,
     load_register_map,
 )
-from drivers.setpoints import NO_NOTCH, AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
+from drivers.setpoints import (
+    NO_NOTCH,
+    AmplitudeUpdate,
+    DriveSetpoint,
+    DwellSetpoint,
+    FrequencyUpdate,
+    SweepSetpoint,
+)
 from sequences.limits import BenchLimits
 
 log = logging.getLogger(__name__)
@@ -343,12 +352,20 @@ class ActuatorClient:
     async def hydraulics_high(self) -> None:
         await self.command(Command.HYDRAULICS_HIGH)
 
-    async def configure(self, setpoint: DwellSetpoint | SweepSetpoint, channel_mask: int = ALL_POSTS) -> None:
+    async def configure(
+        self, setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint, channel_mask: int = ALL_POSTS
+    ) -> None:
         """Check ``setpoint`` against the bench's limits (LimitError before anything is written), then
         write it with the controller's interlock thresholds. A sweep's notch needs a controller whose
         map has the notch registers (CommandRejectedError, nothing written); a sweep without one
-        clears the notch of the sweep before it there."""
+        clears the notch of the sweep before it there. A drive plays what the controller's drive
+        memory holds: it must hold this drive (:meth:`load_drive`; CommandRejectedError, nothing
+        written)."""
         values = setpoint.registers(self.limits)
+        if isinstance(setpoint, DriveSetpoint) and not await self.holds_drive(setpoint):
+            raise CommandRejectedError(
+                "the controller does not hold the drive to play (its length or CRC-32 differ): load it first"
+            )
         if isinstance(setpoint, SweepSetpoint) and self.map.sweep_notches:
             values = {**NO_NOTCH, **values}
         elif isinstance(setpoint, SweepSetpoint) and setpoint.notch is not None:
@@ -369,6 +386,70 @@ class ActuatorClient:
     def configured(self) -> bool:
         """Whether the last :meth:`configure` completed (START is refused otherwise)."""
         return self._configured
+
+    async def holds_drive(self, drive: DriveSetpoint) -> bool:
+        """Whether the controller's drive memory holds ``drive`` whole: its rate, length, the samples
+        received and their CRC-32 (False for a map without drive registers)."""
+        if not self.map.drive_files:
+            return False
+        held = await self._read_named("holding", ("drive_rate_hz", "drive_length"))
+        received = await self._read_named("input", ("drive_loaded", "drive_crc32"))
+        return (
+            held["drive_rate_hz"] == np.float32(drive.sample_rate_hz)
+            and held["drive_length"] == drive.n_samples
+            and received["drive_loaded"] == drive.n_samples
+            and received["drive_crc32"] == drive.crc32
+        )
+
+    async def load_drive(self, drive: DriveSetpoint) -> None:
+        """Upload ``drive`` into the controller's drive memory, unless it holds it already
+        (docs/protocols.md, *Drive files*): its rate and length, then its samples in blocks, each
+        with its offset; then the controller's count and CRC-32 of what it received are checked.
+        LimitError (nothing written) outside the bench's limits; CommandRejectedError when the map
+        has no drive registers (nothing written) or the controller refuses a request (moving, a
+        sample out of order), naming its reason; DriveMismatchError when the controller reports
+        another drive than the one sent. A block whose reply came too late is settled by reading how
+        many samples the controller has received: it is sent again only if it did not arrive."""
+        if not self.map.drive_files:
+            raise CommandRejectedError(
+                f"the register map {self.map.source} has no drive_* registers: the controller plays no"
+                " drive file"
+            )
+        drive.check(self.limits)
+        if await self.holds_drive(drive):
+            return
+        try:
+            await self._write(drive.upload_header())
+            for block in drive.upload_blocks():
+                await self._write_block(block, drive.n_samples)
+        except DeviceExceptionError as exc:
+            raise await self._refusal(exc, "the drive upload") from exc
+        if not await self.holds_drive(drive):
+            received = await self._read_named("input", ("drive_loaded", "drive_crc32"))
+            raise DriveMismatchError(
+                f"the controller received {received['drive_loaded']} samples with CRC-32"
+                f" {received['drive_crc32']:08x}; the drive sent has {drive.n_samples} with {drive.crc32:08x}"
+            )
+
+    async def _write_block(self, block: dict[str, object], n_samples: int) -> None:
+        """One block of an upload; a reply too late to tell is settled by ``drive_loaded``."""
+        offset = int(block["drive_offset"])  # type: ignore[call-overload]
+        try:
+            await self._write(block)
+        except CommandOutcomeUnknownError as exc:
+            loaded = (await self._read_named("input", ("drive_loaded",)))["drive_loaded"]
+            if loaded == offset:
+                log.warning("drive block at %d: %s; it did not arrive: sent again", offset, exc)
+                await self._write(block)
+            elif loaded != min(offset + len(block["drive_block"]), n_samples):  # type: ignore[arg-type]
+                raise
+
+    async def _read_named(self, table: str, names: tuple[str, ...]) -> dict[str, float | int]:
+        """The registers ``names`` of ``table``, consecutive in the map, in one read."""
+        regs = [self.map.table(table)[name] for name in names]
+        first = min(r.address for r in regs)
+        count = max(r.address + r.width for r in regs) - first
+        return self.map.decode_span(table, first, await self._read_run(table, first, count))
 
     async def update_amplitude(self, update: AmplitudeUpdate) -> None:
         """Give the sine dwell holding now a new amplitude, ramped (docs/protocols.md, *Amplitude

@@ -61,6 +61,11 @@ class NotConfiguredError(CommandRejectedError):
     a half-written setpoint; nothing was sent. Configure again."""
 
 
+class DriveMismatchError(LinkError):
+    """After a drive's upload the controller reports another length or checksum than the drive
+    sent: it does not hold that drive (another master wrote to it meanwhile); nothing plays it."""
+
+
 class MalformedReplyError(LinkError):
     """A reply could not be parsed, or holds a value the protocol does not define."""
 

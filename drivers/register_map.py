@@ -49,8 +49,15 @@ OPTIONAL: dict[str, frozenset[str]] = {
     "amplitude_update": frozenset({"amplitude_update_mm", "amplitude_ramp_s"}),
     "sweep_notch": frozenset({"notch_start_hz", "notch_end_hz", "notch_amplitude_mm", "amplitude_ramp_s"}),
     "frequency_update": frozenset({"frequency_update_hz", "amplitude_ramp_s"}),
+    "drive_file": frozenset({"drive_rate_hz", "drive_length", "drive_offset", "drive_block"}),
 }
-_REGISTER_KEYS = {"address", "type", "unit", "doc"}
+#: The input registers a capability of :data:`OPTIONAL` needs beside its holding registers: a drive's
+#: upload is checked by what the controller received.
+OPTIONAL_INPUTS: dict[str, frozenset[str]] = {"drive_file": frozenset({"drive_loaded", "drive_crc32"})}
+#: The registers that hold a block of values rather than one (``count`` in the map), and the count
+#: the protocol gives each.
+BLOCKS = {"drive_block": 60}
+_REGISTER_KEYS = {"address", "type", "unit", "doc", "count"}
 
 
 class Command(enum.IntEnum):
@@ -72,6 +79,7 @@ class WaveformCode(enum.IntEnum):
     SINE_DWELL = 1
     LINEAR_SWEEP = 2
     LOG_SWEEP = 3
+    DRIVE = 4
 
 
 class ControllerState(enum.IntEnum):
@@ -151,10 +159,12 @@ class Register:
     type: str
     unit: str = ""
     doc: str = ""
+    count: int = 1
 
     @property
     def width(self) -> int:
-        return TYPE_WIDTH[self.type]
+        """Registers it occupies: its type's width, ``count`` times for a block."""
+        return TYPE_WIDTH[self.type] * self.count
 
 
 @dataclass(frozen=True)
@@ -190,8 +200,21 @@ class RegisterMap:
         registers of :data:`OPTIONAL` ``sweep_notch``)."""
         return OPTIONAL["sweep_notch"] <= self.holding.keys()
 
-    def encode(self, register: Register, value: float) -> list[int]:
-        """The 16-bit register values for ``value``, in the map's word order."""
+    @property
+    def drive_files(self) -> bool:
+        """Whether the controller takes a drive file over the map's registers and plays it (the map
+        names the registers of :data:`OPTIONAL` ``drive_file``)."""
+        return OPTIONAL["drive_file"] <= self.holding.keys()
+
+    def encode(self, register: Register, value: float | Iterable[float]) -> list[int]:
+        """The 16-bit register values for ``value`` (a block: ``register.count`` values), in the
+        map's word order (of each value)."""
+        if register.count > 1:
+            values = list(value)  # type: ignore[arg-type]
+            if len(values) != register.count:
+                raise ValueError(f"{register.name}: expected {register.count} values, got {len(values)}")
+            one = Register(register.table, register.name, register.address, register.type)
+            return [word for v in values for word in self.encode(one, v)]
         fmt = _STRUCT[register.type]
         try:
             raw = struct.pack(">" + fmt, int(value) if fmt != "f" else float(value))
@@ -200,11 +223,16 @@ class RegisterMap:
         words = [int.from_bytes(raw[i : i + 2], "big") for i in range(0, len(raw), 2)]
         return words if self.word_order == "big" else words[::-1]
 
-    def decode(self, register: Register, words: Iterable[int]) -> float | int:
-        """The value held in ``words`` (exactly ``register.width`` registers)."""
+    def decode(self, register: Register, words: Iterable[int]) -> float | int | tuple[float | int, ...]:
+        """The value held in ``words`` (exactly ``register.width`` registers; a block's values as a
+        tuple)."""
         words = list(words)
         if len(words) != register.width:
             raise ValueError(f"{register.name}: expected {register.width} registers, got {len(words)}")
+        if register.count > 1:
+            one = Register(register.table, register.name, register.address, register.type)
+            step = TYPE_WIDTH[register.type]
+            return tuple(self.decode(one, words[i : i + step]) for i in range(0, len(words), step))
         if self.word_order == "little":
             words = words[::-1]
         raw = b"".join(int(w).to_bytes(2, "big") for w in words)
@@ -307,9 +335,15 @@ def _parse_register(table: str, name: str, entry: object, source: str) -> Regist
         raise _fail(source, f"{key}.address", f"must be an integer 0..65535, got {address!r}")
     if rtype not in TYPE_WIDTH:
         raise _fail(source, f"{key}.type", f"unknown type {rtype!r}; use one of {sorted(TYPE_WIDTH)}")
-    if address + TYPE_WIDTH[rtype] > 0x10000:
+    count = entry.get("count", 1)
+    expected = BLOCKS.get(name, 1)
+    if count != expected or isinstance(count, bool):
+        what = f"a block of {expected} values" if expected > 1 else "one value (no count)"
+        raise _fail(source, f"{key}.count", f"must be {expected} ({name} is {what}), got {count!r}")
+    if address + TYPE_WIDTH[rtype] * count > 0x10000:
         raise _fail(source, f"{key}.address", "register runs past address 65535")
-    return Register(table, name, address, rtype, str(entry.get("unit", "")), str(entry.get("doc", "")))
+    doc, unit = str(entry.get("doc", "")), str(entry.get("unit", ""))
+    return Register(table, name, address, rtype, unit, doc, count)
 
 
 def _check_overlaps(table: str, regs: dict[str, Register], source: str) -> None:
@@ -350,4 +384,8 @@ def parse_register_map(data: dict, source: str = "<built-in>") -> RegisterMap:
                 "holding",
                 f"{capability} needs all of {sorted(names)}: the map names only {sorted(present)}",
             )
+        inputs = OPTIONAL_INPUTS.get(capability, frozenset())
+        if present == names and not inputs <= tables["input"].keys():
+            missing = sorted(inputs - tables["input"].keys())
+            raise _fail(source, "input", f"{capability} needs the input registers {missing} too")
     return RegisterMap(name, version, order, device_id, tables["holding"], tables["input"], source)

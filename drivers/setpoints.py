@@ -8,11 +8,15 @@ raises :class:`LimitError` and nothing reaches the controller.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
 
 from drivers.errors import LimitError
 from drivers.register_map import WaveformCode
-from sequences.limits import BenchLimits
+from sequences.limits import DRIVE_MAX_SAMPLES, DRIVE_RATE_RANGE_HZ, BenchLimits
 
 
 def check_amplitude(limits: BenchLimits, amplitude_mm: float, mean_mm: float) -> None:
@@ -191,3 +195,102 @@ class FrequencyUpdate:
         if self.glide_s < limits.min_taper_s:
             raise LimitError(f"glide_s={self.glide_s} below the minimum taper {limits.min_taper_s} s")
         return {"frequency_update_hz": self.freq_hz, "amplitude_ramp_s": self.glide_s}
+
+
+#: Samples of a drive per upload request (the ``drive_block`` register's count).
+DRIVE_BLOCK_SAMPLES = 60
+
+
+def equivalent_sine(displacement: np.ndarray, sample_rate_hz: float) -> tuple[float, float]:
+    """The sine with a drive's rms displacement and rms velocity: its amplitude ``sqrt 2 sigma_z``
+    (the displacement's unit) and frequency ``sigma_v / (2 pi sigma_z)`` (Hz; 0 for a drive at
+    rest). A broadband drive has no single frequency; where one is needed (a non-linear tyre's
+    operating point, a response limit's level over frequency) this one stands for it."""
+    z = np.asarray(displacement, dtype=float)
+    sigma_z = float(np.std(z))
+    sigma_v = float(np.std(np.diff(z))) * sample_rate_hz
+    return math.sqrt(2) * sigma_z, sigma_v / (2 * math.pi * sigma_z) if sigma_z else 0.0
+
+
+def drive_crc32(samples_mm: np.ndarray) -> int:
+    """The CRC-32 the controller reports of a drive: over its samples as little-endian float32."""
+    return zlib.crc32(np.asarray(samples_mm, dtype="<f4").tobytes())
+
+
+@dataclass(frozen=True, eq=False)
+class DriveSetpoint:
+    """A displacement drive the controller plays from a file it was given (docs/protocols.md,
+    *Drive files*): ``samples_mm`` about ``mean_mm`` at ``sample_rate_hz`` from the start, linear
+    between samples, tapered in and out by raised cosines inside its length. The samples are held as
+    the float32 values the controller receives, so its checksum is :attr:`crc32`."""
+
+    samples_mm: np.ndarray
+    sample_rate_hz: float
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+    mean_mm: float = 0.0
+    crc32: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        samples = np.ascontiguousarray(self.samples_mm, dtype="<f4")
+        samples.setflags(write=False)
+        object.__setattr__(self, "samples_mm", samples)
+        object.__setattr__(self, "crc32", drive_crc32(samples))
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.samples_mm.size)
+
+    @property
+    def duration_s(self) -> float:
+        """From the first sample to the last (the drive's length as the controller plays it)."""
+        return (self.n_samples - 1) / self.sample_rate_hz
+
+    @property
+    def equivalent_frequency_hz(self) -> float:
+        """The frequency of the drive's equivalent sine (:func:`equivalent_sine`)."""
+        return equivalent_sine(self.samples_mm, self.sample_rate_hz)[1]
+
+    @property
+    def peak_mm(self) -> float:
+        """The largest magnitude of the drive about its mean (0 for an empty drive)."""
+        return float(np.max(np.abs(self.samples_mm))) if self.n_samples else 0.0
+
+    def check(self, limits: BenchLimits) -> None:
+        """The drive against ``limits`` (LimitError, nothing written): finite samples, at least two
+        and at most :data:`DRIVE_MAX_SAMPLES`, a rate the controller takes, ``|mean| + peak`` within
+        the stroke, the tapers at least the shortest and fitting in its length."""
+        lo, hi = DRIVE_RATE_RANGE_HZ
+        _finite(sample_rate_hz=self.sample_rate_hz)
+        if not lo <= self.sample_rate_hz <= hi:
+            raise LimitError(f"drive sample rate {self.sample_rate_hz:g} Hz outside {lo:g}..{hi:g} Hz")
+        if not 2 <= self.n_samples <= DRIVE_MAX_SAMPLES:
+            raise LimitError(f"a drive of {self.n_samples} samples: allowed 2..{DRIVE_MAX_SAMPLES}")
+        bad = np.flatnonzero(~np.isfinite(self.samples_mm))
+        if bad.size:
+            raise LimitError(f"drive sample {bad[0]} is {self.samples_mm[bad[0]]}: not a finite number")
+        check_amplitude(limits, self.peak_mm, self.mean_mm)
+        check_timing(limits, self.taper_in_s, self.taper_out_s, self.duration_s)
+
+    def registers(self, limits: BenchLimits) -> dict[str, float]:
+        """The holding-register values that play the uploaded drive, after :meth:`check`."""
+        self.check(limits)
+        return {
+            "waveform": WaveformCode.DRIVE,
+            "taper_in_s": self.taper_in_s,
+            "taper_out_s": self.taper_out_s,
+            "mean_mm": self.mean_mm,
+        }
+
+    def upload_header(self) -> dict[str, float]:
+        """The registers that begin its upload."""
+        return {"drive_rate_hz": self.sample_rate_hz, "drive_length": self.n_samples}
+
+    def upload_blocks(self) -> Iterator[dict[str, object]]:
+        """The upload's requests after its header, in order: each ``drive_offset`` with the
+        ``drive_block`` from there (the last one filled up with zeros)."""
+        for offset in range(0, self.n_samples, DRIVE_BLOCK_SAMPLES):
+            block = np.zeros(DRIVE_BLOCK_SAMPLES, dtype="<f4")
+            part = self.samples_mm[offset : offset + DRIVE_BLOCK_SAMPLES]
+            block[: part.size] = part
+            yield {"drive_offset": offset, "drive_block": block.tolist()}

@@ -17,6 +17,11 @@ from dataclasses import dataclass
 #: Gauge pressures (bar) a car tyre on the bench plausibly has: the range the shipped sequences'
 #: pressure prompts accept, and what an imported campaign's stated pressure is checked against.
 TYRE_PRESSURE_RANGE_BAR = (0.5, 4.5)
+#: The sample rates (Hz) of a drive the actuator controller plays (a road replay's drive file): it
+#: interpolates linearly between samples; below 100 Hz a road's band does not fit, 10 kHz is the
+#: controller's own rate. And the most samples a drive may have (the controller's drive memory).
+DRIVE_RATE_RANGE_HZ = (100.0, 10_000.0)
+DRIVE_MAX_SAMPLES = 1 << 22
 
 
 #: Each controller interlock threshold and the host limit it must lie above.

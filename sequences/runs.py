@@ -15,6 +15,7 @@ class RunKind(enum.StrEnum):
     FREE_RUN = "free_run"
     SWEEP = "sweep"
     TRACKED_DWELL = "tracked_dwell"
+    ROAD_REPLAY = "road_replay"
     HAMMER = "hammer"
 
     @classmethod

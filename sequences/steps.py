@@ -32,6 +32,11 @@ AMPLITUDE_DECIMALS = 4
 
 GRID_ORDERS = ("amplitude-major", "frequency-major")
 SWEEP_LAWS = ("linear", "log")
+#: The ISO 8608 road classes a road replay generates (E-H are beyond any four-post bench's stroke).
+ROAD_CLASSES = ("A", "B", "C", "D")
+#: The spatial band (cycles/m) of a generated road by default: wavelengths from 20 m (longer ones
+#: the car's body rides over and the posts' stroke cannot play) down to ISO 8608's 0.35 m.
+ROAD_BAND_CYCLES_PER_M = (0.05, 2.83)
 HYDRAULIC_LEVELS = ("off", "low", "high")
 ANSWER_TYPES = ("number", "confirm", "choice")
 #: What the simulated operator does with a prompt's answer in simulated mode.
@@ -342,6 +347,49 @@ class TrackedDwell:
 
 
 @dataclass(frozen=True, slots=True)
+class RoadReplay:
+    """A displacement drive played on the four-post bench's post: a drive file, or a generated road.
+
+    **A drive file** (``file``, relative to the sequence file's folder): a CSV file (a time column
+    and a displacement column with their units; ``time_column`` and ``channel`` name them, by
+    default the first column and the only other one) or an MTS RPC III time history (``channel``
+    names its channel, by default the only one). **A generated road** (``road_class``, A-D):
+    ISO 8608's class driven at ``speed_km_h`` for ``duration_s``, sampled at ``sample_rate_hz``,
+    seeded by ``seed``, over the spatial band ``band_cycles_per_m``. Either way the drive is played
+    on ``mean_mm``, tapered in and out by raised cosines inside its length (``taper_in_s``,
+    ``taper_out_s``). For a drive file ``duration_s`` may cut it: its first ``duration_s`` seconds
+    (0: the whole file).
+    """
+
+    kind: ClassVar[str] = "road_replay"
+
+    file: str = ""
+    channel: str = ""
+    time_column: str = ""
+    road_class: str = ""
+    speed_km_h: float = 0.0
+    duration_s: float = 0.0
+    seed: int = 0
+    sample_rate_hz: float = 1000.0
+    band_cycles_per_m: tuple[float, float] = ROAD_BAND_CYCLES_PER_M
+    taper_in_s: float = 1.0
+    taper_out_s: float = 1.0
+    mean_mm: float = 0.0
+    label: str = ""
+
+    @property
+    def generated(self) -> bool:
+        """A generated road (else a drive file)."""
+        return bool(self.road_class)
+
+    @property
+    def estimated_duration_s(self) -> float:
+        """The drive's length: a generated road's or the cut of a file; a whole file's length is
+        known once the file is read (0 here)."""
+        return float(self.duration_s)
+
+
+@dataclass(frozen=True, slots=True)
 class HammerTest:
     """Hammer blows on the bare sensor, each caught by a triggered capture of the WFS acquisition.
 
@@ -479,6 +527,7 @@ Step = (
     | FreeRun
     | Sweep
     | TrackedDwell
+    | RoadReplay
     | HammerTest
     | Prompt
     | Hydraulics
@@ -493,6 +542,7 @@ STEP_TYPES: dict[str, type] = {
         FreeRun,
         Sweep,
         TrackedDwell,
+        RoadReplay,
         HammerTest,
         Prompt,
         Hydraulics,
@@ -500,7 +550,7 @@ STEP_TYPES: dict[str, type] = {
         MeanPosition,
     )
 }
-MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, TrackedDwell, HammerTest)
+MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, TrackedDwell, RoadReplay, HammerTest)
 
 
 def step_fields(step: Step) -> dict[str, object]:
@@ -542,12 +592,13 @@ class Sequence:
         return self.estimated_duration_s + answers * PROMPT_ALLOWANCE_S
 
     def measurement_steps(self) -> tuple[Step, ...]:
-        """The steps that record data (dwells, grids, free runs, sweeps, hammer tests), in order."""
+        """The steps that record data (dwells, grids, free runs, sweeps, tracked dwells, road
+        replays, hammer tests), in order."""
         return tuple(s for s in self.steps if isinstance(s, MEASUREMENT_TYPES))
 
     def points(self) -> int:
-        """Measured points: one per dwell, per sweep, per hammer blow, and a tracked dwell's search
-        dwells and its track."""
+        """Measured points: one per dwell, per sweep, per road replay, per hammer blow, and a
+        tracked dwell's search dwells and its track."""
         count = 0
         for step in self.measurement_steps():
             if isinstance(step, DwellGrid | FreeRun):

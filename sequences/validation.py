@@ -16,7 +16,7 @@ from collections.abc import Iterable
 
 from sequences.channels import ChannelSet, Role
 from sequences.errors import Problem, SequenceError
-from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.limits import DRIVE_RATE_RANGE_HZ, BenchLimits, peak_acceleration_m_s2, peak_velocity_mm_s
 from sequences.ranges import fmt_number as _fmt
 from sequences.ranges import range_problem
 from sequences.steps import (
@@ -24,6 +24,7 @@ from sequences.steps import (
     GRID_ORDERS,
     HYDRAULIC_LEVELS,
     PROMPT_ACTIONS,
+    ROAD_CLASSES,
     SWEEP_LAWS,
     AdaptiveDwell,
     DwellGrid,
@@ -32,6 +33,7 @@ from sequences.steps import (
     Hydraulics,
     MeanPosition,
     Prompt,
+    RoadReplay,
     Sequence,
     SineDwell,
     Step,
@@ -74,7 +76,10 @@ def validate(sequence: Sequence, limits: BenchLimits, channels: ChannelSet | Non
 #: clamped, and their analysis without a hub accelerometer takes it as not moving.)
 _ANALYSIS_ROLES = {
     Sweep: (Role.HUB_ACCELERATION,),
+    RoadReplay: (Role.HUB_ACCELERATION,),
 }
+#: Speeds of a generated road (km/h).
+ROAD_SPEED_RANGE_KM_H = (1.0, 250.0)
 
 
 def check_channels(steps: Iterable[tuple[int, Step]], channels: ChannelSet, source: str) -> list[Problem]:
@@ -476,6 +481,59 @@ class _Checker:
         if None not in (update, track) and update > track:
             self.add("update_s", f"{_fmt(update)} s is longer than the track ({_fmt(track)} s)")
 
+    def replay(self, step: RoadReplay) -> None:
+        """A road replay: exactly one source (a drive file, or a road class with its speed and
+        length), the generated road's values in range, the tapers and the cut within the
+        controller's limits. The drive's values against the bench's limits are the dry run's."""
+        self.mean(step.mean_mm)
+        taper_in, taper_out = self.tapers(step.taper_in_s, step.taper_out_s)
+        self.text("label", step.label, required=False)
+        for key in ("file", "channel", "time_column", "road_class"):
+            self.text(key, getattr(step, key), required=False)
+        longest = "the controller's longest setpoint"
+        duration = self.number(
+            "duration_s", step.duration_s, 0.0, self.limits.max_step_s, unit="s", hi_why=longest
+        )
+        if not isinstance(step.file, str) or not isinstance(step.road_class, str):
+            return
+        if bool(step.file) == bool(step.road_class):
+            self.add(
+                "file" if step.file else "road_class",
+                "a road replay plays a drive file (file) or a generated road (road_class, speed_km_h,"
+                " duration_s): this one gives " + ("both" if step.file else "neither"),
+            )
+            return
+        if step.file:
+            for key in ("speed_km_h", "seed", "sample_rate_hz", "band_cycles_per_m"):
+                if getattr(step, key) != getattr(_REPLAY_DEFAULTS, key):
+                    self.add(key, "belongs to a generated road (road_class), not to a drive file")
+        else:
+            self._generated_road(step, duration)
+        if None not in (duration, taper_in, taper_out) and duration and taper_in + taper_out >= duration:
+            self.add(
+                "duration_s",
+                f"{_fmt(duration)} s leaves nothing between the tapers "
+                f"(allowed duration_s > taper_in_s + taper_out_s = {_fmt(taper_in + taper_out)} s)",
+            )
+
+    def _generated_road(self, step: RoadReplay, duration: float | None) -> None:
+        self.one_of("road_class", step.road_class, ROAD_CLASSES)
+        self.number("speed_km_h", step.speed_km_h, *ROAD_SPEED_RANGE_KM_H, unit="km/h")
+        self.number("seed", step.seed, 0, 2**63 - 1, integer=True)
+        self.number("sample_rate_hz", step.sample_rate_hz, *DRIVE_RATE_RANGE_HZ, unit="Hz")
+        if duration == 0:
+            self.add("duration_s", "a generated road needs its length (allowed duration_s > 0 s)")
+        band = step.band_cycles_per_m
+        if not isinstance(band, tuple | list) or len(band) != 2:
+            self.add("band_cycles_per_m", f"expected two numbers [lowest, highest], got {band!r}")
+            return
+        low = self.number("band_cycles_per_m[0]", band[0], 0.0, lo_open=True, unit="cycles/m")
+        high = self.number("band_cycles_per_m[1]", band[1], 0.0, lo_open=True, unit="cycles/m")
+        if None not in (low, high) and low >= high:
+            self.add(
+                "band_cycles_per_m", f"[{_fmt(low)}, {_fmt(high)}]: the lowest must lie below the highest"
+            )
+
     def hammer(self, step: HammerTest) -> None:
         lim = self.limits
         self.number(
@@ -558,6 +616,8 @@ class _Checker:
             self.add("target", f"answer = {step.answer!r} takes no target")
 
 
+_REPLAY_DEFAULTS = RoadReplay()
+
 #: The check of each step type that needs only its own values (prompts and hydraulics need the
 #: steps before them: :func:`check_steps` checks them itself).
 _STEP_CHECKS = {
@@ -566,6 +626,7 @@ _STEP_CHECKS = {
     FreeRun: _Checker.free_run,
     Sweep: _Checker.sweep,
     TrackedDwell: _Checker.tracked,
+    RoadReplay: _Checker.replay,
     HammerTest: _Checker.hammer,
     MeanPosition: lambda check, step: check.mean(step.mean_mm),
 }

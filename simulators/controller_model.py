@@ -28,6 +28,7 @@ from drivers.register_map import (
     InterlockFlag,
     WaveformCode,
 )
+from simulators.drive_buffer import DRIVE_REGISTERS, DriveBuffer
 from simulators.function_generator import FunctionGenerator
 from simulators.plant.excitation import NotchedSweep, SineDwell, Sweep, Waveform
 
@@ -131,6 +132,7 @@ class ControllerModel:
         self._rest_state = ControllerState.HYDRAULICS_HIGH  # where a taper to rest ends
         self._phase_cycles = 0.0
         self._history = np.zeros(0)
+        self.drive = DriveBuffer(self.HARDWARE_STROKE_MM)  # the drive file uploaded (docs/protocols.md)
 
     # -- host side ------------------------------------------------------------------------------
 
@@ -144,9 +146,17 @@ class ControllerModel:
         amplitude: ``amplitude_update_mm`` changes a sine dwell's during its hold
         (:meth:`_update_refusal`), and its frequency: ``frequency_update_hz`` glides it there over
         ``amplitude_ramp_s``, phase-continuously (a write carrying both is refused whole if either is).
+        The drive registers upload a drive file (:class:`~simulators.drive_buffer.DriveBuffer`),
+        only while nothing moves.
         """
+        drive = {name: value for name, value in values.items() if name in DRIVE_REGISTERS}
+        values = {name: value for name, value in values.items() if name not in DRIVE_REGISTERS}
         if not all(self._valid(name, value) for name, value in values.items()):
             return self._refuse(ErrorCode.INVALID_SETPOINT)
+        if drive and self.state in (*MOVING_STATES, ControllerState.ESTOP):
+            return self._refuse(ErrorCode.NOT_ALLOWED_IN_STATE)
+        if drive and (reason := self.drive.refusal(drive)) is not None:
+            return self._refuse(reason)
         ramp_s = values.get("amplitude_ramp_s", self.setpoints["amplitude_ramp_s"])
         if "frequency_update_hz" in values and not (
             self.state == ControllerState.RUNNING and self.generator.holding()
@@ -162,8 +172,9 @@ class ControllerModel:
         # watchdog_ms (a host rewriting its configuration) restarts the watchdog's time
         if "heartbeat" in values and values["heartbeat"] != self.setpoints["heartbeat"]:
             self._last_heartbeat_s = self._clock()
+        self.drive.write(drive)
         self.setpoints.update(values)
-        if values.keys() - {"heartbeat"}:
+        if drive or values.keys() - {"heartbeat"}:
             self.error = ErrorCode.NONE
         return None
 
@@ -236,8 +247,11 @@ class ControllerModel:
         return reason
 
     def _start(self) -> ErrorCode | None:
-        """Start the configured excitation; refused when mean + amplitude would leave the stroke."""
-        if abs(self.setpoints["mean_mm"]) + self.setpoints["amplitude_mm"] > self.HARDWARE_STROKE_MM:
+        """Start the configured excitation; refused when mean + amplitude (a drive's: its largest
+        sample) would leave the stroke, or the drive's upload is not complete."""
+        drive = int(self.setpoints["waveform"]) == WaveformCode.DRIVE
+        amplitude_mm = self.drive.peak_mm if drive else self.setpoints["amplitude_mm"]
+        if abs(self.setpoints["mean_mm"]) + amplitude_mm > self.HARDWARE_STROKE_MM:
             return self._refuse(ErrorCode.INVALID_SETPOINT)
         try:
             waveform = self._waveform()
@@ -272,6 +286,8 @@ class ControllerModel:
             notch_m = sp["notch_amplitude_mm"] / 1000
             window = (sp["notch_start_hz"], sp["notch_end_hz"])
             return NotchedSweep(sweep, *window, notch_m, sp["amplitude_ramp_s"])
+        if code == WaveformCode.DRIVE:
+            return self.drive.waveform(taper_in, taper_out)
         return None
 
     def _stop(self) -> None:

@@ -316,12 +316,14 @@ class ControllerServer:
         stored; a map without the optional registers serves a controller without them)."""
         with self.bench.lock:
             setpoints = self.bench.controller.setpoints
-            return {"command": 0, **{name: setpoints[name] for name in self.map.holding if name in setpoints}}
+            values = {"command": 0, **setpoints, **self.bench.controller.drive.registers()}
+            return {name: value for name, value in values.items() if name in self.map.holding}
 
     def _input_values(self) -> dict[str, float]:
         with self.bench.lock:
             ctrl = self.bench.controller
             rb = ctrl.readback
+            drive = {"drive_loaded": ctrl.drive.loaded, "drive_crc32": ctrl.drive.crc32}
             return {
                 "protocol_version": PROTOCOL_VERSION,
                 "state": int(ctrl.state),
@@ -334,6 +336,11 @@ class ControllerServer:
                 "actual_force_n": rb.force_n,
                 "frequency_hz": rb.frequency_hz,
                 "sample_count": rb.sample_count % (1 << 32),
+                **{
+                    name: value
+                    for name, value in drive.items()
+                    if name in self.map.input
+                },
             }
 
     def _apply_write(

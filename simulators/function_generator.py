@@ -20,8 +20,8 @@ there to rest along a mean-position ramp.
 
 Two digital sync outputs accompany the command, sample by sample (:func:`sync_flags`):
 :data:`EXCITATION_ACTIVE` while the excitation runs (its tapers included) and
-:data:`AMPLITUDE_HOLD` during its constant-amplitude part (a dwell's hold, a sweep between its
-tapers; not during an amplitude update's ramp); they are wired to digital inputs of the WFS
+:data:`AMPLITUDE_HOLD` during its constant-amplitude part (a dwell's hold, a sweep or a drive
+between its tapers; not during an amplitude update's ramp); they are wired to digital inputs of the WFS
 acquisition, which locates each point in its samples with them.
 """
 
@@ -32,7 +32,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from simulators.plant.excitation import NotchedSweep, RetunedDwell, SineDwell, Sweep, Waveform, taper_envelope
+from simulators.plant.excitation import (
+    NotchedSweep,
+    RetunedDwell,
+    SampledDrive,
+    SineDwell,
+    Sweep,
+    Waveform,
+    taper_envelope,
+)
 
 #: average speed of every change of the mean position (mm/s); the peak speed is pi/2 times this
 MEAN_RATE_MM_S = 10.0
@@ -51,6 +59,8 @@ def hold_window_s(waveform: Waveform) -> tuple[float, float]:
         return waveform.taper_in_s, waveform.taper_in_s + waveform.hold_s
     if isinstance(waveform, Sweep):
         return waveform.taper_in_s, waveform.sweep_s - waveform.taper_out_s
+    if isinstance(waveform, SampledDrive):
+        return waveform.taper_in_s, waveform.duration_s - waveform.taper_out_s
     return 0.0, 0.0
 
 

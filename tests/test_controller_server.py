@@ -43,7 +43,12 @@ async def _read_holding(controller, address: int, count: int) -> list[int]:
 
 
 async def _holding_image(controller) -> list[int]:
-    return await _read_holding(controller, 0, 5) + await _read_holding(controller, 10, 34)
+    """Every holding register: addresses 0-4, 10-49 and the drive block 50-169 (three reads)."""
+    return (
+        await _read_holding(controller, 0, 5)
+        + await _read_holding(controller, 10, 40)
+        + await _read_holding(controller, 50, 120)
+    )
 
 
 @pytest.mark.parametrize(
@@ -89,7 +94,7 @@ async def test_write_multiple_with_a_bad_quantity_is_illegal_data_value(controll
     [
         (struct.pack(">BHH", 3, 5, 1), 3),  # holding gap 5-9
         (struct.pack(">BHH", 3, 0, 6), 3),  # a read running into the gap
-        (struct.pack(">BHH", 3, 44, 1), 3),  # past the last holding register
+        (struct.pack(">BHH", 3, 170, 1), 3),  # past the last holding register
         (struct.pack(">BHH", 4, 7, 2), 4),  # input gap 7-9
         (struct.pack(">BHH", 6, 7, 1), 6),
         (struct.pack(">BHHBHH", 16, 8, 2, 4, 0, 0), 16),
@@ -115,13 +120,17 @@ async def test_power_up_registers_show_the_values_in_force(controller, bench):
         for name, reg in regs.items()
         if name != "command"
     }
+    # the drive memory at power-up: empty, its rate the default 1 kHz
+    names = ("drive_rate_hz", "drive_length", "drive_offset", "drive_block")
+    drive = {name: values.pop(name) for name in names}
+    assert drive == dict(zip(names, (1000.0, 0, 0, (0.0,) * 60), strict=True))
     assert values == pytest.approx(POWER_UP)
     assert values["watchdog_ms"] > 0  # the watchdog is armed at power-up
     assert values == pytest.approx(bench.controller.setpoints)
 
 
 def _words_of(image: list[int], address: int, width: int) -> list[int]:
-    """Words of the holding image read as addresses 0-4 then 10-43."""
+    """Words of the holding image read as addresses 0-4 then 10-169."""
     offset = address if address < 5 else address - 5
     return image[offset : offset + width]
 

@@ -180,6 +180,16 @@ def dumped(tmp_path_factory) -> dict[str, DumpedObject]:
     run.set_link_counters({"frames_ok": n, "gaps": 0})
     run.finish("complete")
     run.write_results("free_run", {"m_comp_kg": 12.0, "fit": {"freqs_hz": np.arange(5.0), "notes": ["ok"]}})
+    replay = writer.begin_run(  # a road replay: its drive attribute
+        "002",
+        kind="road_replay",
+        step={"type": "road_replay"},
+        conditions={},
+        channels=channels[2:4],
+        sample_rate_hz=1e3,
+        drive={"source": "drive.csv column 'z [mm]'", "sha256": "0" * 64, "crc32": "00000000"},
+    )
+    replay.finish("aborted", "aborted by the operator")
     writer.close()
     out = subprocess.run(
         [H5DUMP, "-H", "-p", str(path)], capture_output=True, text=True, timeout=60, check=True

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+from bench.analysis.road_replay import RoadReplayResult
 from bench.analysis.runs import FourPostResult, FreeRunResult, HammerResult, ShakerCampaignResult
 from bench.models.parameters import WfsSensor
 
@@ -60,7 +61,8 @@ class PlateMassRun:
 class CampaignKnowledge:
     """What the campaign has established so far, for the analyses that follow; ``sensor`` and
     ``sensor_source``: the sensor model and where it comes from (the hammer test replaces what the
-    configuration stated or the default assumed); ``plate_mass_kg``: the shaker plate's mass as the
+    configuration stated or the default assumed); ``road_replays``: each road replay analysed, by
+    run id; ``plate_mass_kg``: the shaker plate's mass as the
     configuration states it (nominal: the shaker analysis takes it when the campaign has no free
     run); ``plate_masses``:
     every free run analysed, in order (whether or not a later run used it); ``analysed_runs``:
@@ -77,16 +79,18 @@ class CampaignKnowledge:
     shaker: dict[float, ShakerCampaignResult] = field(default_factory=dict)
     hammer: HammerResult | None = None
     four_post: FourPostResult | None = None
+    road_replays: dict[str, RoadReplayResult] = field(default_factory=dict)
     analysed_runs: dict[str, RunAnalysis] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class RunAnalysis:
     """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
-    ``shaker``, ``four_post``, ``sweep``, or ``analysis`` when it failed), the text ``lines``, the
-    scalar ``results`` stored beside the run, ``error`` (empty when the analysis succeeded) and
-    ``omitted``: what the data did not allow, each with why (empty when the analysis gave
-    everything the run is for). The result objects go into the analyser's knowledge."""
+    ``shaker``, ``four_post``, ``sweep``, ``track``, ``road_replay``, or ``analysis`` when it
+    failed), the text ``lines``, the scalar ``results`` stored beside the run, ``error`` (empty
+    when the analysis succeeded) and ``omitted``: what the data did not allow, each with why
+    (empty when the analysis gave everything the run is for). The result objects go into the
+    analyser's knowledge."""
 
     run_id: str
     kind: str

@@ -108,6 +108,27 @@ class SweepRecord:
 
 
 @dataclass(frozen=True)
+class RoadReplayRecord:
+    """One road replay: the post driven by a displacement drive; ``channels`` by name at
+    ``sample_rate_hz`` over the drive (its tapers included), time zero at its first sample;
+    ``hold_s`` the part between its tapers (s from the record's start); ``source``: where the drive
+    came from (the run's ``drive`` attribute)."""
+
+    sample_rate_hz: float
+    channels: Mapping[str, np.ndarray]
+    hold_s: tuple[float, float]
+    source: str = ""
+
+    @property
+    def label(self) -> str:
+        return f"road replay of {self.source or 'a drive'}"
+
+    @property
+    def duration_s(self) -> float:
+        return len(next(iter(self.channels.values()), ())) / float(self.sample_rate_hz)
+
+
+@dataclass(frozen=True)
 class HammerRecord:
     """One hammer blow on the bare sensor: the WFS force and, when recorded, the hammer's force,
     at ``sample_rate_hz`` (fast: the sensor rings at kilohertz)."""
@@ -154,7 +175,10 @@ def dwell_problems(record: DwellRecord, fit: DwellFit, signal_channels: Sequence
 
 
 def record_channels(
-    record: DwellRecord | SweepRecord | HammerRecord, required: Sequence[str], *, min_samples: int = 1
+    record: DwellRecord | SweepRecord | HammerRecord | RoadReplayRecord,
+    required: Sequence[str],
+    *,
+    min_samples: int = 1,
 ) -> dict[str, np.ndarray]:
     """The ``required`` channels of ``record``, checked (finite, 1-D, equal lengths); every error
     names the record."""

@@ -26,7 +26,14 @@ from typing import Any, TypeVar
 from drivers.actuator import DEFAULT_HEARTBEAT_PERIOD_S, DEFAULT_WATCHDOG_MS, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError, ConnectionLostError, LinkTimeoutError
 from drivers.register_map import MOVING_STATES, ControllerState, InterlockFlag
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
+from drivers.setpoints import (
+    DRIVE_BLOCK_SAMPLES,
+    AmplitudeUpdate,
+    DriveSetpoint,
+    DwellSetpoint,
+    FrequencyUpdate,
+    SweepSetpoint,
+)
 
 T = TypeVar("T")
 log = logging.getLogger(__name__)
@@ -127,7 +134,7 @@ class ThreadedActuator:
     def read_status(self) -> ControllerReadback:
         return ControllerReadback(self._call(self._client.read_status()))
 
-    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint) -> None:
         """Write the setpoint; when a reply came too late to tell whether its writes took effect,
         write the whole setpoint once more. Unlike a command, a setpoint is a set of register
         values written while the actuator is at rest: writing the same values again leaves the
@@ -155,6 +162,17 @@ class ThreadedActuator:
     def frequency_updates(self) -> bool:
         """Whether the controller takes frequency updates (its register map names the register)."""
         return self._client.map.frequency_updates
+
+    @property
+    def drive_files(self) -> bool:
+        """Whether the controller plays drive files (its register map names the drive registers)."""
+        return self._client.map.drive_files
+
+    def load_drive(self, drive: DriveSetpoint) -> None:
+        """Upload the drive unless the controller holds it: one request per block, each within the
+        client's reply timeout, so the call may take that long for every block."""
+        requests = drive.n_samples // DRIVE_BLOCK_SAMPLES + 4  # the blocks, the header, the checks
+        self._call(self._client.load_drive(drive), CALL_TIMEOUT_S + requests * self._client.timeout_s)
 
     def update_frequency(self, update: FrequencyUpdate) -> None:
         """A new frequency for the dwell holding now; a late reply is told by the hold sync output."""

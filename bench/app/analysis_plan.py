@@ -7,16 +7,19 @@ plate mass m_comp (a free run before it, else the configured plate mass, nominal
 :data:`~bench.analysis.records.MIN_FIT_POINTS` frequencies per amplitude and pressure for a tyre
 fit (fewer give the measured ratios only); for a four-post sweep the post's free run, the tyre's
 pressure and the tyre's shaker identification, which only an earlier sequence run into the same
-campaign file can give. A shaker's grid on a bench without a hub accelerometer is analysed with the
-clamped hub taken as not moving. A sweep on the shaker is recorded, not analysed. A campaign file that holds
-runs already (another sequence's) may supply what a step lacks here: each line says so.
+campaign file can give; for a road replay the same (its contact force is the post's plate force
+corrected with m_comp, its model compensation the tyre's shaker identification at its pressure:
+without one it gives the raw and hub-acceleration compensated forces only). A shaker's grid on a
+bench without a hub accelerometer is analysed with the clamped hub taken as not moving. A sweep on
+the shaker is recorded, not analysed. A campaign file that holds runs already (another sequence's)
+may supply what a step lacks here: each line says so.
 """
 
 from __future__ import annotations
 
 from bench.analysis.records import MIN_FIT_POINTS
 from bench.config import BenchConfig
-from sequences import DwellGrid, FreeRun, Prompt, Sequence, SineDwell, Sweep
+from sequences import DwellGrid, FreeRun, Prompt, RoadReplay, Sequence, SineDwell, Sweep
 from sequences.channels import Role
 
 #: What a campaign file the sequence runs into may hold already.
@@ -79,6 +82,23 @@ class _Walk:
             " campaign into the same campaign file first"
         )
 
+    def replay(self, index: int, step: RoadReplay) -> None:
+        key = f"steps[{index}] {step.kind}"
+        if not self.free_run:
+            self.lines.append(
+                f"{key}: no analysis: no free run of the post before it (its m_comp corrects the post's"
+                f" contact force), {_UNLESS_IN_FILE}"
+            )
+        why = (
+            "no set_tyre_pressure prompt before it"
+            if self.pressure_bar is None
+            else f"it needs the tyre's shaker identification at {self.pressure_bar:g} bar"
+        )
+        self.lines.append(
+            f"{key}: the model-compensated force: {why}; without it the raw and hub-acceleration"
+            f" compensated forces only, {_UNLESS_IN_FILE}"
+        )
+
     def too_few_points(self) -> list[str]:
         lines = []
         for (bar, amplitude_mm), (steps, freqs) in self.grid_points.items():
@@ -105,4 +125,6 @@ def analysis_limits(sequence: Sequence, config: BenchConfig) -> list[str]:
             walk.grid(index, step)
         elif isinstance(step, Sweep):
             walk.sweep(index, step)
+        elif isinstance(step, RoadReplay):
+            walk.replay(index, step)
     return walk.lines + walk.too_few_points()

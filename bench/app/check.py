@@ -13,7 +13,7 @@ from bench.app.analysis_plan import analysis_limits
 from bench.app.durations import sequence_estimate_text
 from bench.config import BenchConfig
 from bench.dry_run import DryRun
-from sequences import DwellGrid, FreeRun, HammerTest, Prompt, Sequence, SineDwell, Sweep
+from sequences import DwellGrid, FreeRun, HammerTest, Prompt, RoadReplay, Sequence, SineDwell, Sweep
 
 
 def step_line(index: int, step: object) -> str:
@@ -36,6 +36,15 @@ def step_line(index: int, step: object) -> str:
                 f"{step.law} sweep {step.start_hz:g}-{step.end_hz:g} Hz in {step.duration_s:g} s"
                 f" at {step.amplitude_mm:g} mm"
             )
+        case RoadReplay() if step.generated:
+            what = (
+                f"ISO 8608 class {step.road_class} road at {step.speed_km_h:g} km/h for"
+                f" {step.duration_s:g} s (seed {step.seed}), on {step.mean_mm:g} mm"
+            )
+        case RoadReplay():
+            cut = f", its first {step.duration_s:g} s" if step.duration_s else ""
+            column = f" ({step.channel})" if step.channel else ""
+            what = f"drive file {step.file}{column}{cut}, on {step.mean_mm:g} mm"
         case HammerTest():
             what = f"{step.blows} blows, trigger {step.trigger_level_n:g} N, {step.capture_s:g} s captures"
         case Prompt():

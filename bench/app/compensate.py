@@ -27,10 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
@@ -47,6 +48,18 @@ from bench.store.measurement import Measurement
 
 class CompensationRefusedError(ValueError):
     """The campaign does not cover the measurement: the message names what is missing."""
+
+
+class IdentifiedCampaign(Protocol):
+    """What a compensation takes of a campaign: what its runs established (``knowledge``) and its
+    ``path``, which messages name (a whole file analysed, :class:`~bench.analysis.campaign.
+    CampaignAnalysis`, or the campaign a run's analysis is part of)."""
+
+    @property
+    def path(self) -> Path: ...
+
+    @property
+    def knowledge(self) -> CampaignKnowledge: ...
 
 
 @dataclass(frozen=True)
@@ -66,7 +79,7 @@ class Compensation:
         )
 
 
-def _shaker_at(analysis: CampaignAnalysis, pressure_bar: float | None):
+def _shaker_at(analysis: IdentifiedCampaign, pressure_bar: float | None):
     shaker = analysis.knowledge.shaker
     if not shaker:
         raise CompensationRefusedError(
@@ -96,7 +109,7 @@ def _noise(result: ShakerAmplitudeResult, channel: str) -> float:
 
 
 def _valid_band(
-    analysis: CampaignAnalysis, chosen: ShakerAmplitudeResult, pressure_bar: float
+    analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult, pressure_bar: float
 ) -> tuple[float, float]:
     """Where the campaign verified the compensation: the shaker's compensated band (the tyre path,
     hub clamped), within the four-post's model-compensated band when the campaign has one (the hub
@@ -114,7 +127,7 @@ def _valid_band(
 
 
 def compensation_basis(
-    analysis: CampaignAnalysis, measurement: Measurement, pressure_bar: float | None
+    analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
 ) -> CompensationBasis:
     """What the campaign ``analysis`` gives the compensation of ``measurement`` at ``pressure_bar``
     (see the module docstring); :class:`CompensationRefusedError` naming what is missing."""
@@ -177,7 +190,7 @@ def compensation_basis(
 
 
 def prepare_compensation(
-    analysis: CampaignAnalysis, measurement: Measurement, pressure_bar: float | None
+    analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
 ) -> Compensation:
     """The basis from the campaign and the filters at the measurement's rate; refused (naming
     what) when the campaign does not cover the measurement. The hub acceleration's offset (its mean

@@ -16,6 +16,8 @@ from pathlib import Path
 
 from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
+from bench.engine.contracts import PlannedDrive
+from bench.replay_drive import load_drives
 from sequences import Sequence, dump_sequence, load_sequence, validate
 from sequences.metadata import merged
 
@@ -28,13 +30,15 @@ class PlanRefusedError(ValueError):
 class CampaignPlan:
     """A validated sequence on a configured bench, with the texts that produced them and the test
     metadata its campaign is recorded with (every field: the configuration's, the sequence's and
-    the command line's merged, each key from the last that gives it)."""
+    the command line's merged, each key from the last that gives it); ``drives``: each road
+    replay's drive as it was loaded and dry-run, by its step's index (what the engine plays)."""
 
     config: BenchConfig
     config_text: str
     sequence: Sequence
     sequence_text: str
     metadata: Mapping[str, str] = field(default_factory=merged)
+    drives: Mapping[int, PlannedDrive] = field(default_factory=dict)
 
     def with_metadata(self, given: Mapping[str, str]) -> CampaignPlan:
         """This plan with the fields of ``given`` replacing its own (a front end's operator and
@@ -67,9 +71,11 @@ def plan_sequence(
 ) -> CampaignPlan:
     """Check a sequence built in Python (or loaded) against ``config``: the same validation as a
     sequence file gets, then the dry run. The texts recorded with the campaign default to the
-    sequence and configuration written out as TOML."""
+    sequence and configuration written out as TOML. Road replays' drives are loaded here, once
+    (SequenceError when one cannot be had): the drive dry-run is the drive played."""
     validate(sequence, config.limits, config.channels)
-    refusals = dry_run(sequence, config).refusals
+    drives = load_drives(sequence)
+    refusals = dry_run(sequence, config, drives).refusals
     if refusals:
         raise PlanRefusedError("\n".join(str(r) for r in refusals))
     return CampaignPlan(
@@ -78,4 +84,5 @@ def plan_sequence(
         sequence,
         sequence_text if sequence_text is not None else dump_sequence(sequence),
         merged(config.metadata, sequence.metadata),
+        drives,
     )

@@ -90,12 +90,12 @@ class PostRunAnalysis:
 
     def gate(self, run_id: str, kind: str) -> str | None:
         """The engine's run gate (:class:`~bench.engine.contracts.RunGate`): before a run whose
-        contact force is corrected with a free run's plate mass (a dwell grid, a sweep), the
-        analyses of the free runs sent are waited for (they take well under a second; the bench is
-        at rest between runs), and a sequence whose last free run gives an m_comp not to be trusted
-        (a finding: the plate did not move as a rigid mass, the mass is not physical) or could not
-        be analysed stops before the run, with the reason."""
-        if kind not in (RunKind.DWELL_GRID, RunKind.SWEEP):
+        contact force is corrected with a free run's plate mass (a dwell grid, a sweep, a road
+        replay), the analyses of the free runs sent are waited for (they take well under a second;
+        the bench is at rest between runs), and a sequence whose last free run gives an m_comp not
+        to be trusted (a finding: the plate did not move as a rigid mass, the mass is not physical)
+        or could not be analysed stops before the run, with the reason."""
+        if kind not in (RunKind.DWELL_GRID, RunKind.SWEEP, RunKind.ROAD_REPLAY):
             return None
         self._take_results(wait=True, until_kind=RunKind.FREE_RUN)
         free_runs = [a for a in self.knowledge.analysed_runs.values() if a.kind == RunKind.FREE_RUN]

@@ -68,6 +68,7 @@ class Recorder:
             conditions=event.conditions,
             channels=event.channels,
             sample_rate_hz=event.sample_rate_hz,
+            drive=event.drive,
         )
 
     def _samples(self, event: ev.SamplesRecorded) -> None:

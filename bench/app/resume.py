@@ -67,7 +67,7 @@ def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFrom
     if not resume:
         return None
     with open_campaign(out_path) as campaign:
-        check_resume(campaign, plan.sequence, plan.config)
+        check_resume(campaign, plan.sequence, plan.config, plan.drives)
         if sequence_complete(plan, {run.run_id: run.status for run in campaign.runs}):
             raise NothingToResumeError(
                 f"{out_path}: every run of sequence {plan.sequence.name!r} is complete already:"

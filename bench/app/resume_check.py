@@ -12,10 +12,12 @@ one campaign never mixes amplitudes, limits or calibrations.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 from bench.app.analyze import sequences_run
 from bench.config import BenchConfig, ConfigError, measured_bench, parse_bench_config
+from bench.engine.contracts import PlannedDrive
 from bench.engine.engine import Engine, is_measurement
 from bench.store import CampaignFile
 from sequences import Sequence, SequenceError, parse_sequence, step_fields
@@ -25,15 +27,25 @@ class ResumeMismatchError(ValueError):
     """The campaign file holds another sequence or another bench than the one given to resume it."""
 
 
-def check_resume(campaign: CampaignFile, sequence: Sequence, config: BenchConfig) -> None:
+def check_resume(
+    campaign: CampaignFile,
+    sequence: Sequence,
+    config: BenchConfig,
+    drives: Mapping[int, PlannedDrive] | None = None,
+) -> None:
     """Refuse (:class:`ResumeMismatchError`) to resume ``campaign`` with ``sequence`` on ``config``
     when either differs from what the file recorded (relative paths of the stored configuration are
-    taken from the directory of ``config``'s file, as they were when it was recorded).
+    taken from the directory of ``config``'s file, as they were when it was recorded), or when a
+    road replay's drive (``drives``, as planned) is not the one its run recorded (its SHA-256: a
+    drive file changed since).
 
     The file records the configuration and the sequence text of the campaign's first sequence; a
     sequence added to it later (the four-post's after the shaker's) is compared run by run with the
     steps its runs recorded, and its bench is not compared. A sequence of which the file holds no
     run has nothing to continue: refused too (it is added to a file without ``--resume``)."""
+    problem = _drives_difference(campaign, sequence, drives or {})
+    if problem:
+        raise _mismatch(campaign, problem)
     if campaign.sequence_name != sequence.name:
         if not _holds_runs_of(campaign, sequence):
             held = ", ".join(name for name, _ in sequences_run(run.run_id for run in campaign.runs))
@@ -66,6 +78,20 @@ def check_resume(campaign: CampaignFile, sequence: Sequence, config: BenchConfig
             campaign,
             f"the bench configuration {config.source} differs from the one the file holds: {problem}",
         )
+
+
+def _drives_difference(campaign: CampaignFile, sequence: Sequence, drives: Mapping[int, PlannedDrive]) -> str:
+    """The first road replay whose planned drive differs from the one its run recorded."""
+    recorded = {run.run_id: run.drive for run in campaign.runs}
+    for index, drive in drives.items():
+        run_id = Engine.run_id(sequence, index)
+        old = recorded.get(run_id, {}).get("sha256")
+        if old is not None and old != drive.record.get("sha256"):
+            return (
+                f"steps[{index}]: the drive ({drive.record.get('source')}) is not the one run {run_id}"
+                f" played: SHA-256 {drive.record.get('sha256')} now, {old} in the file"
+            )
+    return ""
 
 
 def _mismatch(campaign: CampaignFile, text: str) -> ResumeMismatchError:

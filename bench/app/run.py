@@ -150,6 +150,7 @@ def _run_on(
                 resume=resume_plan,
                 gate=analysis.gate,
                 gate_asks=gate_asks,
+                drives=plan.drives,
             )
         finally:
             for subscriber in (*own, *subscribers):

@@ -12,7 +12,11 @@ What is analysed after which run (the paper's procedure):
 - four-post sweep: m_wheel, the quarter car and the valid bands, with the post's own free run and the
   tyre identified on the shaker at the pressure nearest the one the sweep's run records (its
   ``set_tyre_pressure`` prompt; a run that records none is not analysed against a guessed tyre),
-  or the configured tyre when the campaign has no shaker identification.
+  or the configured tyre when the campaign has no shaker identification;
+- road replay: the WFS force raw, hub-acceleration compensated (m_wheel and the accelerometer's lag
+  of the four-post sweep, else the configured wheel mass) and model-compensated (the compensation
+  ``wfsbench compensate`` builds from the campaign, at the run's tyre pressure; without one the
+  analysis is partial and says why) against the post's contact force (its free run's m_comp).
 
 :func:`run_inputs` reads what a run's analysis needs from its campaign file (:class:`RunInputs`);
 :class:`RunAnalyser` analyses it with what the runs before it established (an analysis that fails
@@ -27,10 +31,22 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis, SensorSource
-from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+from bench.analysis.measurement_compensation import CompensationFilters
+from bench.analysis.records import (
+    HUB_ACCELERATION,
+    WFS_FORCE,
+    DwellRecord,
+    HammerRecord,
+    RoadReplayRecord,
+    SweepRecord,
+)
+from bench.analysis.road_replay import OCTAVE_CENTRES_HZ, analyse_road_replay
 from bench.analysis.runs import (
     FreeRunResult,
     ShakerCampaignResult,
@@ -46,9 +62,12 @@ from bench.config import BenchConfig
 from bench.models.parameters import WfsSensor
 from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView
+from bench.store.measurement import Measurement
 
 #: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
 PRESSURE_MATCH_BAR = 0.05
+#: The plate a four-post free run weighs, as :class:`PlateMassRun` names it.
+POST_PLATE = "four-post post"
 #: Where a nominal m_comp comes from, as reports name it.
 NOMINAL_PLATE_SOURCE = "the bench configuration's masses.plate_kg"
 
@@ -70,8 +89,8 @@ class RunInputs:
     is not open (a process of its own): the run's ``run_id``, ``kind`` and ``conditions``, and its
     records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
     of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
-    (``sweep``); a tracked dwell's looks (``track``). ``read_error``: why the records could not be
-    read (the analysis is then flagged)."""
+    (``sweep``); a tracked dwell's looks (``track``); a road replay (``replay``). ``read_error``: why
+    the records could not be read (the analysis is then flagged)."""
 
     run_id: str
     kind: str
@@ -80,6 +99,7 @@ class RunInputs:
     dwells: tuple[DwellRecord, ...] = ()
     sweep: SweepRecord | None = None
     track: TrackRecord | None = None
+    replay: RoadReplayRecord | None = None
     read_error: str = ""
 
 
@@ -88,8 +108,12 @@ def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
     conditions = dict(run.conditions)
     inputs = RunInputs(run.run_id, run.kind, conditions)
     try:
-        if run.kind == "hammer":
-            return dataclasses.replace(inputs, hammer=run.hammer_record())
+        if run.kind in ("hammer", "road_replay"):
+            return dataclasses.replace(
+                inputs,
+                hammer=run.hammer_record() if run.kind == "hammer" else None,
+                replay=run.road_replay_record() if run.kind == "road_replay" else None,
+            )
         if run.kind in ("free_run", "tracked_dwell"):
             return dataclasses.replace(
                 inputs,
@@ -138,7 +162,10 @@ class RunAnalyser:
 
     def _omitted(self, name: str, run: RunInputs) -> tuple[str, ...]:
         """What the analysis ``name`` of ``run`` could not give, with why: a grid's amplitudes with
-        too few dwells for a tyre fit."""
+        too few dwells for a tyre fit, a road replay's model-compensated force."""
+        if name == "road_replay":
+            replay = self.knowledge.road_replays[run.run_id]
+            return () if replay.identification else (f"model-compensated force: {replay.model_omitted}",)
         if name != "shaker":
             return ()
         result = self.knowledge.shaker[float(run.conditions["tyre_pressure_bar"])]
@@ -169,7 +196,7 @@ class RunAnalyser:
             result = analyse_free_run(records)
             if run.conditions.get("bench") == "four_post":
                 k.post_free_run = records
-                k.plate_masses.append(PlateMassRun(run.run_id, "four-post post", result))
+                k.plate_masses.append(PlateMassRun(run.run_id, POST_PLATE, result))
             else:
                 k.shaker_free_run = records
                 k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
@@ -185,6 +212,8 @@ class RunAnalyser:
             return self._shaker(run)
         if run.kind == "sweep":
             return self._four_post(run)
+        if run.kind == "road_replay" and run.replay is not None:
+            return self._road_replay(run)
         if run.kind == "tracked_dwell" and run.track is not None:
             result = analyse_track(run.track)
             return (
@@ -223,6 +252,59 @@ class RunAnalyser:
                 " configured (masses.plate_kg): m_comp unknown"
             )
         return nominal_free_run(self.knowledge.plate_mass_kg, NOMINAL_PLATE_SOURCE)
+
+    def _road_replay(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+        k = self.knowledge
+        record = run.replay
+        assert record is not None
+        posts = [p for p in k.plate_masses if p.plate == POST_PLATE]
+        if not posts:
+            raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
+        mass_kg, delay_s = k.wheel_mass_kg, 0.0
+        if k.four_post is not None:
+            wheel = k.four_post.wheel_mass
+            mass_kg, delay_s = wheel.mass_kg, wheel.accelerometer_delay_s
+        filters, omitted = self._replay_compensation(run)
+        result = analyse_road_replay(
+            record,
+            plate=posts[-1].result.plate,
+            wheel_mass_kg=mass_kg,
+            accelerometer_delay_s=delay_s,
+            filters=filters,
+            model_omitted=omitted,
+        )
+        k.road_replays[run.run_id] = result
+        results: dict[str, Any] = {
+            "drive_source": result.source,
+            "span_s": result.span_s,
+            "m_comp_kg": result.plate_mass_kg,
+            "m_wheel_kg": result.wheel_mass_kg,
+            "contact_rms_n": result.contact_rms_n,
+            "octave_centres_hz": list(OCTAVE_CENTRES_HZ),
+        }
+        for name, errors in result.errors.items():
+            results[f"rms_error_{name}_n"] = errors.rms_n
+            results[f"octave_rms_error_{name}_n"] = list(errors.octave_rms_n)
+        return "road_replay", result.summary_lines(), results
+
+    def _replay_compensation(self, run: RunInputs) -> tuple[CompensationFilters | None, str]:
+        """The model compensation of a road replay at its rate, as ``wfsbench compensate`` builds it
+        from the campaign, or None and why there is none."""
+        from bench.app.compensate import CompensationRefusedError, prepare_compensation
+
+        record = run.replay
+        assert record is not None
+        pressure = run.conditions.get("tyre_pressure_bar")
+        if pressure is None:
+            return None, "the run records no tyre pressure (no set_tyre_pressure prompt before it)"
+        names = (WFS_FORCE, HUB_ACCELERATION)
+        channels = {name: np.asarray(record.channels[name], dtype=float) for name in names}
+        measurement = Measurement(run.run_id, record.sample_rate_hz, channels, float(pressure))
+        campaign = _CampaignSoFar(Path("the campaign"), self.knowledge)
+        try:
+            return prepare_compensation(campaign, measurement, float(pressure)).filters, ""
+        except CompensationRefusedError as exc:
+            return None, str(exc)
 
     def _four_post(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
         k = self.knowledge
@@ -266,6 +348,14 @@ class RunAnalyser:
                 **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
         )
+
+
+@dataclass(frozen=True)
+class _CampaignSoFar:
+    """The campaign as a compensation takes it (:class:`bench.app.compensate.IdentifiedCampaign`)."""
+
+    path: Path
+    knowledge: CampaignKnowledge
 
 
 def _grids_end(run: RunView, following: list[RunView]) -> bool:

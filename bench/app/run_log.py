@@ -40,8 +40,9 @@ class RunLog:
                 u = f"{event.magnitude_uncertainty_pct:.2f} % / {event.phase_uncertainty_deg:.2f} deg"
                 u = f", u {u}" if math.isfinite(event.magnitude_uncertainty_pct) else ""  # a track has none
                 verdict = f"; {event.verdict}{u}" if event.verdict else ""
+                at = f"at {event.freq_hz:g} Hz" if event.freq_hz > 0 else "(broadband: a drive, a blow)"
                 return (
-                    f"  point {event.index} at {event.freq_hz:g} Hz: {event.status},"
+                    f"  point {event.index} {at}: {event.status},"
                     f" commanded {event.commanded_amplitude_mm:.3f} mm{achieved}{note}{verdict}"
                 )
             case ev.GridRefined():

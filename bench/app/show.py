@@ -26,7 +26,17 @@ from bench.config import BenchConfig
 from bench.report.metadata import metadata_lines
 from bench.store import CampaignFile, RunView, StoreError, open_campaign
 from bench.store.schema import CampaignInUseError, campaign_key
-from sequences import DwellGrid, FreeRun, HammerTest, Sequence, SequenceError, SineDwell, Step, Sweep
+from sequences import (
+    DwellGrid,
+    FreeRun,
+    HammerTest,
+    RoadReplay,
+    Sequence,
+    SequenceError,
+    SineDwell,
+    Step,
+    Sweep,
+)
 from sequences.loader import step_from_fields
 from sequences.metadata import LABELS
 from sequences.points import PointStatus
@@ -115,7 +125,7 @@ def _step_excitation(step: Step) -> Excitation:
         return [float(step.amplitude_mm)], [float(step.freq_hz)] * 2
     if isinstance(step, Sweep):
         return [float(step.amplitude_mm)], [float(step.start_hz), float(step.end_hz)]
-    if isinstance(step, HammerTest):
+    if isinstance(step, HammerTest | RoadReplay):
         return [], None
     raise ValueError(f"a {step.kind} step records no run")
 
@@ -165,6 +175,7 @@ def _run(run: RunView) -> dict[str, Any]:
         "sample_rate_hz": run.sample_rate_hz,
         "resumes": run.resumes,
         "resumed_by": run.resumed_by,
+        "drive": dict(run.drive) or None,
         "analyses": [{"name": name, "stored": run.result_stored(name) or None} for name in run.result_names],
     }
 
@@ -247,6 +258,9 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
             lines.append(f"    {'; '.join(by)}")
         if who.get("notes"):
             lines.append(f"    notes: {' / '.join(who['notes'].splitlines())}")
+        if run["drive"]:
+            drive = run["drive"]
+            lines.append(f"    drive: {drive.get('source', '?')}; sha256 {drive.get('sha256', '?')}")
         for key, word in (("resumes", "resumes"), ("resumed_by", "resumed by")):
             if run[key]:
                 lines.append(f"    {word} {run[key]}")

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepSetpoint
+from drivers.setpoints import AmplitudeUpdate, DriveSetpoint, DwellSetpoint, FrequencyUpdate, SweepSetpoint
 from sequences import Prompt, Sweep
 
 
@@ -46,6 +46,15 @@ class Notching(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class PlannedDrive:
+    """A road replay's drive as the plan loaded and dry-ran it: the ``setpoint`` the controller
+    plays, and ``record``: what the run records of it (its source and checksum, JSON-able)."""
+
+    setpoint: DriveSetpoint
+    record: Mapping[str, Any]
+
+
 class ControllerStatus(Protocol):
     """What the engine reads back from the actuator controller."""
 
@@ -72,8 +81,9 @@ class StatusReadable(Protocol):
 
 
 class Excitable(Protocol):
-    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
-        """Check ``setpoint`` against the soft limits and write it; nothing moves yet.
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint) -> None:
+        """Check ``setpoint`` against the soft limits and write it; nothing moves yet. A drive plays
+        what the controller holds: it must hold that drive (:meth:`DrivePlayable.load_drive`).
 
         Raises LimitError with nothing written when the setpoint lies outside the limits."""
         ...
@@ -103,6 +113,17 @@ class FrequencyAdjustable(Protocol):
         """Glide the sine dwell holding now to a new frequency, phase-continuously; the hold goes
         on. LimitError (nothing written) outside the soft limits; CommandRejectedError when the
         controller refuses it. Only an actuator whose controller takes frequency updates is asked."""
+        ...
+
+
+class DrivePlayable(Protocol):
+    def load_drive(self, drive: DriveSetpoint) -> None:
+        """Give the controller the drive to play (a file transfer over its link, as long as the drive
+        needs), unless it holds that drive already; checked against what the controller received.
+        LimitError (nothing written) outside the soft limits; CommandRejectedError when the
+        controller plays no drive files or refuses the upload; DriveMismatchError when it reports
+        another drive than the one sent. Only an actuator whose controller plays drive files is
+        asked (its ``drive_files`` is true)."""
         ...
 
 

@@ -35,6 +35,7 @@ from bench.engine.contracts import (
     Notch,
     Notching,
     Operator,
+    PlannedDrive,
     ResumePlan,
     RunGate,
     SampleBlockLike,
@@ -48,7 +49,14 @@ from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRe
 from bench.engine.timing import EngineTiming
 from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
-from drivers.setpoints import AmplitudeUpdate, DwellSetpoint, FrequencyUpdate, SweepNotch, SweepSetpoint
+from drivers.setpoints import (
+    AmplitudeUpdate,
+    DriveSetpoint,
+    DwellSetpoint,
+    FrequencyUpdate,
+    SweepNotch,
+    SweepSetpoint,
+)
 from sequences import (
     AdaptiveDwell,
     AnswerError,
@@ -58,6 +66,7 @@ from sequences import (
     Hydraulics,
     MeanPosition,
     Prompt,
+    RoadReplay,
     Sequence,
     SineDwell,
     Sweep,
@@ -259,6 +268,7 @@ class Engine:
         self._gate: RunGate | None = None  # the sequence under way's run gate
         self._gate_asks = False  # whether a gate's reason is put to the operator instead of stopping
         self._gate_accepted: set[str] = set()  # the gate's reasons the operator chose to go on despite
+        self._drives: Mapping[int, PlannedDrive] = {}  # the sequence under way's road replays' drives
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -347,13 +357,15 @@ class Engine:
         resume: ResumePlan | None = None,
         gate: RunGate | None = None,
         gate_asks: bool = False,
+        drives: Mapping[int, PlannedDrive] | None = None,
     ) -> RunOutcome:
         """Run ``sequence`` to its end or until stopped (refused unless the engine is ready: at rest,
         aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
         says how and why. A crash (or Ctrl-C) still stops the actuator and ends the sequence
         ``failed``, then is raised on. ``gate``: asked before each step about the next measurement
         run (:meth:`_pass_gate`); a reason it gives ends the sequence there, ``aborted`` with that
-        reason, or with ``gate_asks`` is put to the operator, who may go on despite it."""
+        reason, or with ``gate_asks`` is put to the operator, who may go on despite it. ``drives``:
+        the drive of each road replay, by its step's index, as the plan loaded and dry-ran it."""
         if self._sequence_thread is not None:
             raise TransitionRefusedError(f"start is not allowed while {self.state.value}: a sequence runs")
         self._sequence_thread = threading.get_ident()  # before the start: its change is published here
@@ -362,6 +374,7 @@ class Engine:
             self.conditions = {"bench": self.bench_kind}
             self._outcome = None
             self._gate, self._gate_asks, self._gate_accepted = gate, gate_asks, set()
+            self._drives = drives or {}
             self.bus.publish(
                 ev.SequenceStarted(
                     sequence.name,
@@ -442,10 +455,12 @@ class Engine:
             run_id = self.run_id(sequence, index)
             if resume is not None and resume.run_complete(run_id):
                 return
-            if resume is None:
-                self._measure(run_id, step, RecordedRun())
-            else:
+            held = RecordedRun()
+            if resume is not None:
                 held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
+            if isinstance(step, RoadReplay):
+                self._replay_run(run_id, step, held, self._drives.get(index))
+            else:
                 self._measure(run_id, step, held)
         else:
             raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
@@ -569,20 +584,100 @@ class Engine:
             notch=None if notch is None else SweepNotch(notch.start_hz, notch.end_hz, notch.amplitude_mm),
         )
         with _RunRecording(self, run_id, step, held.samples) as run:
-            attempt = 0
-            while True:
-                self._checkpoint()
-                attempt += 1
-                try:
-                    span = run.excite(setpoint, planned_s=step.duration_s)
-                except _PointInterruptedError as interrupted:
-                    self._publish_sweep(
-                        run, setpoint, attempt, PointStatus.INTERRUPTED, interrupted.span, notch=notch
-                    )
-                    self._wait_paused()
-                    continue
-                self._publish_sweep(run, setpoint, attempt, PointStatus.DONE, span, notch=notch)
-                return
+
+            def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
+                self._publish_sweep(run, setpoint, attempt, status, span, notch=notch)
+
+            self._one_excitation(run, setpoint, step.duration_s, publish)
+
+    def _one_excitation(
+        self,
+        run: _RunRecording,
+        setpoint: SweepSetpoint | DriveSetpoint,
+        planned_s: float,
+        publish: Callable[[str, int, ExcitationSpan], None],
+    ) -> None:
+        """A run that is one excitation (a sweep, a road replay), its point published with
+        ``publish(status, attempt, span)``: a pause interrupts it (``interrupted``), and on resume it
+        runs again whole, from its start, until it is ``done``."""
+        attempt = 0
+        while True:
+            self._checkpoint()
+            attempt += 1
+            try:
+                span = run.excite(setpoint, planned_s=planned_s)
+            except _PointInterruptedError as interrupted:
+                publish(PointStatus.INTERRUPTED, attempt, interrupted.span)
+                self._wait_paused()
+                continue
+            publish(PointStatus.DONE, attempt, span)
+            return
+
+    def _replay_run(
+        self, run_id: str, step: RoadReplay, held: RecordedRun, drive: PlannedDrive | None
+    ) -> None:
+        """A road replay: the drive given to the controller once the run has begun, before its
+        stream starts (an upload takes as long as the drive needs; a refused one ends the run), then
+        played once as the run's one point, on the step's mean. A pause stops it with its taper and
+        plays it again from its start on resume, as a sweep; an abort, an e-stop or a lost link end
+        it as they end a sweep."""
+        if drive is None:
+            raise RunStoppedError.fail(f"road replay {run_id}: no drive was planned for it")
+        if not getattr(self.actuator, "drive_files", False):
+            raise RunStoppedError.fail(
+                f"road replay {run_id}: the controller plays no drive file (docs/protocols.md, *Drive files*)"
+            )
+        setpoint = replace(drive.setpoint, mean_mm=self._mean(step.mean_mm))
+        upload = _RunRecording(self, run_id, step, held.samples, drive=drive.record)
+        upload.before_stream = lambda: self.actuator.load_drive(setpoint)
+        with upload as run:
+
+            def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
+                self._publish_drive(run, setpoint, attempt, status, span)
+
+            self._one_excitation(run, setpoint, setpoint.duration_s, publish)
+
+    def _publish_drive(
+        self, run: _RunRecording, setpoint: DriveSetpoint, attempt: int, status: str, span: ExcitationSpan
+    ) -> None:
+        """The road replay's one point: its amplitude is the drive's largest sample about the mean,
+        the achieved one the displacement's over the part between the tapers (a drive has no
+        frequency: 0)."""
+        z = run.displacement_between(span.hold_start, span.hold_end)
+        achieved_mm = 1e3 * float(np.max(np.abs(z - np.mean(z)))) if z.size else float("nan")
+        achieved = {"achieved_amplitude_mm": achieved_mm}
+        self._publish_whole(run, (0.0, setpoint.peak_mm), span, status, attempt, **achieved)
+
+    def _publish_whole(
+        self,
+        run: _RunRecording,
+        commanded: tuple[float, float],
+        span: ExcitationSpan,
+        status: str,
+        attempt: int,
+        **measured: object,
+    ) -> None:
+        """The one point (index 0) of a run that is one excitation (a sweep, a road replay), as
+        ``commanded``: at a frequency (a sweep's start) and an amplitude (mm), over ``span``;
+        ``measured``: what the excitation showed (its achieved amplitude, a notch)."""
+        freq_hz, amplitude_mm = commanded
+        self.bus.publish(
+            ev.PointDone(
+                0,
+                freq_hz,
+                amplitude_mm,
+                span.start,
+                span.hold_start,
+                span.hold_end,
+                span.end,
+                status=status,
+                attempt=attempt,
+                requested_amplitude_mm=amplitude_mm,
+                commanded_amplitude_mm=amplitude_mm,
+                **measured,
+                run_id=run.run_id,
+            )
+        )
 
     def _tracked_run(self, run_id: str, step: TrackedDwell, held: RecordedRun) -> None:
         """A tracked dwell: its search (points 0 .. n-1, adaptive dwells measuring the ratio), the
@@ -748,23 +843,7 @@ class Engine:
                 "notch_amplitude_mm": notch.amplitude_mm,
                 "achieved_amplitude_mm": 1e3 * float(np.ptp(z)) / 2 if z.size else float("nan"),
             }
-        self.bus.publish(
-            ev.PointDone(
-                0,
-                setpoint.start_hz,
-                setpoint.amplitude_mm,
-                span.start,
-                span.hold_start,
-                span.hold_end,
-                span.end,
-                status=status,
-                attempt=attempt,
-                requested_amplitude_mm=setpoint.amplitude_mm,
-                commanded_amplitude_mm=setpoint.amplitude_mm,
-                **notched,
-                run_id=run.run_id,
-            )
-        )
+        self._publish_whole(run, (setpoint.start_hz, setpoint.amplitude_mm), span, status, attempt, **notched)
 
     def _hammer_run(self, run_id: str, step: HammerTest, held: RecordedRun) -> None:
         """Per blow: arm the triggered capture, ask for the blow, record the captured block.
@@ -1135,17 +1214,28 @@ class Engine:
 
 
 def is_measurement(step: object) -> bool:
-    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | HammerTest)
+    return isinstance(step, SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | RoadReplay | HammerTest)
 
 
 class _RunRecording:
     """One run's stream: started on entry, every frame published as samples until the exit."""
 
-    def __init__(self, engine: Engine, run_id: str, step: object, first_sample: int = 0) -> None:
-        """``first_sample``: how many samples the run held already (a resumed run goes on after them)."""
+    def __init__(
+        self,
+        engine: Engine,
+        run_id: str,
+        step: object,
+        first_sample: int = 0,
+        drive: Mapping[str, Any] | None = None,
+    ) -> None:
+        """``first_sample``: how many samples the run held already (a resumed run goes on after
+        them); ``drive``: a road replay's drive as the run records it."""
         self.engine = engine
         self.run_id = run_id
         self.step = step
+        self.drive = drive or {}
+        #: called once the run has begun, before its stream starts (a road replay's upload)
+        self.before_stream: Callable[[], None] | None = None
         self.samples = first_sample  # the run's samples so far: the index of the next one
         # the acquisition's sample time since this recording began: the samples received and those
         # the link reported lost (what the watchdogs count, so that a link that lets only a few
@@ -1168,9 +1258,12 @@ class _RunRecording:
                 dict(e.conditions),
                 e.channels.specs(),
                 e.sample_rate_hz,
+                self.drive,
             )
         )
         try:
+            if self.before_stream is not None:
+                self.before_stream()
             self._start_stream()
             e._recording = self
         except BaseException as exc:  # the run began: it ends too, with the sequence's ending
@@ -1261,7 +1354,7 @@ class _RunRecording:
 
     def excite(
         self,
-        setpoint: DwellSetpoint | SweepSetpoint,
+        setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint,
         *,
         planned_s: float,
         watch: OnlineDwell | None = None,

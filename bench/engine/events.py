@@ -44,7 +44,9 @@ class StateChanged:
 
 @dataclass(frozen=True)
 class RunStarted:
-    """A measurement step (dwell grid, free run, sweep, hammer test) begins recording as ``run_id``."""
+    """A measurement step (dwell grid, free run, sweep, road replay, hammer test) begins recording
+    as ``run_id``; ``drive``: a road replay's drive, where it came from and its checksum
+    (:class:`~bench.engine.contracts.PlannedDrive`), empty for any other run."""
 
     run_id: str
     kind: str
@@ -52,6 +54,7 @@ class RunStarted:
     conditions: Mapping[str, Any]
     channels: tuple[Channel, ...]
     sample_rate_hz: float
+    drive: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.setpoints import DriveSetpoint, DwellSetpoint, SweepSetpoint
 
 
 @dataclass(frozen=True)
@@ -103,12 +103,17 @@ class SpanTracker:
             self.hold_end = first_sample + lo + int(up[-1]) + 1
 
 
-def excitation_frequency_hz(setpoint: DwellSetpoint | SweepSetpoint, t_s: np.ndarray) -> np.ndarray:
-    """The excitation's frequency at ``t_s`` (s from its first active sample): a dwell's, or a
-    sweep's by its law (clipped to the sweep), as the controller's generator runs it."""
+def excitation_frequency_hz(
+    setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint, t_s: np.ndarray
+) -> np.ndarray:
+    """The excitation's frequency at ``t_s`` (s from its first active sample): a dwell's, a
+    sweep's by its law (clipped to the sweep), as the controller's generator runs it; a drive's
+    equivalent sine's (a broadband drive has no single frequency)."""
     t = np.asarray(t_s, dtype=float)
     if isinstance(setpoint, DwellSetpoint):
         return np.full(t.shape, setpoint.freq_hz)
+    if isinstance(setpoint, DriveSetpoint):
+        return np.full(t.shape, setpoint.equivalent_frequency_hz)
     x = np.clip(t / setpoint.duration_s, 0.0, 1.0)
     if setpoint.spacing == "linear" or setpoint.start_hz == setpoint.end_hz:
         return setpoint.start_hz + (setpoint.end_hz - setpoint.start_hz) * x

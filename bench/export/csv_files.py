@@ -29,6 +29,7 @@ import numpy as np
 from bench.engine.run_ids import RUN_ID
 from bench.export.common import done_points, output_folder
 from bench.store import CampaignFile, RunView
+from bench.store.csv_mapping import IMPORTED_KINDS
 from bench.store.csv_units import channel_si_unit, unit_named
 from sequences.runs import RunKind
 
@@ -148,7 +149,9 @@ def write_csv(campaign: CampaignFile, runs: tuple[RunView, ...], out: Path) -> l
     returns the mappings' paths."""
     by_bench: dict[str, list[RunView]] = {}
     for run in runs:
-        if done_points(run):  # a run without a done point has nothing the import could take
+        # a run without a done point has nothing the import could take; a kind it does not import
+        # (a tracked dwell, a road replay) has its file without a mapping
+        if done_points(run) and run.kind in IMPORTED_KINDS:
             by_bench.setdefault(run.conditions.get("bench", "shaker"), []).append(run)
     mappings = []
     with output_folder(out) as folder:

@@ -588,6 +588,19 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 ),
             )
         )
+    from bench.report.replay_figures import road_replay_figure  # it draws with this module's axes
+
+    for run_id, replay in k.road_replays.items():
+        out.append(
+            (
+                f"road_replay_{run_id}",
+                f"Road replay {run_id}",
+                "The WFS force raw, hub-acceleration compensated and model-compensated against the"
+                " post's contact force (post force less m_comp z''), in time and as power spectral"
+                " densities; the errors' panel gives each force's rms error in 0-30 Hz.",
+                lambda r=run_id, x=replay: road_replay_figure(r, x),
+            )
+        )
     return out
 
 

@@ -21,6 +21,8 @@ from html import escape
 from bench.analysis.campaign import CampaignAnalysis, RunAnalysis
 from bench.analysis.frf import ValidBand
 from bench.analysis.lsq import Z95
+from bench.analysis.road_replay import FORCES
+from bench.analysis.road_validation import ERROR_BAND_HZ, OCTAVE_CENTRES_HZ
 from bench.report.figures import FigureFile
 from bench.report.metadata import metadata_html
 
@@ -243,6 +245,26 @@ def _four_post(analysis: CampaignAnalysis) -> str:
     return mass + params + modes + notes
 
 
+def _road_replays(analysis: CampaignAnalysis) -> str:
+    """Each road replay's rms errors against the post's contact force, in 0-30 Hz and per octave."""
+    replays = analysis.knowledge.road_replays
+    if not replays:
+        return "<p>No road replay in this file.</p>"
+    octaves = [f"{c:g} Hz" for c in OCTAVE_CENTRES_HZ]
+    rows = []
+    for run_id, r in replays.items():
+        rows.append((run_id, "contact force (rms)", _g(r.contact_rms_n), *([""] * len(octaves))))
+        for name, label in FORCES:
+            if name in r.errors:
+                e = r.errors[name]
+                rows.append((run_id, label, _g(e.rms_n), *(_g(x, 3) for x in e.octave_rms_n)))
+            else:
+                rows.append((run_id, label, f"none: {r.model_omitted}", *([""] * len(octaves))))
+    header = ("run", "force", f"rms error {ERROR_BAND_HZ[0]:g}-{ERROR_BAND_HZ[1]:g} Hz (N)", *octaves)
+    drives = "".join(f"<li>{escape(run_id)}: {escape(r.source)}</li>" for run_id, r in replays.items())
+    return table_html(header, rows) + f"<p>Drives:</p><ul>{drives}</ul>"
+
+
 def _bands(analysis: CampaignAnalysis) -> str:
     rows = []
     for pressure, result in sorted(analysis.knowledge.shaker.items()):
@@ -437,6 +459,7 @@ def report_html(analysis: CampaignAnalysis, figures: Sequence[FigureFile]) -> st
         ("Identified tyre parameters, every model (95 % intervals)", _parameters(analysis)),
         ("Amplitude dependence (Model 2)", _dependence(analysis)),
         ("Four-post: m_wheel and the quarter car", _four_post(analysis)),
+        ("Road replays: rms error against the post's contact force", _road_replays(analysis)),
         ("Valid bands", _bands(analysis)),
         ("Run summaries", _summaries(analysis)),
     ]

@@ -17,6 +17,8 @@ from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.lsq import Z95
 from bench.analysis.repeats import RepeatSpread
+from bench.analysis.road_replay import FORCES, RoadReplayResult
+from bench.analysis.road_validation import ERROR_BAND_HZ, OCTAVE_CENTRES_HZ
 from bench.analysis.runs import (
     FourPostResult,
     FreeRunResult,
@@ -233,6 +235,33 @@ def four_post_json(result: FourPostResult) -> dict[str, Any]:
     }
 
 
+def road_replay_json(run_id: str, result: RoadReplayResult) -> dict[str, Any]:
+    """A road replay: its drive, the corrections used and each force's rms error against the
+    contact force (null for the model-compensated force the campaign gives no model for)."""
+    errors = {
+        name: None
+        if name not in result.errors
+        else {"rms_n": result.errors[name].rms_n, "octave_rms_n": list(result.errors[name].octave_rms_n)}
+        for name, _ in FORCES
+    }
+    return {
+        "run_id": run_id,
+        "drive_source": result.source,
+        "span_s": result.span_s,
+        "sample_rate_hz": result.sample_rate_hz,
+        "m_comp_kg": result.plate_mass_kg,
+        "m_wheel_kg": result.wheel_mass_kg,
+        "accelerometer_delay_s": result.accelerometer_delay_s,
+        "error_band_hz": list(ERROR_BAND_HZ),
+        "octave_centres_hz": list(OCTAVE_CENTRES_HZ),
+        "contact_rms_n": result.contact_rms_n,
+        "errors": errors,
+        "identification": result.identification or None,
+        "valid_band_hz": None if result.valid_band_hz is None else list(result.valid_band_hz),
+        "model_omitted": result.model_omitted or None,
+    }
+
+
 def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | None = None) -> dict[str, Any]:
     """The whole analysis as a JSON-ready mapping; ``results_names``: run id -> the name its
     results were stored under (from :func:`~bench.app.analyze.store_reanalysis`)."""
@@ -259,6 +288,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "hammer": None if k.hammer is None else hammer_json(k.hammer),
         "shaker": [shaker_json(p, r) for p, r in sorted(k.shaker.items())],
         "four_post": None if k.four_post is None else four_post_json(k.four_post),
+        "road_replays": [road_replay_json(run_id, r) for run_id, r in k.road_replays.items()],
         "runs": [
             {
                 "run_id": run.run_id,

@@ -28,8 +28,9 @@ from sequences.runs import RUN_KINDS, RunKind
 from sequences.toml_text import load_toml, toml_error_where
 
 #: The kinds of run a CSV export can hold: a tracked dwell's track is the engine's looks at its
-#: resonance, which no acquisition system's CSV carries.
-IMPORTED_KINDS = tuple(kind for kind in RUN_KINDS if kind is not RunKind.TRACKED_DWELL)
+#: resonance, which no acquisition system's CSV carries; a road replay's drive (its source and
+#: checksum) neither.
+IMPORTED_KINDS = tuple(kind for kind in RUN_KINDS if kind not in (RunKind.TRACKED_DWELL, RunKind.ROAD_REPLAY))
 
 SWEEP_LAWS = ("linear", "log")
 #: A run's own keys, by kind: the point-wise kinds list their points, a sweep is one file.

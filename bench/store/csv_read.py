@@ -279,9 +279,14 @@ def _column(
 
 
 def _rate_from_time(path: Path, first_line: int, column: str, t: np.ndarray) -> float:
-    """The sample rate of a time column (s), which must step evenly forward."""
+    """The sample rate of a time column (s), which must step evenly forward: a time that does not
+    come after the one before it, or a step off the mean step, is refused naming its line."""
     if len(t) < 2:
         raise CsvError(path, first_line, column, "a time column needs at least two rows")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if len(back):  # a time that stands or goes back: the line where it does
+        n = int(back[0]) + 1
+        raise CsvError(path, first_line + n, column, f"time {t[n]:g} s does not come after {t[n - 1]:g} s")
     step = (t[-1] - t[0]) / (len(t) - 1)
     off = np.flatnonzero(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * abs(step))
     if step <= 0 or len(off):

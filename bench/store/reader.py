@@ -30,6 +30,7 @@ from bench.analysis.records import (
     WHEEL_CHANNELS,
     DwellRecord,
     HammerRecord,
+    RoadReplayRecord,
     SweepRecord,
 )
 from bench.analysis.tracking import TrackRecord
@@ -48,6 +49,7 @@ REQUIRED_CHANNELS = {
     "sweep": WHEEL_CHANNELS,
     "hammer": (WFS_FORCE,),
     "tracked_dwell": FREE_RUN_CHANNELS,
+    "road_replay": WHEEL_CHANNELS,
 }
 _ROOT_TEXT_ATTRS = (
     "software_version",
@@ -297,6 +299,9 @@ class RunView:
             raise StoreError(path, f"{where}@status", f"{self.status!r} is not a run status")
         self.step = s.from_json(text["step"], path=path, where=f"{where}@step")
         self.conditions = s.from_json(text["conditions"], path=path, where=f"{where}@conditions")
+        #: a road replay's drive: where it came from and its checksum (empty for any other run)
+        drive_text = _optional_text(path, group, "drive")
+        self.drive = s.from_json(drive_text, path=path, where=f"{where}@drive") if drive_text else {}
         self.sample_rate_hz = _attr(path, group, "sample_rate_hz", float)
         #: the bench, operator and notes of the session that began the run (empty: not stated)
         self.metadata = {name: _optional_text(path, group, name) for name in s.RUN_METADATA_FIELDS}
@@ -472,6 +477,16 @@ class RunView:
             run.sample_rate_hz,
             channels,
         )
+
+    def road_replay_record(self) -> RoadReplayRecord:
+        """The road replay (point 0): the run's channels over the drive, its hold (the part between
+        its tapers) and the drive's source."""
+        self._require(("road_replay",), "road replay record")
+        run, p = self._single_point(0)
+        fs = run.sample_rate_hz
+        hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
+        source = self.drive.get("source", "")
+        return RoadReplayRecord(fs, run.channels.slice(p.start_sample, p.end_sample), hold_s, str(source))
 
     def hammer_record(self, blow: int = 0) -> HammerRecord:
         """Hammer blow ``blow`` (its point index) at the run's sample rate."""

@@ -194,11 +194,14 @@ class CampaignWriter:
         channels: Sequence[Channel],
         sample_rate_hz: float,
         resumes: str | None = None,
+        drive: Mapping[str, Any] | None = None,
     ) -> RunWriter:
         """Create ``/runs/<run_id>`` with its channels, points, events and link counters.
 
         ``step``: the sequence step that produced the run (JSON-able mapping); ``conditions``: what
-        the operator answered or the bench was set to (tyre pressure, wheel fitted, ...).
+        the operator answered or the bench was set to (tyre pressure, wheel fitted, ...); ``drive``:
+        a road replay's drive, where it came from and its checksum (JSON-able mapping; the ``drive``
+        attribute, written only when given).
         ``resumes``: the id of an incomplete run of the same step whose remaining points this run
         takes over; points that run has done cannot be done again here.
         """
@@ -218,6 +221,7 @@ class CampaignWriter:
             done_before = self._resumable(resumes)
         step_json = s.to_json(step, path=self.path, where=f"{where}@step")
         conditions_json = s.to_json(conditions, path=self.path, where=f"{where}@conditions")
+        drive_json = s.to_json(drive, path=self.path, where=f"{where}@drive") if drive else ""
 
         group = self._file[s.RUNS].create_group(run_id, track_order=True)
         group.attrs.update(
@@ -233,6 +237,7 @@ class CampaignWriter:
                 "resumes": resumes or "",
                 "resumed_by": "",
                 **{name: self.metadata[name] for name in s.RUN_METADATA_FIELDS},
+                **({"drive": drive_json} if drive_json else {}),
             }
         )
         channel_group = group.create_group(s.CHANNELS, track_order=True)

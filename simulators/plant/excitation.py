@@ -15,6 +15,9 @@ from typing import Protocol
 import numpy as np
 from scipy import signal
 
+from bench.models.taper import taper_envelope
+from drivers.setpoints import equivalent_sine
+
 
 class Waveform(Protocol):
     """A finite excitation starting at t = 0."""
@@ -32,23 +35,6 @@ class Waveform(Protocol):
 
     @property
     def amplitude(self) -> float: ...
-
-
-def taper_envelope(t_s: np.ndarray, total_s: float, taper_in_s: float, taper_out_s: float) -> np.ndarray:
-    """Raised-cosine ramps at both ends of ``[0, total_s]``, 1 in between, 0 outside.
-
-    A raised cosine has zero slope at its ends, so neither velocity nor acceleration jumps when an
-    excitation starts or stops: every start and stop tapers.
-    """
-    t = np.asarray(t_s, dtype=float)
-    env = ((t >= 0) & (t <= total_s)).astype(float)
-    if taper_in_s > 0:
-        ramp = np.flatnonzero((t >= 0) & (t < taper_in_s))
-        env[ramp] = 0.5 - 0.5 * np.cos(np.pi * t[ramp] / taper_in_s)
-    if taper_out_s > 0:
-        ramp = np.flatnonzero((t <= total_s) & (t > total_s - taper_out_s))
-        env[ramp] = np.minimum(env[ramp], 0.5 - 0.5 * np.cos(np.pi * (total_s - t[ramp]) / taper_out_s))
-    return env
 
 
 def _check_taper(total_s: float, taper_in_s: float, taper_out_s: float) -> None:
@@ -269,7 +255,8 @@ class SampledDrive:
     A non-linear tyre is linearised at one operating point for the whole drive (a broadband drive
     has no single frequency): the equivalent sine of the drive, the frequency ``sigma_v / (2 pi
     sigma_z)`` and amplitude ``sqrt(2) sigma_z`` of the sine with the drive's rms displacement and
-    rms velocity, is what :meth:`frequency_hz` and :attr:`amplitude` report.
+    rms velocity (:func:`drivers.setpoints.equivalent_sine`), is what :meth:`frequency_hz` and
+    :attr:`amplitude` report.
     """
 
     displacement_m: np.ndarray
@@ -284,11 +271,9 @@ class SampledDrive:
         if z.ndim != 1 or z.size < 2 or not np.all(np.isfinite(z)) or not self.sample_rate_hz > 0:
             raise ValueError("a sampled drive needs at least two finite samples and a positive rate")
         _check_taper(self.duration_s, self.taper_in_s, self.taper_out_s)
-        sigma_z = float(np.std(z))
-        sigma_v = float(np.std(np.diff(z))) * self.sample_rate_hz
         object.__setattr__(self, "displacement_m", z)
-        object.__setattr__(self, "amplitude", np.sqrt(2) * sigma_z)
-        frequency_hz = sigma_v / (2 * np.pi * sigma_z) if sigma_z else 0.0
+        amplitude, frequency_hz = equivalent_sine(z, self.sample_rate_hz)
+        object.__setattr__(self, "amplitude", amplitude)
         object.__setattr__(self, "equivalent_frequency_hz", frequency_hz)
 
     @property

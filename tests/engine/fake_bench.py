@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drivers.errors import ConnectionLostError
-from drivers.setpoints import DwellSetpoint, SweepSetpoint
+from drivers.errors import CommandRejectedError, ConnectionLostError
+from drivers.setpoints import DriveSetpoint, DwellSetpoint, SweepSetpoint
 from drivers.wfs_capture import Capture
 from drivers.wfs_frame import FRAME_DTYPE, Status
 from drivers.wfs_stream import Gap
@@ -51,7 +51,9 @@ class FakeBench:
     gain: Callable[[float], float] = lambda f: 1.0
     force_per_m: float = 0.0  # plate force per metre of displacement (for the force interlock)
     log: list[str] = field(default_factory=list)
-    setpoint: DwellSetpoint | SweepSetpoint | None = None
+    setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint | None = None
+    drive_files: bool = True  # the controller plays drive files (a road replay)
+    drive: DriveSetpoint | None = None  # the drive it holds
     streaming: bool = False
     hydraulics: str = "off"
     estopped: bool = False
@@ -83,11 +85,21 @@ class FakeBench:
         reason = "controller e-stop: estop" if self.estopped else None
         return FakeStatus(len(self._wave) > 0, reason, self._sample)
 
-    def configure(self, setpoint: DwellSetpoint | SweepSetpoint) -> None:
+    def load_drive(self, drive: DriveSetpoint) -> None:
+        self._command("load_drive")
+        self._check_link()
+        if self.limits is not None:
+            drive.check(self.limits)
+        self.log.append(f"load drive of {drive.n_samples} samples")
+        self.drive = drive
+
+    def configure(self, setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint) -> None:
         self._command("configure")
         self._check_link()
         if self.limits is not None:
             setpoint.registers(self.limits)
+        if isinstance(setpoint, DriveSetpoint) and (self.drive is None or self.drive.crc32 != setpoint.crc32):
+            raise CommandRejectedError("the controller does not hold the drive to play")
         self.log.append(f"configure {setpoint}")
         self.setpoint = setpoint
 
@@ -144,9 +156,15 @@ class FakeBench:
         self.on_block = self.on_call = None
         self._wave = np.zeros((0, 2))
 
-    def _excitation(self, sp: DwellSetpoint | SweepSetpoint) -> np.ndarray:
+    def _excitation(self, sp: DwellSetpoint | SweepSetpoint | DriveSetpoint) -> np.ndarray:
         """(displacement m, hold flag) per sample of the whole excitation."""
         fs = self.rate_hz
+        if isinstance(sp, DriveSetpoint):  # the drive at the bench's rate, linear between samples
+            t = np.arange(round(sp.duration_s * fs) + 1) / fs
+            z = np.interp(t * sp.sample_rate_hz, np.arange(sp.n_samples), sp.samples_mm) / 1e3
+            hold = ((t >= sp.taper_in_s) & (t < sp.duration_s - sp.taper_out_s)).astype(float)
+            envelope = np.clip(np.minimum(t / sp.taper_in_s, (sp.duration_s - t) / sp.taper_out_s), 0, 1)
+            return np.column_stack([z * (0.5 - 0.5 * np.cos(np.pi * envelope)), hold])
         if isinstance(sp, DwellSetpoint):
             n_in, n_hold, n_out = (round(x * fs) for x in (sp.taper_in_s, sp.dwell_s, sp.taper_out_s))
             freq = np.full(n_in + n_hold + n_out, sp.freq_hz)

@@ -27,16 +27,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
+import numpy as np
 import pytest
 
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
+from bench.engine.contracts import PlannedDrive
 from bench.engine.engine import Engine, SyncBits
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.states import RunState
 from bench.engine.timing import EngineTiming
 from drivers.errors import CommandRejectedError, LimitError, LinkError, LinkTimeoutError
+from drivers.setpoints import DriveSetpoint
 from sequences import (
     AdaptiveDwell,
     DwellGrid,
@@ -44,6 +47,7 @@ from sequences import (
     HammerTest,
     Hydraulics,
     Prompt,
+    RoadReplay,
     Sequence,
     SineDwell,
     Sweep,
@@ -128,6 +132,7 @@ KINDS = (
     excitation("adaptive_dwell_grid", dwell_grid(ADAPTIVE), points=4, plate_n_per_m=PLATE_N_PER_M),
     excitation("free_run", FreeRun(dwell_grid()), points=4),
     excitation("sweep", Sweep(1.0, 10.0, 3.0, 3.0, taper_in_s=0.5, taper_out_s=0.5), points=1),
+    excitation("road_replay", RoadReplay(file="drive.csv", taper_in_s=0.5, taper_out_s=0.5), points=1),
     Kind(
         "hammer",
         HammerTest(200.0, blows=2),
@@ -228,6 +233,16 @@ def make_case(kind: Kind) -> Case:
     bench.on_block = lambda b: case.occurred("block") if len(b._wave) else None
     operator.on_answer = lambda: case.occurred("answer")
     return case
+
+
+#: The road replay's drive: a 5 Hz sine of 3 mm for 3 s at the bench's rate (3 mm: beyond the
+#: soft limits' stroke, as the other steps' second amplitude).
+DRIVE = DriveSetpoint(3.0 * np.sin(2 * np.pi * 5.0 * np.arange(3001) / RATE_HZ), RATE_HZ, 0.5, 0.5)
+
+
+def drives_of(kind: Kind) -> dict[int, PlannedDrive]:
+    """The planned drive of a road replay under test (at its index in :func:`sequence_of`)."""
+    return {1: PlannedDrive(DRIVE, {"source": "a 5 Hz sine"})} if isinstance(kind.step, RoadReplay) else {}
 
 
 def sequence_of(kind: Kind) -> Sequence:
@@ -388,7 +403,7 @@ def test_every_ending_is_marked_and_leaves_the_engine_ready_to_run_again(kind: K
     ending.arm(case)
     reason = ending.reason_of(kind)
 
-    outcome = case.engine.run(sequence_of(kind))
+    outcome = case.engine.run(sequence_of(kind), drives=drives_of(kind))
 
     assert outcome.status == ending.status, outcome.reason
     assert matches(outcome.reason, reason), outcome.reason
@@ -417,7 +432,7 @@ def test_every_ending_is_marked_and_leaves_the_engine_ready_to_run_again(kind: K
     if case.engine.state in NEEDS_RESET:
         case.engine.reset()
         assert case.engine.state is RunState.HYDRAULICS_LOW
-    assert case.engine.run(sequence_of(kind)).status == "complete"
+    assert case.engine.run(sequence_of(kind), drives=drives_of(kind)).status == "complete"
     assert case.engine.state is RunState.FINISHED
 
 
@@ -439,7 +454,7 @@ def test_an_adaptive_grid_naming_a_channel_the_bench_does_not_record_fails_and_l
     assert case.engine.state is RunState.FAILED
     assert not case.of(ev.RunStarted)  # refused before its run began: nothing moved
     case.engine.reset()
-    assert case.engine.run(sequence_of(kind)).status == "complete"
+    assert case.engine.run(sequence_of(kind), drives=drives_of(kind)).status == "complete"
 
 
 @dataclass(frozen=True)
@@ -457,7 +472,7 @@ def test_an_unsupported_step_fails_the_sequence_and_leaves_the_engine_resettable
     assert (outcome.status, outcome.reason) == ("failed", "step 1: Unsupported is not supported")
     assert case.engine.state is RunState.FAILED
     case.engine.reset()
-    assert case.engine.run(sequence_of(KINDS[0])).status == "complete"
+    assert case.engine.run(sequence_of(KINDS[0]), drives=drives_of(KINDS[0])).status == "complete"
 
 
 def on_another_thread(request: Callable[[], object]) -> None:
@@ -487,7 +502,7 @@ def test_another_threads_pause_shows_at_once_and_is_published_on_the_engines_thr
 
     case.at_moment.append(pause)
     case.engine.bus.subscribe(resume_once_paused)
-    assert case.engine.run(sequence_of(case.kind)).status == "complete"
+    assert case.engine.run(sequence_of(case.kind), drives=drives_of(case.kind)).status == "complete"
     assert shown == [(RunState.PAUSING, RunState.RUNNING)]  # pending at once, not yet published
     assert publishers == {threading.get_ident()}
     assert [c.new for c in case.of(ev.StateChanged)] == [
@@ -511,7 +526,7 @@ def test_an_estop_from_another_thread_ends_a_paused_sequence():
 
     case.at_moment.append(case.engine.request_pause)
     case.engine.bus.subscribe(estop_once_paused)
-    outcome = case.engine.run(sequence_of(case.kind))
+    outcome = case.engine.run(sequence_of(case.kind), drives=drives_of(case.kind))
     estops[0].join()
     assert (outcome.status, outcome.reason) == ("e-stopped", "e-stop")
     assert case.engine.state is RunState.ESTOPPED
