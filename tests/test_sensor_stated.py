@@ -26,9 +26,9 @@ from tests.campaign_files import StoredRun, write_campaign
 TRUE_SENSOR = WfsSensor(eigenfrequency_hz=1600.0, damping_ratio=0.03)
 STATED = parse_bench_config("[sensor]\neigenfrequency_hz = 1600\ndamping_ratio = 0.03\n", "lab.toml")
 AMPLITUDE_M = 5e-3
-#: A correct 95 % interval covers the truth in fewer than 8 of 10 seeds with probability 1.2 %, and
-#: in fewer than 2 of 3 with probability 0.7 % (the seeds are fixed: a pass is a pass).
-MIN_COVERED_OF_10, MIN_COVERED_OF_3 = 8, 2
+#: A correct 95 % interval covers the truth in fewer than 8 of 10 seeds with probability 1.2 % (the
+#: seeds are fixed: a pass is a pass).
+MIN_COVERED_OF_10 = 8
 
 
 def test_the_sensor_table_is_read_recorded_and_refused_naming_the_key():
@@ -73,21 +73,14 @@ def _stiffness_covered(config, seeds: range) -> tuple[int, int]:
     return covered, flagged
 
 
-def test_the_stated_sensor_gives_intervals_that_cover_the_truth_and_the_assumed_one_does_not():
-    seeds = range(3)
-    assert _stiffness_covered(default_bench_config(), seeds) == (0, 3)
-    covered, flagged = _stiffness_covered(STATED, seeds)
-    assert covered >= MIN_COVERED_OF_3 and flagged == 0
-
-
 @pytest.mark.slow
-def test_over_10_seeds_the_stated_sensor_covers_and_the_assumed_one_never_does():
+def test_the_stated_sensor_covers_the_truth_and_the_assumed_one_never_does():
     """The intervals' coverage over 100 seeds: tests/analysis/test_analysis_coverage.py."""
-    seeds = range(10)
-    wrong, _ = _stiffness_covered(default_bench_config(), seeds)
-    right, _ = _stiffness_covered(STATED, seeds)
-    print(f"\n  stiffness covered in {wrong} of 10 seeds told 2200 Hz, {right} of 10 told 1600 Hz")
-    assert wrong == 0 and right >= MIN_COVERED_OF_10
+    wrong, flagged = _stiffness_covered(default_bench_config(), range(5))
+    right, right_flagged = _stiffness_covered(STATED, range(10))
+    print(f"\n  stiffness covered in {wrong} of 5 seeds told 2200 Hz, {right} of 10 told 1600 Hz")
+    assert (wrong, flagged) == (0, 5)  # never covered, and each fit flagged far outside its noise
+    assert right >= MIN_COVERED_OF_10 and right_flagged == 0
 
 
 @pytest.fixture(scope="module")
