@@ -124,7 +124,12 @@ def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(
     post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
     frfs = four_post_frfs(sweep.channels, FS, post, band_hz=(15.0, 30.0))
     fit = fit_quarter_car(
-        frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=setup.sensor, rubber=tyre_fit.rubber
+        frfs,
+        model=tyre_fit.model,
+        tyre=tyre_fit.tyre,
+        sensor=setup.sensor,
+        amplitude_m=sweep.amplitude_m,
+        rubber=tyre_fit.rubber,
     )
     assert {"body_mass_kg", "suspension_stiffness_n_per_m"} <= set(fit.undetermined)
     assert not {"unsprung_mass_above_kg", "suspension_damping_ns_per_m"} & set(fit.undetermined)
@@ -139,7 +144,13 @@ def test_garbage_in(four_post, four_post_free_run):
     short = {k: v[:3000] for k, v in rec.items()}
     with pytest.raises(AnalysisInputError):
         frfs = four_post_frfs(short, FS, post, band_hz=(0.3, 30.0))
-        fit_quarter_car(frfs, model=TyreModel.WHEEL_TREAD, tyre=setup.tyre, sensor=setup.sensor)
+        fit_quarter_car(
+            frfs,
+            model=TyreModel.WHEEL_TREAD,
+            tyre=setup.tyre,
+            sensor=setup.sensor,
+            amplitude_m=sweep.amplitude_m,
+        )
     broken = dict(rec)
     broken["fz_wfs_n"] = replace_nan(rec["fz_wfs_n"])
     with pytest.raises(AnalysisInputError, match="non-finite"):
