@@ -8,7 +8,7 @@ fitted suspension parameter and for the body and wheel modes: in how many seeds 
 holds the simulator's value, the mean and rms of the error in units of the interval's half-width
 (a correct interval: about 0.5 rms, 95 % covered), and the mean error in percent (a bias shows as
 a mean error near its rms). The simulator's modes are those of its car with the tyre's stiffness
-rise at each mode (its friction only damps them).
+rise at each mode (its friction only damps them); its tyre's friction force is 4 N.
 
     PYTHONPATH=. .venv/bin/python benchmarks/quarter_car_coverage.py --seeds 20 --model 2
 """
@@ -43,6 +43,7 @@ PARAMETERS = {
     "body_mass_kg": "body_mass_kg",
 }
 MODES = ("body_frequency_hz", "wheel_frequency_hz")
+FRICTION = "tyre_friction_force_n"
 
 
 def truth_of(car: BenchSetup) -> dict[str, float]:
@@ -53,6 +54,7 @@ def truth_of(car: BenchSetup) -> dict[str, float]:
         **{name: getattr(car.suspension, field) for name, field in PARAMETERS.items()},
         MODES[0]: body_hz,
         MODES[1]: wheel_hz,
+        FRICTION: car.nonlinearity.friction_force_n,
     }
 
 
@@ -74,6 +76,7 @@ def campaign_errors(model: TyreModel, seed: int) -> tuple[dict[str, tuple[float,
         **{name: (fit.values[name], fit.ci95[name]) for name in PARAMETERS},
         MODES[0]: (fit.body_frequency_hz, fit.body_frequency_ci95_hz),
         MODES[1]: (fit.wheel_frequency_hz, fit.wheel_frequency_ci95_hz),
+        FRICTION: (fit.values[FRICTION], fit.ci95[FRICTION]),
     }
     truth = truth_of(car)
     return {name: (value - truth[name], half) for name, (value, half) in found.items()}, fit.reduced_chi2
