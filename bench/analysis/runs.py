@@ -812,7 +812,13 @@ def analyse_four_post(
         }
         bands = {name: _ratio_band(ratio, SWEEP_MAX_GAP_BINS) for name, ratio in ratios.items()}
         car = fit_quarter_car(
-            frfs, model=model, tyre=tyre_obj, sensor=sensor, rubber=rubber, sensor_source=sensor_source
+            frfs,
+            model=model,
+            tyre=tyre_obj,
+            sensor=sensor,
+            amplitude_m=measured_amplitude_m,
+            rubber=rubber,
+            sensor_source=sensor_source,
         )
     all_reliable = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
     return FourPostResult(

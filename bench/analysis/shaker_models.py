@@ -37,10 +37,12 @@ STIFFNESS_MIN_HZ = 0.5
 
 @dataclass(frozen=True)
 class RubberTerms:
-    """Departures from the linear spring/damper: ``k(f)`` rise per decade and hysteretic damping."""
+    """Departures from the linear spring/damper: ``k(f)`` rise per decade and hysteretic damping
+    (N/m; an array over the frequencies a response is evaluated at for a loss that changes with
+    them, as the tyre's friction on the four-post bench)."""
 
     stiffness_rise_per_decade: float = 0.0
-    hysteretic_damping_n_per_m: float = 0.0
+    hysteretic_damping_n_per_m: float | np.ndarray = 0.0
 
     def stiffness_factor(self, freq_hz: np.ndarray) -> np.ndarray:
         f = np.maximum(np.asarray(freq_hz, dtype=float), STIFFNESS_MIN_HZ)
@@ -227,3 +229,32 @@ def hub_driven_response(
     tyre_el = k + loss
     z_r = ks / (-(tyre.wheel_mass_kg - m_t) * w**2 + tyre_el + ks)
     return ks * (z_r - 1), -tyre_el * z_r
+
+
+def loss_element_deflection(
+    model: TyreModel,
+    tyre: Tyre,
+    freq_hz: np.ndarray,
+    contact_per_z: np.ndarray,
+    rubber: RubberTerms = LINEAR,
+) -> np.ndarray:
+    """The deflection of the element that carries the tyre's loss per unit contact displacement,
+    complex, from the contact force the tyre passes, ``contact_per_z = F_contact / Z`` (measured:
+    whatever moves the rim, a clamped hub or a car on a post). Models 1/2: the tyre element,
+    ``(Z - z_r) / Z = (F_contact / Z + m_T w^2) / T``. Model 3: the upper sidewall, ``(z_sw - z_r) / Z``,
+    with ``z_sw`` from the sidewall's equation and ``z_r`` from the contact force
+    ``F_contact / Z = -m_T w^2 + A (1 - z_r/Z) + L (1 - z_sw/Z)``."""
+    f = np.asarray(freq_hz, dtype=float)
+    w = 2 * np.pi * f
+    k = tyre.stiffness_n_per_m * rubber.stiffness_factor(f)
+    loss = 1j * (w * tyre.damping_ns_per_m + rubber.hysteretic_damping_n_per_m)
+    model = TyreModel(model)
+    m_t = 0.0 if model is TyreModel.WHEEL else tyre.tread_mass_kg
+    tyre_force = np.asarray(contact_per_z) + m_t * w**2  # the springs' force per unit Z
+    if model is not TyreModel.WHEEL_TREAD_SIDEWALL:
+        return tyre_force / (k + loss)
+    lower = tyre.sidewall_lower_stiffness_n_per_m
+    upper = tyre.sidewall_upper_stiffness_n_per_m + loss
+    d = lower + upper - tyre.sidewall_mass_kg * w**2  # z_sw = (L Z + U z_r) / d
+    rim = (k + lower - lower**2 / d - tyre_force) / (k + lower * upper / d)
+    return (lower + upper * rim) / d - rim

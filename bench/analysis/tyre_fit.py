@@ -24,10 +24,13 @@ Uncertainty: covariance ``s^2 (J^T J)^+`` with ``s^2 = chi^2 / dof``; 95 % inter
 standard deviations. A parameter is *not determined* when its 95 % half-width exceeds half its
 value (or an absolute resolution for the rubber terms), when it ends on a bound, or when it lies
 in the null space of ``J``. Models are compared by chi^2, AIC ``= chi^2 + 2 p`` and BIC
-``= chi^2 + p ln n``. Model choice: the lowest BIC among the models whose parameters are all
-determined (BIC alone preferred a Model 3 with four undetermined parameters whenever the given
-sensor was off); a chosen fit far outside the noise (:func:`~bench.analysis.lsq.far_outside_noise`)
-is a finding for the user.
+``= chi^2 + p ln n``. Model choice (:data:`MODEL_CHOICE`): the lowest BIC among the fits within
+the noise with every parameter determined, else with all but Model 3's sidewall determined (a
+sidewall mode just above the band: the data fix combinations of the sidewall's parameters, not
+each, and Model 2 misses them by far), else the same two kinds outside the noise (BIC alone
+preferred a Model 3 with four undetermined parameters, the air spring among them, whenever the
+given sensor was off); a chosen fit far outside the noise
+(:func:`~bench.analysis.lsq.far_outside_noise`) is a finding for the user.
 """
 
 from __future__ import annotations
@@ -134,8 +137,9 @@ class TyreFit(FitStatistics):
 
 @dataclass(frozen=True)
 class ShakerIdentification:
-    """Models 1-3 fitted to one condition. ``best``: the model with the lowest BIC among those whose
-    parameters are all determined (the lowest BIC overall, flagged, when none is);
+    """Models 1-3 fitted to one condition. ``best``: the model chosen by :data:`MODEL_CHOICE` (the
+    lowest BIC overall, flagged, when no fit is of its kinds), and ``selection``: the kind that
+    chose it, as reports word it;
     ``frequency_dependent_stiffness`` and ``hysteretic_damping`` say whether the data needed those
     rubber terms (chosen on Model 2, or on Model 3 when it is the best, and kept for all models);
     ``findings``: what the user must know about the chosen fit (none determined, far outside the
@@ -146,6 +150,7 @@ class ShakerIdentification:
     best: TyreModel
     frequency_dependent_stiffness: bool
     hysteretic_damping: bool
+    selection: str
     findings: tuple[str, ...] = ()
     tried: dict[tuple[TyreModel, bool, bool], TyreFit] = field(default_factory=dict)
 
@@ -354,19 +359,26 @@ def fit_tyre_model(
     stiffness_rise: bool = False,
     hysteretic: bool = False,
     errors: ShakerErrors | None = None,
+    near: Mapping[str, float] | None = None,
 ) -> TyreFit:
     """Fit one model (optionally with the rubber terms) to shaker FRFs; see the module docstring.
-    ``errors``: the errors the points share (propagated); ``None`` takes the points as independent."""
+    ``errors``: the errors the points share (propagated); ``None`` takes the points as independent.
+    ``near``: the values of a fit of the same model with other rubber terms, the one start of the
+    search (a rubber term it lacks starts at the linear start's value): the other terms move a
+    fit little, so the search from the sidewall starts need not be made again."""
     model = TyreModel(model)
     data = _data(wfs_per_z, contact_per_z, errors)
     names = MODEL_PARAMETERS[model] + ((RATE,) if stiffness_rise else ()) + ((HYST,) if hysteretic else ())
     linear_start = _start_values(data, model, names, wheel_mass_kg)
     k0 = linear_start["stiffness_n_per_m"]
-    starts = (
-        _sidewall_starts(linear_start, wheel_mass_kg, float(data.freq_hz[-1]))
-        if model is TyreModel.WHEEL_TREAD_SIDEWALL
-        else [linear_start]
-    )
+    if near is not None:
+        starts = [
+            {n: near[n] if n in near else linear_start[n] for n in dict.fromkeys((*names, *linear_start))}
+        ]
+    elif model is TyreModel.WHEEL_TREAD_SIDEWALL:
+        starts = _sidewall_starts(linear_start, wheel_mass_kg, float(data.freq_hz[-1]))
+    else:
+        starts = [linear_start]
     sigma_m = data.plate_mass_sigma_kg
 
     misfit = _Misfit(model, data, sensor, wheel_mass_kg)
@@ -424,10 +436,56 @@ def _rubber_terms_relevant(fit: TyreFit) -> bool:
 _Key = TypeVar("_Key")
 
 
-def _choose(fits: Mapping[_Key, TyreFit], keep: Callable[[TyreFit], bool]) -> _Key:
-    """The key of the lowest-BIC fit among those ``keep`` accepts (the lowest overall if none)."""
-    accepted = [key for key, fit in fits.items() if keep(fit)]
-    return min(accepted or list(fits), key=lambda key: fits[key].bic)
+def _within_noise(fit: TyreFit) -> bool:
+    """The fit converged and describes the data within their noise (not far outside it)."""
+    return fit.lsq.converged and not fit.outside_noise
+
+
+#: Model 3's own parameters: those of the sidewall, which a sidewall mode above the band leaves
+#: partly unseen.
+SIDEWALL_PARAMETERS = tuple(
+    n
+    for n in MODEL_PARAMETERS[TyreModel.WHEEL_TREAD_SIDEWALL]
+    if n not in MODEL_PARAMETERS[TyreModel.WHEEL_TREAD]
+)
+
+
+def _tyre_determined(fit: TyreFit) -> bool:
+    """Every parameter but the sidewall's determined, the solver converged: a Model 3 whose
+    sidewall mode lies above the band sees only the mode's low-frequency side, which fixes some
+    combinations of the sidewall's mass and stiffnesses and not each of them (the tyre's stiffness,
+    damping and tread mass must be determined: a Model 3 that absorbs a wrong sensor has its air
+    spring undetermined)."""
+    return fit.lsq.converged and set(fit.undetermined) <= set(SIDEWALL_PARAMETERS)
+
+
+#: The model choice, in order of preference, with how reports word each: the lowest BIC among the
+#: fits of the first kind that any fit is. A Model 3 whose sidewall is not determined comes before
+#: determined models farther from the data (Model 2 missing a sidewall mode just above the band).
+MODEL_CHOICE: tuple[tuple[Callable[[TyreFit], bool], str], ...] = (
+    (lambda f: f.determined and _within_noise(f), "lowest BIC with every parameter determined"),
+    (
+        lambda f: _tyre_determined(f) and _within_noise(f),
+        "lowest BIC within the noise, the sidewall not determined; no model with every parameter"
+        " determined lies within the noise",
+    ),
+    (lambda f: f.determined, "lowest BIC with every parameter determined; none within the noise"),
+    (_tyre_determined, "lowest BIC with the sidewall not determined; none within the noise"),
+)
+#: When no fit is of any kind of :data:`MODEL_CHOICE`.
+LOWEST_BIC = "lowest BIC; no model has every parameter determined"
+
+
+def _choose(
+    fits: Mapping[_Key, TyreFit], kinds: tuple[tuple[Callable[[TyreFit], bool], str], ...]
+) -> tuple[_Key, str]:
+    """The key of the lowest-BIC fit of the first kind (a predicate) that any fit is (the lowest
+    overall if none), and the wording of that kind."""
+    for keep, wording in kinds:
+        accepted = [key for key, fit in fits.items() if keep(fit)]
+        if accepted:
+            return min(accepted, key=lambda key: fits[key].bic), wording
+    return min(fits, key=lambda key: fits[key].bic), LOWEST_BIC
 
 
 def identify_shaker(
@@ -438,17 +496,18 @@ def identify_shaker(
     sensor: WfsSensor,
     errors: ShakerErrors | None = None,
 ) -> ShakerIdentification:
-    """Fit Models 1-3 and choose among the determined ones (see the module docstring).
+    """Fit Models 1-3 and choose one by :data:`MODEL_CHOICE` (see the module docstring).
 
-    The rubber terms are chosen on Model 2 by BIC among the variants whose terms are determined
-    and large enough to matter; Models 1 and 3 are fitted with them. The best model is the lowest
-    BIC among the fits with every parameter determined; when that is Model 3, the rubber terms
-    are chosen again on Model 3 (a Model 2 far from the data is no judge of them).
+    The rubber terms are chosen on Model 2, by the same rules, among the variants whose terms are
+    determined and large enough to matter; Models 1 and 3 are fitted with them. When Model 3 is
+    chosen, or Model 2 lies far outside the noise (a Model 2 far from the data is no judge of
+    them), the rubber terms are chosen again on Model 3's variants and kept when with them Model 3
+    is the choice.
     """
     tried: dict[tuple[TyreModel, bool, bool], TyreFit] = {}
 
-    def fit(model: TyreModel, rate: bool, hyst: bool) -> TyreFit:
-        """Each model and rubber-term variant is fitted once: the fit depends on nothing else."""
+    def fit(model: TyreModel, rate: bool, hyst: bool, near: Mapping[str, float] | None = None) -> TyreFit:
+        """Each model and rubber-term variant is fitted once (``near``: see :func:`fit_tyre_model`)."""
         if (model, rate, hyst) not in tried:
             tried[(model, rate, hyst)] = fit_tyre_model(
                 model,
@@ -459,31 +518,45 @@ def identify_shaker(
                 stiffness_rise=rate,
                 hysteretic=hyst,
                 errors=errors,
+                near=near,
             )
         return tried[(model, rate, hyst)]
 
-    def variants(model: TyreModel) -> dict[tuple[bool, bool], TyreFit]:
-        return {(rate, hyst): fit(model, rate, hyst) for rate in (False, True) for hyst in (False, True)}
+    def variants(
+        model: TyreModel, near: Mapping[str, float] | None = None
+    ) -> dict[tuple[bool, bool], TyreFit]:
+        return {(r, h): fit(model, r, h, near) for r in (False, True) for h in (False, True)}
 
     def rubber_choice(fits: dict[tuple[bool, bool], TyreFit]) -> tuple[bool, bool]:
-        return _choose(fits, lambda f: _rubber_terms_relevant(f) and f.determined)
+        """The variant chosen as models are, among those whose rubber terms are relevant (the
+        variant without them always is)."""
+        return _choose({k: f for k, f in fits.items() if _rubber_terms_relevant(f)}, MODEL_CHOICE)[0]
 
-    m2 = variants(TyreModel.WHEEL_TREAD)
-    rate, hyst = rubber_choice(m2)
-    fits = {TyreModel.WHEEL_TREAD: m2[(rate, hyst)]}
-    for model in (TyreModel.WHEEL, TyreModel.WHEEL_TREAD_SIDEWALL):
-        fits[model] = fit(model, rate, hyst)
-    best = _choose(fits, lambda f: f.determined)
-    if best is TyreModel.WHEEL_TREAD_SIDEWALL:
-        m3 = variants(TyreModel.WHEEL_TREAD_SIDEWALL)
-        rate, hyst = rubber_choice(m3)
-        fits[TyreModel.WHEEL_TREAD_SIDEWALL] = m3[(rate, hyst)]
-        fits[TyreModel.WHEEL_TREAD] = m2[(rate, hyst)]
-        fits[TyreModel.WHEEL] = fit(TyreModel.WHEEL, rate, hyst)
-        best = _choose(fits, lambda f: f.determined)
+    def fits_with(terms: tuple[bool, bool]) -> dict[TyreModel, TyreFit]:
+        return {model: fit(model, *terms) for model in TyreModel}
+
+    terms = rubber_choice(variants(TyreModel.WHEEL_TREAD))
+    fits = fits_with(terms)
+    best, selection = _choose(fits, MODEL_CHOICE)
+    if best is TyreModel.WHEEL_TREAD_SIDEWALL or all(
+        fits[model].outside_noise for model in (TyreModel.WHEEL_TREAD, TyreModel.WHEEL_TREAD_SIDEWALL)
+    ):
+        # Model 3 judges the rubber terms when it is chosen, or when neither Model 2 nor Model 3
+        # with Model 2's terms is within the noise (a Model 2 far from the data is no judge of them:
+        # a sidewall mode just above the band, fitted without the loss the rubber needs, ended in a
+        # local minimum with an undetermined sidewall, and the flagged Model 2 was chosen); each
+        # variant starts from that Model 3, and the terms are kept if they make Model 3 the choice
+        m3_terms = rubber_choice(
+            variants(TyreModel.WHEEL_TREAD_SIDEWALL, fits[TyreModel.WHEEL_TREAD_SIDEWALL].values)
+        )
+        m3_fits = fits_with(m3_terms)
+        m3_best, m3_selection = _choose(m3_fits, MODEL_CHOICE)
+        if TyreModel.WHEEL_TREAD_SIDEWALL in (best, m3_best):
+            terms, fits, best, selection = m3_terms, m3_fits, m3_best, m3_selection
+    rate, hyst = terms
     chosen = fits[best]
     findings = []
-    if not chosen.determined:
+    if selection == LOWEST_BIC:
         findings.append(
             f"no model has every parameter determined; Model {int(best)} (lowest BIC) is shown"
             f" with {', '.join(chosen.undetermined) or 'a fit that did not converge'}"
@@ -494,7 +567,9 @@ def identify_shaker(
             f" {chosen.reduced_chi2:.3g}): a value taken as known (the sensor, the wheel mass, m_comp)"
             " may be wrong, or the tyre is not one of Models 1-3"
         )
-    return ShakerIdentification(dict(sorted(fits.items())), best, rate, hyst, tuple(findings), tried)
+    return ShakerIdentification(
+        dict(sorted(fits.items())), best, rate, hyst, selection, tuple(findings), tried
+    )
 
 
 @dataclass(frozen=True)

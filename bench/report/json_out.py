@@ -112,6 +112,7 @@ def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
         "n_dwells": len(result.fits),
         "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz],
         "selected_model": int(ident.best),
+        "selection": ident.selection,
         "frequency_dependent_stiffness": ident.frequency_dependent_stiffness,
         "hysteretic_damping": ident.hysteretic_damping,
         "models": [

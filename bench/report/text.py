@@ -131,7 +131,7 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
     rubber = f"stiffness rise with frequency {rise}, hysteretic damping {hysteretic}"
     lines = [
         f"{label}: {len(result.fits)} dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz;"
-        f" Model {int(ident.best)} selected (lowest BIC with every parameter determined; BIC {bics});"
+        f" Model {int(ident.best)} selected ({ident.selection}; BIC {bics});"
         f" {rubber}",
         f"{label} Model {int(ident.best)} (95 %): {values_text(best.values, best.ci95)};"
         f" F_wfs/F_contact rms error {100 * best.ratio_relative_rms:.2f} %",

@@ -58,7 +58,9 @@ def test_sidewall_mode_in_the_band_is_found(free_run):
     ident = analyse_runs([run], free_run).nearest(2e-3).identification
     assert ident.best is TyreModel.WHEEL_TREAD_SIDEWALL
     fit, truth = ident.best_fit, setup.tyre
-    assert fit.undetermined == () and fit.n_starts > 1
+    assert fit.undetermined == ()
+    # searched from several starts (the other rubber-term variants start from that search's fit)
+    assert max(f.n_starts for (model, *_), f in ident.tried.items() if model is ident.best) > 1
     assert fit.tyre.stiffness_n_per_m == pytest.approx(truth.stiffness_n_per_m, rel=0.02)
     assert fit.tyre.tread_mass_kg == pytest.approx(truth.tread_mass_kg, rel=0.02)
     for name in ("sidewall_mass_kg", "sidewall_lower_stiffness_n_per_m", "sidewall_upper_stiffness_n_per_m"):

@@ -14,7 +14,7 @@ from bench.analysis.quarter_car_fit import (
     quarter_car_response,
 )
 from bench.analysis.runs import analyse_four_post
-from bench.analysis.shaker_models import RubberTerms
+from bench.analysis.shaker_models import RubberTerms, loss_element_deflection
 from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel, quarter_car
 from bench.models.parameters import Suspension, WfsSensor, paper_tyre
@@ -45,6 +45,22 @@ def test_closed_form_equals_network(model, tyre, suspension):
     np.testing.assert_allclose(apparent_mass_above(suspension, f), net["f_wfs"] / net["a_hub"], rtol=1e-9)
 
 
+@pytest.mark.parametrize("model", list(TyreModel))
+@pytest.mark.parametrize("tyre", [paper_tyre(1.5), OTHER_TYRE])
+def test_loss_element_deflection_from_the_contact_force_equals_network(model, tyre):
+    """The deflection of the element carrying the tyre's loss (the tyre link of Models 1/2, the upper
+    sidewall of Model 3) per unit Z, from the contact force alone, against the network's own
+    displacements of the car on the post, 0.2-100 Hz: 1e-9 relative (both exact)."""
+    f = np.geomspace(0.2, 100, 120)
+    lower_node = "z_sidewall" if model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
+    net = quarter_car(model, tyre, Suspension(), WfsSensor()).frequency_response(
+        f, outputs=("f_contact", "z_base", "z_rim", lower_node)
+    )
+    exact = (net[lower_node] - net["z_rim"]) / net["z_base"]
+    mine = loss_element_deflection(model, tyre, f, net["f_contact"] / net["z_base"])
+    np.testing.assert_allclose(mine, exact, rtol=1e-9)
+
+
 def _identify(sweep, post_free_run, campaign, sensor):
     """The quarter car of the whole four-post analysis, with the tyre of the shaker campaign."""
     return analyse_four_post(
@@ -53,15 +69,16 @@ def _identify(sweep, post_free_run, campaign, sensor):
 
 
 def _check_recovered(setup, fit, capsys, label):
-    """Every suspension parameter within 3 % of the truth and within 1.5x its 95 % half-width (about
-    3 sigma); the body and wheel modes of the identified car within 1 % of the truth's (the plant's
-    tyre with its stiffness rise at each mode) and within 1.5x their half-widths.
+    """Every suspension parameter within 3 % of the truth and within its 95 % half-width; the body
+    and wheel modes of the identified car within 1 % of the truth's (the plant's tyre with its
+    stiffness rise at each mode) and within their half-widths (1.5x them while a constant
+    hysteretic loss stood for the tyre's friction on the post: k_s and the body mode were then 0.6 %
+    off, about one half-width; tests/analysis/test_analysis_quarter_car_coverage.py).
 
     Why 3 %: the sweep's H1 is accurate to 0.9 % per bin on a linear noise-free plant (window bias of
-    the swept excitation), and the non-linear tyre's friction varies along the sweep, which a constant
-    hysteretic loss describes only approximately; both are correlated along frequency, which the
-    stated intervals account for. Measured errors are below 1 %, so 3 % fails on any real bias (a
-    wrong closed form, a lost plate-mass correction or accelerometer lag shifts them by 5-50 %)."""
+    the swept excitation), correlated along frequency, which the stated intervals account for.
+    Measured errors are below 0.3 %, so 3 % fails on any real bias (a wrong closed form, a lost
+    plate-mass correction or accelerometer lag shifts them by 5-50 %)."""
     truth = setup.suspension
     # the plant's tyre stiffens with log frequency (same law and reference as RubberTerms); its
     # friction only damps the modes
@@ -72,14 +89,14 @@ def _check_recovered(setup, fit, capsys, label):
         true = getattr(truth, attr)
         errors[name] = fit.values[name] / true - 1
         assert abs(fit.values[name] - true) <= 0.03 * true, name
-        assert abs(fit.values[name] - true) <= 1.5 * fit.ci95[name], name
+        assert abs(fit.values[name] - true) <= fit.ci95[name], name
     for found, ci, true, name in (
         (fit.body_frequency_hz, fit.body_frequency_ci95_hz, f_b, "body"),
         (fit.wheel_frequency_hz, fit.wheel_frequency_ci95_hz, f_w, "wheel"),
     ):
         errors[name] = found / true - 1
         assert abs(found - true) <= 0.01 * true, name
-        assert abs(found - true) <= 1.5 * ci, name
+        assert abs(found - true) <= ci, name
     assert fit.converged and fit.reduced_chi2 < 30
     assert not set(fit.undetermined) & set(SUSPENSION_TRUTH)
     with capsys.disabled():
@@ -124,7 +141,12 @@ def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(
     post = identify_plate_mass(dwell_frf(four_post_free_run.fits, "f_plate_n", "z_base_m"))
     frfs = four_post_frfs(sweep.channels, FS, post, band_hz=(15.0, 30.0))
     fit = fit_quarter_car(
-        frfs, model=tyre_fit.model, tyre=tyre_fit.tyre, sensor=setup.sensor, rubber=tyre_fit.rubber
+        frfs,
+        model=tyre_fit.model,
+        tyre=tyre_fit.tyre,
+        sensor=setup.sensor,
+        amplitude_m=sweep.amplitude_m,
+        rubber=tyre_fit.rubber,
     )
     assert {"body_mass_kg", "suspension_stiffness_n_per_m"} <= set(fit.undetermined)
     assert not {"unsprung_mass_above_kg", "suspension_damping_ns_per_m"} & set(fit.undetermined)
@@ -139,7 +161,13 @@ def test_garbage_in(four_post, four_post_free_run):
     short = {k: v[:3000] for k, v in rec.items()}
     with pytest.raises(AnalysisInputError):
         frfs = four_post_frfs(short, FS, post, band_hz=(0.3, 30.0))
-        fit_quarter_car(frfs, model=TyreModel.WHEEL_TREAD, tyre=setup.tyre, sensor=setup.sensor)
+        fit_quarter_car(
+            frfs,
+            model=TyreModel.WHEEL_TREAD,
+            tyre=setup.tyre,
+            sensor=setup.sensor,
+            amplitude_m=sweep.amplitude_m,
+        )
     broken = dict(rec)
     broken["fz_wfs_n"] = replace_nan(rec["fz_wfs_n"])
     with pytest.raises(AnalysisInputError, match="non-finite"):
