@@ -73,7 +73,7 @@ def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data
     run = wfsbench("analyze", str(smoke_file), "--json")
     assert run.returncode == EXIT_OK, run.stderr
     doc = json.loads(run.stdout)
-    assert (doc["schema"], doc["version"]) == ("wfs-bench-analysis", 1)
+    assert (doc["schema"], doc["version"]) == ("wfs-bench-analysis", 2)
     assert doc["file"] == str(smoke_file) and doc["sequence_name"] == "smoke"
     masses = default_bench_config("shaker").masses  # the stored configuration is the default one
     assert doc["given"] == {"sensor_mass_kg": masses.sensor_kg, "wheel_mass_kg": masses.wheel_below_sensor_kg}

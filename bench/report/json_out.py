@@ -1,8 +1,8 @@
-"""A campaign's analysis as JSON: schema ``wfs-bench-analysis``, version 1 (docs/analysis-json.md
+"""A campaign's analysis as JSON: schema ``wfs-bench-analysis``, version 2 (docs/analysis-json.md
 lists every key with its unit). SI units throughout, named in the keys (``_hz``, ``_kg``, ``_m``,
 ``_n_per_m``, ``_ns_per_m``, ``_s``); ratios and damping ratios are plain numbers. A value the data
-does not give is ``null``, never a guess. Version 1 only gains keys; renaming or removing one, or
-changing its unit, makes version 2.
+does not give is ``null``, never a guess. A version only gains keys; renaming or removing one, or
+changing its unit, makes the next (2: the quarter car's tyre loss became a friction force).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from bench.report.text import free_run_lines
 from sequences.metadata import METADATA_FIELDS
 
 SCHEMA = "wfs-bench-analysis"
-VERSION = 1
+VERSION = 2
 
 
 def _number(value: float) -> float | None:
