@@ -25,7 +25,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
@@ -148,13 +148,14 @@ class ActuatorClient:
         on_link_lost: Callable[[str], None] | None = None,
     ) -> ActuatorClient:
         """A client over Modbus TCP (pymodbus' own retries are off: this class decides)."""
-        modbus = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1)
-        return cls(
-            modbus,
-            register_map or load_register_map(),
-            limits or BenchLimits(),
-            read_attempts,
-            timeout_s,
+        return cls._watching(
+            lambda watch: AsyncModbusTcpClient(
+                host, port=port, timeout=timeout_s, retries=0, reconnect_delay=0.1, trace_connect=watch
+            ),
+            register_map=register_map or load_register_map(),
+            limits=limits or BenchLimits(),
+            read_attempts=read_attempts,
+            timeout_s=timeout_s,
             on_link_lost=on_link_lost,
         )
 
@@ -171,17 +172,36 @@ class ActuatorClient:
         on_link_lost: Callable[[str], None] | None = None,
     ) -> ActuatorClient:
         """A client over Modbus RTU on a serial port (8N1)."""
-        modbus = AsyncModbusSerialClient(
-            port, baudrate=baudrate, timeout=timeout_s, retries=0, reconnect_delay=0.1
-        )
-        return cls(
-            modbus,
-            register_map or load_register_map(),
-            limits or BenchLimits(),
-            read_attempts,
-            timeout_s,
+        return cls._watching(
+            lambda watch: AsyncModbusSerialClient(
+                port,
+                baudrate=baudrate,
+                timeout=timeout_s,
+                retries=0,
+                reconnect_delay=0.1,
+                trace_connect=watch,
+            ),
+            register_map=register_map or load_register_map(),
+            limits=limits or BenchLimits(),
+            read_attempts=read_attempts,
+            timeout_s=timeout_s,
             on_link_lost=on_link_lost,
         )
+
+    @classmethod
+    def _watching(
+        cls, make_modbus: Callable[[Callable[[bool], None]], ModbusBaseClient], **settings: Any
+    ) -> ActuatorClient:
+        """A client (``settings``: those of ``__init__``) on the pymodbus client ``make_modbus(watch)``
+        makes, which calls ``watch(up)`` at every connection change: see :meth:`_connection_changed`."""
+        client: ActuatorClient | None = None
+
+        def watch(up: bool) -> None:
+            if client is not None:
+                client._connection_changed(up)
+
+        client = cls(make_modbus(watch), **settings)
+        return client
 
     # -- connection ---------------------------------------------------------------------------
 
@@ -553,6 +573,8 @@ class ActuatorClient:
         # (Python 3.11's wait_for drops one that arrives with the reply) still ends the loop
         while self._heartbeat_task is asyncio.current_task():
             await asyncio.sleep(period_s)
+            if self._heartbeat_lost.is_set():
+                return  # lost meanwhile (the connection dropped): see below
             counter = counter % 0xFFFF + 1
             try:
                 await self._write({"heartbeat": counter})
@@ -573,6 +595,14 @@ class ActuatorClient:
                     # would keep alive an excitation nobody can stop; the controller's watchdog
                     # stops it, and start_heartbeat beats again
                     return
+
+    def _connection_changed(self, up: bool) -> None:
+        """A connection that drops while the heartbeat runs loses the heartbeat at once, even if
+        pymodbus connects again before the next beat: requests may have been lost with it, and the
+        controller may have dropped it for a reason of its own (fail safe, as a lost beat)."""
+        beating = self._heartbeat_task is not None and not self._heartbeat_task.done()
+        if not up and beating:
+            self._lose_heartbeat("link lost: the connection to the controller dropped")
 
     def _lose_heartbeat(self, reason: str) -> None:
         if self._heartbeat_lost.is_set():

@@ -68,3 +68,22 @@ async def test_a_lost_heartbeat_stays_lost_when_the_link_comes_back(client, cont
 def _model_state(bench) -> ControllerState:
     with bench.lock:
         return bench.controller.state
+
+
+async def test_a_connection_dropped_between_two_beats_loses_the_heartbeat(client, controller):
+    """The controller drops the connection while no heartbeat write is in flight (a 1 s period) and
+    pymodbus reconnects before the next beat: the drop alone loses the heartbeat, with its reason,
+    and no beat is written after it. Before, a drop between two beats went unnoticed: the next beat
+    went out on the new connection and a run went on as if nothing had happened."""
+    reasons: list[str] = []
+    client.on_link_lost = reasons.append
+    await client.start_heartbeat(period_s=1.0, watchdog_ms=5000)
+    with controller.bench.lock:
+        beats_before = controller.bench.controller.setpoints["heartbeat"]
+    controller.drop_connections()
+    await asyncio.wait_for(client.heartbeat_lost.wait(), 5.0)  # a timeout only: it is set at the drop
+    assert reasons == ["link lost: the connection to the controller dropped"]
+    assert client.heartbeat_failures == 0, "lost by the drop itself, not by a failed write"
+    await asyncio.wait_for(client._heartbeat_task, 5.0)  # ends at its next beat, writing nothing
+    with controller.bench.lock:
+        assert controller.bench.controller.setpoints["heartbeat"] == beats_before

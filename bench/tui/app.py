@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import ClassVar
 
 from textual import events
-from textual.app import App, ComposeResult
+from textual.app import App, ComposeResult, ScreenStackError
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.css.query import NoMatches
@@ -426,7 +426,7 @@ class WfsBenchApp(App):
     def on_session_message(self, message: SessionMessage) -> None:
         try:
             self._show(message.payload)
-        except (NoMatches, IndexError):  # the app is closing: its screens go before the last messages
+        except (NoMatches, IndexError, ScreenStackError):  # the app is closing: its screens go first
             return
         self.refresh_bindings()
 
@@ -506,7 +506,7 @@ class WfsBenchApp(App):
         """Redraw what moves: the state line, and the visible pane's values or plots."""
         try:
             self._refresh_live()
-        except (NoMatches, IndexError):  # the app is closing: its widgets go before its timer stops
+        except (NoMatches, IndexError, ScreenStackError):  # the app is closing: its widgets go first
             return
         self.refreshes += 1
 

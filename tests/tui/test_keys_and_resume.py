@@ -12,6 +12,7 @@ from bench.tui.app import WfsBenchApp
 from bench.tui.dialogs import FIELD_KEYS, ConfirmDialog, HelpDialog
 from bench.tui.panes import RunPane
 from bench.tui.session import HeldRuns
+from tests.tui.keys import press
 from tests.tui.test_tui import (
     FILES,
     answer_smoke_prompts,
@@ -54,21 +55,21 @@ async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: W
     app = paced_app
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
-        await pilot.press("f3")
+        await press(pilot, "f3")
         await type_path(pilot, app, FILES / "dwells.toml")
         await until(pilot, lambda: app.plan is not None, "the dwells checked")
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: done_points(recorded) >= 2 or finished(recorded), "two dwells done")
         assert finished(recorded) is None, finished(recorded)  # e.g. an interlock ended it
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the abort")
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
         before = done_points(recorded)
 
-        await pilot.press("f3", "g")
+        await press(pilot, "f3", "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
         events_before = len(recorded.of(ev.PointDone))  # before the key: the resumed run starts at once
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: len(recorded.of(ev.PointStarted)) > before + 1, "the resumed dwells")
         assert app.pane == "run" and app.focused is None, app.focused
         await until(
@@ -81,20 +82,20 @@ async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: W
         )
         assert f"({before} done before the resume)" in text_of(app, "#run-progress")
 
-        await pilot.press("question_mark")
+        await press(pilot, "question_mark")
         await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
-        await pilot.press("escape")
-        await pilot.press("p")
+        await press(pilot, "escape")
+        await press(pilot, "p")
         await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause")
-        await pilot.press("p")
+        await press(pilot, "p")
         await noted(pilot, app, "p: the sequence is paused already")
-        await pilot.press("r")
+        await press(pilot, "r")
         await until(pilot, lambda: app.session.engine.state is RunState.RUNNING, "the resume")
-        await pilot.press("r")
+        await press(pilot, "r")
         await noted(pilot, app, "r: the sequence is running, not paused")
-        await pilot.press("q")
+        await press(pilot, "q")
         await until(pilot, lambda: "sequence is under way" in text_of(app, "#banner"), "q's banner")
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second abort")
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
         done_here = done_points(recorded, events_before)
@@ -112,33 +113,33 @@ async def test_p_r_a_answer_from_a_prompts_field_and_say_why_when_they_cannot_ac
     withdraws it, F7 again says the sequence runs; F8 aborts."""
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
-        await pilot.press("p")
+        await press(pilot, "p")
         await noted(pilot, app, "p: no sequence is running: nothing to pause")
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("y")
+        await press(pilot, "y")
         await prompt_open(pilot, app, "fit_wheel")
-        await pilot.press("y")
+        await press(pilot, "y")
         dialog = await prompt_open(pilot, app, "pressure")
         assert FIELD_KEYS in text_of(dialog, "#prompt-run-keys")
-        await pilot.press("p")
+        await press(pilot, "p")
         assert dialog.query_one("#prompt-input").value == "p", "p is typed into the field"
         assert app.session.engine.state is RunState.RUNNING
-        await pilot.press("f6")
+        await press(pilot, "f6")
         await until(pilot, lambda: app.session.engine.state is RunState.PAUSING, "the pause requested")
         await noted(pilot, app, "pause requested", "once the prompt is answered")
-        await pilot.press("f6")
+        await press(pilot, "f6")
         await noted(pilot, app, "f6: a pause is requested already")
-        await pilot.press("f7")
+        await press(pilot, "f7")
         await until(pilot, lambda: app.session.engine.state is RunState.RUNNING, "the pause withdrawn")
-        await pilot.press("f7")
+        await press(pilot, "f7")
         await noted(pilot, app, "f7: the sequence is running, not paused")
-        await pilot.press("f8")
+        await press(pilot, "f8")
         await until(pilot, lambda: finished(recorded) is not None, "the abort")
         assert finished(recorded).status == "aborted"
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
-        await pilot.press("a")
+        await press(pilot, "a")
         await noted(pilot, app, "a: no sequence is running: nothing to abort")
 
 
@@ -151,12 +152,12 @@ async def test_a_complete_sequence_is_not_offered_for_resume_and_the_log_tells_t
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await answer_smoke_prompts(pilot, app)
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "complete"
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
-        await pilot.press("f3", "g")
+        await press(pilot, "f3", "g")
         said = await noted(pilot, app, "nothing to resume")
         assert "holds sequence 'smoke' complete" in said and "another --out" in said
         assert not isinstance(app.screen, ConfirmDialog) and not app.session.running.is_set()
@@ -183,7 +184,7 @@ async def test_the_resume_question_is_shown_whole(app: WfsBenchApp, size: tuple[
         await open_app(pilot, app)
         app.session.held_runs = lambda plan: HeldRuns({"smoke-s003-free_run": "aborted"}, complete=False)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
         dialog = app.screen.query_one(".dialog")
         question = app.screen.question

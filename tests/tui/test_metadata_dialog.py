@@ -7,6 +7,7 @@ from pathlib import Path
 from bench.store import open_campaign
 from bench.tui.app import WfsBenchApp
 from bench.tui.dialogs import MetadataDialog
+from tests.tui.keys import press
 from tests.tui.test_tui import FILES, finished, open_app, text_of, type_path, until
 
 
@@ -18,28 +19,28 @@ async def test_operator_and_notes_typed_before_a_run_are_recorded_with_it(
     the sequence then begins records them (the campaign too, being the file's first)."""
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
-        await pilot.press("f3")
+        await press(pilot, "f3")
         await type_path(pilot, app, FILES / "short_dwell.toml")
         await until(pilot, lambda: app.plan is not None, "the short dwell checked")
         app.query_one("#seq-shipped").focus()
-        await pilot.press("m")
+        await press(pilot, "m")
         await until(pilot, lambda: isinstance(app.screen, MetadataDialog), "the operator dialog")
-        await pilot.press(*"qp")  # typed: a text field takes q and p
+        await press(pilot, *"qp")  # typed: a text field takes q and p
         assert isinstance(app.screen, MetadataDialog) and app.session.engine.state.value == "idle"
         app.screen.query_one("#meta-operator").value += " Jürgen"
-        await pilot.press("tab")
+        await press(pilot, "tab")
         app.screen.query_one("#meta-notes").value = "tyre from batch 7"
-        await pilot.press("enter")
+        await press(pilot, "enter")
         await until(pilot, lambda: not isinstance(app.screen, MetadataDialog), "the dialog closed")
         assert app.run_metadata == {"operator": "qp Jürgen", "notes": "tyre from batch 7"}
         assert "operator: qp Jürgen; notes: tyre from batch 7" in text_of(app, "#seq-metadata")
-        await pilot.press("m")  # Escape keeps what was set
+        await press(pilot, "m")  # Escape keeps what was set
         await until(pilot, lambda: isinstance(app.screen, MetadataDialog), "the dialog again")
         assert app.screen.query_one("#meta-operator").value == "qp Jürgen"
-        await pilot.press("escape")
+        await press(pilot, "escape")
         await until(pilot, lambda: not isinstance(app.screen, MetadataDialog), "the dialog closed")
         assert app.run_metadata["operator"] == "qp Jürgen"
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: finished(recorded) is not None, "the sequence's end")
         assert finished(recorded).status == "complete", finished(recorded).reason
     with open_campaign(tmp_path / "campaign.h5") as campaign:

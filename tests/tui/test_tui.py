@@ -5,6 +5,7 @@ screen and dialog."""
 
 from __future__ import annotations
 
+import asyncio
 import threading
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from bench.tui.session import BodeCurves, PastRun, PastRuns, RunResult
 from drivers.actuator import ActuatorClient
 from drivers.register_map import Command, ControllerState
 from drivers.wfs_frame import Status
+from tests.tui.keys import press
 from tests.waiting import async_wait_until
 
 FILES = Path(__file__).parent / "files"
@@ -48,7 +50,7 @@ class Recorded:
 
 async def until(pilot, condition, what: str) -> None:
     async def check():
-        await pilot.pause(0.02)
+        await asyncio.sleep(0.02)
         return condition()
 
     await async_wait_until(check, TIMEOUT_S, what)
@@ -63,9 +65,9 @@ async def open_app(pilot, app: WfsBenchApp) -> Recorded:
 
 
 async def check_smoke(pilot, app: WfsBenchApp) -> None:
-    await pilot.press("f3")
+    await press(pilot, "f3")
     app.query_one("#seq-shipped").focus()
-    await pilot.press("enter")  # smoke.toml is the first shipped sequence
+    await press(pilot, "enter")  # smoke.toml is the first shipped sequence
     await until(pilot, lambda: app.plan is not None, "the smoke sequence checked")
 
 
@@ -75,7 +77,7 @@ async def type_path(pilot, app: WfsBenchApp, path: Path) -> None:
     field = app.query_one("#seq-path")
     field.focus()
     field.value = str(path)
-    await pilot.press("enter")
+    await press(pilot, "enter")
 
 
 async def screenshot(pilot, app: WfsBenchApp, name: str, shots: Path, words: tuple[str, ...]) -> str:
@@ -104,6 +106,10 @@ async def prompt_open(pilot, app: WfsBenchApp, prompt_id: str) -> PromptDialog:
             isinstance(app.screen, PromptDialog)
             and app.screen.prompt.id == prompt_id
             and bool(app.screen.query("#prompt-text"))  # composed: it takes keys
+            # an answer typed in goes into the field once the cursor is there, as a technician sees
+            and (
+                app.screen.prompt.answer == "confirm" or app.focused is app.screen.query_one("#prompt-input")
+            )
         ),
         f"prompt {prompt_id}",
     )
@@ -145,34 +151,34 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await pilot.pause()
         bench_words = ("interlocks", "controller", "hydraulics")
         bench_svg = await screenshot(pilot, app, "bench.svg", shots, bench_words)
-        await pilot.press("question_mark")
+        await press(pilot, "question_mark")
         await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
         help_svg = await screenshot(pilot, app, "help.svg", shots, ("E-STOP", "Keys"))
-        await pilot.press("escape")
+        await press(pilot, "escape")
         await check_smoke(pilot, app)
         sequence_svg = await screenshot(pilot, app, "sequence.svg", shots, ("smoke", "valid", "points"))
-        await pilot.press("g")
+        await press(pilot, "g")
 
         dialog = await prompt_open(pilot, app, "remove_wheel")
         prompt_svg = await screenshot(pilot, app, "prompt.svg", shots, ("Remove", "E-STOP"))
-        await pilot.press("p")  # the pause is taken at the checkpoint after the answer
-        await pilot.press("y")
+        await press(pilot, "p")  # the pause is taken at the checkpoint after the answer
+        await press(pilot, "y")
         await until(pilot, lambda: app.session.engine.state is RunState.PAUSED, "the pause")
         # the progress line follows the engine at the live view's next refresh (10 Hz)
         await until(pilot, lambda: "paused" in text_of(app, "#run-progress"), "the pause shown")
-        await pilot.press("r")
+        await press(pilot, "r")
         await until(pilot, lambda: app.session.engine.state is not RunState.PAUSED, "the resume")
 
         dialog = await prompt_open(pilot, app, "fit_wheel")
         run_svg = await screenshot(pilot, app, "run.svg", shots, ("commanded", "displacement", "forces"))
-        await pilot.press("y")
+        await press(pilot, "y")
         dialog = await prompt_open(pilot, app, "pressure")
-        await pilot.press(*"9.9", "enter")
+        await press(pilot, *"9.9", "enter")
         await pilot.pause()
         assert app.screen is dialog, "a pressure beyond 0.5..4.5 bar must not close the dialog"
         assert "9.9" in text_of(dialog, "#prompt-error")
         assert "0.5..4.5" in text_of(dialog, "#prompt-error")
-        await pilot.press(*"2.5", "enter")
+        await press(pilot, *"2.5", "enter")
 
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "complete"
@@ -217,11 +223,11 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
 async def start_long_dwell(pilot, app: WfsBenchApp) -> Recorded:
     """The long dwell typed in as an own file, started; returns once its point runs."""
     recorded = await open_app(pilot, app)
-    await pilot.press("f3")
+    await press(pilot, "f3")
     await type_path(pilot, app, FILES / "long_dwell.toml")
     await until(pilot, lambda: app.plan is not None, "the long dwell checked")
     app.query_one("#seq-shipped").focus()
-    await pilot.press("g")
+    await press(pilot, "g")
     await until(pilot, lambda: recorded.of(ev.PointStarted), "the dwell started")
     return recorded
 
@@ -231,7 +237,7 @@ async def test_abort_mid_run_keeps_the_data(paced_app: WfsBenchApp, tmp_path: Pa
     app = paced_app
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await start_long_dwell(pilot, app)
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "aborted"
         assert "aborted" in text_of(app, "#run-progress") or app.session.engine.state.value == "aborted"
@@ -246,9 +252,9 @@ async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "aborted"
         assert "remove_wheel" in finished(recorded).reason
@@ -262,16 +268,16 @@ async def test_q_while_a_sequence_runs_says_so_and_quits_nothing(app: WfsBenchAp
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("q")
+        await press(pilot, "q")
         banner = app.screen_stack[0]
         await until(pilot, lambda: "sequence is under way" in text_of(banner, "#banner"), "the banner")
         assert app.is_running and isinstance(app.screen, PromptDialog)
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         await until(pilot, lambda: not app.session.running.is_set(), "the session idle")
-        await pilot.press("q")
+        await press(pilot, "q")
         await until(pilot, lambda: not app.is_running, "the UI to quit")
 
 
@@ -281,23 +287,23 @@ async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> Non
     app = paced_app
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await start_long_dwell(pilot, app)
-        await pilot.press("f12")
+        await press(pilot, "f12")
         assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert "E-STOP" in text_of(app, "#banner")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "e-stopped"
 
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
-        await pilot.press("f2", "x")  # reset, confirmed
+        await press(pilot, "f2", "x")  # reset, confirmed
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
         assert not app.query_one("#banner").has_class("shown")
         app.session.out_path = app.session.out_path.with_name("after-reset.h5")
         points = len(recorded.of(ev.PointStarted))
-        await pilot.press("f3", "g")  # the checked dwell again: it starts once the controller is ready
+        await press(pilot, "f3", "g")  # the checked dwell again: it starts once the controller is ready
         await until(pilot, lambda: len(recorded.of(ev.PointStarted)) > points, "the dwell after the reset")
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
 
@@ -307,13 +313,13 @@ async def test_estop_from_a_dialog(app: WfsBenchApp) -> None:
     answered by it."""
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
-        await pilot.press("l")  # hydraulics low: asks first
+        await press(pilot, "l")  # hydraulics low: asks first
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
-        await pilot.press("f12")
+        await press(pilot, "f12")
         assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert app.session.engine.state is RunState.ESTOPPED
         assert isinstance(app.screen, ConfirmDialog)
-        await pilot.press("n")
+        await press(pilot, "n")
         assert not isinstance(app.screen, ConfirmDialog)
 
 
@@ -323,12 +329,12 @@ async def test_estop_while_a_prompt_waits(app: WfsBenchApp) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         dialog = await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("f12")
+        await press(pilot, "f12")
         assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert app.screen is dialog
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "e-stopped"
         assert app.session.devices.lab.world.specimen_mounted
@@ -341,14 +347,14 @@ async def test_bad_sequence_file_shows_key_and_range(app: WfsBenchApp, tmp_path:
     )
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
-        await pilot.press("f3")
+        await press(pilot, "f3")
         await type_path(pilot, app, bad)
         await until(pilot, lambda: "cannot run" in text_of(app, "#seq-report"), "the refusal")
         report = text_of(app, "#seq-report")
         assert str(bad) in report
         assert "steps[0].freq_hz" in report and "0.1 <= freq_hz <= 100 Hz" in report
         app.query_one("#seq-shipped").focus()
-        await pilot.press("g")
+        await press(pilot, "g")
         await pilot.pause()
         assert not app.session.running.is_set(), "nothing starts until the sequence is valid"
 
@@ -392,7 +398,7 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
             run_id=run_id,
         )
         app.post_message(SessionMessage(done))
-        await pilot.press("f4")
+        await press(pilot, "f4")
         await until(pilot, lambda: app.query_one("#run-points").row_count == 1, "the added point's row")
         notes = [n.message for n in app._notifications]
         assert f"{run_id}: point added at 2 mm: 40.8 Hz (model peak)" in notes
@@ -419,11 +425,11 @@ class PauseInTheSweep:
 
 async def answer_smoke_prompts(pilot, app: WfsBenchApp) -> None:
     await prompt_open(pilot, app, "remove_wheel")
-    await pilot.press("y")
+    await press(pilot, "y")
     await prompt_open(pilot, app, "fit_wheel")
-    await pilot.press("y")
+    await press(pilot, "y")
     await prompt_open(pilot, app, "pressure")
-    await pilot.press(*"2.5", "enter")
+    await press(pilot, *"2.5", "enter")
 
 
 async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, tmp_path: Path) -> None:
@@ -434,7 +440,7 @@ async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, t
         pause = PauseInTheSweep(app, "smoke-s010-sweep")
         app.session.engine.bus.subscribe(pause)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await answer_smoke_prompts(pilot, app)
         await until(
             pilot,
@@ -443,7 +449,7 @@ async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, t
         )
         assert finished(recorded) is None, finished(recorded)
         assert pause.requested
-        await pilot.press("r")
+        await press(pilot, "r")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert (finished(recorded).status, finished(recorded).reason) == ("complete", "")
         assert not app.query_one("#banner").has_class("shown")
@@ -473,10 +479,10 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
         await switch_controller_off(app)
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         assert finished(recorded).status == "failed"
         assert "HYDRAULICS_HIGH" in finished(recorded).reason
@@ -484,20 +490,20 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         assert app.session.engine.state is RunState.FAILED
         assert "x on the Bench screen" in text_of(app, "#banner")
 
-        await pilot.press("f2")
+        await press(pilot, "f2")
         await until(pilot, lambda: "sequence failed" in text_of(app, "#bench-lamps"), "the failure lamp")
-        await pilot.press("x")
+        await press(pilot, "x")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
         assert await controller_state(app) is ControllerState.HYDRAULICS_LOW
         assert not app.query_one("#banner").has_class("shown")
         await until(pilot, lambda: "sequence failed" not in text_of(app, "#bench-lamps"), "the lamp off")
 
         app.session.out_path = app.session.out_path.with_name("after-reset.h5")
-        await pilot.press("f3", "g")
+        await press(pilot, "f3", "g")
         await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the second sequence's end")
         assert recorded.of(ev.SequenceFinished)[1].status == "aborted"
 
@@ -536,25 +542,25 @@ async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenc
         abort = AbortInTheFreeRun(app)
         app.session.engine.bus.subscribe(abort)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
-        await pilot.press("y")
+        await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the abort")
         assert finished(recorded).status == "aborted"
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
 
-        await pilot.press("f3", "g")
+        await press(pilot, "f3", "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer to resume")
         question = text_of(app.screen, "#confirm-question")
         assert "holds 1 run(s) of sequence 'smoke'" in question and "Resume it" in question
-        await pilot.press("n")
+        await press(pilot, "n")
         await pilot.pause()
         assert not app.session.running.is_set()
         assert any("nothing started" in n.message for n in app._notifications)
 
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer again")
-        await pilot.press("y")
+        await press(pilot, "y")
         await answer_smoke_prompts(pilot, app)
         await until(pilot, lambda: len(recorded.of(ev.SequenceFinished)) == 2, "the resumed sequence's end")
         assert recorded.of(ev.SequenceFinished)[1].status == "complete"
@@ -580,7 +586,7 @@ async def test_g_into_a_file_that_is_no_campaign_file_says_so_and_starts_nothing
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
         await check_smoke(pilot, app)
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: "did not start" in text_of(app, "#banner"), "the refusal")
         assert not app.session.running.is_set()
         banner = text_of(app, "#banner")
@@ -594,13 +600,13 @@ async def test_g_starts_a_typed_path_once_checked(paced_app: WfsBenchApp) -> Non
     app = paced_app
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
-        await pilot.press("f3")
+        await press(pilot, "f3")
         await type_path(pilot, app, FILES / "long_dwell.toml")
         await until(pilot, lambda: "start this sequence" in text_of(app, "#seq-report"), "the check")
-        await pilot.press("g")
+        await press(pilot, "g")
         await until(pilot, lambda: recorded.of(ev.PointStarted), "the dwell started")
         assert app.query_one("#seq-path").value == str(FILES / "long_dwell.toml")
-        await pilot.press("a")
+        await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
 
 
@@ -608,7 +614,7 @@ async def test_the_help_breaks_no_line_at_120_by_40(app: WfsBenchApp) -> None:
     """Every line of the help fits the dialog's width, so none is split mid-phrase."""
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
-        await pilot.press("question_mark")
+        await press(pilot, "question_mark")
         await until(pilot, lambda: isinstance(app.screen, HelpDialog), "the help")
         text = app.screen.query_one("#help-text")
         await until(pilot, lambda: text.content_region.width > 0, "the help laid out")
@@ -628,7 +634,7 @@ async def test_results_keep_the_plot_and_the_runs_in_view_below_a_long_analysis(
     lines = tuple(f"FLAG finding-{i:02d}" for i in range(40))
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
-        await pilot.press("f5")
+        await press(pilot, "f5")
         app.post_message(SessionMessage(PastRuns(runs)))
         await screenshot_text(pilot, app, (runs[-1].run_id,))
         app.post_message(SessionMessage(RunResult("new-s001-dwell_grid", "shaker", lines, (curves,))))
@@ -647,15 +653,15 @@ async def test_a_free_run_not_to_be_trusted_is_put_to_the_technician(app: WfsBen
     sequence.write_text(smoke.replace('action = "remove_wheel"', 'action = "fit_wheel"'))
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
-        await pilot.press("f3")
+        await press(pilot, "f3")
         await type_path(pilot, app, sequence)
         await until(pilot, lambda: "start this sequence" in text_of(app, "#seq-report"), "the check")
-        await pilot.press("g")
+        await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")  # its action now leaves the wheel on
-        await pilot.press("y")
+        await press(pilot, "y")
         dialog = await prompt_open(pilot, app, GO_ON_DESPITE)
         assert "m_comp not to be trusted" in text_of(dialog, "#prompt-text")
-        await pilot.press("n")
+        await press(pilot, "n")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         done = finished(recorded)
         assert done.status == "aborted"
