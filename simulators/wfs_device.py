@@ -322,7 +322,9 @@ class WfsDevice:
         self._recent = np.concatenate([self._recent, loads])[-100:]
         frames = np.zeros(m, FRAME_DTYPE)
         with self._counter_lock:
-            if not self._streaming:
+            # a block made before a RATE change (queued behind the bench) is never sent: the
+            # acquisition's output after the change is at the new rate only
+            if not self._streaming or block.rate_hz != self.bench.output_rate_hz:
                 return frames[:0]
             frames["seq"] = (self._seq + np.arange(m)) % (1 << 32)
             frames["sample"] = (self._sample + np.arange(m)) % (1 << 32)

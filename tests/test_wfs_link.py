@@ -130,6 +130,32 @@ def test_rate_changes_the_acquisition_rate_and_refuses_impossible_rates():
     assert np.all(np.diff(frames["sample"].astype(np.int64)) == 1)
 
 
+def test_a_block_made_before_a_rate_change_is_not_sent_after_it():
+    """The interleaving a busy host meets: the bench made a block at 1000 Hz, RATE 250 is taken and
+    the stream started before that block reaches the device. Its frames would go out numbered as
+    250 Hz samples but hold 1000 Hz ones; the device drops the block, as an acquisition's output
+    after a rate change is at the new rate only, and sends the next one."""
+    link = MemoryLink()
+    bench = SimulatedBench.paper_shaker(seed=2)
+    device = WfsDevice(link, bench, seed=3)
+    device.start()  # serves commands; no runner: the blocks are delivered here, in this order
+    reader = WfsReader(link.open_host)
+    reader.start()
+    try:
+        made_before = bench.advance(10)
+        assert reader.set_rate(250) == 250
+        sub = reader.subscribe(lossless=True)
+        reader.start_stream()
+        device.deliver(made_before)
+        assert device.frames_sent == 0
+        device.deliver(bench.advance(10))
+        frames = sub.read_frames(10, timeout_s=10).frames
+        assert device.frames_sent == 10 and frames["sample"][0] == 0
+    finally:
+        reader.close()
+        device.stop()
+
+
 def _fundamental(signal: np.ndarray, freq_hz: float, rate_hz: float) -> complex:
     """Complex amplitude at ``freq_hz`` of a record of whole cycles (exact for a sine)."""
     t = np.arange(signal.size) / rate_hz
