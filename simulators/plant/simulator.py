@@ -327,10 +327,16 @@ class PlantSimulator:
         self._hammer = setup.kind is BenchKind.HAMMER
         self.channels = _HAMMER_CHANNELS if self._hammer else tuple(_MEASURED)
         self._nominal_network = setup.network()
+        self._stepper = self._build_stepper(self._nominal_network, 1.0)
+        self._to_rest()
+
+    def _to_rest(self) -> None:
+        """What is mounted back at rest: zero state, fresh filters, the operating point forgotten.
+        The discrete system stays: :meth:`set_operating_point` rebuilds it when the next operating
+        point needs another, as it would after a :meth:`mount`."""
         self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
         self.latency_samples = self._decimator.latency_samples
         self._operating_point: tuple[float, float] | None = None
-        self._stepper = self._build_stepper(self._nominal_network, 1.0)
         self._x = np.zeros(len(self._system.states))
         self._u_prev = 0.0
         self.converter_fz_n = np.zeros(0)
@@ -361,7 +367,7 @@ class PlantSimulator:
         noise does from one dwell to the next (the dwells of one seed share no noise; the same
         calls on a simulator of the same seed give the same records).
         """
-        self.mount(self.setup)
+        self._to_rest()
         n_out = round((waveform.duration_s + extra_s) * self.output_rate_hz)
         n_total = n_out + self.latency_samples
         t_internal = np.arange(n_total * self.oversampling) / self.internal_rate_hz
