@@ -13,11 +13,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench.app.analyze import analyze_campaign
-from bench.report.figures import FigureFile, write_figures
-from bench.report.html import report_html
 
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
+    from bench.report.figures import FigureFile
 
 REPORT_PAGE = "report.html"
 
@@ -64,6 +63,10 @@ def write_report(
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
     analysis = analyze_campaign(campaign_path, knowledge=knowledge)
+    # the plotting library is loaded once there is something to draw: a file refused costs no import
+    from bench.report.figures import write_figures
+    from bench.report.html import report_html
+
     try:
         figures = tuple(write_figures(analysis, out_dir))
         page = out_dir / REPORT_PAGE
