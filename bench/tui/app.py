@@ -426,9 +426,9 @@ class WfsBenchApp(App):
     def on_session_message(self, message: SessionMessage) -> None:
         try:
             self._show(message.payload)
+            self.refresh_bindings()
         except (NoMatches, IndexError, ScreenStackError):  # the app is closing: its screens go first
             return
-        self.refresh_bindings()
 
     def _show(self, p: object) -> None:  # noqa: PLR0912 - one branch a kind
         match p:
