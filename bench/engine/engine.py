@@ -40,7 +40,7 @@ from bench.engine.contracts import (
     RunGate,
     SampleBlockLike,
 )
-from bench.engine.interlocks import Interlock, Observation, Trip, trips
+from bench.engine.interlocks import ActuatorLinkLost, Interlock, Observation, Trip, trips
 from bench.engine.online import DwellVerdict, OnlineDwell
 from bench.engine.points import ExcitationSpan, SpanTracker, excitation_frequency_hz, sweep_time_s
 from bench.engine.refinement import next_point
@@ -1137,7 +1137,7 @@ class Engine:
         the same), it returns the outcome recorded."""
         if self._outcome is not None:
             return self._outcome
-        ending = _ending_of(error)
+        ending = self._link_lost_ending(error) or _ending_of(error)
         if ending.trigger in _STOPS_ACTUATOR:
             self._defensive_stop()
         state = self._apply_ending(ending.trigger)
@@ -1162,6 +1162,20 @@ class Engine:
                 if self.state is not RunState.ESTOPPED:
                     raise
         return RunState.ESTOPPED
+
+    def _link_lost_ending(self, error: BaseException | None) -> _Ending | None:
+        """A link error met while the actuator's link is lost (the connection dropped, the heartbeat
+        unconfirmed) is that loss's doing: the sequence ends on the link-lost interlock, as the
+        interlock check would have ended it a moment later, not as a failed command. None for any
+        other ending (a refusal is the controller's answer, not a loss)."""
+        if not isinstance(error, LinkError) or isinstance(error, CommandRejectedError):
+            return None
+        fault = self.actuator.link_fault()
+        if fault is None:
+            return None
+        run_id = self._recording.run_id if self._recording is not None else None
+        tripped = ev.InterlockTripped(ActuatorLinkLost.name, f"{fault} ({error})", run_id)
+        return _Ending(Trigger.INTERLOCK, f"{tripped.name}: {tripped.reason}", tripped)
 
     def _run_ended(self, error: BaseException | None) -> RunOutcome:
         """How a run (a measurement step) ended: complete, or the sequence's ending (a run that does

@@ -532,3 +532,32 @@ def test_an_estop_from_another_thread_ends_a_paused_sequence():
     assert case.engine.state is RunState.ESTOPPED
     (run,) = case.of(ev.RunFinished)
     assert (run.status, run.reason) == ("e-stopped", "e-stop")
+
+
+@pytest.mark.parametrize("link_down", [True, False], ids=["link-lost", "link-up"])
+def test_a_link_error_in_a_command_while_the_link_is_lost_ends_on_the_link_lost_interlock(link_down):
+    """The connection drops as the grid's second START is sent: the write fails with a link error,
+    and the sequence ends on the actuator link-lost interlock (what the check would have tripped a
+    block later), naming the fault and the command's error, not as a failed command. The same error
+    with the link up is a failed command."""
+    kind = next(k for k in KINDS if k.name == "dwell_grid")
+    case = make_case(kind)
+    occurred = case.bench.on_call
+
+    def drop_at_the_second_start(bench: FakeBench, name: str) -> None:
+        occurred(bench, name)
+        if name == "start" and bench.calls["start"] == 2:
+            bench.link_down = link_down
+
+    case.bench.on_call = drop_at_the_second_start
+    case.bench.faults["start"] = (2, LinkTimeoutError("write registers 0..0: no reply"))
+    outcome = case.engine.run(sequence_of(kind))
+    if link_down:
+        assert outcome.status == "interlocked"
+        assert outcome.reason == "actuator link lost: connection dropped (write registers 0..0: no reply)"
+        assert [t.name for t in case.of(ev.InterlockTripped)] == ["actuator link lost"]
+    else:
+        assert (outcome.status, outcome.reason) == ("failed", "link error: write registers 0..0: no reply")
+        assert not case.of(ev.InterlockTripped)
+    (run,) = case.of(ev.RunFinished)
+    assert (run.status, run.reason) == (outcome.status, outcome.reason)

@@ -366,7 +366,7 @@ async def test_link_lost_mid_run_shows_a_banner(paced_app: WfsBenchApp) -> None:
         recorded = await start_long_dwell(pilot, app)
         app.session.devices.lab.drop_controller_link()
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "interlocked"
+        assert finished(recorded).status == "interlocked", finished(recorded).reason
         await until(pilot, lambda: app.query_one("#banner").has_class("shown"), "the banner")
         banner = text_of(app, "#banner")
         assert "INTERLOCK actuator link lost" in banner
