@@ -86,7 +86,7 @@ def test_the_analysis_process_runs_below_the_benchs_priority():
 
 
 def test_no_child_starts_before_a_run_is_submitted():
-    """A sequence that ends before any run is complete (an abort, a fault) starts no interpreter."""
+    """A sequence that ends before its first run (a refusal, a declined prompt) starts no interpreter."""
     with AnalysisProcess(_fresh()) as process:
         assert process.next_result(0) is None
         assert process._process is None

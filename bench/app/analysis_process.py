@@ -54,9 +54,9 @@ class AnalysisProcess:
     """A :class:`~bench.app.run_analysis.RunAnalyser` in a child process: :meth:`submit` sends a run,
     :meth:`next_result` takes the analyses back in order. Use as a context manager.
 
-    The child starts with the first run submitted, not before: a sequence that ends before any run
-    is complete (an abort, a fault, a check of the bench) costs no interpreter loading the
-    analysis's libraries (about a second of processor time)."""
+    The child starts with :meth:`start` or the first run submitted, not before: a sequence that
+    ends before its first run (a refusal, a fault, a prompt declined) costs no interpreter loading
+    the analysis's libraries (about a second of processor time)."""
 
     def __init__(self, knowledge: CampaignKnowledge) -> None:
         self.knowledge = knowledge
@@ -71,7 +71,13 @@ class AnalysisProcess:
         self._open = True
         return self
 
-    def _start(self) -> None:
+    def start(self) -> None:
+        """Start the child now (once), so that it has loaded its libraries when the first run comes:
+        on a busy host that takes seconds at its low priority, which a run's recording covers."""
+        if not self._open:
+            raise AnalysisProcessError("the analysis process is not running")
+        if self._process is not None:
+            return
         process = self._process = start_child("bench.app.analysis_process", text=False)
         self._threads = [
             threading.Thread(target=work, args=(process,), name=f"analysis-{name}", daemon=True)
@@ -100,10 +106,7 @@ class AnalysisProcess:
     def submit(self, run: RunInputs) -> None:
         """Queue ``run`` to be analysed after those sent before it. It never waits for the child: a
         sender thread writes to its input, which it reads between analyses."""
-        if not self._open:
-            raise AnalysisProcessError("the analysis process is not running")
-        if self._process is None:
-            self._start()
+        self.start()
         self._outbox.put(run)
         self.outstanding += 1
 

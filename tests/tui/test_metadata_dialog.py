@@ -11,6 +11,11 @@ from tests.tui.keys import press
 from tests.tui.test_tui import FILES, finished, open_app, text_of, type_path, until
 
 
+def field_ready(app: WfsBenchApp, field: str) -> bool:
+    """The dialog is up with the cursor in ``field``: what a technician waits for before typing."""
+    return isinstance(app.screen, MetadataDialog) and app.focused is app.screen.query_one(field)
+
+
 async def test_operator_and_notes_typed_before_a_run_are_recorded_with_it(
     app: WfsBenchApp, tmp_path: Path
 ) -> None:
@@ -24,11 +29,12 @@ async def test_operator_and_notes_typed_before_a_run_are_recorded_with_it(
         await until(pilot, lambda: app.plan is not None, "the short dwell checked")
         app.query_one("#seq-shipped").focus()
         await press(pilot, "m")
-        await until(pilot, lambda: isinstance(app.screen, MetadataDialog), "the operator dialog")
+        await until(pilot, lambda: field_ready(app, "#meta-operator"), "the operator dialog's cursor")
         await press(pilot, *"qp")  # typed: a text field takes q and p
         assert isinstance(app.screen, MetadataDialog) and app.session.engine.state.value == "idle"
         app.screen.query_one("#meta-operator").value += " Jürgen"
         await press(pilot, "tab")
+        await until(pilot, lambda: field_ready(app, "#meta-notes"), "the notes field's cursor")
         app.screen.query_one("#meta-notes").value = "tyre from batch 7"
         await press(pilot, "enter")
         await until(pilot, lambda: not isinstance(app.screen, MetadataDialog), "the dialog closed")
