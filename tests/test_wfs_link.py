@@ -427,14 +427,18 @@ def test_reader_exposes_its_thread_id_only_while_running():
 
 
 def test_tare_zeroes_the_loads_at_the_present_load():
-    """The actuator holds 5 mm (about 1.9 kN on the tyre); after TARE every load channel reads zero."""
+    """The actuator holds 5 mm (about 1.9 kN on the tyre); after TARE every load channel reads zero.
+    No host beats here, so the controller's watchdog (armed at power-up, in wall-clock time) is off:
+    on a busy machine the 6 s of bench time outlast its 1.5 s, and its taper to rest moved the load
+    under the tare."""
     link = MemoryLink()
     bench, device, runner = _rig(link)
     reader = WfsReader(link.open_host)
     reader.start()
     try:
         with bench.lock:
-            assert bench.controller.write_setpoints({"waveform": WaveformCode.STATIC, "mean_mm": 5.0}) is None
+            hold = {"waveform": WaveformCode.STATIC, "mean_mm": 5.0, "watchdog_ms": 0}
+            assert bench.controller.write_setpoints(hold) is None
             for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
                 assert bench.controller.command(command) is None
         sub = reader.subscribe(lossless=True, max_frames=10**9)  # never full within this test
@@ -444,6 +448,8 @@ def test_tare_zeroes_the_loads_at_the_present_load():
         after = sub.read_frames(3000, timeout_s=20).frames
         sub.close()
         reader.stop_stream()
+        with bench.lock:
+            assert bench.controller.state is ControllerState.RUNNING  # held throughout
     finally:
         reader.close()
         runner.stop()
