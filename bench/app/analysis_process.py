@@ -52,32 +52,17 @@ class AnalysisProcessError(RuntimeError):
 
 class AnalysisProcess:
     """A :class:`~bench.app.run_analysis.RunAnalyser` in a child process: :meth:`submit` sends a run,
-    :meth:`next_result` takes the analyses back in order. Use as a context manager.
-
-    The child starts with :meth:`start` or the first run submitted, not before: a sequence that
-    ends before its first run (a refusal, a fault, a prompt declined) costs no interpreter loading
-    the analysis's libraries (about a second of processor time)."""
+    :meth:`next_result` takes the analyses back in order. Use as a context manager."""
 
     def __init__(self, knowledge: CampaignKnowledge) -> None:
         self.knowledge = knowledge
         self._process: subprocess.Popen[bytes] | None = None
-        self._open = False  # inside the with block: submit may start the child
         self._outbox: queue.Queue[object] = queue.Queue()  # to the child; _END closes its input
         self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges] | BaseException] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self.outstanding = 0  # runs sent and not yet taken back
 
     def __enter__(self) -> AnalysisProcess:
-        self._open = True
-        return self
-
-    def start(self) -> None:
-        """Start the child now (once), so that it has loaded its libraries when the first run comes:
-        on a busy host that takes seconds at its low priority, which a run's recording covers."""
-        if not self._open:
-            raise AnalysisProcessError("the analysis process is not running")
-        if self._process is not None:
-            return
         process = self._process = start_child("bench.app.analysis_process", text=False)
         self._threads = [
             threading.Thread(target=work, args=(process,), name=f"analysis-{name}", daemon=True)
@@ -86,11 +71,11 @@ class AnalysisProcess:
         for thread in self._threads:
             thread.start()
         self._outbox.put(self.knowledge)
+        return self
 
     def __exit__(self, *exc: object) -> None:
         """Close the child's input (it ends after the run it is analysing) and wait for it; a child
         that does not end is killed."""
-        self._open = False
         process, self._process = self._process, None
         if process is None:
             return
@@ -106,7 +91,8 @@ class AnalysisProcess:
     def submit(self, run: RunInputs) -> None:
         """Queue ``run`` to be analysed after those sent before it. It never waits for the child: a
         sender thread writes to its input, which it reads between analyses."""
-        self.start()
+        if self._process is None:
+            raise AnalysisProcessError("the analysis process is not running")
         self._outbox.put(run)
         self.outstanding += 1
 

@@ -72,7 +72,6 @@ class PostRunAnalysis:
         every one still under way is waited for."""
         self._take_results(wait=False)
         if isinstance(event, ev.RunStarted):
-            self._process.start()  # loading while the run records: its analysis need not wait for it
             pressure = event.conditions.get("tyre_pressure_bar")
             pending = self._pending_grid
             if pending is not None and (event.kind != "dwell_grid" or pressure != pending[1]):
