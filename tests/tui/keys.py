@@ -21,6 +21,9 @@ from textual.app import App
 _CHARACTERS = {"question_mark": "?", "enter": "\r", "tab": "\t", "escape": "\x1b", "space": " "}
 #: Message hops a key makes before it is handled: the app, the screen, the focused widget
 _HOPS = 3
+#: Bound of the wait for the app to take a key (s): an app that stopped handling messages fails the
+#: test instead of hanging it; the wait ends on the barrier, not on time
+_TAKEN_TIMEOUT_S = 60.0
 
 
 async def taken(app: App) -> None:
@@ -30,7 +33,10 @@ async def taken(app: App) -> None:
     for node, event in zip(nodes, done, strict=True):
         if not node.call_later(event.set):
             event.set()  # a node that closed takes nothing more
-    await asyncio.gather(*(event.wait() for event in done))
+    try:
+        await asyncio.wait_for(asyncio.gather(*(event.wait() for event in done)), _TAKEN_TIMEOUT_S)
+    except TimeoutError:
+        raise AssertionError(f"the app took no key for {_TAKEN_TIMEOUT_S} s") from None
 
 
 async def press(pilot, *keys: str) -> None:
