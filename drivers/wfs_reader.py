@@ -45,6 +45,8 @@ from drivers.wfs_stream import Gap, LinkCounters, Resync, StreamParser
 
 log = logging.getLogger(__name__)
 
+#: how often a command past its deadline looks again whether the reader has caught up (s)
+_CATCH_UP_LOOK_S = 0.02
 #: commands never re-sent on timeout: START restarts the sample clock, TARE re-zeroes the loads
 NOT_RESENT = frozenset({"START", "TARE"})
 
@@ -214,10 +216,14 @@ class WfsReader:
         *,
         read_size: int = 65536,
         reconnect_interval_s: float = 0.1,
+        catch_up_limit_s: float = 10.0,
     ) -> None:
+        """``catch_up_limit_s``: how long past a command's deadline its reply is still awaited while
+        the reader has not yet read what arrived at the port by the deadline (see :meth:`command`)."""
         self._open_port = open_port
         self.read_size = read_size
         self.reconnect_interval_s = reconnect_interval_s
+        self.catch_up_limit_s = catch_up_limit_s
         self._subscriptions: list[Subscription] = []
         self._subscriptions_lock = threading.Lock()
         self._replies: queue.Queue[Reply] = queue.Queue()
@@ -239,6 +245,9 @@ class WfsReader:
         #: interpreter's lock, shows here and not in ``longest_unread_s``)
         self.largest_backlog_bytes = 0
         self._read_returned_s: float | None = None
+        #: ``time.monotonic()`` up to which every byte that arrived at the port has been parsed (its
+        #: replies queued): the call of the last read that left the port empty, once parsed
+        self._parsed_through_s = float("-inf")
 
     @classmethod
     def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.05, **kwargs) -> WfsReader:
@@ -332,6 +341,11 @@ class WfsReader:
         """Send a text command and wait up to ``timeout_s`` (s) for its reply, sending it up to
         ``attempts`` times; a command of :data:`NOT_RESENT` is sent once.
 
+        A reply is late only once the reader has parsed every byte that arrived at the port by the
+        deadline: one waiting unread behind frames (the reader held by a full lossless subscription,
+        or not scheduled on a busy machine) is the host's delay, not the device's, and is awaited
+        up to ``catch_up_limit_s`` longer.
+
         Commands of several threads are serialised (one command on the line at a time), and only a
         reply naming the command answers it.
 
@@ -349,10 +363,13 @@ class WfsReader:
             self._drain_replies()
             self._write(line, timeout_s)
             deadline = time.monotonic() + timeout_s
-            while (left := deadline - time.monotonic()) > 0:
-                try:
-                    reply = self._replies.get(timeout=left)
+            while True:
+                left = self._reply_wait_s(deadline)
+                try:  # late: only what the reader has queued by now
+                    reply = self._replies.get(timeout=left) if left > 0 else self._replies.get_nowait()
                 except queue.Empty:
+                    if left > 0:
+                        continue
                     break
                 if reply.command != answered:
                     continue
@@ -366,6 +383,16 @@ class WfsReader:
                 f"no reply to {line.decode().strip()!r} within {timeout_s} s; not re-sent, it may have run"
             )
         raise LinkTimeoutError(f"no reply to {line.decode().strip()!r} after {attempts} attempts")
+
+    def _reply_wait_s(self, deadline_s: float) -> float:
+        """How long to wait for a reply next (s); 0: it is late. Past ``deadline_s``, a short look
+        again while the reader is behind the port (within :attr:`catch_up_limit_s`)."""
+        now = time.monotonic()
+        if now < deadline_s:
+            return deadline_s - now
+        if self._parsed_through_s >= deadline_s or now >= deadline_s + self.catch_up_limit_s:
+            return 0.0
+        return _CATCH_UP_LOOK_S
 
     def identify(self) -> tuple[str, ...]:
         """The device's identity (vendor, model, serial, firmware, protocol version); raises
@@ -444,6 +471,7 @@ class WfsReader:
         opened_before = False
         while not self._stop.is_set():
             if self._port is None:
+                self._parsed_through_s = time.monotonic()  # a closed port holds nothing to read
                 if not self._try_open(opened_before):
                     self._stop.wait(self.reconnect_interval_s)
                     continue
@@ -467,6 +495,8 @@ class WfsReader:
             if data:
                 self.last_arrival_s = returned
                 self._consume(data, returned, unread)
+            if len(data) < self.read_size:  # the port was empty after the call: all read by then
+                self._parsed_through_s = called
 
     def _unread_s(self, called_s: float, returned_s: float, waiting: int) -> float:
         """How long the port went unread before the read called at ``called_s`` returned at

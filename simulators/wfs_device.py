@@ -17,10 +17,10 @@ The output rate is the bench's: the plant models the acquisition's 10 kHz conver
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
 
 Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link (it goes
-out in pieces of whole frames, a command reply between two); what is not sent by then is dropped
-(``frames_dropped``; the sequence counter shows the gap to the host) and, until the host drains
-again, later blocks are only offered briefly, so a host that stops reading never freezes the bench
-(the bench then runs in real time and the controller's watchdog fires).
+out in pieces of whole frames, a command reply or capture before the next piece); what is not sent
+by then is dropped (``frames_dropped``; the sequence counter shows the gap to the host) and, until
+the host drains again, later blocks are only offered briefly, so a host that stops reading never
+freezes the bench (the bench then runs in real time and the controller's watchdog fires).
 
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
 frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart,
@@ -31,6 +31,7 @@ Commands are dispatched through a table (:attr:`WfsDevice.commands`), one handle
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import logging
 import threading
@@ -163,7 +164,9 @@ class WfsDevice:
         self.crosstalk = self._rng.uniform(-CROSSTALK_SPEC, CROSSTALK_SPEC, 5) * scale
         self.tare_offset = np.zeros(6)
         self._recent = np.zeros((0, 6))
-        self._write_lock = threading.Lock()
+        self._write_lock = threading.Lock()  # the line: one writer at a time
+        #: replies and captures waiting for the line (see :meth:`_send_between_frames`)
+        self._outbox: collections.deque[bytes] = collections.deque()
         self._counter_lock = threading.Lock()  # seq, sample, boot, streaming: bench and command threads
         self._streaming = False
         self._seq = 0
@@ -215,6 +218,11 @@ class WfsDevice:
         return self._streaming
 
     @property
+    def replies_waiting(self) -> int:
+        """Replies and captures queued for the line, not yet written."""
+        return len(self._outbox)
+
+    @property
     def paces_bench(self) -> bool:
         """Streaming to a host that drains the link (an unpaced bench runs as fast as it reads)."""
         return self._streaming and self._link_up and not self._overflowing
@@ -243,12 +251,14 @@ class WfsDevice:
     def disconnect(self) -> None:
         with self._write_lock:
             self._link_up = False
+            self._outbox.clear()  # replies to the lost connection are lost with it
             self.link.disconnect()
 
     def reconnect(self) -> None:
         with self._write_lock:
             self.link.reconnect()
             self._link_up = True
+        self._flush_outbox()
 
     # -- streaming ------------------------------------------------------------------------------
 
@@ -276,6 +286,7 @@ class WfsDevice:
                 if not self._link_up:
                     link_lost = True
                     break
+                self._write_outbox()
                 try:
                     written = self._write_all(piece, deadline - time.monotonic())
                 except (serial.SerialException, OSError) as exc:
@@ -285,6 +296,7 @@ class WfsDevice:
             sent += written
             if written < len(piece):
                 break
+        self._flush_outbox()  # what was queued while the last piece went out
         whole = min(sent // FRAME_SIZE, len(frames))
         self.frames_sent += whole
         if link_lost:
@@ -368,9 +380,7 @@ class WfsDevice:
             if capture is not None:
                 self._trigger = None
         if capture is not None:
-            with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
-                if self._link_up:
-                    self._write_all(encode_capture(capture), _REPLY_TIMEOUT_S)
+            self._send_between_frames(encode_capture(capture))
 
     def _arm_capture(self, args: list[str]) -> Reply:
         """``CAPTURE <trigger_level_n> <pre_trigger_s> <length_s>``: arm (replacing an armed capture)."""
@@ -481,9 +491,33 @@ class WfsDevice:
         return Reply(True, "RATE", (str(self.rate_hz),))
 
     def _reply(self, reply: Reply) -> None:
-        with self._write_lock, contextlib.suppress(serial.SerialException, OSError):
+        self._send_between_frames(reply.encode())
+
+    # -- the line -------------------------------------------------------------------------------
+
+    def _send_between_frames(self, data: bytes) -> None:
+        """Send a reply or a capture before the next piece of frames: queued, and written by this
+        thread if the line is free, else by the thread streaming frames before its next piece (or
+        once it leaves the line). A lock is not fair: a streaming thread takes the line back piece
+        after piece while another thread waits for it, and a reply would wait for a whole block."""
+        self._outbox.append(data)
+        self._flush_outbox()
+
+    def _flush_outbox(self) -> None:
+        """Write what waits in the outbox unless another thread holds the line (it writes it then)."""
+        while self._outbox and self._write_lock.acquire(blocking=False):
+            try:
+                self._write_outbox()
+            finally:
+                self._write_lock.release()
+
+    def _write_outbox(self) -> None:
+        """Write what waits in the outbox (the caller holds the line); dropped while the link is down."""
+        while self._outbox:
+            data = self._outbox.popleft()
             if self._link_up:
-                self._write_all(reply.encode(), _REPLY_TIMEOUT_S)
+                with contextlib.suppress(serial.SerialException, OSError):
+                    self._write_all(data, _REPLY_TIMEOUT_S)
 
 
 def _no_arguments(name: str, handler: Callable[[], Reply]) -> Callable[[list[str]], Reply]:

@@ -137,7 +137,7 @@ async def test_p_r_a_answer_from_a_prompts_field_and_say_why_when_they_cannot_ac
         await noted(pilot, app, "f7: the sequence is running, not paused")
         await press(pilot, "f8")
         await until(pilot, lambda: finished(recorded) is not None, "the abort")
-        assert finished(recorded).status == "aborted"
+        assert finished(recorded).status == "aborted", finished(recorded).reason
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
         await press(pilot, "a")
         await noted(pilot, app, "a: no sequence is running: nothing to abort")
@@ -155,7 +155,7 @@ async def test_a_complete_sequence_is_not_offered_for_resume_and_the_log_tells_t
         await press(pilot, "g")
         await answer_smoke_prompts(pilot, app)
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "complete"
+        assert finished(recorded).status == "complete", finished(recorded).reason
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
         await press(pilot, "f3", "g")
         said = await noted(pilot, app, "nothing to resume")

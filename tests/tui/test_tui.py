@@ -181,7 +181,7 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await press(pilot, *"2.5", "enter")
 
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "complete"
+        assert finished(recorded).status == "complete", finished(recorded).reason
         await until(pilot, lambda: app.pane == "results", "the results screen")
         await until(
             pilot, lambda: app.query_one("#results-runs").row_count == 3, "the runs of the file listed"
@@ -239,7 +239,7 @@ async def test_abort_mid_run_keeps_the_data(paced_app: WfsBenchApp, tmp_path: Pa
         recorded = await start_long_dwell(pilot, app)
         await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "aborted"
+        assert finished(recorded).status == "aborted", finished(recorded).reason
         assert "aborted" in text_of(app, "#run-progress") or app.session.engine.state.value == "aborted"
     with open_campaign(tmp_path / "campaign.h5") as campaign:
         (run,) = campaign.runs
@@ -256,7 +256,7 @@ async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
         await prompt_open(pilot, app, "remove_wheel")
         await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "aborted"
+        assert finished(recorded).status == "aborted", finished(recorded).reason
         assert "remove_wheel" in finished(recorded).reason
         await until(pilot, lambda: not isinstance(app.screen, PromptDialog), "the dialog closed")
         assert not recorded.of(ev.PromptAnswered)
@@ -291,7 +291,7 @@ async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> Non
         assert await controller_state(app) is ControllerState.ESTOP  # read right after the key
         assert "E-STOP" in text_of(app, "#banner")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "e-stopped"
+        assert finished(recorded).status == "e-stopped", finished(recorded).reason
 
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
         await press(pilot, "f2", "x")  # reset, confirmed
@@ -336,7 +336,7 @@ async def test_estop_while_a_prompt_waits(app: WfsBenchApp) -> None:
         assert app.screen is dialog
         await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "e-stopped"
+        assert finished(recorded).status == "e-stopped", finished(recorded).reason
         assert app.session.devices.lab.world.specimen_mounted
 
 
@@ -484,7 +484,7 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         await switch_controller_off(app)
         await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
-        assert finished(recorded).status == "failed"
+        assert finished(recorded).status == "failed", finished(recorded).reason
         assert "HYDRAULICS_HIGH" in finished(recorded).reason
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
         assert app.session.engine.state is RunState.FAILED
@@ -546,7 +546,7 @@ async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenc
         await prompt_open(pilot, app, "remove_wheel")
         await press(pilot, "y")
         await until(pilot, lambda: finished(recorded) is not None, "the abort")
-        assert finished(recorded).status == "aborted"
+        assert finished(recorded).status == "aborted", finished(recorded).reason
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
 
         await press(pilot, "f3", "g")
