@@ -219,6 +219,8 @@ def _wfs_monitor(args: argparse.Namespace) -> int:
 
 
 def _monitor(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from drivers.wfs_reader import WfsReader
 
     with WfsReader.serial(args.port, baudrate=args.baudrate) as reader:
@@ -232,9 +234,14 @@ def _monitor(args: argparse.Namespace) -> int:
         reader.start_stream()
         try:
             shown = 0
+            pending = None  # frames read beyond the last line's, the next line's first
             while lines is None or shown < lines:
-                block = view.read_frames(frames_per_line, timeout_s=args.interval + 5)
-                f = block.frames[-1]
+                have = 0 if pending is None else len(pending)
+                if have < frames_per_line:
+                    block = view.read_frames(frames_per_line - have, timeout_s=args.interval + 5)
+                    pending = block.frames if pending is None else np.concatenate([pending, block.frames])
+                # a line each interval of frames, whatever the blocks the port's reads made
+                f, pending = pending[frames_per_line - 1], pending[frames_per_line:]
                 c = reader.counters
                 print(
                     f"sample {f['sample']:>9}  Fz {f['fz']:9.1f} N  z {f['aux0'] * 1000:7.3f} mm  "

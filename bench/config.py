@@ -158,13 +158,16 @@ class Specimen:
 
 @dataclass(frozen=True)
 class Simulation:
-    """The simulated devices: noise seed, whether they run paced in real time, and whether in a
+    """The simulated devices: noise seed, whether they run paced in real time, whether in a
     process of their own (``own_process``; None: when paced, as hardware keeps its own time; an
-    unpaced bench waits for its host anyway)."""
+    unpaced bench waits for its host anyway), and whether the paced WFS link has hardware flow
+    control (``flow_control``: a host that stops reading holds the device back, which keeps up to
+    1 s of frames, instead of overrunning the port's 4095-byte buffer)."""
 
     seed: int = 1
     paced: bool = False
     own_process: bool | None = None
+    flow_control: bool = False
 
     @property
     def in_own_process(self) -> bool:
@@ -278,6 +281,7 @@ def measured_bench(config: BenchConfig) -> dict[str, object]:
     data = tomllib.loads(config.to_toml())
     del data["actuator"], data["simulation"]["paced"], data["timing"], data["metadata"]
     data["simulation"].pop("own_process", None)
+    data["simulation"].pop("flow_control", None)
     for key in ("transport", "device", "baudrate"):
         del data["wfs"][key]
     flat: dict[str, object] = {"simulated": config.simulated}
@@ -803,9 +807,10 @@ class _Reader:
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()
-        t = self.table(data, "simulation", ("seed", "paced", "own_process"))
+        t = self.table(data, "simulation", ("seed", "paced", "own_process", "flow_control"))
         return Simulation(
             seed=self.number(t, "simulation", "seed", d.seed, lo=0, hi=2**32 - 1, integer=True),
             paced=self.boolean(t, "simulation", "paced", d.paced),
             own_process=self.boolean(t, "simulation", "own_process", False) if "own_process" in t else None,
+            flow_control=self.boolean(t, "simulation", "flow_control", d.flow_control),
         )

@@ -274,15 +274,15 @@ class PtyLink:
         deadline = time.monotonic() + timeout_s
         sent = 0
         view = memoryview(data)
-        while sent < len(data):
+        while True:
+            # written before the deadline is looked at: a writer not scheduled until after its
+            # deadline has not waited for the host, whose buffer may have room by now
+            with contextlib.suppress(BlockingIOError):
+                sent += os.write(fd, view[sent:])
             left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            _, ready, _ = select.select([], [fd], [], left)
-            if ready:
-                with contextlib.suppress(BlockingIOError):
-                    sent += os.write(fd, view[sent:])
-        return sent
+            if sent >= len(data) or left <= 0:
+                return sent
+            select.select([], [fd], [], left)
 
     def _waiting(self) -> int:
         """Bytes the host's line discipline holds for it (FIONREAD on the slave); OSError while down."""

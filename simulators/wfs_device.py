@@ -311,10 +311,11 @@ class WfsDevice:
         deadline = time.monotonic() + timeout_s
         sent = 0
         while sent < len(data) and self._link_up and not self._stop.is_set():
-            left = deadline - time.monotonic()
-            if left <= 0:
+            # offered at least once, however late: a thread not scheduled until after its deadline
+            # has not waited for the host
+            sent += self.link.device_write(data[sent:], max(deadline - time.monotonic(), 0.0))
+            if time.monotonic() >= deadline:
                 break
-            sent += self.link.device_write(data[sent:], left)
         return sent
 
     def _frames(self, block: BenchBlock) -> np.ndarray:

@@ -104,6 +104,7 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ('[actuator]\nregister_map = "missing.toml"\n', "actuator.register_map", "cannot read register map"),
         ("[actuator]\nwatchdog_ms = 500\n", "actuator.watchdog_ms", "would trip on one slow reply"),
         ('[wfs]\ntransport = "serial"\n', "wfs.device", "needs the serial device"),
+        ('[simulation]\nflow_control = "yes"\n', "simulation.flow_control", "expected true or false"),
         ("[wfs]\nrate_hz = 2000\n", "wfs.rate_hz", "allowed 100 <= rate_hz <= 1440"),
         ("[wfs]\nrate_hz = 1000\nbaudrate = 115200\n", "wfs.rate_hz", "allowed 100 <= rate_hz <= 180"),
         ("[limits]\nstroke_mm = nan\n", "limits.stroke_mm", "nan is not a finite number"),

@@ -1,8 +1,13 @@
-"""A host stall on the paced simulated bench, over the real transports (Modbus TCP, a pty whose
-receive buffer holds a real tty's 4095 bytes): the engine's thread is held for 2 s mid-point (the
-machine busy with other work), the reader then waits on its full subscription, the port goes
-unread and overruns. The run ends as a host stall with the frames lost counted, recorded in the
-campaign file, never as a lost link. And a port holding unread bytes is not a silent link."""
+"""A host stall on the paced simulated bench, over the real transports (Modbus TCP, the WFS pty):
+the engine's thread is held for 2 s mid-point (the machine busy with other work), the reader then
+waits on its full subscription, the port goes unread and the device, held back by the link's flow
+control, drops what it cannot keep (1 s of frames). The run ends as a host stall with the frames
+lost counted, recorded in the campaign file, never as a lost link. And a port holding unread bytes
+is not a silent link.
+
+With flow control the machine's own stalls (tenths of a second, on a loaded test machine) lose
+nothing, so the held engine is the one stall that ends the run; the port's 4095-byte overrun
+without it is tested on the reader (tests/test_wfs_host_stall.py)."""
 
 from __future__ import annotations
 
@@ -14,9 +19,9 @@ from bench.store import open_campaign
 from tests.campaign_lab import bench_config, grid_sequence, lab_campaign
 
 STALL_S = 2.0
-#: Paced (the link overruns like hardware) and a short backlog: the engine's subscription fills in
-#: 0.2 s of a stall, the reader then waits and the port's 4095 bytes (64 frames) overrun.
-CONFIG = "[simulation]\npaced = true\n[timing]\nbacklog_s = 0.2\n"
+#: Paced with flow control, and a short backlog: the engine's subscription fills in 0.2 s of a
+#: stall, the reader then waits, and the device drops frames after 1 s of holding them.
+CONFIG = "[simulation]\npaced = true\nflow_control = true\n[timing]\nbacklog_s = 0.2\n"
 
 
 def test_a_held_engine_overruns_the_port_and_the_run_ends_as_a_host_stall(tmp_path):

@@ -13,12 +13,13 @@ import threading
 import time
 
 import pytest
+import serial
 
 from drivers.errors import CommandOutcomeUnknownError
 from drivers.wfs_frame import FRAME_SIZE
 from drivers.wfs_reader import WfsReader
 from simulators.bench_sim import BenchRunner, SimulatedBench
-from simulators.ports import MemoryLink
+from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import WfsDevice
 from tests.waiting import wait_until
 
@@ -30,6 +31,7 @@ class HandDrainedLink:
 
     def __init__(self) -> None:
         self.writes: list[bytes] = []
+        self.writers_waiting = 0
         self.commands: queue.Queue[bytes] = queue.Queue()
         self._room = threading.Semaphore(0)
 
@@ -47,7 +49,11 @@ class HandDrainedLink:
             return b""
 
     def device_write(self, data: bytes, timeout_s: float) -> int:
-        if not self._room.acquire(timeout=timeout_s):
+        """Waits for the test's leave, whatever ``timeout_s``: the order of the writes is the test."""
+        self.writers_waiting += 1
+        taken = self._room.acquire(timeout=TIMEOUT_S)
+        self.writers_waiting -= 1
+        if not taken:
             return 0
         self.writes.append(bytes(data))
         return len(data)
@@ -68,7 +74,8 @@ def test_a_reply_goes_out_before_the_next_piece_of_frames():
     try:
         block = bench.advance(4 * 64)  # four pieces of 64 frames
         streaming = threading.Thread(target=device.deliver, args=(block,))
-        streaming.start()  # the streaming thread now holds the line, its first piece not yet taken
+        streaming.start()
+        wait_until(lambda: link.writers_waiting == 1, TIMEOUT_S, "the first piece on the line")
         link.commands.put(b"IDENT\n")
         wait_until(lambda: device.replies_waiting, TIMEOUT_S, "the reply queued")
         link.drain(1)  # the first piece
@@ -140,3 +147,15 @@ def test_a_reader_that_never_catches_up_gives_up_after_its_limit():
         pytest.raises(CommandOutcomeUnknownError, match="TARE"),
     ):
         reader.command("TARE", timeout_s=0.2)
+
+
+def test_a_device_write_made_after_its_deadline_still_goes_out_where_the_port_has_room():
+    """A writer not scheduled until after its deadline (a busy machine) has not waited for the host:
+    what fits in the pty's buffer now is written, not dropped as if the host had stopped reading."""
+    link = PtyLink()
+    try:
+        with serial.serial_for_url(link.path, timeout=1.0) as host:
+            assert link.device_write(b"$OK,TARE*00\r\n", timeout_s=-0.5) == 13
+            assert host.read(13) == b"$OK,TARE*00\r\n"
+    finally:
+        link.close()

@@ -75,6 +75,7 @@ def open_bench(
             settings = SimulatedLabSettings(
                 kind=config.kind,
                 paced=config.simulation.paced,
+                flow_control=config.simulation.flow_control,
                 seed=config.simulation.seed,
                 tyre_pressure_bar=config.specimen.tyre_pressure_bar,
                 specimen_mounted=config.specimen.wheel_fitted,

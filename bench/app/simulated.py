@@ -43,12 +43,15 @@ class SimulatedLabSettings:
     as the engine drains the WFS; ``seed``: sensor noise; what stands on the bench at power-up: the
     tyre pressure, whether the wheel (car) is mounted, the tyre model (1-3, None: the world's
     default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing);
-    ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's);
+    ``flow_control``: the paced WFS link holds the device back when the host stops reading (up to
+    :data:`~simulators.wfs_device.BACKPRESSURE_S` of frames) instead of overrunning the port's
+    buffer; ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's);
     ``register_map``: the map the controller serves (the configuration's; None: the drivers'), so
     that a map without the optional registers serves a controller without what they do."""
 
     kind: str = "shaker"
     paced: bool = False
+    flow_control: bool = False
     seed: int = 1
     tyre_pressure_bar: float = 2.5
     specimen_mounted: bool = True
@@ -83,8 +86,10 @@ class SimulatedLab:
         )
         self.operator = SimulatedOperator(self.world)
         # paced, the link stands in for real hardware: a host that stops reading overruns the
-        # port's receive buffer and loses frames; unpaced, the bench waits for its host instead
-        self.link = PtyLink(rx_buffer_bytes=TTY_RX_BUFFER_BYTES if s.paced else None)
+        # port's receive buffer and loses frames (with flow control, it holds the device back, which
+        # drops frames once its own buffer is full); unpaced, the bench waits for its host instead
+        overruns = s.paced and not s.flow_control
+        self.link = PtyLink(rx_buffer_bytes=TTY_RX_BUFFER_BYTES if overruns else None)
         wiring = tuple(standard_name(role) if role in SIMULATED_SIGNALS else None for role in s.aux_roles)
         self.device = WfsDevice(
             self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s, aux_wiring=wiring
