@@ -41,9 +41,12 @@ from bench.app.run_analysis import RunAnalyser, RunInputs
 #: How long closing waits for the child to end once its input is closed (s).
 STOP_TIMEOUT_S = 10.0
 
-#: The analysis process's scheduling priority, below the bench's (nice values: higher is lower): it is
-#: background work, and on a busy host the bench's reader and heartbeat come first.
-NICE_INCREMENT = 10
+#: The analysis process's scheduling policy (Linux): batch, at the bench's priority. It is background
+#: work, so a thread of the bench that wakes (the WFS reader, the heartbeat) comes first; but the
+#: bench waits for some of its results (a free run's plate mass, before a run that needs it), so it
+#: is not given a lower priority: behind four busy processes a nice of 10 left it about 1 % of a core,
+#: and loading its libraries alone took over a minute while the sequence waited for it.
+SCHEDULING_POLICY = getattr(os, "SCHED_BATCH", None)
 
 
 class AnalysisProcessError(RuntimeError):
@@ -248,7 +251,8 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
 
 
 if __name__ == "__main__":
-    os.nice(NICE_INCREMENT)
+    if SCHEDULING_POLICY is not None:
+        os.sched_setscheduler(0, SCHEDULING_POLICY, os.sched_param(0))
     protocol_in, protocol_out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # a stray print cannot corrupt the protocol
     _serve(protocol_in, protocol_out)
