@@ -14,6 +14,19 @@ from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The longest tests first: the slow ones (whole campaigns), then the terminal UI's (seconds each,
+    waiting on the app's refreshes), then the rest in their order. The test workers take tests in
+    this order, so a long test is not left to run alone at the end while the other workers idle."""
+
+    def rank(item: pytest.Item) -> int:
+        if item.get_closest_marker("slow"):
+            return 0
+        return 1 if item.path.parent.name == "tui" else 2
+
+    items.sort(key=rank)  # stable: each group keeps its order
+
+
 @pytest.fixture
 def bench():
     """A paper shaker bench advanced in real time (the controller's tapers run at wall-clock pace)."""

@@ -18,6 +18,7 @@ ROW = re.compile(
 )
 
 
+@pytest.mark.slow
 def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     (tmp_path / "campaign.h5").write_bytes(b"an earlier demo's file")  # replaced, and said so first
     assert main(["demo", "--seed", "2", "--out", str(tmp_path)]) == 0
