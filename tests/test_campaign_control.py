@@ -22,8 +22,9 @@ def test_pause_mid_point_repeats_the_point_on_resume_and_loses_or_doubles_none(t
     """Pause requested once point 1 has held for 200 samples; resumed once the engine is paused
     (the actuator at rest by then, docs/engine.md). Point 1's first attempt is recorded as
     interrupted, its repetition done, and every point is done exactly once."""
-    # paced: the pause meets a point under way; the lab in this process: the test reads its bench
-    config = bench_config(tmp_path, "[simulation]\npaced = true\nown_process = false\n")
+    # paced: the pause meets a point under way; the lab in this process: the test reads its bench;
+    # flow control: the test machine's own stalls lose no frames (a host stall would end the run)
+    config = bench_config(tmp_path, "[simulation]\npaced = true\nown_process = false\nflow_control = true\n")
     sequence = grid_sequence((10.0, 20.0, 30.0))
     path = tmp_path / "campaign.h5"
     with lab_campaign(config, sequence, path) as campaign:

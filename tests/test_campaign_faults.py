@@ -48,8 +48,9 @@ SCHEDULING_S = 1.0
 
 
 # real time: the faults meet the engine as on a real bench; the lab in this process: the faults are
-# injected into its devices
-PACED = "[simulation]\npaced = true\nown_process = false\n"
+# injected into its devices; flow control: the test machine's own stalls lose no frames (a host
+# stall would end the run before the fault meets it)
+PACED = "[simulation]\npaced = true\nown_process = false\nflow_control = true\n"
 
 
 @dataclass
