@@ -273,6 +273,25 @@ class _Channels(Mapping[str, np.ndarray]):
         return out
 
 
+def readable_length(dataset: h5py.Dataset, length: int) -> int:
+    """How many of a killed writer's first ``length`` samples of ``dataset`` read back: ``length``
+    cut to the start of the chunks at its end that do not. A writer killed inside a flush can leave
+    a chunk that the file's index points to and that was not written whole, or lies beyond the
+    file's end as last flushed (HDF5: "addr overflow"); that flush never returned, so its samples
+    were never durable. Only chunks at the end are dropped: a damaged chunk before a readable one
+    stays an error when read."""
+    chunk = dataset.chunks[0] if dataset.chunks else max(length, 1)
+    while length > 0:
+        start = (length - 1) // chunk * chunk
+        try:
+            dataset[start:length]
+        except (OSError, RuntimeError):
+            length = start
+            continue
+        break
+    return length
+
+
 def _analysis_name(spec: Channel) -> str:
     """The name the analysis knows ``spec`` by: its role's standard name, else its own."""
     if spec.role is None or spec.role is Role.SPARE:
@@ -309,6 +328,8 @@ class RunView:
             raise StoreError(path, f"{where}@sample_rate_hz", f"{self.sample_rate_hz} must be positive")
         datasets = self._channel_datasets(_member(path, group, s.CHANNELS, h5py.Group))
         lengths = {name: ds.shape[0] for name, ds in datasets.items()}
+        if self.status == RunStatus.INCOMPLETE:
+            lengths = {name: readable_length(datasets[name], n) for name, n in lengths.items()}
         self.n_samples = min(lengths.values(), default=0)
         if self.status != RunStatus.INCOMPLETE and len(set(lengths.values())) > 1:
             raise StoreError(

@@ -41,7 +41,7 @@ from h5py import h5s, h5t, h5z
 
 from bench import locks
 from bench.store import schema as s
-from bench.store.reader import open_campaign
+from bench.store.reader import open_campaign, readable_length
 from bench.store.results import as_mapping, write_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel
@@ -282,11 +282,13 @@ class CampaignWriter:
             _check_pipeline(self.path, dataset)
         ended = {"status": str(group.attrs["status"]), "reason": str(group.attrs["reason"])}
         group.attrs.update({"status": str(RunStatus.INCOMPLETE), "reason": "", "finished": ""})
-        lengths = {name: ds.shape[0] for name, ds in group[s.CHANNELS].items()}
-        usable = min(lengths.values(), default=0)
-        for name, length in lengths.items():
-            if length > usable:  # the writer died between two channels' appends: cut to the common length
-                group[s.CHANNELS][name].resize((usable,))
+        # what reads back of each channel (a writer killed inside a flush can leave its last chunks
+        # unreadable); cut to the common length (it can die between two channels' appends too)
+        channels = group[s.CHANNELS].values()
+        usable = min((readable_length(dataset, dataset.shape[0]) for dataset in channels), default=0)
+        for dataset in channels:
+            if dataset.shape[0] > usable:
+                dataset.resize((usable,))
         _rebuild_table(group, s.POINTS, s.POINT_DTYPE)
         _rebuild_table(group, s.EVENTS, s.EVENT_DTYPE)
         self._run = RunWriter(self, group, done_before=done)
