@@ -27,7 +27,8 @@ from tests.waiting import LineReader, wait_until
 #: Generous bound for a ``wfsbench`` process to start and reach its dwell on a loaded machine.
 START_TIMEOUT_S = 60.0
 
-#: Hydraulics, then one 10 s dwell: long enough for the second runs to be tried while it runs.
+#: A 10 s dwell, then a confirmation the test gives on the run's standard input once the second
+#: runs were tried: the first holds the bench until then, however long those took on a busy machine.
 LONG_DWELL = sequence_text(
     "long",
     """\
@@ -36,6 +37,12 @@ type = "sine_dwell"
 freq_hz = 10
 amplitude_mm = 1
 measure_min_s = 10
+
+[[steps]]
+type = "prompt"
+id = "checked"
+text = "Second runs tried"
+answer = "confirm"
 
 [[steps]]
 type = "hydraulics"
@@ -56,7 +63,12 @@ def _popen_wfsbench(*args: str) -> subprocess.Popen:
     script = os.path.join(os.path.dirname(sys.executable), "wfsbench")
     command = [script] if os.path.exists(script) else [sys.executable, "-m", "bench.cli"]
     return subprocess.Popen(
-        [*command, *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [*command, *args],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
 
 
@@ -93,7 +105,7 @@ def test_a_second_run_against_the_same_bench_is_refused_and_the_first_loses_noth
             f"error: {first_out}: in use: being written by process {first.pid} ("
         ), same_file.stderr
 
-        stdout, stderr = first.communicate(timeout=START_TIMEOUT_S)
+        stdout, stderr = first.communicate("yes\n", timeout=START_TIMEOUT_S)
     finally:
         if first.poll() is None:
             first.send_signal(signal.SIGTERM)
