@@ -274,15 +274,19 @@ class PtyLink:
         deadline = time.monotonic() + timeout_s
         sent = 0
         view = memoryview(data)
-        while True:
-            # written before the deadline is looked at: a writer not scheduled until after its
-            # deadline has not waited for the host, whose buffer may have room by now
-            with contextlib.suppress(BlockingIOError):
-                sent += os.write(fd, view[sent:])
+        while sent < len(data):
             left = deadline - time.monotonic()
-            if sent >= len(data) or left <= 0:
-                return sent
-            select.select([], [fd], [], left)
+            # looked at even past the deadline: a writer not scheduled until after it has not waited
+            # for the host, whose buffer may have room by now
+            _, ready, _ = select.select([], [fd], [], max(left, 0.0))
+            written = 0
+            if ready:
+                with contextlib.suppress(BlockingIOError):
+                    written = os.write(fd, view[sent:])
+            sent += written
+            if not written and left <= 0:
+                break
+        return sent
 
     def _waiting(self) -> int:
         """Bytes the host's line discipline holds for it (FIONREAD on the slave); OSError while down."""

@@ -17,7 +17,7 @@ The output rate is the bench's: the plant models the acquisition's 10 kHz conver
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
 
 Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link (it goes
-out in pieces of whole frames, a command reply or capture before the next piece); what is not sent
+out in pieces of whole frames, a command reply or capture after the block); what is not sent
 by then is dropped (``frames_dropped``; the sequence counter shows the gap to the host) and, until
 the host drains again, later blocks are only offered briefly, so a host that stops reading never
 freezes the bench (the bench then runs in real time and the controller's watchdog fires).
@@ -81,7 +81,7 @@ MIN_RATE_HZ = 100
 BACKPRESSURE_S = 1.0
 #: how long a block is offered while the host is not draining (s)
 _OVERFLOW_PROBE_S = 0.005
-#: frames go out in pieces of this many bytes (whole frames); a command reply goes between two
+#: frames go out in pieces of this many bytes (whole frames); a command reply after the block's last
 _WRITE_PIECE_BYTES = 64 * FRAME_SIZE
 #: the longest a command reply waits for the host to drain the link (s)
 _REPLY_TIMEOUT_S = 1.0
@@ -286,7 +286,6 @@ class WfsDevice:
                 if not self._link_up:
                     link_lost = True
                     break
-                self._write_outbox()
                 try:
                     written = self._write_all(piece, deadline - time.monotonic())
                 except (serial.SerialException, OSError) as exc:
@@ -296,7 +295,7 @@ class WfsDevice:
             sent += written
             if written < len(piece):
                 break
-        self._flush_outbox()  # what was queued while the last piece went out
+        self._flush_outbox()  # what was queued while the block went out: after its frames
         whole = min(sent // FRAME_SIZE, len(frames))
         self.frames_sent += whole
         if link_lost:
@@ -497,10 +496,11 @@ class WfsDevice:
     # -- the line -------------------------------------------------------------------------------
 
     def _send_between_frames(self, data: bytes) -> None:
-        """Send a reply or a capture before the next piece of frames: queued, and written by this
-        thread if the line is free, else by the thread streaming frames before its next piece (or
-        once it leaves the line). A lock is not fair: a streaming thread takes the line back piece
-        after piece while another thread waits for it, and a reply would wait for a whole block."""
+        """Send a reply or a capture after the frames made before it, before any made after: queued,
+        and written by this thread if the line is free, else by the thread streaming a block once
+        the block is out. A lock is not fair: a streaming thread takes the line back piece after
+        piece and block after block while another thread waits for it, so a reply waited for
+        blocks made after its command (a second or more on a busy host)."""
         self._outbox.append(data)
         self._flush_outbox()
 

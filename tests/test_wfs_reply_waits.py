@@ -65,26 +65,27 @@ class HandDrainedLink:
         pass
 
 
-def test_a_reply_goes_out_before_the_next_piece_of_frames():
+def test_a_reply_goes_out_after_the_block_being_written_and_before_the_next():
+    """The frames made before a command come before its reply (a host that stops the stream has
+    every frame made before STOP), and the reply waits for no block made after it, however the
+    streaming thread and the command thread are scheduled."""
     link = HandDrainedLink()
     bench = SimulatedBench.paper_shaker(seed=2)
     device = WfsDevice(link, bench, seed=3)
     device.execute("START", [])
     device.start()  # serves commands
     try:
-        block = bench.advance(4 * 64)  # four pieces of 64 frames
-        streaming = threading.Thread(target=device.deliver, args=(block,))
-        streaming.start()
+        streaming = threading.Thread(target=device.deliver, args=(bench.advance(4 * 64),))
+        streaming.start()  # four pieces of 64 frames
         wait_until(lambda: link.writers_waiting == 1, TIMEOUT_S, "the first piece on the line")
         link.commands.put(b"IDENT\n")
         wait_until(lambda: device.replies_waiting, TIMEOUT_S, "the reply queued")
-        link.drain(1)  # the first piece
-        link.drain(1)  # what goes next: the reply, not the second piece
-        assert link.writes[1].startswith(b"$OK,IDENT,")
-        link.drain(3)
+        link.drain(4)  # the block's four pieces
+        link.drain(1)  # then the reply
         streaming.join(TIMEOUT_S)
-        assert [len(w) for w in link.writes] == [64 * FRAME_SIZE, len(link.writes[1])] + [64 * FRAME_SIZE] * 3
-        assert device.frames_sent == 4 * 64
+        assert link.writes[4].startswith(b"$OK,IDENT,"), link.writes[4][:20]
+        assert [len(w) for w in link.writes[:4]] == [64 * FRAME_SIZE] * 4
+        assert device.frames_sent == 4 * 64 and not device.replies_waiting
     finally:
         device.stop()
 
