@@ -70,9 +70,11 @@ def test_a_paced_run_reaches_the_lab_in_its_own_process_and_the_operators_answer
     plan = plan_campaign(sequence, config)
     assert plan.config.simulation.in_own_process
     lab_pids: list[int] = []
+    links_before = set(Path(tempfile.gettempdir()).glob("wfs-pty-*"))  # an earlier test's may remain
 
     def note_lab(engine) -> None:
-        lab_pids.extend(int(d.name.split("-")[2]) for d in Path(tempfile.gettempdir()).glob("wfs-pty-*"))
+        made = set(Path(tempfile.gettempdir()).glob("wfs-pty-*")) - links_before
+        lab_pids.extend(int(d.name.split("-")[2]) for d in made)
 
     outcome = run_campaign(plan, tmp_path / "campaign.h5", on_engine=note_lab)
     assert outcome.status == "complete", outcome.reason
