@@ -165,7 +165,7 @@ class WfsDevice:
         self.tare_offset = np.zeros(6)
         self._recent = np.zeros((0, 6))
         self._write_lock = threading.Lock()  # the line: one writer at a time
-        #: replies and captures waiting for the line (see :meth:`_send_between_frames`)
+        #: replies and captures waiting for the line (see :meth:`_send_after_frames`)
         self._outbox: collections.deque[bytes] = collections.deque()
         self._counter_lock = threading.Lock()  # seq, sample, boot, streaming: bench and command threads
         self._streaming = False
@@ -380,7 +380,7 @@ class WfsDevice:
             if capture is not None:
                 self._trigger = None
         if capture is not None:
-            self._send_between_frames(encode_capture(capture))
+            self._send_after_frames(encode_capture(capture))
 
     def _arm_capture(self, args: list[str]) -> Reply:
         """``CAPTURE <trigger_level_n> <pre_trigger_s> <length_s>``: arm (replacing an armed capture)."""
@@ -491,11 +491,11 @@ class WfsDevice:
         return Reply(True, "RATE", (str(self.rate_hz),))
 
     def _reply(self, reply: Reply) -> None:
-        self._send_between_frames(reply.encode())
+        self._send_after_frames(reply.encode())
 
     # -- the line -------------------------------------------------------------------------------
 
-    def _send_between_frames(self, data: bytes) -> None:
+    def _send_after_frames(self, data: bytes) -> None:
         """Send a reply or a capture after the frames made before it, before any made after: queued,
         and written by this thread if the line is free, else by the thread streaming a block once
         the block is out. A lock is not fair: a streaming thread takes the line back piece after
@@ -505,20 +505,17 @@ class WfsDevice:
         self._flush_outbox()
 
     def _flush_outbox(self) -> None:
-        """Write what waits in the outbox unless another thread holds the line (it writes it then)."""
+        """Write what waits in the outbox unless another thread holds the line (it writes it then);
+        dropped while the link is down."""
         while self._outbox and self._write_lock.acquire(blocking=False):
             try:
-                self._write_outbox()
+                while self._outbox:
+                    data = self._outbox.popleft()
+                    if self._link_up:
+                        with contextlib.suppress(serial.SerialException, OSError):
+                            self._write_all(data, _REPLY_TIMEOUT_S)
             finally:
                 self._write_lock.release()
-
-    def _write_outbox(self) -> None:
-        """Write what waits in the outbox (the caller holds the line); dropped while the link is down."""
-        while self._outbox:
-            data = self._outbox.popleft()
-            if self._link_up:
-                with contextlib.suppress(serial.SerialException, OSError):
-                    self._write_all(data, _REPLY_TIMEOUT_S)
 
 
 def _no_arguments(name: str, handler: Callable[[], Reply]) -> Callable[[list[str]], Reply]:
