@@ -301,7 +301,8 @@ async def test_estop_mid_run_stops_the_controller(paced_app: WfsBenchApp) -> Non
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the confirmation")
         await press(pilot, "y")
         await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
-        assert not app.query_one("#banner").has_class("shown")
+        # the UI hears of the state change by a message after the engine's state has changed
+        await until(pilot, lambda: not app.query_one("#banner").has_class("shown"), "the banner gone")
         app.session.out_path = app.session.out_path.with_name("after-reset.h5")
         points = len(recorded.of(ev.PointStarted))
         await press(pilot, "f3", "g")  # the checked dwell again: it starts once the controller is ready
@@ -500,7 +501,7 @@ async def test_a_reset_after_a_refused_command_readies_the_bench_again(app: WfsB
         await press(pilot, "y")
         await until(pilot, lambda: app.session.engine.state is RunState.HYDRAULICS_LOW, "the reset")
         assert await controller_state(app) is ControllerState.HYDRAULICS_LOW
-        assert not app.query_one("#banner").has_class("shown")
+        await until(pilot, lambda: not app.query_one("#banner").has_class("shown"), "the banner gone")
         await until(pilot, lambda: "sequence failed" not in text_of(app, "#bench-lamps"), "the lamp off")
 
         app.session.out_path = app.session.out_path.with_name("after-reset.h5")
