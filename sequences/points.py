@@ -52,7 +52,9 @@ class PointAttempt:
     A point whose drive a response limit lowered (a notch) names it in ``notched_by``, with the span
     notched ``notch_start_hz``..``notch_end_hz`` (a dwell's: its frequency) and the amplitude
     commanded there, ``notch_amplitude_mm`` (NaN: not notched); a notched sweep's ``achieved_amplitude_mm`` is
-    the displacement's amplitude reached within its notch.
+    the displacement's amplitude reached within its notch. ``frames_missing``: frames lost on the
+    WFS link within the attempt's hold (its samples are fitted on their true times, the frame
+    counter's; docs/engine.md).
     """
 
     index: int
@@ -80,6 +82,7 @@ class PointAttempt:
     notch_start_hz: float = math.nan
     notch_end_hz: float = math.nan
     notch_amplitude_mm: float = math.nan
+    frames_missing: int = 0
 
     @property
     def settled(self) -> bool:

@@ -16,6 +16,14 @@ sample to sample (the acquisition's anti-alias filter): ``n (1 - rho^2) / (1 + r
 lag-1 correlation ``rho``, the variance estimate's effective sample size. A fixed ratio (1.5x)
 flagged about 3 good two-cycle dwells per grid of 22, whose halves have a handful of degrees of
 freedom.
+
+**True sample times.** A record whose frames were lost on the link is not a contiguous run of time:
+``sample_offsets`` (each sample's offset in sample times from the record's first, from the frame
+counter: :func:`bench.numerics.sine_fit.frame_offsets`) place every sample at its true time, the
+window is chosen in time (its whole cycles counted in sample times, the lost ones included), and the
+design is built on those times (:func:`bench.numerics.sine_fit.sine_design`), so a gap costs samples,
+never a shift of phase. The noise near the fundamental is then estimated from the residual as white
+(a periodogram needs evenly spaced samples), and the fit notes how many frames its window missed.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from scipy.special import fdtri
 
 from bench.analysis.frf import Frf, phasor_ratio
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
+from bench.numerics.sine_fit import harmonic_phasors, sine_design
 
 #: Fewest periodogram bins the noise density at a dwell's frequency is averaged over (the nearest
 #: ones when fewer lie within 25 % of it): 8 complex bins, 16 degrees of freedom, so the density is
@@ -68,7 +77,8 @@ class ChannelFit:
 @dataclass(frozen=True)
 class DwellFit:
     """All channels of one dwell at ``freq_hz`` over ``n_cycles`` whole cycles from ``start_s`` to
-    ``stop_s``. ``settled`` is true when every channel settled; ``notes`` explain any doubt."""
+    ``stop_s``. ``settled`` is true when every channel settled; ``notes`` explain any doubt;
+    ``frames_missing`` of the window's sample times had no frame (lost on the link)."""
 
     freq_hz: float
     n_cycles: int
@@ -77,6 +87,7 @@ class DwellFit:
     channels: dict[str, ChannelFit]
     settled: bool
     notes: tuple[str, ...]
+    frames_missing: int = 0
 
     def ratio(self, output: str, input: str) -> tuple[complex, float]:
         """FRF point ``output / input`` and its standard uncertainty."""
@@ -94,19 +105,12 @@ class _Fit:
     dof: int
 
 
-def _design(t: np.ndarray, w: float, n_harm: int) -> np.ndarray:
-    """Columns: offset, then cos and sin of each harmonic ``k w t``."""
-    cols = [np.ones_like(t)]
-    for k in range(1, n_harm + 1):
-        cols += [np.cos(k * w * t), np.sin(k * w * t)]
-    return np.stack(cols, axis=1)
-
-
-def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int, X: np.ndarray | None = None) -> _Fit:
-    """Least-squares fit of ``y`` (samples x channels) at times ``t``; ``X``: the design of ``t``
-    when the caller has it (the rows of a longer window's design are the same numbers)."""
-    if X is None:
-        X = _design(t, w, n_harm)
+def _fit_window(
+    t: np.ndarray, y: np.ndarray, w: float, n_harm: int, X: np.ndarray, *, contiguous: bool = True
+) -> _Fit:
+    """Least-squares fit of ``y`` (samples x channels) at times ``t`` with ``X`` the design of ``t``
+    (the rows of a longer window's design are the same numbers); ``contiguous``: ``t`` is evenly
+    spaced (no frame lost), so the noise near the fundamental can be taken from a periodogram."""
     w_dt = w * (t[1] - t[0]) if t.size > 1 else 0.0
     # QR instead of the normal equations: (X'X)^-1 = R^-1 R^-T without squaring X's condition
     q, r = np.linalg.qr(X)
@@ -114,7 +118,7 @@ def _fit_window(t: np.ndarray, y: np.ndarray, w: float, n_harm: int, X: np.ndarr
     res = y - X @ coef
     dof = max(t.size - X.shape[1], 1)
     square_sum = np.sum(res**2, axis=0)
-    variance = _local_noise_variance(res, w_dt, n_harm, t.size / dof)
+    variance = _local_noise_variance(res, w_dt, n_harm, t.size / dof) if contiguous else None
     if variance is None:  # white noise: the diagonal of (X'X)^-1 times the residual variance
         r_inv = solve_triangular(r, np.eye(r.shape[0]))
         variance = square_sum / dof * (np.sum(r_inv[1] ** 2) + np.sum(r_inv[2] ** 2))
@@ -162,11 +166,6 @@ def _local_noise_variance(res: np.ndarray, w_dt: float, n_harm: int, dof_factor:
     return 4.0 * density / n * dof_factor
 
 
-def _phasors(coef: np.ndarray, k: int) -> np.ndarray:
-    """Phasor of harmonic k: a cos + b sin = Re((a - j b) exp(j k w t))."""
-    return coef[2 * k - 1] - 1j * coef[2 * k]
-
-
 def fit_dwell(
     channels: Mapping[str, np.ndarray],
     fs_hz: float,
@@ -176,8 +175,11 @@ def fit_dwell(
     stop_s: float | None = None,
     n_harmonics: int = 3,
     settle_tolerance: float = 0.005,
+    sample_offsets: np.ndarray | None = None,
 ) -> DwellFit:
-    """Fit every channel of a dwell record at ``freq_hz`` (see the module docstring).
+    """Fit every channel of a dwell record at ``freq_hz`` (see the module docstring);
+    ``sample_offsets``: each sample's true offset in sample times from the first (None: the
+    samples are contiguous).
 
     Raises :class:`AnalysisInputError` for NaNs, mismatched lengths, a frequency at or above
     Nyquist, or a window shorter than one cycle.
@@ -189,48 +191,42 @@ def fit_dwell(
     if n_harmonics < 1:
         raise AnalysisInputError("n_harmonics must be at least 1")
     n_total = next(iter(data.values())).size
-    i0 = max(int(np.ceil(start_s * fs - 1e-9)), 0)
-    i1 = n_total if stop_s is None else min(int(np.floor(stop_s * fs + 1e-9)) + 1, n_total)
-    span_s = (i1 - i0) / fs
-    n_cycles = int(np.floor(span_s * freq_hz + 1e-9))
-    if n_cycles < 1:
-        raise AnalysisInputError(
-            f"dwell window {span_s:.3f} s holds less than one cycle at {freq_hz} Hz (record too short)"
-        )
-    n_samples = round(n_cycles * fs / freq_hz)
+    at = _sample_offsets(sample_offsets, n_total)
     n_harm = max(1, min(n_harmonics, int(np.ceil(fs / 2 / freq_hz)) - 1))
-    if n_samples < 2 * (2 * n_harm + 1):
-        raise AnalysisInputError(f"dwell window of {n_samples} samples is too short to fit")
-    i0 = i1 - n_samples
+    k0, k_end, n_cycles = _window(at, fs, freq_hz, start_s, stop_s)
+    n_samples = k_end - k0
+    inside = (at >= k0) & (at < k_end)
+    present = int(np.count_nonzero(inside))
+    if present < 2 * (2 * n_harm + 1):
+        raise AnalysisInputError(f"dwell window of {present} samples is too short to fit")
+    contiguous = present == n_samples
     names = list(data)
-    y = np.stack([data[n][i0:i1] for n in names], axis=1)
-    t, w = np.arange(i0, i1) / fs, 2 * np.pi * freq_hz
-    X = _design(t, w, n_harm)  # the halves' designs are its rows
-    full = _fit_window(t, y, w, n_harm, X)
-    a1 = _phasors(full.coef, 1)
-    harm = np.array([_phasors(full.coef, k) for k in range(2, n_harm + 1)]).reshape(n_harm - 1, len(names))
+    y = np.stack([data[n][inside] for n in names], axis=1)
+    t, w = at[inside] / fs, 2 * np.pi * freq_hz
+    X = sine_design(t, freq_hz, n_harm)  # the halves' designs are its rows
+    full = _fit_window(t, y, w, n_harm, X, contiguous=contiguous)
+    a1 = harmonic_phasors(full.coef, 1)
+    harm = np.array([harmonic_phasors(full.coef, k) for k in range(2, n_harm + 1)]).reshape(
+        n_harm - 1, len(names)
+    )
 
     notes: list[str] = []
-    if n_cycles >= 2:
-        half = round((n_cycles // 2) * fs / freq_hz)
-        first = _fit_window(t[:half], y[:half], w, n_harm, X[:half])
-        last = _fit_window(t[-half:], y[-half:], w, n_harm, X[-half:])
-        diff = np.abs(_phasors(last.coef, 1) - _phasors(first.coef, 1))
-        sigma_diff = np.hypot(first.fundamental_sigma, last.fundamental_sigma)
-        amp_ok = diff <= DRIFT_SIGMAS * sigma_diff + settle_tolerance * np.abs(a1)
-        limit = _residual_growth_limit(full, first, len(names))
-        res_ok = first.residual_rms <= limit * last.residual_rms + 1e-12 * np.max(np.abs(y), axis=0)
-        settled = amp_ok & res_ok
-        drift = np.divide(diff, np.abs(a1), out=np.zeros_like(diff), where=np.abs(a1) > 0)
-        for i, name in enumerate(names):
-            if not amp_ok[i]:
-                notes.append(f"{name}: fundamental drifted by {100 * drift[i]:.2f} % within the window")
-            if not res_ok[i]:
-                notes.append(f"{name}: residual decays within the window (free vibration not settled)")
-    else:
-        settled = np.zeros(len(names), bool)
-        drift = np.full(len(names), np.nan)
-        notes.append("fewer than 2 cycles in the window: settling cannot be verified")
+    if not contiguous:
+        notes.append(
+            f"{n_samples - present} of the window's {n_samples} frames lost on the link"
+            f" ({100 * (n_samples - present) / n_samples:.1f} %): fitted on the frames' true times"
+        )
+    halves = _halves(t, (k0 / fs, k_end / fs), n_cycles, freq_hz, fs=fs, min_samples=2 * (2 * n_harm + 1))
+    settled, drift, settle_notes = _settling(
+        full,
+        (t, y, X),
+        halves,
+        freq_hz,
+        names=names,
+        settle_tolerance=settle_tolerance,
+        contiguous=contiguous,
+    )
+    notes += settle_notes
 
     fits = {}
     for i, name in enumerate(names):
@@ -249,12 +245,94 @@ def fit_dwell(
     return DwellFit(
         freq_hz=float(freq_hz),
         n_cycles=n_cycles,
-        start_s=i0 / fs,
-        stop_s=(i1 - 1) / fs,
+        start_s=k0 / fs,
+        stop_s=(k_end - 1) / fs,
         channels=fits,
         settled=bool(np.all(settled)),
         notes=tuple(notes),
+        frames_missing=n_samples - present,
     )
+
+
+def _halves(
+    t: np.ndarray,
+    window_s: tuple[float, float],
+    n_cycles: int,
+    freq_hz: float,
+    *,
+    fs: float,
+    min_samples: int,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The samples of the window's first and last ``n_cycles // 2`` whole cycles (in time), or None
+    when it holds fewer than two cycles or a half fewer than ``min_samples`` frames."""
+    if n_cycles < 2:
+        return None
+    half_s = (n_cycles // 2) / freq_hz
+    early, late = t < window_s[0] + half_s - 0.5 / fs, t >= window_s[1] - half_s - 0.5 / fs
+    return (early, late) if min(early.sum(), late.sum()) >= min_samples else None
+
+
+def _settling(
+    full: _Fit,
+    window: tuple[np.ndarray, np.ndarray, np.ndarray],
+    halves: tuple[np.ndarray, np.ndarray] | None,
+    freq_hz: float,
+    *,
+    names: list[str],
+    settle_tolerance: float,
+    contiguous: bool,
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The settling test of the module docstring on the halves of ``window`` (times, samples x
+    channels, design): per channel whether it settled and its drift, and notes that explain a doubt."""
+    if halves is None:
+        note = "fewer than 2 cycles of frames in the window: settling cannot be verified"
+        return np.zeros(len(names), bool), np.full(len(names), np.nan), [note]
+    t, y, X = window
+    w, n_harm = 2 * np.pi * freq_hz, (X.shape[1] - 1) // 2
+    first, last = (_fit_window(t[h], y[h], w, n_harm, X[h], contiguous=contiguous) for h in halves)
+    a1 = harmonic_phasors(full.coef, 1)
+    diff = np.abs(harmonic_phasors(last.coef, 1) - harmonic_phasors(first.coef, 1))
+    sigma_diff = np.hypot(first.fundamental_sigma, last.fundamental_sigma)
+    amp_ok = diff <= DRIFT_SIGMAS * sigma_diff + settle_tolerance * np.abs(a1)
+    limit = _residual_growth_limit(full, first, len(names))
+    res_ok = first.residual_rms <= limit * last.residual_rms + 1e-12 * np.max(np.abs(y), axis=0)
+    drift = np.divide(diff, np.abs(a1), out=np.zeros_like(diff), where=np.abs(a1) > 0)
+    notes = []
+    for i, name in enumerate(names):
+        if not amp_ok[i]:
+            notes.append(f"{name}: fundamental drifted by {100 * drift[i]:.2f} % within the window")
+        if not res_ok[i]:
+            notes.append(f"{name}: residual decays within the window (free vibration not settled)")
+    return amp_ok & res_ok, drift, notes
+
+
+def _window(
+    at: np.ndarray, fs: float, freq_hz: float, start_s: float, stop_s: float | None
+) -> tuple[int, int, int]:
+    """The analysed window in sample times, ``(first, end, cycles)``: the latest whole cycles from
+    ``start_s`` (or the first sample) to ``stop_s`` (or the last), whatever is missing inside."""
+    last = int(at[-1]) + 1 if at.size else 0
+    first = max(int(np.ceil(start_s * fs - 1e-9)), int(at[0]) if at.size else 0)
+    end = last if stop_s is None else min(int(np.floor(stop_s * fs + 1e-9)) + 1, last)
+    span_s = (end - first) / fs
+    n_cycles = int(np.floor(span_s * freq_hz + 1e-9))
+    if n_cycles < 1:
+        raise AnalysisInputError(
+            f"dwell window {span_s:.3f} s holds less than one cycle at {freq_hz} Hz (record too short)"
+        )
+    return end - round(n_cycles * fs / freq_hz), end, n_cycles
+
+
+def _sample_offsets(sample_offsets: np.ndarray | None, n: int) -> np.ndarray:
+    """The samples' offsets in sample times (contiguous when None), checked to rise."""
+    if sample_offsets is None:
+        return np.arange(n, dtype=np.int64)
+    k = np.asarray(sample_offsets, dtype=np.int64)
+    if k.shape != (n,):
+        raise AnalysisInputError(f"{k.size} sample offsets for {n} samples")
+    if n > 1 and np.any(np.diff(k) <= 0):
+        raise AnalysisInputError("sample offsets do not rise from sample to sample")
+    return k
 
 
 def dwell_phasors(fits: Sequence[DwellFit], channel: str) -> tuple[np.ndarray, np.ndarray]:

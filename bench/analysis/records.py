@@ -63,7 +63,9 @@ class DwellRecord:
     dwell settled (:func:`bench.analysis.dwell.fit_dwell`). ``nominal_amplitude_m``: the amplitude
     of the grid the dwell belongs to, when a bench limit (velocity, acceleration) lowered this
     dwell's amplitude below it; the dwell is analysed with its grid (``None``: the grid's amplitude
-    is ``amplitude_m``).
+    is ``amplitude_m``). ``sample_offsets``: each sample's offset in sample times from the first,
+    from the frame counter, when frames were lost on the link (``None``: the samples are
+    contiguous); record time counts sample times, lost ones included.
     """
 
     freq_hz: float
@@ -72,6 +74,7 @@ class DwellRecord:
     channels: Mapping[str, np.ndarray]
     hold_s: tuple[float, float] | None = None
     nominal_amplitude_m: float | None = None
+    sample_offsets: np.ndarray | None = None
 
     @property
     def grid_amplitude_m(self) -> float:
@@ -210,7 +213,12 @@ def fit_dwell_record(
     start, stop = record.hold_s if record.hold_s is not None else (0.0, None)
     try:
         return fit_dwell(
-            channels, record.sample_rate_hz, record.freq_hz, start_s=start + settle_s, stop_s=stop
+            channels,
+            record.sample_rate_hz,
+            record.freq_hz,
+            start_s=start + settle_s,
+            stop_s=stop,
+            sample_offsets=record.sample_offsets,
         )
     except AnalysisInputError as err:
         raise AnalysisInputError(f"{record.label}: {err}") from err

@@ -136,5 +136,7 @@ def _described(
         "command_mm": event.command_mm,
         "updated_mm": event.updated_mm,
         "refusal": event.refusal,
+        "frames_missing": event.frames_missing,
+        "lost": event.lost,
     }
     return "amplitude", event.text, fields

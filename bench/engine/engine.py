@@ -26,7 +26,14 @@ from typing import Any, NoReturn, Self
 import numpy as np
 
 from bench.engine import events as ev
-from bench.engine.amplitude import AmplitudeControl, ServoGains, achieved_amplitude_mm
+from bench.engine.amplitude import (
+    AMPLITUDE_EXCURSION,
+    AmplitudeControl,
+    FramesPresent,
+    ServoGains,
+    achieved_amplitude,
+    amplitude_mm,
+)
 from bench.engine.amplitude_hold import AmplitudeHold, AmplitudeStep, HeldAmplitude
 from bench.engine.channels import FrameChannels
 from bench.engine.contracts import (
@@ -48,6 +55,7 @@ from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
 from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
+from bench.numerics.sine_fit import SineFit, frame_offsets
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
 from drivers.setpoints import (
     AmplitudeUpdate,
@@ -228,6 +236,7 @@ class Engine:
         sample_rate_hz: float,
         amplitude_control: AmplitudeControl | None = None,
         amplitude_hold: AmplitudeHold | None = None,
+        frames_present: FramesPresent | None = None,
         notching: Notching | None = None,
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
@@ -241,7 +250,9 @@ class Engine:
         dwell's amplitude within its hold by updates the actuator takes while running
         (:mod:`bench.engine.amplitude_hold`; None: correct it by repeating the point); ``notching``:
         lower the drive of dwells and sweeps where a response would pass a response limit's notch
-        level (sweeps only where the actuator notches them)."""
+        level (sweeps only where the actuator notches them); ``frames_present``: how much of a
+        window's frames must be there before a command is changed on it, a dwell's settling
+        judged or a resonance's track moved (:class:`~bench.engine.amplitude.FramesPresent`)."""
         self.actuator = actuator
         self.acquisition = acquisition
         self.operator = operator
@@ -251,6 +262,7 @@ class Engine:
         self.sample_rate_hz = sample_rate_hz
         self.amplitude_control = amplitude_control or AmplitudeControl()
         self.amplitude_hold = amplitude_hold
+        self.frames_present = frames_present or FramesPresent()
         self.notching = notching
         self.timing = timing or EngineTiming()
         self.bus = bus or ev.EventBus()
@@ -523,11 +535,15 @@ class Engine:
         dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
         # held within the dwell, each point starts with the command the gains measured so far
         # expect: an update costs the hold again, a good first command none
-        gains = None if self.amplitude_hold is None else ServoGains()
+        gains = None if self.amplitude_hold is None else self._servo_gains()
         with _RunRecording(self, run_id, step, held.samples) as run:
             for index, dwell in enumerate(dwells):
                 if index not in held.done_points:
                     self._point(run, index, dwell, gains=gains)
+
+    def _servo_gains(self) -> ServoGains:
+        """The gains of one run, each start command within the command margin of its target."""
+        return ServoGains(1 + self.amplitude_control.command_margin)
 
     def _adaptive_run(self, run_id: str, grid: DwellGrid, held: RecordedRun) -> None:
         """An adaptive grid, amplitude by amplitude: the grid's frequencies (points 0, 1, ... in grid
@@ -550,7 +566,7 @@ class Engine:
         coarse = len(grid.freqs_hz)
         added_index = max(coarse * len(grid.amplitudes_mm), max(held.done_points, default=-1) + 1)
         with _RunRecording(self, run_id, grid, held.samples) as run:
-            gains = ServoGains()
+            gains = self._servo_gains()
             for a, nominal_mm in enumerate(grid.amplitudes_mm):
                 measured: dict[float, complex] = {}
                 for k, freq_hz in enumerate(grid.freqs_hz):
@@ -674,6 +690,7 @@ class Engine:
                 attempt=attempt,
                 requested_amplitude_mm=amplitude_mm,
                 commanded_amplitude_mm=amplitude_mm,
+                frames_missing=run.frames_missing_between(span.hold_start, span.hold_end),
                 **measured,
                 run_id=run.run_id,
             )
@@ -699,7 +716,7 @@ class Engine:
         plan = replace(step.search_plan(), output=output, input=input_)
         with _RunRecording(self, run_id, step, held.samples) as run:
             freqs = step.search_freqs_hz()
-            frfs, gains = [], ServoGains()
+            frfs, gains = [], self._servo_gains()
             for k, freq_hz in enumerate(freqs):
                 dwell = SineDwell(
                     freq_hz,
@@ -767,6 +784,7 @@ class Engine:
                 sample_rate_hz=self.sample_rate_hz,
                 channels=channels,
                 hold_bit=self.sync_bits.hold,
+                present=self.frames_present,
                 update=update,
                 on_window=looked,
             )
@@ -918,7 +936,8 @@ class Engine:
         command_mm, corrections, attempt = dwell.amplitude_mm, 0, 0
         if gains is not None:
             command_mm = min(
-                gains.command_mm(dwell.freq_hz, dwell.amplitude_mm), self.amplitude_control.max_command_mm
+                gains.command_mm(dwell.freq_hz, dwell.amplitude_mm),
+                self.amplitude_control.command_cap_mm(dwell.amplitude_mm),
             )
         requested = dwell.requested_amplitude_mm or dwell.amplitude_mm
         hold_s = dwell.hold_s if plan is None else plan.max_hold_s
@@ -939,7 +958,13 @@ class Engine:
             watch = (
                 None
                 if plan is None
-                else OnlineDwell(dwell.freq_hz, self.sample_rate_hz, plan, self.channels.displacement)
+                else OnlineDwell(
+                    dwell.freq_hz,
+                    self.sample_rate_hz,
+                    plan,
+                    self.channels.displacement,
+                    present=self.frames_present,
+                )
             )
             held = None if plan is not None else self._held_amplitude(run, index, attempt, dwell, command_mm)
             point = _PointPlan(index, dwell, requested, added_reason, notch)
@@ -957,12 +982,21 @@ class Engine:
             sent_mm = command_mm
             if verdict is not None:
                 achieved = 1e3 * abs(verdict.displacement_m)
+                lost = verdict.span_samples and self.frames_present.refusal_of(
+                    verdict.frames_present, verdict.span_samples, dwell.freq_hz, self.sample_rate_hz
+                )
             else:  # held within the dwell, the hold is the part after the last update's ramp
-                achieved = run.achieved_amplitude_mm(span, dwell)
+                fit = run.achieved_fit(span, dwell)
+                achieved, lost = amplitude_mm(fit), fit and self.frames_present.refusal(fit)
                 command_mm = command_mm if held is None else held.command_mm
-            if gains is not None:
-                gains.record(dwell.freq_hz, command_mm, achieved)
-            decision = self.amplitude_control.decide(dwell.amplitude_mm, command_mm, achieved, corrections)
+            lost = f"the hold's measurement {lost}" if lost else ""
+            if not lost:  # nothing is learnt from what the bench did not see
+                if gains is not None:
+                    gains.record(dwell.freq_hz, command_mm, achieved)
+                run.check_excursion(dwell.amplitude_mm, achieved, f"point {index} attempt {attempt}")
+            decision = self.amplitude_control.decide(
+                dwell.amplitude_mm, command_mm, achieved, corrections, refusal=lost
+            )
             status = PointStatus.DONE if decision.keep else PointStatus.REPEATED
             self._publish_point(
                 run,
@@ -1001,6 +1035,8 @@ class Engine:
             return None
 
         def checked(step: AmplitudeStep) -> None:
+            if not step.lost:
+                run.check_excursion(dwell.amplitude_mm, step.achieved_mm, f"point {index} attempt {attempt}")
             self.bus.publish(
                 ev.AmplitudeChecked(
                     run.run_id,
@@ -1012,6 +1048,8 @@ class Engine:
                     step.command_mm,
                     step.updated_mm,
                     step.refusal,
+                    step.frames_missing,
+                    step.lost,
                 )
             )
 
@@ -1022,7 +1060,8 @@ class Engine:
             settle_s=dwell.settle_s,
             hold_s=dwell.hold_s,
             settings=settings,
-            max_command_mm=self.amplitude_control.max_command_mm,
+            control=self.amplitude_control,
+            present=self.frames_present,
             sample_rate_hz=self.sample_rate_hz,
             displacement=self.channels.displacement,
             hold_bit=self.sync_bits.hold,
@@ -1087,6 +1126,7 @@ class Engine:
                 achieved_amplitude_mm=achieved_mm,
                 note=note,
                 added_reason=point.added_reason,
+                frames_missing=run.frames_missing_between(span.hold_start, span.hold_end),
                 **adaptive,
                 run_id=run.run_id,
             )
@@ -1256,6 +1296,8 @@ class _RunRecording:
         # frames through cannot hold them off)
         self.elapsed_samples = 0
         self.displacement: list[np.ndarray] = []
+        self.seq: list[np.ndarray] = []  # each block's frame counters, beside its displacement
+        self._gaps: list[tuple[int, int]] = []  # (run sample a gap came before, frames missing)
         self._subscription = None
         self._last_status_s = -np.inf
         self._stream_started_s = 0.0
@@ -1343,28 +1385,57 @@ class _RunRecording:
         gaps = tuple((g.index, g.missing) for g in block.gaps)
         self.engine.bus.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, gaps))
         self.displacement.append(np.asarray(columns[self.engine.channels.displacement], dtype=float))
+        self.seq.append(np.asarray(columns["seq"]))
+        self._gaps.extend((self.samples + index, missing) for index, missing in gaps)
         self.samples += len(block.frames)
         self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
         return columns
 
-    def achieved_amplitude_mm(self, span: ExcitationSpan, dwell: SineDwell) -> float:
-        """The displacement's amplitude over the hold after its settling time (NaN: too short)."""
-        settle = round(dwell.settle_s * self.engine.sample_rate_hz)
-        start = min(span.hold_start + settle, span.hold_end)
-        z = self.displacement_between(start, span.hold_end)
-        return achieved_amplitude_mm(z, self.engine.sample_rate_hz, dwell.freq_hz)
+    def achieved_fit(self, span: ExcitationSpan, dwell: SineDwell) -> SineFit | None:
+        """The displacement's fit over the hold after its settling time, on the frames' true times
+        (None: too short). The window's time runs from the settling time's end, counted in sample
+        times from the hold's first frame, to the hold's end."""
+        fs = self.engine.sample_rate_hz
+        z = self.displacement_between(span.hold_start, span.hold_end)
+        if z.size == 0:
+            return None
+        # the frame after the hold, where there is one, tells the hold's true end
+        offsets = frame_offsets(self.seq_between(span.hold_start, span.hold_end + 1))
+        end = int(offsets[-1]) + (1 if len(offsets) == len(z) else 0)
+        offsets = offsets[: len(z)]
+        start = min(round(dwell.settle_s * fs), end)
+        kept = offsets >= start
+        return achieved_amplitude(z[kept], offsets[kept], fs, dwell.freq_hz, start=start, end=end)
 
     def displacement_between(self, start: int, stop: int) -> np.ndarray:
         """The recorded displacement from run sample ``start`` to ``stop``."""
+        return self._between(self.displacement, start, stop, float)
+
+    def seq_between(self, start: int, stop: int) -> np.ndarray:
+        """The frame counters of run samples ``start`` to ``stop``."""
+        return self._between(self.seq, start, stop, np.int64)
+
+    def _between(self, blocks: list[np.ndarray], start: int, stop: int, dtype: type) -> np.ndarray:
         parts, end = [], self.samples
-        for block in reversed(self.displacement):
+        for block in reversed(blocks):
             first = end - len(block)
             if first < stop and end > start:
                 parts.append(block[max(start - first, 0) : stop - first])
             if first <= start:
                 break
             end = first
-        return np.concatenate(parts[::-1]) if parts else np.zeros(0)
+        return np.concatenate(parts[::-1]).astype(dtype) if parts else np.zeros(0, dtype)
+
+    def frames_missing_between(self, start: int, stop: int) -> int:
+        """Frames lost on the link between run samples ``start`` and ``stop``."""
+        return sum(missing for index, missing in self._gaps if start < index < stop)
+
+    def check_excursion(self, target_mm: float, achieved_mm: float, where: str) -> None:
+        """A measured amplitude beyond the target by more than the amplitude control's excursion
+        tolerance is a limit reached, acted on with its configured action."""
+        control = self.engine.amplitude_control
+        if reason := control.excursion(target_mm, achieved_mm):
+            self._act(Trip(AMPLITUDE_EXCURSION, f"{where}: {reason}", control.excursion_action))
 
     def excite(
         self,

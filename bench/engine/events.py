@@ -96,7 +96,9 @@ class AmplitudeChecked:
     """The amplitude of point ``index`` (attempt ``attempt``) of run ``run_id`` looked at within its
     hold (:mod:`bench.engine.amplitude_hold`): ``achieved_mm`` over the window ending at run sample
     ``sample`` under the command ``command_mm``; ``updated_mm`` the new amplitude sent (NaN: none),
-    ``refusal`` why an update that was due was not made."""
+    ``refusal`` why an update that was due was not made; ``frames_missing`` of the window's
+    frames were lost on the link, and ``lost`` says why the window was not decided on (the same
+    command is measured again over the next window; empty: it was decided on)."""
 
     run_id: str
     index: int
@@ -107,6 +109,8 @@ class AmplitudeChecked:
     command_mm: float
     updated_mm: float
     refusal: str = ""
+    frames_missing: int = 0
+    lost: str = ""
 
     @property
     def text(self) -> str:
@@ -115,6 +119,8 @@ class AmplitudeChecked:
             f"point {self.index} attempt {self.attempt}: {self.achieved_mm:.4g} mm achieved of"
             f" {self.target_mm:g} mm under {self.command_mm:.4g} mm"
         )
+        if self.lost:
+            return f"{said}; {self.lost}: measured again at the same command"
         if self.refusal:
             return f"{said}; not updated ({self.refusal}): the amplitude control's repeat takes over"
         if self.updated_mm == self.updated_mm:  # not NaN

@@ -23,6 +23,12 @@ and the tangential direction).
 - **Measured** when, from there on, the uncertainty is within both targets, the measured part holds
   two whole cycles (:data:`MEASURE_CYCLES`) and the hold reached its minimum length; or **max
   length** when the hold reached its maximum first.
+
+Hold time is true time: every sample's place in the hold comes from its frame counter
+(:func:`~bench.numerics.sine_fit.frame_offsets`), so frames lost on the link leave a gap in the
+design rather than shifting the samples after it, and every length above counts sample times. A
+window that lost more of its frames than :class:`~bench.engine.amplitude.FramesPresent` allows
+gives no verdict: the settle test and the measured test wait for windows with their frames.
 """
 
 from __future__ import annotations
@@ -34,6 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.engine.amplitude import FramesPresent
+from bench.numerics.sine_fit import frame_offsets, harmonic_phasors, sine_design
 from sequences import AdaptiveDwell
 from sequences.points import Verdict
 
@@ -52,7 +60,7 @@ class DwellVerdict:
     "max length" (settled, targets not reached) or "not settled". Times count from the hold's start
     (s); ``measure_start_s`` is NaN when it never settled (its figures then come from the latter half
     of the hold). ``frf`` is the FRF point, ``displacement_m`` the displacement's phasor, both over
-    the measured part."""
+    the measured part, of whose ``span_samples`` sample times ``frames_present`` had their frame."""
 
     verdict: str
     settle_s: float
@@ -62,6 +70,8 @@ class DwellVerdict:
     magnitude_uncertainty_pct: float
     phase_uncertainty_deg: float
     displacement_m: complex
+    frames_present: int = 0
+    span_samples: int = 0
 
     @property
     def settled(self) -> bool:
@@ -74,6 +84,8 @@ class _WindowFit:
     frf_sigma: float  # standard uncertainty of the complex FRF point (absolute)
     relative: float  # the magnitude's relative (and the phase's, rad) standard uncertainty
     displacement_m: complex
+    frames_present: int
+    span_samples: int
 
 
 class OnlineDwell:
@@ -87,7 +99,10 @@ class OnlineDwell:
         displacement: str,
         *,
         n_harmonics: int = 3,
+        present: FramesPresent | None = None,
     ) -> None:
+        """``present``: how much of a window's frames a verdict needs."""
+        self.present = present or FramesPresent()
         self.freq_hz = float(freq_hz)
         self.fs = float(sample_rate_hz)
         self.plan = plan
@@ -98,11 +113,13 @@ class OnlineDwell:
         self.min_hold = round(plan.min_hold_at_s(self.freq_hz) * self.fs)
         self.max_hold = round(plan.max_hold_s * self.fs)
         p = 2 * self.n_harm + 1
-        self._bounds = [0]  # hold samples at each block boundary
+        self._bounds = [0]  # hold sample times at each block boundary
+        self._frames = [0]  # frames present in the hold up to each boundary
+        self._seq_at_hold: int | None = None  # the frame counter of the hold's first frame
         self._g = [np.zeros((p, p))]  # running sums of X'X, X'Y, Y'Y at the boundaries
         self._b = [np.zeros((p, 3))]
         self._s = [np.zeros(3)]
-        self.held = 0  # hold samples seen
+        self.held = 0  # hold sample times seen (frames lost in the hold count)
         self.settle_at: int | None = None  # hold samples when the settle verdict came
         self._steady_from: float | None = None  # hold samples from which the estimate was steady
         self._result: tuple[str, _WindowFit | None] | None = None
@@ -126,21 +143,22 @@ class OnlineDwell:
         hi = first_sample + n if hold_end is None else min(first_sample + n, hold_end)
         if hi <= lo:
             return
-        k = np.arange(lo - hold_start, hi - hold_start, dtype=float)
-        phase = (self.w / self.fs) * k
-        x = np.empty((k.size, 2 * self.n_harm + 1))
-        x[:, 0] = 1.0
-        for h in range(1, self.n_harm + 1):
-            x[:, 2 * h - 1] = np.cos(h * phase)
-            x[:, 2 * h] = np.sin(h * phase)
+        seq = np.asarray(columns["seq"][lo - first_sample : hi - first_sample])
+        if self._seq_at_hold is None:
+            self._seq_at_hold = int(seq[0]) - (lo - hold_start)
+        k = frame_offsets(seq, self._seq_at_hold)
+        if k[-1] + 1 <= self.held:  # a counter gone back (a restart): the time base is lost
+            return
+        x = sine_design(k / self.fs, self.freq_hz, self.n_harm)
         y = np.stack(
             [np.asarray(columns[c][lo - first_sample : hi - first_sample], float) for c in self.names], 1
         )
         self._g.append(self._g[-1] + x.T @ x)
         self._b.append(self._b[-1] + x.T @ y)
         self._s.append(self._s[-1] + np.sum(y * y, axis=0))
-        self.held = hi - hold_start
+        self.held = int(k[-1]) + 1
         self._bounds.append(self.held)
+        self._frames.append(self._frames[-1] + len(k))
         self._judge()
 
     @property
@@ -157,7 +175,7 @@ class OnlineDwell:
         if first is not None and first < len(self._bounds) - 1:
             fit = self._fit(first, len(self._bounds) - 1)
             measured = self.held - self._bounds[first]
-            targets = fit is not None and (
+            targets = self._decidable(fit) and (
                 100 * fit.relative <= self.plan.magnitude_target_pct
                 and math.degrees(fit.relative) <= self.plan.phase_target_deg
             )
@@ -178,12 +196,18 @@ class OnlineDwell:
         if not start < middle < last:
             return
         a, b = self._fit(start, middle), self._fit(middle, last)
-        if a is None or b is None:
-            return
+        if not (self._decidable(a) and self._decidable(b)):
+            return  # too few samples, or frames lost: wait for more
         noise = SETTLE_SIGMAS * math.hypot(a.frf_sigma, b.frf_sigma)
         if abs(b.frf - a.frf) <= self.plan.settle_tolerance * abs(b.frf) + noise:
             self.settle_at = self.held
             self._steady_from = self._bounds[start]
+
+    def _decidable(self, fit: _WindowFit | None) -> bool:
+        """Whether a verdict may rest on ``fit``'s window (its frames there: :attr:`present`)."""
+        if fit is None:
+            return False
+        return not self.present.refusal_of(fit.frames_present, fit.span_samples, self.freq_hz, self.fs)
 
     def _boundary(self, samples: float) -> int:
         """The index of the block boundary nearest ``samples`` of hold."""
@@ -194,7 +218,7 @@ class OnlineDwell:
 
     def _fit(self, i0: int, i1: int) -> _WindowFit | None:
         """The FRF point over the blocks between boundaries ``i0`` and ``i1`` (None: too few samples)."""
-        n = self._bounds[i1] - self._bounds[i0]
+        n = self._frames[i1] - self._frames[i0]
         g = self._g[i1] - self._g[i0]
         p = g.shape[0]
         if n < max(2 * p, self.cycle):
@@ -204,7 +228,7 @@ class OnlineDwell:
         coef = g_inv @ b
         rss = np.maximum(self._s[i1] - self._s[i0] - np.sum(coef * b, axis=0), 0.0)
         var = rss / (n - p) * (g_inv[1, 1] + g_inv[2, 2])  # E|dA|^2 of each channel's phasor
-        phasor = coef[1] - 1j * coef[2]
+        phasor = harmonic_phasors(coef)
         inertia = self.plan.plate_mass_kg * self.w**2
         out, inp = phasor[0], phasor[1] + inertia * phasor[2]
         if out == 0 or inp == 0:
@@ -212,7 +236,8 @@ class OnlineDwell:
         var_in = var[1] + inertia**2 * var[2]
         rel2 = var[0] / abs(out) ** 2 + var_in / abs(inp) ** 2
         frf = complex(out / inp)
-        return _WindowFit(frf, abs(frf) * math.sqrt(rel2), math.sqrt(rel2 / 2), complex(phasor[2]))
+        span = self._bounds[i1] - self._bounds[i0]
+        return _WindowFit(frf, abs(frf) * math.sqrt(rel2), math.sqrt(rel2 / 2), complex(phasor[2]), n, span)
 
     def finish(self) -> None:
         """End the dwell as it stands (its hold ended or reached the maximum length)."""
@@ -247,4 +272,6 @@ class OnlineDwell:
             100 * fit.relative,
             math.degrees(fit.relative),
             fit.displacement_m,
+            fit.frames_present,
+            fit.span_samples,
         )

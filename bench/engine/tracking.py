@@ -18,6 +18,11 @@ peak is inversely proportional to its damping at a fixed static gain). When the 
 further than :data:`DEADBAND` from the drive, the drive is moved to it. The track ends after its
 length, or when the resonance leaves ``freq_band_pct`` of the one found, or the ratio's magnitude
 ``ratio_band_pct`` of the one found (stop rules, with the reason).
+
+Each window is fitted on its samples' true times (the frame counter's: frames lost on the link are
+a gap, not a shift) and spans ``update_s`` of sample time; a window that lost more of its frames
+than :class:`~bench.engine.amplitude.FramesPresent` allows is not looked at (no estimate, no move
+of the drive): the next window is measured at the same frequency.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.engine.amplitude import FramesPresent
 from bench.engine.points import hold_runs
+from bench.numerics.sine_fit import fit_sine, frame_offsets
 from sequences import TrackedDwell
 
 #: The glide (s) of each change of the drive's frequency (the controller's ramp, docs/protocols.md).
@@ -71,9 +78,7 @@ def find_resonance(freqs_hz: np.ndarray, frf: np.ndarray) -> Resonance | None:
     held = float(np.interp(peak_hz, f[i - 1 : i + 2], phase))
     magnitude = float(1.0 / np.sqrt(a * peak_hz**4 + b * peak_hz**2 + c))
     sign = 1.0 if phase[2] > phase[0] else -1.0
-    return Resonance(
-        peak_hz, magnitude * np.exp(1j * held), zeta, held, sign / (zeta * natural_hz)
-    )
+    return Resonance(peak_hz, magnitude * np.exp(1j * held), zeta, held, sign / (zeta * natural_hz))
 
 
 @dataclass(frozen=True)
@@ -105,9 +110,12 @@ class TrackWatch:
         channels: tuple[str, str, str],
         hold_bit: int,
         update: UpdateFrequency,
+        present: FramesPresent | None = None,
         on_window: Callable[[TrackWindow], None] = lambda window: None,
     ) -> None:
-        """``channels``: the output, the input and the displacement (m)."""
+        """``channels``: the output, the input and the displacement (m); ``present``: how much of a
+        window's frames a look needs."""
+        self.present = present or FramesPresent()
         self.step = step
         self.found = resonance
         self.rate_hz = sample_rate_hz
@@ -121,10 +129,13 @@ class TrackWatch:
         self.reason = ""
         self._in_hold = False
         self._pending: float | None = None  # a frequency sent, until its glide ends
-        self._held = 0  # hold samples so far
+        self._held = 0  # hold sample times so far (frames lost count)
         self._cycles = 0.0  # cycles held so far
         self._skip = 0  # samples still to settle
-        self._window: list[tuple[int, np.ndarray]] = []  # (first run sample, rows) of the window
+        # (first run sample, true offsets from the window's first frame, rows) of the window
+        self._window: list[tuple[int, np.ndarray, np.ndarray]] = []
+        self._window_seq: int | None = None  # the window's first frame counter
+        self._last_seq: int | None = None  # the counter of the last hold frame seen
 
     def _settle_samples(self) -> int:
         tau_s = 1.0 / (2 * math.pi * self.found.damping_ratio * self.drive_hz)
@@ -143,6 +154,7 @@ class TrackWatch:
         if self.done or status is None or len(status) == 0:
             return
         data = np.column_stack([np.asarray(columns[name], float) for name in self.channels])
+        seq = np.asarray(columns["seq"])
         for a, b, holding in hold_runs(status, self.hold_bit):
             if not holding:
                 self._in_hold = False
@@ -150,7 +162,7 @@ class TrackWatch:
             if not self._in_hold:
                 self._segment_begins()
             self._in_hold = True
-            self._hold(first_sample + a, data[a:b])
+            self._hold(first_sample + a, seq[a:b], data[a:b])
             if self.done:
                 return
 
@@ -158,20 +170,38 @@ class TrackWatch:
         if self._pending is not None:
             self.drive_hz, self._pending = self._pending, None
         self._skip = self._settle_samples()
-        self._window = []
+        self._window, self._window_seq, self._last_seq = [], None, None
 
-    def _hold(self, sample: int, rows: np.ndarray) -> None:
-        self._held += len(rows)
-        self._cycles += len(rows) * self.drive_hz / self.rate_hz
-        skipped = min(self._skip, len(rows))
-        self._skip -= skipped
-        if self._pending is None and skipped < len(rows):
-            self._window.append((sample + skipped, rows[skipped:]))
-        n = round(self.step.update_s * self.rate_hz)
-        if self._pending is None and sum(len(r) for _, r in self._window) >= n:
-            self._look(n)
+    def _hold(self, sample: int, seq: np.ndarray, rows: np.ndarray) -> None:
+        """A run of hold frames from run sample ``sample``: its sample times (frames lost among them
+        included) count towards the settling, the window and the track's length."""
+        times = frame_offsets(seq, self._last_seq) if self._last_seq is not None else frame_offsets(seq) + 1
+        self._last_seq = int(seq[-1])
+        elapsed = int(times[-1])  # sample times since the last hold frame seen
+        self._held += elapsed
+        self._cycles += elapsed * self.drive_hz / self.rate_hz
+        settled = times > self._skip  # the settling counts sample times too
+        self._skip = max(self._skip - elapsed, 0)
+        if self._pending is None and settled.any():
+            first = int(np.argmax(settled))
+            self._take(sample + first, seq[first:], rows[first:])
         if not self.done and self._length_reached():
             self.done = True
+
+    def _take(self, sample: int, seq: np.ndarray, rows: np.ndarray) -> None:
+        """Add settled frames to the window; look once it spans ``update_s`` of sample time."""
+        if self._window_seq is None:
+            self._window_seq = int(seq[0])
+        n = round(self.step.update_s * self.rate_hz)
+        offsets = frame_offsets(seq, self._window_seq)
+        inside = offsets < n
+        self._window.append((sample, offsets[inside], rows[inside]))
+        if inside.all():
+            return
+        rest = int(np.argmin(inside))
+        self._look(n)
+        if not self.done and self._pending is None:  # the next window begins where this one ended
+            self._take(sample + rest, seq[rest:], rows[rest:])
 
     def _length_reached(self) -> bool:
         if self.step.track_cycles is not None:
@@ -179,16 +209,17 @@ class TrackWatch:
         return self._held >= self.step.track_s * self.rate_hz
 
     def _look(self, n: int) -> None:
-        """Fit the window at the drive frequency, estimate the resonance, apply the stop rules and
-        move the drive when the resonance lies beyond the deadband."""
+        """Fit the window (``n`` sample times) at the drive frequency, estimate the resonance, apply
+        the stop rules and move the drive when the resonance lies beyond the deadband; a window that
+        lost too many of its frames is passed over."""
         first = self._window[0][0]
-        rows = np.concatenate([r for _, r in self._window])[:n]
-        self._window = []
+        offsets = np.concatenate([k for _, k, _ in self._window])
+        rows = np.concatenate([r for _, _, r in self._window])
+        self._window, self._window_seq = [], None
+        if self.present.refusal_of(len(offsets), n, self.drive_hz, self.rate_hz) or len(offsets) < 4:
+            return
         w = 2 * math.pi * self.drive_hz
-        t = np.arange(n) / self.rate_hz
-        design = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones(n)])
-        (s_out, s_in, s_z), (c_out, c_in, c_z), _ = np.linalg.lstsq(design, rows, rcond=None)[0]
-        output, input_, z = complex(c_out, -s_out), complex(c_in, -s_in), complex(c_z, -s_z)
+        output, input_, z = fit_sine(rows, offsets, self.rate_hz, self.drive_hz).phasors
         ratio = output / (input_ + self.step.plate_mass_kg * w**2 * z)
         off = (np.angle(ratio) - self.found.phase_rad + math.pi) % (2 * math.pi) - math.pi
         resonance_hz = self.drive_hz - off / self.found.slope_rad_per_hz

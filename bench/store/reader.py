@@ -34,12 +34,16 @@ from bench.analysis.records import (
     SweepRecord,
 )
 from bench.analysis.tracking import TrackRecord
+from bench.numerics.sine_fit import frame_offsets
 from bench.store import schema as s
 from bench.store.results import read_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel, Role, standard_name
 from sequences.points import PointAttempt, PointStatus, Verdict
 from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
+
+#: The recorded channel of the WFS frame counter (``bench.engine.channels``): the true sample times.
+SEQ_CHANNEL = "seq"
 
 #: Channels each kind of run needs for its analysis records. A dwell grid's wheel is on the shaker,
 #: whose hub is clamped: its hub acceleration is recorded where the lab has it, never needed.
@@ -292,6 +296,25 @@ def readable_length(dataset: h5py.Dataset, length: int) -> int:
     return length
 
 
+def _true_offsets(channels: Mapping[str, np.ndarray]) -> np.ndarray | None:
+    """The samples' true offsets from the first, from the frame counter ``seq`` where the run
+    recorded it and frames were lost; None: the samples are contiguous (or the file has no
+    counter, as an import of another system's export)."""
+    seq = channels.get(SEQ_CHANNEL)
+    if seq is None or len(seq) == 0:
+        return None
+    offsets = frame_offsets(seq)
+    return None if offsets[-1] == len(offsets) - 1 else offsets
+
+
+def _record_time_s(offsets: np.ndarray, i: int, sample_rate_hz: float) -> float:
+    """Record time (s) of sample ``i`` of a record whose samples lie at ``offsets`` (sample times);
+    the record's end (``i`` its length) lies one sample time after its last sample."""
+    if len(offsets) == 0:
+        return i / sample_rate_hz
+    return float(offsets[i] if i < len(offsets) else offsets[-1] + 1 + i - len(offsets)) / sample_rate_hz
+
+
 def _analysis_name(spec: Channel) -> str:
     """The name the analysis knows ``spec`` by: its role's standard name, else its own."""
     if spec.role is None or spec.role is Role.SPARE:
@@ -443,12 +466,15 @@ class RunView:
         for run, p in self._done_points():
             channels = run.channels.slice(p.start_sample, p.end_sample)
             fs = run.sample_rate_hz
-            hold_start = p.hold_start_sample
+            offsets = _true_offsets(channels)
+            at = np.arange(p.end_sample - p.start_sample) if offsets is None else offsets
+            hold_start_s = _record_time_s(at, p.hold_start_sample - p.start_sample, fs)
             if p.hold_start_sample <= p.measure_start_sample <= p.hold_end_sample:
-                hold_start = max(p.hold_start_sample, p.measure_start_sample - round(DEFAULT_SETTLE_S * fs))
-            hold_s = ((hold_start - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)
+                measure_s = _record_time_s(at, p.measure_start_sample - p.start_sample, fs)
+                hold_start_s = max(hold_start_s, measure_s - DEFAULT_SETTLE_S)
+            hold_s = (hold_start_s, _record_time_s(at, p.hold_end_sample - p.start_sample, fs))
             nominal_m = p.requested_amplitude_mm * 1e-3 if math.isfinite(p.requested_amplitude_mm) else None
-            record = DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s, nominal_m)
+            record = DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s, nominal_m, offsets)
             records.append(record)
         return records
 

@@ -73,8 +73,8 @@ _COLUMN_TYPES = {"int": "<i8", "float": "<f8", "str": _STR}
 #: The points table: one column per field of :class:`~sequences.points.PointAttempt`, same names.
 POINT_DTYPE = np.dtype([(f.name, _COLUMN_TYPES[f.type]) for f in fields(PointAttempt)])
 #: Points-table fields added to version-2 files after the first were written (the amplitude held
-#: within the dwell, the notch of a response limit): a reader takes a table without them, with
-#: these values.
+#: within the dwell, the notch of a response limit, the frames lost in a hold): a reader takes a
+#: table without them, with these values.
 VERSION_2_ADDED_POINT_FIELDS: dict[str, object] = {
     "amplitude_updates": 0,
     "held_amplitude_mm": math.nan,
@@ -82,6 +82,7 @@ VERSION_2_ADDED_POINT_FIELDS: dict[str, object] = {
     "notch_start_hz": math.nan,
     "notch_end_hz": math.nan,
     "notch_amplitude_mm": math.nan,
+    "frames_missing": 0,
 }
 #: Points-table fields of adaptive dwells, added to version-1 files after the first were written,
 #: and the fields added to version 2 since: a reader takes a version-1 table without them, with

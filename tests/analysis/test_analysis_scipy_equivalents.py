@@ -50,11 +50,11 @@ def test_dwell_fit_by_qr_equals_the_normal_equations():
     t = np.arange(20) / fs
     y = np.stack([np.sin(2 * np.pi * freq * t + 0.3) + 0.01 * rng.standard_normal(t.size)] * 2, axis=1)
     y[:, 1] *= 3.0
-    fit = _fit_window(t, y, 2 * np.pi * freq, 3)
     cols = [np.ones_like(t)]
     for k in range(1, 4):
         cols += [np.cos(k * 2 * np.pi * freq * t), np.sin(k * 2 * np.pi * freq * t)]
     X = np.stack(cols, axis=1)
+    fit = _fit_window(t, y, 2 * np.pi * freq, 3, X)
     coef = np.linalg.lstsq(X, y, rcond=None)[0]
     res = y - X @ coef
     cov = np.linalg.inv(X.T @ X)
