@@ -181,7 +181,14 @@ class AmplitudeConfig:
     within the dwell by amplitude updates the controller takes while running (``hold_within_dwell``;
     only where the controller's register map has them), to ``update_tolerance`` with at most
     ``max_updates`` per attempt, each ramped over ``ramp_s``; and after it, a point whose amplitude
-    is beyond ``tolerance`` repeated at most ``max_repeats`` times."""
+    is beyond ``tolerance`` repeated at most ``max_repeats`` times.
+
+    The bounds on what a command may do: a window's measurement is decided on only when at most
+    ``max_missing_fraction`` of its frames were lost and it holds ``min_cycles`` cycles of frames
+    (else the same command is measured again); one correction or update scales the command by at
+    most ``max_step_factor``; a command exceeds its target by at most ``command_margin`` (beyond,
+    the point ends flagged); a measured amplitude beyond its target by ``excursion_tolerance`` is
+    the limit "amplitude excursion", acted on with ``excursion_action``."""
 
     hold_within_dwell: bool = True
     update_tolerance: float = 0.005
@@ -189,6 +196,12 @@ class AmplitudeConfig:
     ramp_s: float = 0.1
     tolerance: float = 0.02
     max_repeats: int = 3
+    max_missing_fraction: float = 0.05
+    min_cycles: float = 1.0
+    max_step_factor: float = 1.15
+    command_margin: float = 0.25
+    excursion_tolerance: float = 0.1
+    excursion_action: LimitAction = LimitAction.INDICATE
 
 
 @dataclass(frozen=True)
@@ -721,6 +734,26 @@ class _Reader:
             ramp_s=self.number(t, "amplitude", "ramp_s", d.ramp_s, lo=limits.min_taper_s, hi=10.0),
             tolerance=self.number(t, "amplitude", "tolerance", d.tolerance, lo=0, hi=0.5, lo_open=True),
             max_repeats=self.number(t, "amplitude", "max_repeats", d.max_repeats, lo=0, hi=10, integer=True),
+            max_missing_fraction=self.number(
+                t, "amplitude", "max_missing_fraction", d.max_missing_fraction, lo=0, hi=0.5
+            ),
+            min_cycles=self.number(t, "amplitude", "min_cycles", d.min_cycles, lo=0.5, hi=100.0),
+            max_step_factor=self.number(
+                t, "amplitude", "max_step_factor", d.max_step_factor, lo=1.0, hi=1.5, lo_open=True
+            ),
+            command_margin=self.number(t, "amplitude", "command_margin", d.command_margin, lo=0, hi=1.0),
+            excursion_tolerance=self.number(
+                t, "amplitude", "excursion_tolerance", d.excursion_tolerance, lo=0, hi=1.0, lo_open=True
+            ),
+            excursion_action=LimitAction(
+                self.text(
+                    t,
+                    "amplitude",
+                    "excursion_action",
+                    str(d.excursion_action),
+                    tuple(str(a) for a in LimitAction),
+                )
+            ),
         )
         if config.update_tolerance > config.tolerance:
             self.add(

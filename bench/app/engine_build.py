@@ -16,7 +16,7 @@ from bench.app.devices import BenchDevices
 from bench.app.notching import ModelNotching
 from bench.app.simulated import UNPACED_BACKLOG_S, UNPACED_WFS_SILENCE_S
 from bench.config import BenchConfig
-from bench.engine.amplitude import AmplitudeControl
+from bench.engine.amplitude import AmplitudeControl, FramesPresent
 from bench.engine.amplitude_hold import AmplitudeHold
 from bench.engine.channels import FrameChannels
 from bench.engine.engine import Engine, SyncBits
@@ -53,8 +53,13 @@ def build_engine(config: BenchConfig, devices: BenchDevices) -> Engine:
             tolerance=config.amplitude.tolerance,
             max_corrections=config.amplitude.max_repeats,
             max_command_mm=config.limits.stroke_mm,
+            max_step_factor=config.amplitude.max_step_factor,
+            command_margin=config.amplitude.command_margin,
+            excursion_tolerance=config.amplitude.excursion_tolerance,
+            excursion_action=config.amplitude.excursion_action,
         ),
         amplitude_hold=_amplitude_hold(config, devices),
+        frames_present=FramesPresent(config.amplitude.max_missing_fraction, config.amplitude.min_cycles),
         notching=ModelNotching(config) if any(limit.notch for limit in config.response_limits) else None,
         tare=config.calibration.tare,
         bench_kind=config.kind,
