@@ -23,8 +23,9 @@ the host drains again, later blocks are only offered briefly, so a host that sto
 freezes the bench (the bench then runs in real time and the controller's watchdog fires).
 
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
-frames is not sent, the sequence counter runs on), a disconnect and reconnect of the link, a restart,
-commands ignored (neither carried out nor answered).
+frames is not sent, the sequence counter runs on), bursts of frames lost at set places of every
+hold (:class:`FrameLoss`: deterministic, placed by the frames' own hold sync bit), a disconnect and
+reconnect of the link, a restart, commands ignored (neither carried out nor answered).
 
 Commands are dispatched through a table (:attr:`WfsDevice.commands`), one handler per command name.
 """
@@ -37,6 +38,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -97,6 +99,20 @@ class DeviceLink(Protocol):
     def disconnect(self) -> None: ...
 
     def reconnect(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class FrameLoss:
+    """A burst of ``frames`` frames lost on the link, beginning ``after_hold_frames`` frames into a
+    hold of the excitation (from a rise of the amplitude-hold sync input, as the frames' status
+    shows it): every hold, or those numbered in ``holds`` (0: the first hold the device streams,
+    each in-dwell amplitude update's hold counting as one). A link that loses bytes (a USB
+    adapter's hiccup, a cable, noise), placed where a test wants it whatever the host's speed. The
+    counter runs on over the lost frames."""
+
+    after_hold_frames: int
+    frames: int
+    holds: tuple[int, ...] | None = None
 
 
 class DigitalInputs:
@@ -174,6 +190,12 @@ class WfsDevice:
         self.boot = boot % (1 << 16)
         self._inputs = DigitalInputs()
         self._stall_frames = 0
+        #: bursts lost in every hold (:class:`FrameLoss`), and where the stream is in them
+        self.frame_losses: tuple[FrameLoss, ...] = ()
+        self._hold_position = -1  # frames into the present hold (-1: not in a hold)
+        self._holds_begun = 0  # holds begun since the device started
+        self._losing = 0  # frames of a burst still to lose
+        self.frames_lost_in_holds = 0
         self._link_up = True
         #: command name (as parsed, e.g. ``RATE?``) -> handler of its arguments
         self.commands: dict[str, Callable[[list[str]], Reply]] = {
@@ -268,6 +290,8 @@ class WfsDevice:
         frames = self._frames(block)
         if len(frames) == 0:
             return
+        if self.frame_losses:
+            frames = self._lose(frames)
         if self._stall_frames:
             stalled = min(self._stall_frames, len(frames))
             self._stall_frames -= stalled
@@ -303,6 +327,26 @@ class WfsDevice:
         else:
             self._overflowing = sent < len(data)
             self.frames_dropped += len(frames) - whole
+
+    def _lose(self, frames: np.ndarray) -> np.ndarray:
+        """The frames that survive the :attr:`frame_losses` bursts (the lost ones count as unsent)."""
+        hold = (frames["status"] & int(Status.AMPLITUDE_HOLD)) != 0
+        keep = np.ones(len(frames), bool)
+        for i, holding in enumerate(hold.tolist()):
+            if holding and self._hold_position < 0:
+                self._holds_begun += 1
+            self._hold_position = self._hold_position + 1 if holding else -1
+            for loss in self.frame_losses:
+                applies = loss.holds is None or self._holds_begun - 1 in loss.holds
+                if applies and self._hold_position == loss.after_hold_frames:
+                    self._losing = max(self._losing, loss.frames)
+            if self._losing:
+                keep[i] = False
+                self._losing -= 1
+        lost = len(frames) - int(keep.sum())
+        self.frames_unsent += lost
+        self.frames_lost_in_holds += lost
+        return frames[keep]
 
     def _write_all(self, data: bytes, timeout_s: float) -> int:
         """Write as much of ``data`` as the host drains within ``timeout_s``; return the bytes sent

@@ -980,16 +980,9 @@ class Engine:
                 continue
             verdict = None if watch is None else watch.verdict()
             sent_mm = command_mm
-            if verdict is not None:
-                achieved = 1e3 * abs(verdict.displacement_m)
-                lost = verdict.span_samples and self.frames_present.refusal_of(
-                    verdict.frames_present, verdict.span_samples, dwell.freq_hz, self.sample_rate_hz
-                )
-            else:  # held within the dwell, the hold is the part after the last update's ramp
-                fit = run.achieved_fit(span, dwell)
-                achieved, lost = amplitude_mm(fit), fit and self.frames_present.refusal(fit)
+            if verdict is None:  # held within the dwell, the hold is the part after the last update's ramp
                 command_mm = command_mm if held is None else held.command_mm
-            lost = f"the hold's measurement {lost}" if lost else ""
+            achieved, lost = self._measured(run, span, dwell, verdict)
             if not lost:  # nothing is learnt from what the bench did not see
                 if gains is not None:
                     gains.record(dwell.freq_hz, command_mm, achieved)
@@ -1013,6 +1006,26 @@ class Engine:
             if decision.keep:
                 return verdict
             command_mm, corrections = decision.corrected_mm, corrections + 1
+
+    def _measured(
+        self, run: _RunRecording, span: ExcitationSpan, dwell: SineDwell, verdict: DwellVerdict | None
+    ) -> tuple[float, str]:
+        """The amplitude (mm) an attempt achieved over its hold (the adaptive dwell's measured part,
+        or the hold after its settling time), and why it may not be decided on (empty: it may):
+        frames lost, or none of its hold left to measure because they were."""
+        if verdict is not None:
+            achieved = 1e3 * abs(verdict.displacement_m)
+            present, span_samples = verdict.frames_present, verdict.span_samples
+        else:
+            fit = run.achieved_fit(span, dwell)
+            achieved = amplitude_mm(fit)
+            present, span_samples = (0, 0) if fit is None else (fit.frames_present, fit.span_samples)
+        if span_samples:
+            lost = self.frames_present.refusal_of(present, span_samples, dwell.freq_hz, self.sample_rate_hz)
+        else:
+            missing = run.frames_missing_between(span.hold_start, span.hold_end)
+            lost = f"holds no cycle: {missing} frames lost" if missing else ""
+        return achieved, f"the hold's measurement {lost}" if lost else ""
 
     def _held_amplitude(
         self, run: _RunRecording, index: int, attempt: int, dwell: SineDwell, command_mm: float
@@ -1427,8 +1440,10 @@ class _RunRecording:
         return np.concatenate(parts[::-1]).astype(dtype) if parts else np.zeros(0, dtype)
 
     def frames_missing_between(self, start: int, stop: int) -> int:
-        """Frames lost on the link between run samples ``start`` and ``stop``."""
-        return sum(missing for index, missing in self._gaps if start < index < stop)
+        """Frames lost on the link from run sample ``start`` to ``stop``, the gaps at either end
+        included (frames lost just before a hold's first recorded frame, or its last, may have been
+        the hold's own: their sync bits were lost with them)."""
+        return sum(missing for index, missing in self._gaps if start <= index <= stop)
 
     def check_excursion(self, target_mm: float, achieved_mm: float, where: str) -> None:
         """A measured amplitude beyond the target by more than the amplitude control's excursion
