@@ -216,3 +216,20 @@ def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames
         abs(np.median([e.resonance_hz for e in looks]) / np.median([e.resonance_hz for e in reference]) - 1)
         < 0.01
     )
+
+
+def test_show_and_analyze_say_what_the_link_lost(tmp_path):
+    """``wfsbench show`` and the analysis name the frames the run lost and where they are recorded."""
+    from bench.app.analyze import analyze_campaign
+    from bench.app.show import campaign_summary, summary_lines
+
+    path, _, _, status = run(tmp_path, "grid by repeats", LOSSES["350 in the first hold"])
+    assert status == "complete"
+    summary = campaign_summary(path)
+    (grid,) = summary["runs"]
+    lost = grid["frames_lost"]
+    assert lost >= 350 and grid["gaps"] >= 1
+    text = "\n".join(summary_lines(summary))
+    assert f"    {lost} frames lost on the WFS link in {grid['gaps']} gap" in text
+    (analysed,) = analyze_campaign(path).runs
+    assert any(f"{lost} frames lost on the WFS link" in line for line in analysed.lines), analysed.lines

@@ -90,7 +90,8 @@ class RunInputs:
     records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
     of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
     (``sweep``); a tracked dwell's looks (``track``); a road replay (``replay``). ``read_error``: why
-    the records could not be read (the analysis is then flagged)."""
+    the records could not be read (the analysis is then flagged). ``link_note``: the frames the run
+    lost on the WFS link, said with its analysis (empty: none)."""
 
     run_id: str
     kind: str
@@ -101,12 +102,33 @@ class RunInputs:
     track: TrackRecord | None = None
     replay: RoadReplayRecord | None = None
     read_error: str = ""
+    link_note: str = ""
+
+
+def lost_frames_note(run: RunView) -> str:
+    """What ``run`` lost on the WFS link, from its ``gap`` events and its points table (empty: no
+    frame was lost)."""
+    gaps = [e for e in run.events if e.kind == "gap"]
+    if not gaps:
+        return ""
+    lost = sum(int(e.fields.get("missing", 0)) for e in gaps)
+    in_holds = [p for p in run.points if p.status == "done" and p.frames_missing]
+    held = (
+        f"; {len(in_holds)} done point{'s' if len(in_holds) != 1 else ''}' holds missed frames"
+        if in_holds
+        else ""
+    )
+    return (
+        f"{lost} frame{'s' if lost != 1 else ''} lost on the WFS link in {len(gaps)}"
+        f" gap{'s' if len(gaps) != 1 else ''}{held}: the analysis fits the samples on their true"
+        " times (the frame counter)"
+    )
 
 
 def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
     """Read what the analysis of ``run`` of ``campaign`` needs (:class:`RunInputs`)."""
     conditions = dict(run.conditions)
-    inputs = RunInputs(run.run_id, run.kind, conditions)
+    inputs = RunInputs(run.run_id, run.kind, conditions, link_note=lost_frames_note(run))
     try:
         if run.kind in ("hammer", "road_replay"):
             return dataclasses.replace(
@@ -157,6 +179,10 @@ class RunAnalyser:
             )
         except (AnalysisInputError, ValueError) as exc:
             outcome = RunAnalysis.failed(run.run_id, run.kind, str(exc))
+        if run.link_note:  # said after the analysis's first line, whatever it found
+            outcome = dataclasses.replace(
+                outcome, lines=(*outcome.lines[:1], run.link_note, *outcome.lines[1:])
+            )
         self.knowledge.analysed_runs[run.run_id] = outcome
         return outcome
 

@@ -173,6 +173,8 @@ def _run(run: RunView) -> dict[str, Any]:
         "conditions": _finite(run.conditions),
         "samples": run.n_samples,
         "sample_rate_hz": run.sample_rate_hz,
+        "frames_lost": sum(int(e.fields.get("missing", 0)) for e in run.events if e.kind == "gap"),
+        "gaps": sum(e.kind == "gap" for e in run.events),
         "resumes": run.resumes,
         "resumed_by": run.resumed_by,
         "drive": dict(run.drive) or None,
@@ -252,6 +254,11 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
             f"    {run['samples']} samples at {rate:g} Hz ({run['samples'] / rate:.1f} s);"
             f" started {run['started']}, finished {run['finished'] or '-'}"
         )
+        if run["frames_lost"]:
+            lines.append(
+                f"    {run['frames_lost']} frames lost on the WFS link in {run['gaps']} gaps"
+                " (each point's in its points table: frames_missing)"
+            )
         who = run["metadata"]
         by = [f"{LABELS[k]} {who[k]}" for k in ("operator", "bench_id") if who.get(k)]
         if by:
