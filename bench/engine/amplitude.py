@@ -112,13 +112,14 @@ class AmplitudeControl:
         bound = self.max_step_factor
         return float(np.clip(target_mm / achieved_mm, 1 / bound, bound))
 
-    def cap_refusal(self, target_mm: float, command_mm: float) -> str:
-        """Why ``command_mm`` may not be sent for ``target_mm`` (empty: it may)."""
+    def cap_refusal(self, target_mm: float, command_mm: float, *, called: str = "the command") -> str:
+        """Why ``command_mm`` may not be sent for ``target_mm`` (empty: it may); ``called``: how the
+        reason names the command ("the update to")."""
         if command_mm > self.max_command_mm:
-            return f"the command {command_mm:.3f} mm exceeds the {self.max_command_mm:g} mm limit"
+            return f"{called} {command_mm:.3f} mm exceeds the {self.max_command_mm:g} mm limit"
         if command_mm > target_mm * (1 + self.command_margin):
             return (
-                f"the command {command_mm:.3f} mm exceeds the bench model's {target_mm:g} mm for the"
+                f"{called} {command_mm:.3f} mm exceeds the bench model's {target_mm:g} mm for the"
                 f" target by more than {100 * self.command_margin:g} %"
             )
         return ""

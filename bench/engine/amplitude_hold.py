@@ -201,10 +201,8 @@ class HeldAmplitude:
             self._refuse(AmplitudeStep(sample, achieved, self.command_mm), "no displacement measured")
             return
         updated = self.command_mm * self.control.step(self.target_mm, achieved)
-        if cap := self.control.cap_refusal(self.target_mm, updated):
-            self._refuse(
-                AmplitudeStep(sample, achieved, self.command_mm, frames_missing=missing), f"no update: {cap}"
-            )
+        if cap := self.control.cap_refusal(self.target_mm, updated, called="the update to"):
+            self._refuse(AmplitudeStep(sample, achieved, self.command_mm, frames_missing=missing), cap)
             return
         refusal = self._update(updated)
         if refusal is not None:

@@ -307,12 +307,12 @@ def _true_offsets(channels: Mapping[str, np.ndarray]) -> np.ndarray | None:
     return None if offsets[-1] == len(offsets) - 1 else offsets
 
 
-def _record_time_s(offsets: np.ndarray, i: int, sample_rate_hz: float) -> float:
-    """Record time (s) of sample ``i`` of a record whose samples lie at ``offsets`` (sample times);
-    the record's end (``i`` its length) lies one sample time after its last sample."""
+def _record_time(offsets: np.ndarray, i: int) -> int:
+    """Record time (sample times) of sample ``i`` of a record whose samples lie at ``offsets``; the
+    record's end (``i`` its length) lies one sample time after its last sample."""
     if len(offsets) == 0:
-        return i / sample_rate_hz
-    return float(offsets[i] if i < len(offsets) else offsets[-1] + 1 + i - len(offsets)) / sample_rate_hz
+        return i
+    return int(offsets[i] if i < len(offsets) else offsets[-1] + 1 + i - len(offsets))
 
 
 def _analysis_name(spec: Channel) -> str:
@@ -468,11 +468,11 @@ class RunView:
             fs = run.sample_rate_hz
             offsets = _true_offsets(channels)
             at = np.arange(p.end_sample - p.start_sample) if offsets is None else offsets
-            hold_start_s = _record_time_s(at, p.hold_start_sample - p.start_sample, fs)
+            hold_start = _record_time(at, p.hold_start_sample - p.start_sample)
             if p.hold_start_sample <= p.measure_start_sample <= p.hold_end_sample:
-                measure_s = _record_time_s(at, p.measure_start_sample - p.start_sample, fs)
-                hold_start_s = max(hold_start_s, measure_s - DEFAULT_SETTLE_S)
-            hold_s = (hold_start_s, _record_time_s(at, p.hold_end_sample - p.start_sample, fs))
+                measure = _record_time(at, p.measure_start_sample - p.start_sample)
+                hold_start = max(hold_start, measure - round(DEFAULT_SETTLE_S * fs))
+            hold_s = (hold_start / fs, _record_time(at, p.hold_end_sample - p.start_sample) / fs)
             nominal_m = p.requested_amplitude_mm * 1e-3 if math.isfinite(p.requested_amplitude_mm) else None
             record = DwellRecord(p.freq_hz, p.amplitude_mm * 1e-3, fs, channels, hold_s, nominal_m, offsets)
             records.append(record)
@@ -523,6 +523,7 @@ class RunView:
             float(step["amplitude_mm"]) * 1e-3,
             run.sample_rate_hz,
             channels,
+            _true_offsets(channels),
         )
 
     def road_replay_record(self) -> RoadReplayRecord:
