@@ -49,7 +49,7 @@ first-order propagation of the fit's covariance.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -155,6 +155,7 @@ def four_post_frfs(
     hub_acceleration: str = "a_hub_m_s2",
     nperseg: int | None = None,
     extra_responses: Mapping[str, np.ndarray] | None = None,
+    gaps_s: Sequence[tuple[float, float]] = (),
 ) -> FourPostFrfs:
     """The FRFs of a four-post sweep ``record`` (channels by name); the post's m_comp corrects the
     load cell (``F_contact / Z = F_plate / Z + m_comp w^2``, its uncertainty propagated).
@@ -163,14 +164,16 @@ def four_post_frfs(
     the same segments, so their FRFs share the bins of the others; they are in ``sweeps``. They are
     H1 estimates: a filtered force (the model compensator rolls off above its band) has no noise
     left above the sweep, so the automatic rule would take its noise floor for zero and pick H2,
-    while the post displacement is the cleanest channel (the rule picks H1 for every raw channel)."""
+    while the post displacement is the cleanest channel (the rule picks H1 for every raw channel).
+    ``gaps_s``: stretches (s) where frames were lost, which the record only bridges: the bins swept
+    there are left out (:func:`~bench.analysis.sweep.sweep_frfs`)."""
     for name in (displacement, post_force, wfs, hub_acceleration):
         if name not in record:
             raise AnalysisInputError(f"the four-post record has no channel {name!r}")
     clash = {"f_plate", "f_wfs", "a_hub", "z_base"} & set(extra_responses or {})
     if clash:
         raise AnalysisInputError(f"extra responses may not be named {sorted(clash)}")
-    kw = {"band_hz": band_hz, "reference_name": "z_base", "nperseg": nperseg}
+    kw = {"band_hz": band_hz, "reference_name": "z_base", "nperseg": nperseg, "gaps_s": gaps_s}
     res = sweep_frfs(
         record[displacement],
         {"f_plate": record[post_force], "f_wfs": record[wfs], "a_hub": record[hub_acceleration]},

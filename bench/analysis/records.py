@@ -92,7 +92,9 @@ class SweepRecord:
     """One sine sweep of the base from ``start_hz`` to ``end_hz`` over ``sweep_s`` seconds (as
     commanded, tapers inside) at amplitude ``amplitude_m``; ``channels`` by name at
     ``sample_rate_hz``, all of one length, time zero at the sweep's start. A record shorter than
-    ``sweep_s`` did not see the band it claims and is refused by the analysis."""
+    ``sweep_s`` did not see the band it claims and is refused by the analysis.
+    ``sample_offsets``: each sample's offset in sample times from the first, from the frame
+    counter, when frames were lost on the link (``None``: the samples are contiguous)."""
 
     start_hz: float
     end_hz: float
@@ -100,6 +102,7 @@ class SweepRecord:
     amplitude_m: float
     sample_rate_hz: float
     channels: Mapping[str, np.ndarray]
+    sample_offsets: np.ndarray | None = None
 
     @property
     def label(self) -> str:
@@ -107,6 +110,9 @@ class SweepRecord:
 
     @property
     def duration_s(self) -> float:
+        """The record's length in time (lost frames included)."""
+        if self.sample_offsets is not None and len(self.sample_offsets):
+            return (int(self.sample_offsets[-1]) + 1) / float(self.sample_rate_hz)
         return len(next(iter(self.channels.values()), ())) / float(self.sample_rate_hz)
 
 
@@ -195,6 +201,49 @@ def record_channels(
         return as_signals({name: record.channels[name] for name in required}, min_samples=min_samples)
     except AnalysisInputError as err:
         raise AnalysisInputError(f"{record.label}: {err}") from err
+
+
+#: The cosine ramp (s) by which :func:`on_true_times` fades a record out before a stretch of lost
+#: frames and in after it: smooth enough that the gate's spectrum falls off within a few hertz.
+GATE_RAMP_S = 0.05
+
+
+def on_true_times(
+    channels: Mapping[str, np.ndarray], sample_offsets: np.ndarray | None, sample_rate_hz: float
+) -> tuple[dict[str, np.ndarray], tuple[tuple[int, int], ...]]:
+    """The channels placed on their true sample times, and the stretches (first sample, end
+    sample) that a gate closes where frames were lost.
+
+    Every channel is faded to its mean over :data:`GATE_RAMP_S` before a stretch of lost frames and
+    in after it, and holds its mean within: one gate, the same for all channels, as a window is (no
+    sample is made up, and no channel gets what the others have not). A stretch's ends include
+    the ramps. An analysis on the result leaves out what the stretches spoil (the bins a sweep
+    excited there, the samples a regression would take from them)."""
+    if sample_offsets is None:
+        return dict(channels), ()
+    k = np.asarray(sample_offsets, dtype=np.int64)
+    if k.size and np.any(np.diff(k) <= 0):
+        raise AnalysisInputError("sample offsets do not rise from sample to sample")
+    n = int(k[-1]) + 1 if k.size else 0
+    gate = np.zeros(n)
+    gate[k] = 1.0
+    ramp = max(round(GATE_RAMP_S * sample_rate_hz), 1)
+    fade = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, ramp + 1) / (ramp + 1))
+    stretches = []
+    for i in np.flatnonzero(np.diff(k) > 1):
+        start, end = int(k[i]) + 1, int(k[i + 1])
+        before, after = max(start - ramp, 0), min(end + ramp, n)
+        gate[before:start] = np.minimum(gate[before:start], fade[::-1][: start - before])
+        gate[end:after] = np.minimum(gate[end:after], fade[: after - end])
+        stretches.append((before, after))
+    placed = {}
+    for name, x in channels.items():
+        values = np.asarray(x, dtype=float)
+        mean = float(np.mean(values)) if values.size else 0.0
+        full = np.full(n, mean)
+        full[k] = values
+        placed[name] = mean + gate * (full - mean)
+    return placed, tuple(stretches)
 
 
 def fit_dwell_record(

@@ -65,6 +65,7 @@ from bench.analysis.records import (
     amplitude_label,
     dwell_problems,
     fit_dwell_record,
+    on_true_times,
     record_channels,
 )
 from bench.analysis.repeats import RepeatSpread, combine_repeats, spread_of_repeats
@@ -644,9 +645,13 @@ def _amplitude_findings(sweep: SweepRecord, measured_m: float) -> tuple[str, ...
     )
 
 
-def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
-    """The sweep's channels, after checking that it covers the band it claims (errors name it)."""
-    rec = record_channels(sweep, WHEEL_CHANNELS, min_samples=64)
+def _checked_sweep(sweep: SweepRecord) -> tuple[dict[str, np.ndarray], tuple[tuple[int, int], ...]]:
+    """The sweep's channels on their true sample times, after checking that it covers the band it
+    claims (errors name it), and the stretches where frames were lost (first, end sample), which
+    the channels only bridge (:func:`~bench.analysis.records.on_true_times`)."""
+    rec, gaps = on_true_times(
+        record_channels(sweep, WHEEL_CHANNELS, min_samples=64), sweep.sample_offsets, sweep.sample_rate_hz
+    )
     fs = float(sweep.sample_rate_hz)
     with _named(sweep.label):
         if not 0 < sweep.start_hz < sweep.end_hz < fs / 2:
@@ -659,7 +664,30 @@ def _checked_sweep(sweep: SweepRecord) -> dict[str, np.ndarray]:
                 f" it covers {100 * sweep.duration_s / sweep.sweep_s:.0f} % of the sweep, not the"
                 f" {sweep.start_hz:g}-{sweep.end_hz:g} Hz it claims"
             )
-    return rec
+    return rec, gaps
+
+
+def _lost_frames_findings(sweep: SweepRecord, gaps: tuple[tuple[int, int], ...]) -> tuple[str, ...]:
+    """What the sweep lost on the WFS link, and where the gate closed the record around it: the
+    bins swept there are left out of the FRFs."""
+    if not gaps or sweep.sample_offsets is None:
+        return ()
+    fs = float(sweep.sample_rate_hz)
+    lost = int(sweep.sample_offsets[-1]) + 1 - len(sweep.sample_offsets)
+    where = ", ".join(f"{start / fs:.2f}-{end / fs:.2f} s" for start, end in gaps[:5])
+    more = f" and {len(gaps) - 5} more" if len(gaps) > 5 else ""
+    return (
+        f"{sweep.label}: {lost} frames lost on the WFS link; the record is gated at {where}{more}:"
+        " the bins swept there and the gate's main lobe around them are left out of every FRF and band",
+    )
+
+
+def _bridged(n: int, gaps: tuple[tuple[int, int], ...], widen: int) -> np.ndarray:
+    """The samples of a record of ``n`` within ``widen`` samples of a lost stretch."""
+    near = np.zeros(n, bool)
+    for start, end in gaps:
+        near[max(start - widen, 0) : min(end + widen, n)] = True
+    return near
 
 
 def _contact_force(
@@ -693,7 +721,7 @@ def force_difference_trace(
     The periods are found from the displacement whatever the sweep's law: its rises through half
     the amplitude above its median after a fall below half the amplitude under it (noise at rest
     and in the tapers crosses neither)."""
-    rec = _checked_sweep(sweep)
+    rec, _ = _checked_sweep(sweep)
     fs = float(sweep.sample_rate_hz)
     _, f_contact = _contact_force(rec, fs, result.post_free_run.plate)
     z = rec[DISPLACEMENT] - np.median(rec[DISPLACEMENT])
@@ -720,14 +748,20 @@ def force_difference_trace(
 
 
 def _compensate_sweep(
-    sweep: SweepRecord, rec: dict[str, np.ndarray], plate: PlateMass, comp: ModelCompensator
+    sweep: SweepRecord,
+    rec: dict[str, np.ndarray],
+    plate: PlateMass,
+    comp: ModelCompensator,
+    gaps: tuple[tuple[int, int], ...] = (),
 ) -> tuple[WheelMass, dict[str, np.ndarray], slice]:
-    """m_wheel and the accelerometer's lag from the run (contact force ``F_plate - m_comp z''``),
-    the hub-acceleration and model-compensated forces, and the span of the record where the
-    differentiator and the compensator are defined (their windows inside the record)."""
+    """m_wheel and the accelerometer's lag from the run (contact force ``F_plate - m_comp z''``, its
+    samples near a lost stretch left out), the hub-acceleration and model-compensated forces, and
+    the span of the record where the differentiator and the compensator are defined (their windows
+    inside the record)."""
     fs = float(sweep.sample_rate_hz)
     a_contact, f_contact = _contact_force(rec, fs, plate)
-    inner = np.isfinite(a_contact)
+    edge = int(np.argmax(np.isfinite(a_contact)))  # the differentiator's half-length
+    inner = np.isfinite(a_contact) & ~_bridged(a_contact.size, gaps, edge)
     mass = estimate_wheel_mass(
         f_contact[inner],
         rec[WFS_FORCE][inner],
@@ -776,7 +810,7 @@ def analyse_four_post(
             f"wheel mass {wheel_mass_kg:g} kg differs from the {tyre_obj.wheel_mass_kg:g} kg"
             " the tyre describes"
         )
-    rec = _checked_sweep(sweep)
+    rec, gaps = _checked_sweep(sweep)
     fs = float(sweep.sample_rate_hz)
     measured_amplitude_m = sweep_amplitude_m(rec[DISPLACEMENT])
     post = analyse_free_run(free_run, settle_s=settle_s)
@@ -790,7 +824,7 @@ def analyse_four_post(
                 else _design_band(sweep.end_hz, compensation_band_hz)
             )
             comp = design_model_compensator(model, tyre_obj, sensor, rubber, fs_hz=fs, band_hz=band)
-        mass, compensated, keep = _compensate_sweep(sweep, rec, post.plate, comp)
+        mass, compensated, keep = _compensate_sweep(sweep, rec, post.plate, comp, gaps)
         frfs = four_post_frfs(
             {name: x[keep] for name, x in rec.items()},
             fs,
@@ -801,6 +835,7 @@ def analyse_four_post(
             wfs=WFS_FORCE,
             hub_acceleration=HUB_ACCELERATION,
             extra_responses={name: x[keep] for name, x in compensated.items()},
+            gaps_s=tuple(((start - keep.start) / fs, (end - keep.start) / fs) for start, end in gaps),
         )
         ratios = {
             name: _sweep_ratio(frfs, response, name)
@@ -843,7 +878,7 @@ def analyse_four_post(
         unreliable_bins=int(np.sum(~all_reliable)),
         amplitude_m=float(sweep.amplitude_m),
         measured_amplitude_m=measured_amplitude_m,
-        findings=_amplitude_findings(sweep, measured_amplitude_m),
+        findings=(*_amplitude_findings(sweep, measured_amplitude_m), *_lost_frames_findings(sweep, gaps)),
     )
 
 

@@ -48,7 +48,7 @@ exact ratio and sigma over the actual scatter near 1 from the flank to the middl
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,15 +134,40 @@ def _noise_ratio(psd: np.ndarray, floor: float, excited: np.ndarray) -> float:
     return float(np.median(ratio))
 
 
-def _excitation_time_s(x: np.ndarray, fs: float, seg: int, f: np.ndarray) -> np.ndarray:
-    """Energy centroid in time of the reference at each frequency ``f`` (short-window spectrogram)."""
+def _excitation_time_s(
+    x: np.ndarray, fs: float, seg: int, f: np.ndarray, gaps_s: Sequence[tuple[float, float]] = ()
+) -> np.ndarray:
+    """Energy centroid in time of the reference at each frequency ``f`` (short-window spectrogram),
+    from the windows that hold no bridged stretch (``gaps_s``: what fills one is no excitation)."""
     short = max(seg // TIME_RESOLUTION_DIVISOR, 16)
     fc, tc, sxx = spectrogram(
         x, fs=fs, window="hann", nperseg=short, noverlap=short - max(short // 4, 1), detrend="constant"
     )
+    half_s = 0.5 * short / fs
+    for start_s, end_s in gaps_s:
+        sxx[:, (tc + half_s > start_s) & (tc - half_s < end_s)] = 0.0
     total = np.sum(sxx, axis=1)
     centroid = np.divide(sxx @ tc, total, out=np.full(fc.size, x.size / (2 * fs)), where=total > 0)
     return np.interp(f, fc, centroid)
+
+
+def _bridged_bins(
+    f: np.ndarray, t_exc: np.ndarray, gaps_s: Sequence[tuple[float, float]], *, fs: float, seg: int
+) -> np.ndarray:
+    """The bins a bridged stretch of the record spoils: those excited within it (their excitation
+    time known to the short spectrogram's window), widened by half the main lobe of a gate of its
+    length, ``1 / 2L`` either side, over which the gate spreads what was swept there (the shorter
+    the stretch, the wider). Bins the gate's sidelobes spoil further out lose their coherence and
+    are left out by the coherence test (``tests/analysis/test_analysis_sweep_lost_frames.py``)."""
+    bridged = np.zeros(f.size, bool)
+    resolution_s = max(seg // TIME_RESOLUTION_DIVISOR, 16) / fs
+    for start_s, end_s in gaps_s:
+        near = (t_exc >= start_s - resolution_s) & (t_exc <= end_s + resolution_s)
+        if not near.any():  # a stretch shorter than the bins' spacing in time: the nearest bin
+            near[np.argmin(np.abs(t_exc - 0.5 * (start_s + end_s)))] = True
+        lobe_hz = 0.5 / max(end_s - start_s, 1.0 / fs)
+        bridged |= (f >= f[near].min() - lobe_hz) & (f <= f[near].max() + lobe_hz)
+    return bridged
 
 
 def sweep_frfs(
@@ -158,11 +183,17 @@ def sweep_frfs(
     noise_band_hz: tuple[float, float] | None = None,
     min_coherence: float = 0.9,
     energy_floor: float = 1e-3,
+    gaps_s: Sequence[tuple[float, float]] = (),
 ) -> dict[str, SweepFrf]:
     """FRFs of every response channel over ``reference`` (see the module docstring).
 
     ``noise_psd`` maps channel names (``reference_name`` and response names) to known one-sided
     noise densities; channels not in it have their floor estimated in ``noise_band_hz``.
+    ``gaps_s``: stretches of the record (s) where frames were lost and the record only bridges them
+    (:func:`bench.analysis.records.on_true_times`): a bin excited within one (its excitation time
+    known to an eighth of a segment, the short spectrogram's window) is neither reliable nor a
+    flank bin. Elsewhere a segment over a stretch sees all its channels bridged alike: the
+    response's transient at the stretch's edges is what the coherence test judges.
     """
     fs = as_sample_rate(fs_hz)
     if estimator not in ESTIMATORS:
@@ -181,9 +212,10 @@ def sweep_frfs(
     if not in_band.any():
         raise AnalysisInputError(f"band {band_hz} Hz holds no frequency bin (resolution {fs / seg:.3g} Hz)")
     excited = in_band & (sxx >= energy_floor * np.median(sxx[in_band]))
-    t_exc = _excitation_time_s(x, fs, seg, f)
+    t_exc = _excitation_time_s(x, fs, seg, f, gaps_s)
     half_seg_s = 0.5 * seg / fs
     covered = (t_exc >= half_seg_s) & (t_exc <= n / fs - half_seg_s)
+    bridged = _bridged_bins(f, t_exc, gaps_s, fs=fs, seg=seg)
     noise_band = noise_band_hz or (2.0 * hi, 0.4 * fs)
     out = {}
     for name, y in sig.items():
@@ -194,7 +226,7 @@ def sweep_frfs(
             h2 = syy / np.conj(sxy)
             coh = np.abs(sxy) ** 2 / (sxx * syy)
         coh = np.nan_to_num(coh, nan=0.0)
-        usable = excited & (coh >= min_coherence)
+        usable = excited & (coh >= min_coherence) & ~bridged
         reliable = usable & covered
         if not reliable.any():
             raise AnalysisInputError(
@@ -221,7 +253,7 @@ def sweep_frfs(
             chosen,
             float(ref_ratio),
             float(resp_ratio),
-            (in_band & (coh >= min_coherence) & ~covered)[keep],
+            (in_band & (coh >= min_coherence) & ~covered & ~bridged)[keep],
         )
     return out
 
