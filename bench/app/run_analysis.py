@@ -90,8 +90,8 @@ class RunInputs:
     records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
     of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
     (``sweep``); a tracked dwell's looks (``track``); a road replay (``replay``). ``read_error``: why
-    the records could not be read (the analysis is then flagged). ``link_note``: the frames the run
-    lost on the WFS link, said with its analysis (empty: none)."""
+    the records could not be read (the analysis is then flagged). ``notes``: what the run's events
+    say that its analysis must say too (the frames it lost on the WFS link, the limits it reached)."""
 
     run_id: str
     kind: str
@@ -102,7 +102,16 @@ class RunInputs:
     track: TrackRecord | None = None
     replay: RoadReplayRecord | None = None
     read_error: str = ""
-    link_note: str = ""
+    notes: tuple[str, ...] = ()
+
+
+def run_event_notes(run: RunView) -> tuple[str, ...]:
+    """What ``run``'s events say that its analysis must say too: the frames it lost on the WFS link
+    (:func:`lost_frames_note`) and each limit it reached (a ``limit`` event: an amplitude excursion,
+    a response limit's alarm), flagged."""
+    limits = tuple(f"FLAG limit reached: {e.text}" for e in run.events if e.kind == "limit")
+    lost = lost_frames_note(run)
+    return ((lost,) if lost else ()) + limits
 
 
 def lost_frames_note(run: RunView) -> str:
@@ -128,7 +137,7 @@ def lost_frames_note(run: RunView) -> str:
 def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
     """Read what the analysis of ``run`` of ``campaign`` needs (:class:`RunInputs`)."""
     conditions = dict(run.conditions)
-    inputs = RunInputs(run.run_id, run.kind, conditions, link_note=lost_frames_note(run))
+    inputs = RunInputs(run.run_id, run.kind, conditions, notes=run_event_notes(run))
     try:
         if run.kind in ("hammer", "road_replay"):
             return dataclasses.replace(
@@ -179,10 +188,8 @@ class RunAnalyser:
             )
         except (AnalysisInputError, ValueError) as exc:
             outcome = RunAnalysis.failed(run.run_id, run.kind, str(exc))
-        if run.link_note:  # said after the analysis's first line, whatever it found
-            outcome = dataclasses.replace(
-                outcome, lines=(*outcome.lines[:1], run.link_note, *outcome.lines[1:])
-            )
+        if run.notes:  # said after the analysis's first line, whatever it found
+            outcome = dataclasses.replace(outcome, lines=(*outcome.lines[:1], *run.notes, *outcome.lines[1:]))
         self.knowledge.analysed_runs[run.run_id] = outcome
         return outcome
 

@@ -52,6 +52,8 @@ class RunLog:
                 return f"prompt {event.prompt_id}: {event.text} -> {event.answer}{unit}"
             case ev.InterlockTripped():
                 return f"INTERLOCK {event.name}: {event.reason}"
+            case ev.LimitReached():
+                return f"LIMIT {event.text}"
             case ev.HostStalled() if event.frames_lost:  # a stall that lost nothing is in the file only
                 return ev.host_stall_text(event)
             case ev.RunFinished():
