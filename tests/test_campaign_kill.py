@@ -25,7 +25,8 @@ import pytest
 from bench.app.plan import plan_campaign
 from bench.app.progress import DoneBefore
 from bench.app.resume import done_in_file
-from bench.engine.amplitude import achieved_amplitude, amplitude_mm
+from bench.engine.amplitude import amplitude_mm
+from bench.numerics.sine_fit import fit_latest_cycles
 from bench.store import open_campaign
 from tests.sequence_texts import sequence_text
 from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench
@@ -160,5 +161,5 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
         for record in records:  # each done point's slice holds its own dwell, recorded after the resume too
             start, stop = (round(t * record.sample_rate_hz) for t in record.hold_s)
             z = record.channels["z_base_m"][start:stop]
-            fit = achieved_amplitude(z, np.arange(z.size), record.sample_rate_hz, record.freq_hz)
+            fit = fit_latest_cycles(z, np.arange(z.size), record.sample_rate_hz, record.freq_hz)
             assert amplitude_mm(fit) == pytest.approx(1.0, rel=0.05)

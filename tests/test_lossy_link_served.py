@@ -29,6 +29,8 @@ import serial
 
 from bench.store import open_campaign
 from drivers.wfs_commands import MAX_REPLY_LEN
+from sequences import dump_sequence
+from tests.campaign_lab import grid_sequence
 from tests.served_lab import served_lab
 from tests.test_campaign_cli import _bench_toml, wfsbench
 
@@ -36,30 +38,7 @@ LOSS_S, PERIOD_S = 0.35, 1.5
 #: A reply line of the WFS command set (drivers/wfs_commands.py): kept through a loss.
 REPLY = re.compile(rb"\$[\x20-\x7e]{1,%d}\r\n" % (MAX_REPLY_LEN - 3))
 AMPLITUDE_MM = 1.0
-GRID = """
-[sequence]
-name = "lossy"
-description = "a 1 mm grid behind a lossy WFS line"
-
-[[steps]]
-type = "hydraulics"
-level = "low"
-
-[[steps]]
-type = "hydraulics"
-level = "high"
-
-[[steps]]
-type = "dwell_grid"
-freqs_hz = [16, 30, 36]
-amplitudes_mm = [1]
-settle_cycles = 2
-settle_min_s = 0.1
-measure_cycles = 2
-measure_min_s = 0.5
-taper_in_s = 0.2
-taper_out_s = 0.2
-"""
+GRID = dump_sequence(grid_sequence((16.0, 30.0, 36.0), AMPLITUDE_MM))
 
 
 class LossyLine:

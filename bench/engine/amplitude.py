@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.numerics.sine_fit import SineFit, fit_latest_cycles
+from bench.numerics.sine_fit import SineFit
 from sequences.response_limits import LimitAction
 
 #: The limit a measured amplitude beyond its target reaches (:meth:`AmplitudeControl.excursion`).
@@ -166,21 +166,6 @@ class AmplitudeControl:
         if corrections >= self.max_corrections:
             return AmplitudeDecision(True, None, error, f"amplitude not verified: {refusal}")
         return AmplitudeDecision(False, commanded_mm, error, f"measured again at the same command: {refusal}")
-
-
-def achieved_amplitude(
-    displacement_m: np.ndarray,
-    offsets: np.ndarray,
-    sample_rate_hz: float,
-    freq_hz: float,
-    *,
-    start: int | None = None,
-    end: int | None = None,
-) -> SineFit | None:
-    """The displacement's fit over the latest whole cycles of time in the window ``start`` to
-    ``end`` (true sample ``offsets``; :func:`~bench.numerics.sine_fit.fit_latest_cycles`); its
-    amplitude in mm is :func:`amplitude_mm`. None when the window holds no whole cycle."""
-    return fit_latest_cycles(displacement_m, offsets, sample_rate_hz, freq_hz, start=start, end=end)
 
 
 def amplitude_mm(fit: SineFit | None) -> float:
