@@ -131,31 +131,35 @@ class _Connection(ServerRequestHandler):
         self._pending: deque[tuple[ModbusPDU, tuple | None, int]] = deque()  # request, sender, bytes
         self._serial = asyncio.Lock()
         self._closing = False  # a malformed header came: nothing more is read
+        #: bytes of an ADU whose rest has not come yet: a buffer of its own, since pymodbus empties
+        #: ``recv_buffer`` whenever it sends (a reply going out would lose the next request's start)
+        self._adu_bytes = b""
 
     def datagram_received(self, data: bytes, addr: tuple | None) -> None:
         """Over TCP, cut the stream into ADUs by their MBAP length and hand each on alone, so that
         every request of a segment is served (pymodbus decodes one ADU per arrival and drops a
         buffer beyond one ADU's size); a malformed header closes the connection at once, whatever
-        follows it. On the RTU line (no MBAP, a single master waiting for each reply) pymodbus
+        follows it. A request split anywhere across segments is put together again, whatever replies
+        go out meanwhile. On the RTU line (no MBAP, a single master waiting for each reply) pymodbus
         frames the bytes itself."""
         if not self.server.mbap:
             super().datagram_received(data, addr)
             return
         if self._closing:
             return
-        self.recv_buffer += data
-        while len(self.recv_buffer) >= _MBAP_HEADER_BYTES:
-            protocol_id, length = struct.unpack_from(">2xHH", self.recv_buffer)
+        self._adu_bytes += data
+        while len(self._adu_bytes) >= _MBAP_HEADER_BYTES:
+            protocol_id, length = struct.unpack_from(">2xHH", self._adu_bytes)
             if protocol_id != 0 or length not in _MBAP_LENGTH:
-                log.warning("malformed MBAP header %s: closing the connection", self.recv_buffer[:7].hex(" "))
-                self.recv_buffer = b""
+                log.warning("malformed MBAP header %s: closing the connection", self._adu_bytes[:7].hex(" "))
+                self._adu_bytes = b""
                 self._closing = True  # the requests before it are answered first, nothing after it
                 self.loop.call_soon(lambda: self.loop.create_task(self._close_after_replies()))
                 return
             size = _MBAP_HEADER_BYTES + length
-            if len(self.recv_buffer) < size:
+            if len(self._adu_bytes) < size:
                 return  # the rest of this ADU comes in a later segment
-            adu, self.recv_buffer = self.recv_buffer[:size], self.recv_buffer[size:]
+            adu, self._adu_bytes = self._adu_bytes[:size], self._adu_bytes[size:]
             self.callback_data(adu, addr)
 
     def callback_data(self, data: bytes, addr: tuple | None = None) -> int:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+import random
 import struct
 
 import pytest
@@ -213,6 +214,43 @@ async def test_a_request_split_over_segments_is_answered_once_whole(controller):
         assert await _read_replies_until(reader, 1) == [(TID, bytes([4, 2, 0, 1]))]
     finally:
         writer.close()
+
+
+@pytest.mark.parametrize("cut", [3, 9], ids=["inside the next header", "inside the next PDU"])
+async def test_a_request_split_after_a_complete_one_is_answered_once_its_rest_comes(controller, cut):
+    """A whole request and the start of the next in one segment; the first's reply goes out (it did
+    empty the server's buffer, the next request's start with it, before the fix), then the rest."""
+    first, second = (_mbap(struct.pack(">BHH", 4, 0, 1), tid=tid) for tid in (1, 2))
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        writer.write(first + second[:cut])
+        await writer.drain()
+        assert await _read_replies_until(reader, 1) == [(1, bytes([4, 2, 0, 1]))]  # sent meanwhile
+        writer.write(second[cut:])
+        await writer.drain()
+        assert await _read_replies_until(reader, 1) == [(2, bytes([4, 2, 0, 1]))]
+    finally:
+        writer.close()
+
+
+async def test_requests_sent_in_pieces_of_1_to_30_bytes_are_all_answered_in_order(controller):
+    """200 requests cut into seeded pieces of 1-30 bytes, each written alone (a lab's client may
+    split its writes anywhere): every one answered, with its own transaction id, in order."""
+    data = b"".join(_mbap(struct.pack(">BHH", 4, 0, 1), tid=tid) for tid in range(1, 201))
+    rng = random.Random(7)
+    reader, writer = await asyncio.open_connection(*controller.address)
+    try:
+        position = 0
+        while position < len(data):
+            size = rng.randint(1, 30)
+            writer.write(data[position : position + size])
+            await writer.drain()
+            await asyncio.sleep(0)  # let the server's replies go out between pieces
+            position += size
+        replies = await _read_replies_until(reader, 200)
+    finally:
+        writer.close()
+    assert [tid for tid, _ in replies] == list(range(1, 201)), f"{len(replies)} of 200 answered"
 
 
 @pytest.mark.parametrize(
