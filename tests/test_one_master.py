@@ -9,6 +9,7 @@ bench configuration naming them as real devices. The lock directory is the test'
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
@@ -186,9 +187,26 @@ def test_a_lock_dies_with_its_process(tmp_path):
             holder.wait(30)
 
 
+def _locked_by_another(key: str) -> bool:
+    """Whether the lock file of ``key`` is locked, as another process would find it: its own open
+    file and a non-blocking flock (the module's bookkeeping plays no part)."""
+    fd = os.open(locks._lock_path(key), os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # closing it releases a flock it took
+    return False
+
+
 def test_locks_are_reentrant_within_a_process():
+    """Held twice, the lock stays taken after the inner release and is free after the outer one."""
     key = "test:reentrant"
-    with locks.holding(key, "a thing"), locks.holding(key, "a thing"):
-        pass
-    with locks.holding(key, "a thing"):  # released by the last holder: free again
-        pass
+    with locks.holding(key, "a thing"):
+        with locks.holding(key, "a thing"):
+            assert _locked_by_another(key)
+        assert _locked_by_another(key)  # the inner release did not unlock it
+    assert not _locked_by_another(key)  # released by the last holder: free again
+    with locks.holding(key, "a thing"):
+        assert _locked_by_another(key)
