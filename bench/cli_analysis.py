@@ -36,11 +36,13 @@ def _status_line(analysis: CampaignAnalysis) -> str:
     run whose analysis failed or is partial, and why."""
     runs = analysis.not_complete
     if not runs:
-        return f"== analysis complete: {len(analysis.runs)} runs analysed"
+        n = len(analysis.runs)
+        return f"== analysis complete: {n} run{'' if n == 1 else 's'} analysed"
     why = "; ".join(
         f"{run.run_id} {run.status}: {run.error or ', '.join(run.omitted)}" for run in runs
     )
-    return f"== analysis partial: {len(runs)} of {len(analysis.runs)} runs not complete ({why})"
+    n = len(analysis.runs)
+    return f"== analysis partial: {len(runs)} of {n} run{'' if n == 1 else 's'} not complete ({why})"
 
 
 def _analyze(args: argparse.Namespace) -> int:

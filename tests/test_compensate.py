@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -141,18 +142,21 @@ def test_the_linearised_band_is_the_spread_of_a_monte_carlo_over_the_parameters(
 
 
 def test_the_command_writes_the_force_and_the_exported_filters_reproduce_it(
-    campaign, analysis, road, tmp_path
+    campaign, analysis, road, tmp_path, capsys
 ):
     path, columns, truth = road
     out, exported, table = tmp_path / "out.h5", tmp_path / "filters.json", tmp_path / "filters.csv"
     args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)]
     assert main([*args, "--filters", str(exported)]) == EXIT_OK
+    said = capsys.readouterr().out
     assert main(args) == EXIT_INVALID  # the output is never replaced
     with h5py.File(out, "r") as f:
         force, u95, t = f["f_contact_n"][()], f["u95_n"][()], f["t_s"][()]
         assert f.attrs["schema"] == "wfs-bench compensated force"
         assert f["f_contact_n"].attrs["unit"] == "N"
         valid_band = tuple(f.attrs["valid_band_hz"])
+    assert f"valid band {valid_band[0]:.4g}-{valid_band[1]:.4g} Hz" in said  # four digits, as everywhere
+    assert not re.search(r"valid band \d+\.\d{5,}", said)
     assert np.array_equal(t, columns[:, 0])
     doc = json.loads(exported.read_text())
     h_f, h_a, latency = np.array(doc["taps_wfs"]), np.array(doc["taps_accel"]), doc["latency_samples"]

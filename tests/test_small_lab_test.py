@@ -55,7 +55,7 @@ def test_three_dwells_without_a_free_run_give_the_measured_ratios_and_say_why_no
         " three parameters and the fit a residual to be judged by); the measured F_wfs/F_contact (95 %):"
     ) in text
     assert text.splitlines()[-1] == (
-        "== analysis partial: 1 of 1 runs not complete (small partial: 2 mm: no tyre fit: 3 reliable"
+        "== analysis partial: 1 of 1 run not complete (small partial: 2 mm: no tyre fit: 3 reliable"
         " dwells, a tyre fit needs at least 4 (Model 2 has three parameters and the fit a residual to be"
         " judged by))"
     )

@@ -261,6 +261,6 @@ def write_output(compensation: Compensation, out: Path, *, campaign: Path) -> li
         f"campaign {campaign}: {basis.label}",
         f"measurement {measurement.source}: {measurement.n_samples} samples at {filters.fs_hz:g} Hz",
         f"filters {filters.n_taps} taps, latency {filters.latency_samples} samples"
-        f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:g}-{hi:g} Hz",
+        f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:.4g}-{hi:.4g} Hz",
         f"95 % band: median half-width {np.nanmedian(u95):.3g} N",
     ]
