@@ -298,3 +298,20 @@ def test_a_run_recorded_without_the_wheel_is_refused_even_with_every_channel(tmp
     args = ["compensate", str(path), str(path), "--run", "bare", "--pressure", "2.5", "--out", str(out)]
     assert main(args) == EXIT_REFUSED
     assert "without the wheel on the bench" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "said"),
+    [
+        ("time,fz,acc\n0,1,2\n0.001,1,2\n", "'t_s'"),  # its own column names
+        ("t_s;fz_wfs_n;a_hub_m_s2\n0;1;2\n", ""),  # another separator
+    ],
+    ids=["other column names", "semicolons"],
+)
+def test_a_csv_read_without_a_mapping_says_what_it_must_hold_and_names_the_mapping(tmp_path, text, said):
+    path = tmp_path / "m.csv"
+    path.write_text(text)
+    with pytest.raises(MeasurementError) as refused:
+        read_measurement(path)
+    assert "read without --mapping" in str(refused.value) and "docs/import.md" in str(refused.value)
+    assert said in str(refused.value)

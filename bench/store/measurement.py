@@ -31,6 +31,12 @@ from bench.store.reader import open_campaign
 MEASUREMENT_CHANNELS = (WFS_FORCE, HUB_ACCELERATION)
 #: The time column of a CSV measurement read without a mapping.
 DEFAULT_TIME_COLUMN = "t_s"
+#: What an error on a CSV read without a mapping adds: what such a file must be, and the way out.
+_WITHOUT_MAPPING = (
+    f" (read without --mapping: a comma-separated file whose header names a time column"
+    f" {DEFAULT_TIME_COLUMN!r} in s and the columns {', '.join(map(repr, MEASUREMENT_CHANNELS))};"
+    " --mapping names the file's own columns, units and layout: docs/import.md)"
+)
 MDF_SUFFIXES = (".mf4", ".mdf", ".mdf4")
 CAMPAIGN_SUFFIXES = (".h5", ".hdf5")
 
@@ -161,14 +167,15 @@ def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
         dialect, timing = mapping.dialect, mapping.timing
         if timing is None:
             raise MeasurementError(f"{mapping.path}: time: missing (a CSV measurement needs its sample rate)")
+    hint = "" if mapping is not None else _WITHOUT_MAPPING
     try:
         table = read_csv(path, dialect, timing, columns)
     except CsvError as exc:
-        raise MeasurementError(str(exc)) from None
+        raise MeasurementError(f"{exc}{hint}") from None
     for column in columns:
         if column.channel not in table.columns:
             raise MissingChannelError(
-                str(table.missing(column, f": the compensation needs {column.channel}"))
+                str(table.missing(column, f": the compensation needs {column.channel}")) + hint
             )
     return Measurement(
         str(path), table.sample_rate_hz, {c.channel: table.columns[c.channel] for c in columns}
