@@ -49,6 +49,13 @@ log = logging.getLogger(__name__)
 _CATCH_UP_LOOK_S = 0.02
 #: commands never re-sent on timeout: START restarts the sample clock, TARE re-zeroes the loads
 NOT_RESENT = frozenset({"START", "TARE"})
+#: How long past its port's read timeout a read may return and still be taken as having waited for
+#: the line (s): a woken thread's wait for a processor on a loaded host. A read that returns later
+#: than that was held by the host (see :meth:`WfsReader._unread_s`).
+HELD_READ_MARGIN_S = 0.02
+#: How long a consumer whose wait for blocks the host held past its timeout waits further, at most,
+#: for the reader to read what the port holds (s; see :meth:`Subscription.get_all`)
+CATCH_UP_AFTER_HOLD_S = 0.5
 
 
 class SerialLike(Protocol):
@@ -72,10 +79,11 @@ class SampleBlock:
     ``arrived_s``: when the bytes that completed the block arrived at the host (``time.monotonic()``
     when the port's read returned them), not when a consumer got round to the block. ``unread_s``:
     how long the port went unread before that read (the reader thread busy or held: waiting for a
-    full lossless subscription, descheduled); a host stall longer than the port's receive buffer
-    lasts at the line rate (4095 bytes: 44 ms at 921600 baud) loses frames: the first read after it
-    returns what the buffer held, and the gap comes with the first frame after the overrun, in that
-    read's block or the next ones (:attr:`frames_missing`)."""
+    full lossless subscription, descheduled, or the whole process stopped, even inside the read:
+    see :meth:`WfsReader._unread_s`); a host stall longer than the port's receive buffer lasts at
+    the line rate (4095 bytes: 44 ms at 921600 baud) loses frames: the first read after it returns
+    what the buffer held, and the gap comes with the first frame after the overrun, in that read's
+    block or the next ones (:attr:`frames_missing`)."""
 
     frames: np.ndarray
     gaps: tuple[Gap, ...] = ()
@@ -114,7 +122,18 @@ def merge_blocks(blocks: list[SampleBlock]) -> SampleBlock:
 class Subscription:
     """One consumer's queue of sample blocks (see :meth:`WfsReader.subscribe`)."""
 
-    def __init__(self, *, lossless: bool, max_frames: int, on_close: Callable[[Subscription], None]) -> None:
+    def __init__(
+        self,
+        *,
+        lossless: bool,
+        max_frames: int,
+        on_close: Callable[[Subscription], None],
+        parsed_through: Callable[[], float] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """``parsed_through()``: the ``time.monotonic()`` up to which the reader has parsed every byte
+        that arrived at the port (None: not known; a wait the host held then ends at its timeout);
+        ``clock``: what tells how long a wait took (``time.monotonic``)."""
         if max_frames < 1:
             raise ValueError(f"max_frames must be >= 1, got {max_frames}")
         self.lossless = lossless
@@ -125,15 +144,18 @@ class Subscription:
         self._cond = threading.Condition()
         self._closed = False
         self._on_close = on_close
+        self._parsed_through = parsed_through
+        self._clock = clock
 
     @property
     def closed(self) -> bool:
         return self._closed
 
     def get(self, timeout_s: float | None = None) -> SampleBlock | None:
-        """The next block, or None if none arrived within ``timeout_s`` (or the subscription is closed)."""
+        """The next block, or None if none arrived within ``timeout_s`` (or the subscription is closed);
+        a wait the host held past ``timeout_s`` waits for the reader as :meth:`get_all` says."""
         with self._cond:
-            self._cond.wait_for(lambda: self._blocks or self._closed, timeout_s)
+            self._wait(timeout_s)
             if not self._blocks:
                 return None
             block = self._blocks.popleft()
@@ -146,9 +168,16 @@ class Subscription:
         None if none arrived within ``timeout_s``.
 
         A consumer that has fallen behind catches up in one step: its cost per call is paid once for
-        all the queued frames instead of once per block the port happened to deliver."""
+        all the queued frames instead of once per block the port happened to deliver.
+
+        None means that nothing arrived at the port within the wait, also when the host held the
+        wait past ``timeout_s`` (the process stopped, the thread starved): the reader was held with
+        it, and what arrived meanwhile waits in the port unread, so such a wait goes on until the
+        reader has parsed every byte that had arrived by the wait's end, or a block comes (at most
+        :data:`CATCH_UP_AFTER_HOLD_S` longer). Its consumer then sees the host stall's block first,
+        not an empty wait that would read as a quiet link."""
         with self._cond:
-            self._cond.wait_for(lambda: self._blocks or self._closed, timeout_s)
+            self._wait(timeout_s)
             if not self._blocks:
                 return None
             blocks = list(self._blocks)
@@ -156,6 +185,21 @@ class Subscription:
             self._frames = 0
             self._cond.notify_all()
         return blocks[0] if len(blocks) == 1 else merge_blocks(blocks)
+
+    def _wait(self, timeout_s: float | None) -> None:
+        """Wait, holding the condition, for a block or the close, up to ``timeout_s``; a wait held
+        past it by more than :data:`HELD_READ_MARGIN_S` goes on until the reader has caught up with
+        the port (see :meth:`get_all`)."""
+        ready = lambda: bool(self._blocks) or self._closed  # noqa: E731 - the condition's predicate
+        start = self._clock()
+        if self._cond.wait_for(ready, timeout_s) or timeout_s is None or self._parsed_through is None:
+            return
+        ended = self._clock()
+        if ended - start <= timeout_s + HELD_READ_MARGIN_S:
+            return
+        limit = ended + CATCH_UP_AFTER_HOLD_S
+        while not ready() and self._parsed_through() < ended and (left := limit - self._clock()) > 0:
+            self._cond.wait(min(left, _CATCH_UP_LOOK_S))
 
     def read_frames(self, n: int, timeout_s: float) -> SampleBlock:
         """Collect at least ``n`` frames (whole blocks) within ``timeout_s``, gaps and resyncs re-indexed.
@@ -236,13 +280,14 @@ class WfsReader:
         self._connected = threading.Event()
         self._thread: threading.Thread | None = None
         self.last_error: str | None = None
-        #: ``time.monotonic()`` when a read of the port last returned bytes (None: none yet)
+        #: ``time.monotonic()`` when bytes were last seen at the port: a read returned them, or they
+        #: were waiting there as the reader took them (None: none yet)
         self.last_arrival_s: float | None = None
-        #: the longest the port went unread between two reads since the reader started (s)
+        #: the longest the port went unread since the reader started (s): the ``unread_s`` of every
+        #: read, bytes or none
         self.longest_unread_s = 0.0
         #: the most bytes one read took from the port since the reader started: how full its receive
-        #: buffer got (a read held inside the port's read, after its system call, by the
-        #: interpreter's lock, shows here and not in ``longest_unread_s``)
+        #: buffer got
         self.largest_backlog_bytes = 0
         self._read_returned_s: float | None = None
         #: ``time.monotonic()`` up to which every byte that arrived at the port has been parsed (its
@@ -250,11 +295,15 @@ class WfsReader:
         self._parsed_through_s = float("-inf")
 
     @classmethod
-    def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.05, **kwargs) -> WfsReader:
+    def serial(cls, url: str, *, baudrate: int = 921600, timeout_s: float = 0.02, **kwargs) -> WfsReader:
         """A reader on a serial port or pyserial URL (``/dev/ttyUSB0``, a pty path, ``socket://...``).
 
         ``timeout_s`` bounds a read on an idle line (how often the thread looks at its stop flag);
-        bytes are handed on as soon as they arrive, whatever it is.
+        bytes are handed on as soon as they arrive, whatever it is. It also bounds how long the host
+        can hold a read unseen: a read that outlasts it by :data:`HELD_READ_MARGIN_S` was held by the
+        host (:meth:`_unread_s`), so the default with its margin (40 ms) stays within the time a
+        real port's receive buffer lasts (4095 bytes: 44 ms at 921600 baud): a host stall that loses
+        frames is always told as one.
         """
         return cls(lambda: serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s), **kwargs)
 
@@ -294,9 +343,14 @@ class WfsReader:
         return self._connected.wait(timeout_s)
 
     def link_silence_s(self) -> float:
-        """How long (s) no byte has arrived at the port: since the last read that returned bytes, or 0
-        while bytes wait in the port unread (the host is behind: the reader thread was not scheduled,
-        not the link went quiet). Infinite before any byte arrived."""
+        """How long (s) no byte has arrived at the port: since bytes were last seen there
+        (:attr:`last_arrival_s`), or 0 while bytes wait in the port unread (the host is behind: the
+        reader thread was not scheduled, or the whole process was stopped, not the link went quiet).
+        Infinite before any byte arrived.
+
+        The reader stamps :attr:`last_arrival_s` before it takes bytes it found waiting, so a port
+        emptied by a read that has not returned yet (the process resumed after a stop, the reader
+        taking the backlog) never reads as a silence that lasted since before the stop."""
         port = self._port
         try:
             if port is not None and port.in_waiting > 0:
@@ -324,7 +378,12 @@ class WfsReader:
         Close it when done: a lossless subscription nobody reads stops the reader, and with it the
         replies to commands, so its consumer reads in a thread of its own.
         """
-        sub = Subscription(lossless=lossless, max_frames=max_frames, on_close=self._unsubscribe)
+        sub = Subscription(
+            lossless=lossless,
+            max_frames=max_frames,
+            on_close=self._unsubscribe,
+            parsed_through=lambda: self._parsed_through_s,
+        )
         with self._subscriptions_lock:
             self._subscriptions.append(sub)
         return sub
@@ -476,10 +535,11 @@ class WfsReader:
                     self._stop.wait(self.reconnect_interval_s)
                     continue
                 opened_before = True
+            port = self._port
             called = time.monotonic()
             try:
-                waiting = self._port.in_waiting
-                data = self._read_available(self._port)
+                waiting = port.in_waiting
+                data, first_s, held_between_s = self._read_available(port)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 # pyserial raises TypeError/AttributeError when the port is closed under a read
                 self.last_error = f"read failed: {exc}"
@@ -488,7 +548,8 @@ class WfsReader:
                 self._read_returned_s = None
                 continue
             returned = time.monotonic()
-            unread = self._unread_s(called, returned, waiting)
+            held = bool(data) and _read_held(port, first_s - called)
+            unread = max(self._unread_s(called, returned, waiting > 0 or held), held_between_s)
             self._read_returned_s = returned
             self.longest_unread_s = max(self.longest_unread_s, unread)
             self.largest_backlog_bytes = max(self.largest_backlog_bytes, len(data))
@@ -498,25 +559,53 @@ class WfsReader:
             if len(data) < self.read_size:  # the port was empty after the call: all read by then
                 self._parsed_through_s = called
 
-    def _unread_s(self, called_s: float, returned_s: float, waiting: int) -> float:
+    def _unread_s(self, called_s: float, returned_s: float, held: bool) -> float:
         """How long the port went unread before the read called at ``called_s`` returned at
-        ``returned_s``: from the previous read's return to this one's when bytes were waiting at the
-        call (the read itself may have been held too: by the interpreter's lock, or descheduled
-        after its system call), else to the call (the read then waited for the line, not the host)."""
+        ``returned_s``: from the previous read's return to this one's when the host ``held`` the
+        port's bytes, else to the call (the read then waited for the line, not the host).
+
+        The host held them when bytes were waiting at the call (the reader thread busy, waiting for
+        a full lossless subscription, descheduled), or when the read came back with bytes later than
+        the port's own read timeout allows (:func:`_read_held`). The second is a host stopped or
+        starved *inside* the read: a process stopped (SIGSTOP, a debugger, a machine suspended)
+        while its reader waits in the read's system call finds, when it resumes, the read returning
+        at once with what the port kept meanwhile, and nothing was waiting when the read was called.
+        Unread time counted only up to the call would read ~0 s for the whole stop, with a full
+        buffer behind it and the frames lost to the overrun booked as the link's.
+
+        A read that waited for the line returns as soon as a byte arrives, and on an idle line empty
+        at its timeout: returning with bytes later than the timeout allows, it was held for part of
+        its wait at least. When its bytes arrived within that wait is not known, so the whole wait
+        is counted: an upper bound, off by at most the read timeout while the line streams (bytes
+        arrive within it), which it does through any stop long enough to overrun the port's buffer;
+        a line quiet for part of the stop (a reply arriving at its end) makes it longer than the
+        bytes waited, which costs a stall recorded without frames lost, never frames booked wrong."""
         since = self._read_returned_s
         if since is None:
             return 0.0
-        return (returned_s if waiting > 0 else called_s) - since
+        return (returned_s if held else called_s) - since
 
-    def _read_available(self, port: SerialLike) -> bytes:
+    def _read_available(self, port: SerialLike) -> tuple[bytes, float, float]:
         """What the port holds, as soon as it holds anything: wait (up to the port's timeout) for one
         byte, then take whatever else has arrived meanwhile, up to ``read_size`` bytes, without
         waiting for more. A pty hands over at most 4 KiB per read: the reads go on while bytes are
-        waiting, so a fast stream is parsed in large pieces."""
-        data = port.read(min(port.in_waiting, self.read_size) or 1)
+        waiting, so a fast stream is parsed in large pieces.
+
+        Returns the bytes, when the first read returned (``time.monotonic()``), and the longest time
+        between the returns of two reads that took bytes found waiting (each returns at once unless
+        the host held the thread: that time the waiting bytes went unread). Bytes found waiting are
+        seen at the port (:attr:`last_arrival_s`) before they are taken."""
+        if waiting := min(port.in_waiting, self.read_size):
+            self.last_arrival_s = time.monotonic()
+        data = port.read(waiting or 1)
+        first = last = time.monotonic()
+        held = 0.0
         while data and (waiting := min(port.in_waiting, self.read_size - len(data))) > 0:
+            self.last_arrival_s = time.monotonic()
             data += port.read(waiting)
-        return data
+            now = time.monotonic()
+            held, last = max(held, now - last), now
+        return data, first, held
 
     def _try_open(self, reopening: bool) -> bool:
         try:
@@ -557,3 +646,14 @@ class WfsReader:
             self._replies.put(reply)
         for capture in result.captures:
             self._captures.put(capture)
+
+
+def _read_held(port: SerialLike, wait_s: float) -> bool:
+    """Whether a read that came back with bytes after waiting ``wait_s`` for its first one was held
+    by the host: it waited longer than ``port``'s read timeout (pyserial's ``timeout``) allows,
+    with :data:`HELD_READ_MARGIN_S` for the wake-up of its thread. A read that waits for the line
+    returns as soon as a byte arrives and, on a quiet line, empty at its timeout; one that returns
+    with bytes later was not running when it could have returned. A port without a timeout waits
+    for the line as long as it is quiet: nothing tells its held reads apart (False)."""
+    timeout = getattr(port, "timeout", None)
+    return isinstance(timeout, int | float) and wait_s > timeout + HELD_READ_MARGIN_S

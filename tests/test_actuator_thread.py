@@ -10,11 +10,14 @@ from contextlib import contextmanager
 
 import pytest
 
-from bench.app.actuator_thread import ThreadedActuator
+from bench.app.actuator_thread import ControllerReadback, ThreadedActuator
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings
-from drivers.actuator import DEFAULT_TIMEOUT_S, ActuatorClient
+from bench.engine import events as ev
+from bench.engine.engine import RunStoppedError
+from bench.engine.interlocks import ControllerInterlock, Observation, trips
+from drivers.actuator import DEFAULT_TIMEOUT_S, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError
-from drivers.register_map import ControllerState, InterlockFlag
+from drivers.register_map import ControllerState, ErrorCode, InterlockFlag
 from drivers.setpoints import DwellSetpoint
 from sequences.limits import BenchLimits
 from tests.waiting import wait_until
@@ -127,3 +130,35 @@ def test_a_late_reply_to_a_setpoint_write_writes_the_setpoint_again_and_start_go
         )
         assert lab.bench.controller.setpoints["frequency_hz"] == pytest.approx(12.0)
         actuator.stop()
+
+
+@pytest.mark.parametrize(
+    ("state", "flags", "reason"),
+    [
+        (ControllerState.INTERLOCK, InterlockFlag.WATCHDOG, "controller interlock: watchdog"),
+        (ControllerState.ESTOP, InterlockFlag.ESTOP, "controller interlock: estop"),
+        (ControllerState.ESTOP, InterlockFlag(0), "controller interlock: estop"),
+        (
+            ControllerState.INTERLOCK,
+            InterlockFlag.DISPLACEMENT | InterlockFlag.FORCE,
+            "controller interlock: displacement, force",
+        ),
+        (ControllerState.INTERLOCK, InterlockFlag(0), "controller interlock: no flag set"),
+    ],
+)
+def test_the_controllers_interlock_reads_once_in_the_runs_reason(state, flags, reason):
+    """The readback names what holds the controller, the engine's interlock names the controller:
+    "controller interlock: watchdog", never "controller interlock: controller interlock: ..."."""
+    status = ActuatorStatus(2, state, flags, ErrorCode.NONE, 0, 0, 0.0, 0.0, 0.0, 0.0, 0)
+    seen = Observation({}, controller=ControllerReadback(status))
+    (trip,) = trips((ControllerInterlock(),), seen)
+    assert (
+        RunStoppedError.interlock_tripped(ev.InterlockTripped(trip.name, trip.reason, "r")).reason == reason
+    )
+
+
+def test_a_controller_that_holds_nothing_gives_no_reason():
+    status = ActuatorStatus(
+        2, ControllerState.RUNNING, InterlockFlag(0), ErrorCode.NONE, 0, 0, 0.0, 0.0, 0.0, 0.0, 0
+    )
+    assert ControllerReadback(status).interlock_reason is None

@@ -64,11 +64,17 @@ class ControllerReadback:
 
     @property
     def interlock_reason(self) -> str | None:
+        """What holds the controller in its interlock or e-stop: its interlock flags by name
+        ("watchdog", "displacement, force"; "estop" in an e-stop, "no flag set" when it names
+        none), None when it holds neither. The words name the cause only: the engine's interlock
+        names the controller ("controller interlock: watchdog") and the UI its state."""
         tripped = self.status.state in (ControllerState.INTERLOCK, ControllerState.ESTOP)
         if not tripped and not self.status.interlock:
             return None
         names = [flag.name.lower() for flag in InterlockFlag if flag in self.status.interlock]
-        return f"controller {self.status.state.name.lower()}: {', '.join(names) or 'no flag'}"
+        if self.status.state is ControllerState.ESTOP and InterlockFlag.ESTOP not in self.status.interlock:
+            names.insert(0, InterlockFlag.ESTOP.name.lower())
+        return ", ".join(names) or "no flag set"
 
 
 class ThreadedActuator:

@@ -31,7 +31,6 @@ from bench.engine.amplitude import (
     AmplitudeControl,
     FramesPresent,
     ServoGains,
-    achieved_amplitude,
     amplitude_mm,
 )
 from bench.engine.amplitude_hold import AmplitudeHold, AmplitudeStep, HeldAmplitude
@@ -55,7 +54,7 @@ from bench.engine.run_ids import run_id
 from bench.engine.states import RUN_STATUS, RunState, StateMachine, TransitionRefusedError, Trigger
 from bench.engine.timing import EngineTiming
 from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
-from bench.numerics.sine_fit import SineFit, frame_offsets
+from bench.numerics.sine_fit import SineFit, fit_latest_cycles, frame_offsets
 from drivers.errors import CommandOutcomeUnknownError, CommandRejectedError, LimitError, LinkError
 from drivers.setpoints import (
     AmplitudeUpdate,
@@ -1314,7 +1313,8 @@ class _RunRecording:
         self._subscription = None
         self._last_status_s = -np.inf
         self._stream_started_s = 0.0
-        self._stall: tuple[float, float, int] | None = None  # open host stall: unread s, arrival, lost
+        # open host stall: unread s, arrival, end sample, frames missing before it
+        self._stall: tuple[float, float, int, int] | None = None
         self._limits_acted: set[str] = set()  # the limits milder than an interlock published this excitation
 
     def __enter__(self) -> _RunRecording:
@@ -1362,7 +1362,7 @@ class _RunRecording:
         finally:
             self.engine._recording = None
             self._subscription.close()
-            self._close_host_stall()  # one still open lost nothing: it is published, nothing trips
+            self._close_host_stall()  # one still open: published with the frames missing since, no trip
             self.engine._run_finished(self.run_id, outcome)
 
     def _stop_stream(self) -> None:
@@ -1388,10 +1388,12 @@ class _RunRecording:
         while not stopped.is_set():
             if (block := self._subscription.get_all(timeout_s)) is not None:
                 self._record(block)
+                self._follow_host_stall(block, stopping=True)
         if failure:
             raise failure[0]
         while (block := self._subscription.get_all(timeout_s)) is not None:
             self._record(block)
+            self._follow_host_stall(block, stopping=True)
 
     def _record(self, block) -> Mapping[str, np.ndarray]:
         columns = self.engine.channels.columns(block.frames)
@@ -1418,7 +1420,7 @@ class _RunRecording:
         offsets = offsets[: len(z)]
         start = min(round(dwell.settle_s * fs), end)
         kept = offsets >= start
-        return achieved_amplitude(z[kept], offsets[kept], fs, dwell.freq_hz, start=start, end=end)
+        return fit_latest_cycles(z[kept], offsets[kept], fs, dwell.freq_hz, start=start, end=end)
 
     def displacement_between(self, start: int, stop: int) -> np.ndarray:
         """The recorded displacement from run sample ``start`` to ``stop``."""
@@ -1535,33 +1537,55 @@ class _RunRecording:
         while self.engine.state is RunState.PAUSED:
             self._guard(self._next_columns())
 
-    def _follow_host_stall(self, block: SampleBlockLike) -> None:
+    def _follow_host_stall(self, block: SampleBlockLike, *, stopping: bool = False) -> None:
         """Host stalls, from the blocks' port timing: a block the port went unread ``unread_s``
         before (the host busy, not the link) opens a stall once that reaches ``host_stall_s``. The
         frames lost to it show as gaps in that block or in those read right after it (the port
         first gives the bytes it kept, then what came after the bytes it dropped): the stall takes
-        the gaps of the blocks that arrived within ``host_stall_s`` of its own and is published at
-        its first gap, or once a block arrives later, or at the run's end. Frames lost stop the run."""
-        e = self.engine
-        unread_s, arrived_s = block.unread_s, block.arrived_s
-        lost = sum(g.missing for g in block.gaps)
-        if self._stall is not None and arrived_s - self._stall[1] > e.timing.host_stall_s:
-            self._close_host_stall()
-        if unread_s >= e.timing.host_stall_s:
-            self._close_host_stall()
-            self._stall = (unread_s, arrived_s, 0)
-        if self._stall is not None and lost:
-            self._stall = (self._stall[0], self._stall[1], self._stall[2] + lost)
-            self._close_host_stall()
+        the gaps of the blocks that arrived within ``host_stall_s`` of its own, or that begin within
+        ``host_stall_s`` of samples after it (the device's clock, which a host slow to resume cannot
+        stretch: the first frames after the kept bytes carry the overrun's gap however late they are
+        read), and is published at its first gap, or once a later block comes, or at the run's end.
+        Frames lost stop the run, unless ``stopping``: a block recorded while the stream stops, the
+        run's ending decided already, only has its stall published.
 
-    def _close_host_stall(self) -> None:
-        """Publish the open host stall, if any; it ends the run when frames were lost to it."""
+        ``_stall`` holds the stall's length, its block's arrival and end (a run sample), and the
+        frames the recording had counted missing before it: what it lost is what the recording
+        counts missing beyond that when it closes (:meth:`_close_host_stall`), so blocks recorded
+        and not followed here count too."""
+        e = self.engine
+        missing = self.elapsed_samples - self.samples  # frames missing so far, this block's included
+        before = missing - sum(g.missing for g in block.gaps)
+        if self._stall is not None:
+            _, arrived_s, end, _ = self._stall
+            late = block.arrived_s - arrived_s > e.timing.host_stall_s
+            if late and self.samples - len(block.frames) - end > e.timing.host_stall_s * e.sample_rate_hz:
+                self._close_host_stall(before, trips=not stopping)  # too late to be the stall's
+        if block.unread_s >= e.timing.host_stall_s:
+            self._close_host_stall(before, trips=not stopping)
+            self._stall = (block.unread_s, block.arrived_s, self.samples, before)
+        if self._stall is not None and missing > self._stall[3]:
+            self._close_host_stall(missing, trips=not stopping)
+
+    def _close_host_stall(self, missing: int | None = None, *, trips: bool = True) -> None:
+        """Publish the open host stall, if any, with the frames lost to it: those the recording
+        counted missing from its block up to ``missing`` (its count when the stall closes). It ends
+        the run as the ``host stalled`` interlock when frames were lost, if it ``trips``.
+
+        Without ``missing`` the run is ending (its exit): the stall takes every frame the recording
+        counted missing since, the blocks recorded while the stream stopped included, where the
+        port's overrun shows when another ending came first (a host stopped for longer than the
+        controller's watchdog can find the controller tripped before the engine has read past the
+        stall's first block; the stream stops right after, so a loss of the link's own in those
+        moments would be counted with it), and it stops nothing: the run has its ending already."""
         if self._stall is None:
             return
-        stalled_s, _, lost = self._stall
+        stalled_s, _, _, before = self._stall
         self._stall = None
+        ending = missing is None
+        lost = (self.elapsed_samples - self.samples if ending else missing) - before
         self.engine.bus.publish(ev.HostStalled(self.run_id, stalled_s, lost))
-        if lost:
+        if lost and trips and not ending:
             self._trip(
                 "host stalled",
                 f"the host left the WFS port unread for {stalled_s:.2f} s and {lost} frames were lost"

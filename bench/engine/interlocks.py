@@ -22,6 +22,13 @@ from sequences.channels import ChannelSet, Role
 from sequences.limits import BenchLimits
 from sequences.response_limits import LimitAction, LimitProfile, ResponseLimit
 
+#: The interlocks the engine trips itself, besides its checks: a host stall that lost frames
+#: (docs/engine.md, *Host stalls*) and the excitation's watchdog (a start or an end the controller
+#: did not make in time).
+HOST_STALLED = "host stalled"
+EXCITATION_WATCHDOG = "excitation watchdog"
+ENGINE_INTERLOCKS = (HOST_STALLED, EXCITATION_WATCHDOG)
+
 _OVERLOAD_BITS = {
     Status.OVERLOAD_FX: "Fx",
     Status.OVERLOAD_FY: "Fy",
@@ -224,6 +231,14 @@ def standard_interlocks(
         ),
         *levels,
     )
+
+
+def interlock_names(interlocks: tuple[Interlock, ...]) -> tuple[str, ...]:
+    """Every name the engine can trip an interlock under with ``interlocks`` as its checks: each
+    check's (a graded limit's too: its action may be an interlock), then the engine's own
+    (:data:`ENGINE_INTERLOCKS`), each once, in that order. The actuator link lost that a command's
+    link error ends a sequence on is :class:`ActuatorLinkLost`'s, a check of every bench."""
+    return tuple(dict.fromkeys([*(interlock.name for interlock in interlocks), *ENGINE_INTERLOCKS]))
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,10 @@ class BenchPane(Vertical):
         running: bool,
         counters: dict[str, int],
     ) -> None:
+        """``interlocks``: a lamp each, every interlock the engine can trip, red while ``tripped``
+        (name: reason) holds it; a tripped name without a lamp of its own gets a red one, so a run
+        that ended interlocked never leaves every lamp green. The controller's own interlock and a
+        failed sequence show as red lamps of their own."""
         state = controller.state if controller else "not read yet"
         self.query_one("#bench-links", Static).update(
             f"[b]{bench}[/b]   state [b]{engine_state}[/b]   controller {state}\n"
@@ -115,8 +119,12 @@ class BenchPane(Vertical):
             + lamp(wfs_connected, "WFS link " + ("up" if wfs_connected else "down"))
         )
         lamps = [lamp(name not in tripped, name) for name in interlocks]
-        if controller is not None and controller.interlock:
-            lamps.append(lamp(False, controller.interlock))
+        # an interlock tripped under a name without a lamp of its own lights one under its name:
+        # whatever ended a run interlocked shows red here
+        lamps += [lamp(False, name) for name in tripped if name not in interlocks]
+        if controller is not None and controller.interlock:  # its state, then what holds it
+            held = "" if controller.interlock == controller.state else f": {controller.interlock}"
+            lamps.append(lamp(False, f"controller {controller.state}{held}"))
         if failure is not None:  # the engine stopped the bench itself: no interlock lamp tells why
             lamps.append(lamp(False, f"sequence failed: {failure}"))
         self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))

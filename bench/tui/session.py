@@ -36,6 +36,7 @@ from bench.app.run_log import RunLog
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
 from bench.engine.engine import Engine
+from bench.engine.interlocks import interlock_names
 from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
@@ -343,7 +344,8 @@ class BenchSession:
             command()
 
     def _interlock_names(self) -> tuple[str, ...]:
-        return tuple(interlock.name for interlock in self.engine.interlocks)
+        """The interlocks the Bench screen has a lamp for: every one the engine can trip."""
+        return interlock_names(self.engine.interlocks)
 
     # -- commands (any thread; executed on the worker thread) -----------------------------------
 

@@ -82,7 +82,7 @@ class FakeBench:
 
     def read_status(self) -> FakeStatus:
         self._check_link()
-        reason = "controller e-stop: estop" if self.estopped else None
+        reason = "estop" if self.estopped else None  # the flags by name, as the controller's readback
         return FakeStatus(len(self._wave) > 0, reason, self._sample)
 
     def load_drive(self, drive: DriveSetpoint) -> None:

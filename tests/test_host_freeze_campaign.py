@@ -1,0 +1,112 @@
+"""A frozen host is a host stall, never a lost link: ``wfsbench run --realtime`` stopped with SIGSTOP
+for 0.5, 1, 2 and 5 s mid-dwell, then continued.
+
+The simulated devices run in a process of their own (as hardware does), so the WFS goes on sending
+while the bench's process is stopped; the pty's receive buffer (4,095 bytes, 64 ms of frames)
+overruns and the rest of the freeze's frames are lost. Each freeze is recorded in the campaign file
+as a host stall with its length and the frames it cost (the file's gaps), and the run ends as the
+``host stalled`` interlock. A freeze longer than the controller's heartbeat watchdog (1.5 s) also
+trips the controller, whose interlock may end the run first (its reason named once), or the
+heartbeat's acknowledgement found lapsed past the watchdog (the actuator link lost); the host stall
+is in the file all the same. The WFS link's silence watchdog never fires: the bytes waiting at the
+port are the host's delay."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from bench.cli import EXIT_STOPPED
+from bench.store import open_campaign
+from drivers.actuator import DEFAULT_WATCHDOG_MS
+from tests.test_campaign_cli import H5DUMP, ROOT
+from tests.test_run_unattended import LONG_DWELL, RUN_ID
+from tests.waiting import LineReader
+
+DEADLINE_S = 120.0  # wall clock, a timeout only
+RATE_HZ = 1000  # the simulated WFS's frame rate
+#: The frames the port keeps through a freeze: its receive buffer, 4,095 bytes of 64-byte frames.
+KEPT_FRAMES = 4095 // 64
+
+#: How a run stopped for longer than the controller's watchdog may end besides the host stall.
+WATCHDOG_ENDINGS = ("controller interlock: watchdog", "actuator link lost: ")
+
+
+def _frozen_run(tmp_path: Path, freeze_s: float) -> tuple[int, str, Path]:
+    """``wfsbench run --realtime`` of a long dwell, stopped for ``freeze_s`` once the dwell is at
+    amplitude, then continued: its exit code, its output and its campaign file."""
+    sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
+    sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=0.5))
+    script = Path(sys.executable).with_name("wfsbench")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    proc = subprocess.Popen(
+        [*command, "run", str(sequence), "--out", str(out), "--realtime"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        stdout = LineReader(proc.stdout)
+        before = stdout.until(
+            lambda line: line.startswith("progress:") and "at amplitude" in line, 60, "the dwell"
+        )
+        proc.send_signal(signal.SIGSTOP)
+        try:
+            threading.Event().wait(freeze_s)  # the freeze itself
+        finally:
+            proc.send_signal(signal.SIGCONT)
+        rest = stdout.rest(DEADLINE_S)
+        return proc.wait(timeout=DEADLINE_S), "".join(before) + rest, out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+@pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
+@pytest.mark.parametrize("freeze_s", [0.5, 1.0, 2.0, 5.0])
+def test_a_frozen_run_records_a_host_stall_with_its_frames_never_a_lost_link(tmp_path, freeze_s):
+    code, output, out = _frozen_run(tmp_path, freeze_s)
+    assert code == EXIT_STOPPED, output
+    assert "WFS link lost" not in output and "controller interlock: controller" not in output, output
+    dump = subprocess.run(
+        [H5DUMP, "-a", f"/runs/{RUN_ID}/status", "-d", f"/runs/{RUN_ID}/events", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert dump.returncode == 0 and '"interlocked"' in dump.stdout, dump.stdout + dump.stderr  # readable
+    with open_campaign(out) as campaign:
+        run = campaign.run(RUN_ID)
+        status, reason, events = run.status, run.reason, list(run.events)
+    interlocks = [e.fields["name"] for e in events if e.kind == "interlock"]
+    assert status == "interlocked" and "WFS link lost" not in interlocks, (reason, interlocks)
+    # the freeze's stall: the one that lost frames (a stall of the machine's own may have lost none)
+    stalls = [e.fields for e in events if e.kind == "host stall" and e.fields["frames_lost"]]
+    watchdog_s = DEFAULT_WATCHDOG_MS / 1000
+    (stall,) = stalls
+    assert '"host stall"' in dump.stdout, dump.stdout
+    # its length is the freeze's (the read the host held, counted to its return) ...
+    assert freeze_s <= stall["stalled_s"] <= freeze_s + 0.5, stall
+    # ... and its frames the file's gaps: the freeze's frames but what the port kept
+    gaps = sum(e.fields["missing"] for e in events if e.kind == "gap")
+    assert stall["frames_lost"] <= gaps, (stall, gaps)
+    assert (
+        (freeze_s - 0.1) * RATE_HZ - KEPT_FRAMES
+        <= stall["frames_lost"]
+        <= (stall["stalled_s"] + 0.1) * RATE_HZ
+    )
+    if freeze_s < watchdog_s:  # the controller kept going: the stall ends the run
+        assert interlocks == ["host stalled"], interlocks
+        assert reason.startswith(
+            f"host stalled: the host left the WFS port unread for {stall['stalled_s']:.2f} s"
+        )
+        assert f"{stall['frames_lost']} frames were lost" in reason, reason
+    else:  # the controller's watchdog tripped too: the run ends on the stall or the watchdog
+        assert reason.startswith(("host stalled: ", *WATCHDOG_ENDINGS)), reason
