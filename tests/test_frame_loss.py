@@ -105,7 +105,9 @@ KINDS = {
     "held grid": (LINEAR, lambda: grid_sequence(FREQS_HZ, AMPLITUDE_MM)),
     "paced held grid": (LINEAR + PACED, lambda: grid_sequence(FREQS_HZ, AMPLITUDE_MM)),
     "adaptive grid": (LINEAR, adaptive_sequence),
+    "paced adaptive grid": (LINEAR + PACED, adaptive_sequence),
     "tracked dwell": (LINEAR, tracked_sequence),
+    "paced tracked dwell": (LINEAR + PACED, tracked_sequence),
 }
 
 
@@ -189,28 +191,44 @@ def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, los
         assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
 
 
-@pytest.mark.parametrize("losses", ["10 in every hold", "350 in the first hold", "3000 in the first hold"])
-def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(tmp_path, loss_free, losses):
-    path, events, plate, status = run(tmp_path, "adaptive grid", LOSSES[losses])
+@pytest.mark.parametrize(
+    ("kind", "losses"),
+    [
+        ("adaptive grid", "10 in every hold"),
+        ("adaptive grid", "350 in the first hold"),
+        ("adaptive grid", "3000 in the first hold"),
+        ("paced adaptive grid", "350 in the first hold"),
+    ],
+)
+def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(
+    tmp_path, loss_free, kind, losses
+):
+    path, events, plate, status = run(tmp_path, kind, LOSSES[losses])
     assert status == "complete"
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     check_no_decision_on_lossy_windows(events)
-    reference, lossy = dwell_frfs(loss_free("adaptive grid")[0]), dwell_frfs(path)
+    reference, lossy = dwell_frfs(loss_free(kind)[0]), dwell_frfs(path)
     for freq_hz, (h, sigma) in lossy.items():
         h0, sigma0 = reference[freq_hz]
         assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
 
 
-@pytest.mark.parametrize("holds", [None, (5,)], ids=["10 in every hold", "350 in the track's first hold"])
-def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames(tmp_path, loss_free, holds):
+@pytest.mark.parametrize(
+    ("kind", "holds"),
+    [("tracked dwell", None), ("tracked dwell", (5,)), ("paced tracked dwell", (5,))],
+    ids=["10 in every hold", "350 in the track's first hold", "paced, 350 in the track's first hold"],
+)
+def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames(
+    tmp_path, loss_free, kind, holds
+):
     """The search's five dwells are holds 0-4, the track's first hold is hold 5. The track's looks
     that lost frames are passed over, and the resonance it finds is the loss-free track's within 1 %."""
     losses = bursts_of(10 if holds is None else 350, hold_frames=1500, holds=holds)
-    _, events, plate, status = run(tmp_path, "tracked dwell", losses)
+    _, events, plate, status = run(tmp_path, kind, losses)
     assert status == "complete"
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     looks = [e for e in events if isinstance(e, ev.ResonanceTracked)]
-    reference = [e for e in loss_free("tracked dwell")[1] if isinstance(e, ev.ResonanceTracked)]
+    reference = [e for e in loss_free(kind)[1] if isinstance(e, ev.ResonanceTracked)]
     assert looks and reference
     assert (
         abs(np.median([e.resonance_hz for e in looks]) / np.median([e.resonance_hz for e in reference]) - 1)

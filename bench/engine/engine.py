@@ -851,7 +851,7 @@ class Engine:
         notched = {}
         if notch is not None:
             t1, t2 = sorted(sweep_time_s(setpoint, f) for f in (notch.start_hz, notch.end_hz))
-            first, last = (span.start + round(t * self.sample_rate_hz) for t in (t1, t2))
+            first, last = (run.sample_at(span.start, round(t * self.sample_rate_hz)) for t in (t1, t2))
             z = run.displacement_between(first, min(last, span.end))
             notched = {
                 "notched_by": notch.limit,
@@ -1114,7 +1114,8 @@ class Engine:
         if verdict is not None:
             measure_start = -1
             if np.isfinite(verdict.measure_start_s):
-                measure_start = span.hold_start + round(verdict.measure_start_s * self.sample_rate_hz)
+                measured_after = round(verdict.measure_start_s * self.sample_rate_hz)  # in sample times
+                measure_start = run.sample_at(span.hold_start, measured_after)
             adaptive |= {
                 "verdict": verdict.verdict,
                 "settle_s": verdict.settle_s,
@@ -1440,6 +1441,13 @@ class _RunRecording:
                 break
             end = first
         return np.concatenate(parts[::-1]).astype(dtype) if parts else np.zeros(0, dtype)
+
+    def sample_at(self, first: int, offset: int) -> int:
+        """The run sample of the first frame ``offset`` sample times or more after run sample
+        ``first`` (by the frame counter: frames lost between count as time); the run's next sample
+        when none has come yet."""
+        offsets = frame_offsets(self.seq_between(first, self.samples))
+        return first + int(np.searchsorted(offsets, offset))
 
     def frames_missing_between(self, start: int, stop: int) -> int:
         """Frames lost on the link from run sample ``start`` to ``stop``, the gaps at either end

@@ -224,7 +224,7 @@ class TrackWatch:
         off = (np.angle(ratio) - self.found.phase_rad + math.pi) % (2 * math.pi) - math.pi
         resonance_hz = self.drive_hz - off / self.found.slope_rad_per_hz
         zeta = self.found.damping_ratio * abs(self.found.ratio) / abs(ratio)
-        window = TrackWindow(first + n, self.drive_hz, resonance_hz, ratio, zeta)
+        window = TrackWindow(first + len(offsets), self.drive_hz, resonance_hz, ratio, zeta)
         self.windows.append(window)
         self._on_window(window)
         self._stop_rules(window)
