@@ -32,6 +32,10 @@ DEADLINE_S = 120.0  # wall clock, a timeout only
 RATE_HZ = 1000  # the simulated WFS's frame rate
 #: The frames the port keeps through a freeze: its receive buffer, 4,095 bytes of 64-byte frames.
 KEPT_FRAMES = 4095 // 64
+#: How much shorter than the test's wait between SIGSTOP and SIGCONT the process may be stopped: the
+#: delivery of each signal on a loaded machine (0.498 s for a 0.5 s wait seen beside four busy
+#: processes).
+SIGNAL_JITTER_S = 0.05
 
 #: How a run stopped for longer than the controller's watchdog may end besides the host stall.
 WATCHDOG_ENDINGS = ("controller interlock: watchdog", "actuator link lost: ")
@@ -93,7 +97,9 @@ def test_a_frozen_run_records_a_host_stall_with_its_frames_never_a_lost_link(tmp
     (stall,) = stalls
     assert '"host stall"' in dump.stdout, dump.stdout
     # its length is the freeze's (the read the host held, counted to its return) ...
-    assert freeze_s <= stall["stalled_s"] <= freeze_s + 0.5, stall
+    # (within the signals' delivery: SIGSTOP may take effect later than SIGCONT does on a loaded
+    # machine, so the process can be stopped for a little less than the test waited between them)
+    assert freeze_s - SIGNAL_JITTER_S <= stall["stalled_s"] <= freeze_s + 0.5, stall
     # ... and its frames the file's gaps: the freeze's frames but what the port kept
     gaps = sum(e.fields["missing"] for e in events if e.kind == "gap")
     assert stall["frames_lost"] <= gaps, (stall, gaps)
