@@ -150,6 +150,15 @@ def dwell_frfs(path: Path) -> dict[float, tuple[complex, float]]:
     return {r.freq_hz: fit_dwell_record(r, WHEEL_CHANNELS).ratio(WFS_FORCE, PLATE_FORCE) for r in records}
 
 
+def check_frfs_equal(reference: Path, lossy: Path) -> None:
+    """Every done dwell's FRF of ``lossy`` equals ``reference``'s within three standard
+    uncertainties of their difference (and 0.1 % of its value)."""
+    expected = dwell_frfs(reference)
+    for freq_hz, (h, sigma) in dwell_frfs(lossy).items():
+        h0, sigma0 = expected[freq_hz]
+        assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
+
+
 def check_no_decision_on_lossy_windows(events: list[ev.Event]) -> None:
     for look in (e for e in events if isinstance(e, ev.AmplitudeChecked)):
         if math.isfinite(look.updated_mm):  # an update was sent: on a window with its frames
@@ -189,10 +198,7 @@ def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, los
             in_hold = sum(m for at, m in gaps if p.hold_start_sample <= at <= p.hold_end_sample)
             assert p.frames_missing == in_hold, p
     assert sum(m for _, m in gaps) > 0
-    reference, lossy = dwell_frfs(loss_free(kind)[0]), dwell_frfs(path)
-    for freq_hz, (h, sigma) in lossy.items():
-        h0, sigma0 = reference[freq_hz]
-        assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
+    check_frfs_equal(loss_free(kind)[0], path)
 
 
 @pytest.mark.parametrize(
@@ -211,10 +217,7 @@ def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(
     assert status == "complete"
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     check_no_decision_on_lossy_windows(events)
-    reference, lossy = dwell_frfs(loss_free(kind)[0]), dwell_frfs(path)
-    for freq_hz, (h, sigma) in lossy.items():
-        h0, sigma0 = reference[freq_hz]
-        assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
+    check_frfs_equal(loss_free(kind)[0], path)
 
 
 @pytest.mark.parametrize(

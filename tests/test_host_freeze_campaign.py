@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 import threading
 from pathlib import Path
 
@@ -24,8 +23,8 @@ import pytest
 from bench.cli import EXIT_STOPPED
 from bench.store import open_campaign
 from drivers.actuator import DEFAULT_WATCHDOG_MS
-from tests.test_campaign_cli import H5DUMP, ROOT
-from tests.test_run_unattended import LONG_DWELL, RUN_ID
+from tests.test_campaign_cli import H5DUMP
+from tests.test_run_unattended import RUN_ID, long_dwell_run
 from tests.waiting import LineReader
 
 DEADLINE_S = 120.0  # wall clock, a timeout only
@@ -44,17 +43,7 @@ WATCHDOG_ENDINGS = ("controller interlock: watchdog", "actuator link lost: ")
 def _frozen_run(tmp_path: Path, freeze_s: float) -> tuple[int, str, Path]:
     """``wfsbench run --realtime`` of a long dwell, stopped for ``freeze_s`` once the dwell is at
     amplitude, then continued: its exit code, its output and its campaign file."""
-    sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
-    sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=0.5))
-    script = Path(sys.executable).with_name("wfsbench")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
-    proc = subprocess.Popen(
-        [*command, "run", str(sequence), "--out", str(out), "--realtime"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=ROOT,
-    )
+    proc, out = long_dwell_run(tmp_path, taper_out_s=0.5, stderr=subprocess.STDOUT)
     try:
         stdout = LineReader(proc.stdout)
         before = stdout.until(

@@ -232,10 +232,11 @@ taper_out_s = {taper_out_s}
 RUN_ID = "long_dwell-s002-sine_dwell"
 
 
-def _interrupted_run(tmp_path: Path, taper_out_s: float, signals: int) -> tuple[int, str, Path]:
-    """``wfsbench run --realtime`` of a 60 s dwell, sent ``signals`` SIGINTs once the progress shows
-    the dwell at full amplitude (the next one once the command has told the previous was taken):
-    its exit code, standard error and campaign file."""
+def long_dwell_run(
+    tmp_path: Path, taper_out_s: float, *, stderr: int = subprocess.PIPE
+) -> tuple[subprocess.Popen, Path]:
+    """``wfsbench run --realtime`` of a 60 s dwell of 2 mm at 10 Hz, started (text pipes: its standard
+    output, and its standard error unless ``stderr`` says where), and its campaign file."""
     sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
     sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=taper_out_s))
     script = Path(sys.executable).with_name("wfsbench")
@@ -243,10 +244,18 @@ def _interrupted_run(tmp_path: Path, taper_out_s: float, signals: int) -> tuple[
     proc = subprocess.Popen(
         [*command, "run", str(sequence), "--out", str(out), "--realtime"],
         stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        stderr=stderr,
         text=True,
         cwd=ROOT,
     )
+    return proc, out
+
+
+def _interrupted_run(tmp_path: Path, taper_out_s: float, signals: int) -> tuple[int, str, Path]:
+    """``wfsbench run --realtime`` of a 60 s dwell, sent ``signals`` SIGINTs once the progress shows
+    the dwell at full amplitude (the next one once the command has told the previous was taken):
+    its exit code, standard error and campaign file."""
+    proc, out = long_dwell_run(tmp_path, taper_out_s)
     try:
         stdout, stderr = LineReader(proc.stdout), LineReader(proc.stderr)
         stdout.until(lambda line: line.startswith("progress:") and "at amplitude" in line, 60, "the dwell")
