@@ -120,7 +120,7 @@ def _build_step(index: int, raw: object, source: str, problems: list[Problem]) -
             Problem(source, f"{key}.type", f"missing: a step needs type, one of {list(STEP_TYPES)}")
         )
         return None
-    if kind not in STEP_TYPES:
+    if not isinstance(kind, str) or kind not in STEP_TYPES:
         problems.append(
             Problem(source, f"{key}.type", f"unknown step type {kind!r}; use one of {list(STEP_TYPES)}")
         )

@@ -80,6 +80,8 @@ DWELL = '[[steps]]\ntype = "tare"\n\n[[steps]]\ntype = "sine_dwell"\nfreq_hz = 4
         ),
         (DWELL, "steps[1].amplitude_mm", "missing: a sine_dwell step needs amplitude_mm"),
         ('[[steps]]\ntype = "sine_dwel"\n', "steps[0].type", "unknown step type 'sine_dwel'; use one of"),
+        ('[[steps]]\ntype = ["sine_dwell"]\n', "steps[0].type", "unknown step type ['sine_dwell']; use"),
+        ("[[steps]]\ntype = {a = 1}\n", "steps[0].type", "unknown step type {'a': 1}; use one of"),
         ("[[steps]]\nlevel = 1\n", "steps[0].type", "missing: a step needs type"),
         ('[[steps]]\nkind = "sine_dwell"\n', "steps[0].type", "missing: a step needs type, one of"),
         (
