@@ -14,6 +14,7 @@ Exit codes:
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -107,6 +108,15 @@ def _compensate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _pressure_bar(text: str) -> float:
+    """A tyre pressure given on the command line: a positive, finite number of bar ("nan", "inf",
+    0 and below are refused: a pressure no identification is made at)."""
+    value = float(text)  # argparse names the option for a ValueError
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"a tyre pressure must be a positive number of bar, got {text!r}")
+    return value
+
+
 def add_compensate_command(sub: argparse._SubParsersAction) -> None:
     """Add ``compensate`` to the ``wfsbench`` subcommands."""
     cmd = sub.add_parser(
@@ -127,7 +137,7 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
     cmd.add_argument("--run", dest="run_id", metavar="ID", help="the run of a campaign-file measurement")
     cmd.add_argument(
         "--pressure",
-        type=float,
+        type=_pressure_bar,
         metavar="BAR",
         help="the measurement's tyre pressure (a campaign file's run records its own)",
     )

@@ -315,3 +315,14 @@ def test_a_csv_read_without_a_mapping_says_what_it_must_hold_and_names_the_mappi
         read_measurement(path)
     assert "read without --mapping" in str(refused.value) and "docs/import.md" in str(refused.value)
     assert said in str(refused.value)
+
+
+@pytest.mark.parametrize("pressure", ["nan", "inf", "-1", "0"])
+def test_a_pressure_that_is_no_number_of_bar_is_refused_before_anything_is_read(tmp_path, capsys, pressure):
+    out = tmp_path / "out.h5"
+    args = ["compensate", str(tmp_path / "c.h5"), str(tmp_path / "m.csv"), f"--pressure={pressure}"]
+    with pytest.raises(SystemExit) as refused:  # the command line's own refusal
+        main([*args, "--out", str(out)])
+    assert refused.value.code == EXIT_INVALID
+    assert "a tyre pressure must be a positive number of bar" in capsys.readouterr().err
+    assert not out.exists()
