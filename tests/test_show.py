@@ -129,6 +129,8 @@ def _damaged(kind: str, tmp_path: Path, smoke_campaign: Path) -> Path:
     path = tmp_path / "file.h5"
     if kind == "directory":
         path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)  # opened, it would wait for a writer forever
     elif kind == "text":
         path.write_text("time,fz\n0,1\n")
     elif kind == "truncated":
@@ -148,6 +150,7 @@ def _damaged(kind: str, tmp_path: Path, smoke_campaign: Path) -> Path:
     [
         ("missing", "no such file"),
         ("directory", "a directory, not a campaign file"),
+        ("fifo", "not a regular file, not a campaign file"),
         ("text", "not a readable HDF5 file"),
         ("truncated", "not a readable HDF5 file"),
         ("superblock overwritten", "not a readable HDF5 file"),

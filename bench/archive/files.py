@@ -9,8 +9,10 @@ read, the SHA-256 of its bytes.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import stat
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,7 +71,10 @@ def within(path: str, roots: Iterable[Path]) -> bool:
 
 
 def sha256_of(path: str | Path) -> str:
-    """The SHA-256 of the file's bytes, hex."""
+    """The SHA-256 of the file's bytes, hex. OSError for anything but a regular file (a FIFO or a
+    link to ``/dev/zero`` named ``*.h5`` would be read forever)."""
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise OSError(errno.EINVAL, "not a regular file: a FIFO, a device or a socket")
     digest = hashlib.sha256()
     with open(path, "rb") as file:
         while block := file.read(_HASH_BLOCK_BYTES):

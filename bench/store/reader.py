@@ -94,6 +94,8 @@ def open_campaign(path: str | Path) -> CampaignFile:
     path = Path(path)
     if path.is_dir():
         raise StoreError(path, "", "a directory, not a campaign file (an HDF5 file, docs/hdf5.md)")
+    if path.exists() and not path.is_file():  # a FIFO, a device, a socket: opening one may wait forever
+        raise StoreError(path, "", "not a regular file, not a campaign file (an HDF5 file, docs/hdf5.md)")
     try:
         file = h5py.File(path, "r")
     except FileNotFoundError as err:

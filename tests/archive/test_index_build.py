@@ -226,3 +226,20 @@ def test_index_command(mixed, tmp_path, capsys):
     (tmp_path / "a-file").write_text("")
     assert main(["index", str(mixed / "notes.h5"), "--out", str(tmp_path / "a-file"), "--workers", "0"]) == 3
     assert "exists and is not a directory" in capsys.readouterr().err
+
+
+def test_a_fifo_or_a_device_named_like_a_campaign_is_listed_damaged_and_never_read(tmp_path):
+    """A FIFO and a link to /dev/zero named ``*.h5``: reading either would never end (a FIFO waits
+    for a writer, /dev/zero has no end); each is listed with its error, and the index finishes."""
+    directory = tmp_path / "odd"
+    directory.mkdir()
+    os.mkfifo(directory / "fifo.h5")
+    (directory / "zero.h5").symlink_to("/dev/zero")
+    _, summary = _index(directory, tmp_path / "results")
+    files = _file_rows(tmp_path / "results")
+    assert {Path(p).name: row["file_status"] for p, row in files.items()} == {
+        "fifo.h5": FileStatus.DAMAGED,
+        "zero.h5": FileStatus.DAMAGED,
+    }
+    assert all("not a regular file" in row["error"] for row in files.values())
+    assert sorted(Path(p).name for p, _, _ in summary.problems) == ["fifo.h5", "zero.h5"]
