@@ -85,9 +85,11 @@ def _analyze(args: argparse.Namespace) -> int:
 
 def _report(args: argparse.Namespace) -> int:
     from bench.app.analyze import CampaignFileError
-    from bench.app.report import ReportDirError, write_report
+    from bench.app.report import REPORT_PAGE, ReportDirError, write_report
     from bench.store import StoreError
 
+    if (Path(args.out) / REPORT_PAGE).is_file():  # said first: the earlier report is replaced
+        print(f"replacing the report in {args.out} (its {REPORT_PAGE} and the figures of the same names)")
     try:
         written = write_report(Path(args.file), Path(args.out))
     except (StoreError, CampaignFileError, ReportDirError) as exc:

@@ -129,6 +129,11 @@ def test_report_writes_every_figure_and_one_self_contained_page(smoke_file, tmp_
     assert [f.name for f in figures] == ["shaker_2p5bar.png", "shaker_compensated_2p5bar.png"]
     page = out / "report.html"
     assert run.stdout.splitlines()[-1] == f"report {page}"
+    assert "replacing" not in run.stdout
+    again = wfsbench("report", str(smoke_file), "--out", str(out))  # the same folder: said first
+    assert again.returncode == EXIT_OK and again.stdout.splitlines()[0] == (
+        f"replacing the report in {out} (its report.html and the figures of the same names)"
+    )
     html = page.read_text(encoding="utf-8")
     for figure in figures:
         png = figure.read_bytes()
