@@ -13,8 +13,9 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from bench.cli_analysis import add_analysis_commands
 from bench.cli_archive import add_archive_commands
@@ -23,6 +24,8 @@ from bench.cli_export import add_export_command
 from bench.cli_metadata import add_meta_option
 from drivers.errors import LinkError
 
+#: How long ``actuator reset`` waits for an e-stopped controller to taper out of its stop (s).
+RESET_TIMEOUT_S = 10.0
 #: exit codes of ``wfsbench run`` (docs/cli.md)
 EXIT_COMPLETE = 0
 EXIT_STOPPED = 1  # aborted (a signal too), e-stopped, interlocked or failed: the file holds the data, marked
@@ -265,35 +268,80 @@ def _actuator_status(args: argparse.Namespace) -> int:
 
 
 async def _read_actuator_status(args: argparse.Namespace) -> int:
+    return await _holding_actuator(args, _print_actuator_status)
+
+
+async def _holding_actuator(args: argparse.Namespace, act: Callable[[Any, Any], Awaitable[int]]) -> int:
+    """``act(client, status)`` on the controller that ``args`` names, holding its lock (one master per
+    device: a run that drives it is neither disturbed nor overruled), connected for it alone."""
     from bench import locks
+    from drivers.actuator import ActuatorClient
 
     if args.serial:
         key, what = locks.serial_key(args.serial), f"the actuator controller's port {args.serial}"
+        client = ActuatorClient.rtu(args.serial, baudrate=args.baudrate)
     else:
         key, what = locks.tcp_key(args.host, args.port), f"the actuator controller at {args.host}:{args.port}"
+        client = ActuatorClient.tcp(args.host, args.port)
     try:
-        with locks.holding(key, what):  # one master per device: a run that drives it is not disturbed
-            return await _print_actuator_status(args)
-    except locks.InUseError as exc:
+        with locks.holding(key, what):
+            try:
+                return await act(client, await client.connect())
+            finally:
+                await client.close()
+    except (locks.InUseError, LinkError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
 
 
-async def _print_actuator_status(args: argparse.Namespace) -> int:
-    from drivers.actuator import ActuatorClient
-
-    if args.serial:
-        client = ActuatorClient.rtu(args.serial, baudrate=args.baudrate)
-    else:
-        client = ActuatorClient.tcp(args.host, args.port)
-    try:
-        status = await client.connect()
-    finally:
-        await client.close()
+async def _print_actuator_status(_client: Any, status: Any) -> int:
     for name, value in vars(status).items():
         shown = f"{value:.6g}" if isinstance(value, float) else getattr(value, "name", value)
         print(f"{name:24} {shown}")
     return 0
+
+
+def _actuator_reset(args: argparse.Namespace) -> int:
+    import asyncio
+
+    return asyncio.run(_holding_actuator(args, lambda client, status: _reset_actuator(args, client, status)))
+
+
+async def _reset_actuator(args: argparse.Namespace, client: Any, status: Any) -> int:
+    """Reset an interlocked or e-stopped controller once the operator confirms (``--yes``: without
+    asking): it returns to hydraulics low, at rest. Anything else needs no reset (exit 0)."""
+    import asyncio
+
+    from drivers.register_map import ControllerState
+
+    tripped = ", ".join(flag.name.lower() for flag in status.interlock) or "no interlock flag"
+    if status.state not in (ControllerState.INTERLOCK, ControllerState.ESTOP):
+        print(f"the controller is in {status.state.name} ({tripped}): nothing to reset")
+        return EXIT_COMPLETE
+    print(f"the controller is in {status.state.name} ({tripped})")
+    if not args.yes:
+        print("reset it (it returns to hydraulics low, at rest)? [y/N] ", end="", flush=True)
+        if sys.stdin.readline().strip().lower() not in ("y", "yes"):
+            print("not reset")
+            return EXIT_STOPPED
+    await client.reset_interlock()
+    deadline = time.monotonic() + RESET_TIMEOUT_S
+    while (status := await client.read_status()).state in (ControllerState.ESTOP, ControllerState.TAPERING):
+        if time.monotonic() > deadline:  # an e-stop's reset tapers out first
+            print(f"error: {status.state.name} {RESET_TIMEOUT_S:g} s after the reset", file=sys.stderr)
+            return EXIT_STOPPED
+        await asyncio.sleep(0.1)  # a poll of the controller's state, not a wait for a race
+    print(f"reset: the controller is in {status.state.name}")
+    return EXIT_COMPLETE if status.state is not ControllerState.INTERLOCK else EXIT_STOPPED
+
+
+def _controller_address(parser: argparse.ArgumentParser) -> None:
+    """The options that name the controller: Modbus TCP (--port, --host) or RTU (--serial)."""
+    link = parser.add_mutually_exclusive_group(required=True)
+    link.add_argument("--port", type=int, help="Modbus TCP port on --host")
+    link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
+    parser.add_argument("--host", default="127.0.0.1")
+    parser.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -362,12 +410,14 @@ def _add_device_commands(sub: argparse._SubParsersAction) -> None:
     monitor.set_defaults(run=_wfs_monitor)
     act = sub.add_parser("actuator", help="actuator controller").add_subparsers(dest="action", required=True)
     status = act.add_parser("status", help="read the controller state (Modbus TCP, or RTU with --serial)")
-    link = status.add_mutually_exclusive_group(required=True)
-    link.add_argument("--port", type=int, help="Modbus TCP port on --host")
-    link.add_argument("--serial", metavar="DEV", help="Modbus RTU on this serial device or pty (8N1)")
-    status.add_argument("--host", default="127.0.0.1")
-    status.add_argument("--baudrate", type=int, default=115200, help="RTU baud rate")
+    _controller_address(status)
     status.set_defaults(run=_actuator_status)
+    reset = act.add_parser(
+        "reset", help="reset an interlocked or e-stopped controller, once asked to (--yes: without asking)"
+    )
+    _controller_address(reset)
+    reset.add_argument("--yes", action="store_true", help="reset without asking")
+    reset.set_defaults(run=_actuator_reset)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -329,8 +329,17 @@ class ActuatorClient:
         reason; any other exception reply (a device failure, ...) is re-raised as it is."""
         if exc.exception_code not in REFUSAL_CODES:
             raise exc
-        reason = _enum(ErrorCode, (await self.read_table("input"))["error_code"], "error_code")
-        return CommandRejectedError(f"controller refused {what}: {reason.name}")
+        raw = await self.read_table("input")
+        reason = _enum(ErrorCode, raw["error_code"], "error_code")
+        if reason is not ErrorCode.NOT_ALLOWED_IN_STATE:
+            return CommandRejectedError(f"controller refused {what}: {reason.name}")
+        state = _enum(ControllerState, raw["state"], "state")
+        flags = InterlockFlag(raw["interlock_flags"])
+        tripped = f" ({', '.join(flag.name.lower() for flag in flags)})" if flags else ""
+        return CommandRejectedError(
+            f"controller refused {what}: {reason.name}: the controller is in {state.name}{tripped}",
+            awaits_reset=state in (ControllerState.INTERLOCK, ControllerState.ESTOP),
+        )
 
     async def command(self, command: Command) -> None:
         """Write a command code; a refusal (ILLEGAL_VALUE, DEVICE_BUSY) raises

@@ -53,7 +53,12 @@ class ProtocolMismatchError(LinkError):
 
 
 class CommandRejectedError(LinkError):
-    """The device refused a command (an ``ERR`` reply, or a state that does not allow it)."""
+    """The device refused a command (an ``ERR`` reply, or a state that does not allow it);
+    ``awaits_reset``: the device is interlocked or e-stopped and takes no command but a reset."""
+
+    def __init__(self, message: str, *, awaits_reset: bool = False) -> None:
+        super().__init__(message)
+        self.awaits_reset = awaits_reset
 
 
 class NotConfiguredError(CommandRejectedError):

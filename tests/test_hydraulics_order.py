@@ -99,5 +99,5 @@ def test_the_engine_words_a_refused_command_as_the_controller_s_refusal_with_its
         outcome = build_engine(config, devices).run(sequence)
     assert (outcome.status, outcome.reason) == (
         "failed",
-        "controller refused HYDRAULICS_HIGH: NOT_ALLOWED_IN_STATE",
+        "controller refused HYDRAULICS_HIGH: NOT_ALLOWED_IN_STATE: the controller is in OFF",
     )

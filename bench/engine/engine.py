@@ -183,6 +183,13 @@ class _Ending:
     interlock: ev.InterlockTripped | None = None
 
 
+#: What a refusal by a controller that awaits a reset adds: the way out.
+AWAITS_RESET = (
+    "it takes no command until its interlock is reset, once its cause is cleared:"
+    " `wfsbench actuator reset`, or x in the terminal UI"
+)
+
+
 def _ending_of(error: BaseException | None) -> _Ending:
     """How the sequence ends, from what stopped its loop: nothing (it ran to its end), a stop the
     engine decided, a setpoint the soft limits refused (nothing was written), a command the
@@ -195,7 +202,7 @@ def _ending_of(error: BaseException | None) -> _Ending:
         case LimitError():
             return _Ending(Trigger.FAIL, f"setpoint refused by the soft limits: {error}")
         case CommandRejectedError():
-            return _Ending(Trigger.FAIL, str(error))
+            return _Ending(Trigger.FAIL, f"{error}; {AWAITS_RESET}" if error.awaits_reset else str(error))
         case LinkError():
             return _Ending(Trigger.FAIL, f"link error: {error}")
     return _Ending(Trigger.FAIL, f"{type(error).__name__}: {error}")
