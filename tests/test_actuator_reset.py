@@ -13,21 +13,11 @@ import sys
 from pathlib import Path
 
 from drivers.register_map import ControllerState, InterlockFlag
+from sequences import Hydraulics, Sequence, dump_sequence
 from tests.served_lab import served_lab
 from tests.test_campaign_cli import ROOT, _bench_toml
 
-HYDRAULICS = """\
-[sequence]
-name = "after_crash"
-
-[[steps]]
-type = "hydraulics"
-level = "low"
-
-[[steps]]
-type = "hydraulics"
-level = "high"
-"""
+HYDRAULICS = dump_sequence(Sequence("after_crash", "", (Hydraulics("low"), Hydraulics("high")), "<test>"))
 
 
 def wfsbench(*args: str, answer: str = "") -> subprocess.CompletedProcess:
