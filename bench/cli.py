@@ -22,6 +22,7 @@ from bench.cli_archive import add_archive_commands
 from bench.cli_compensate import add_compensate_command
 from bench.cli_export import add_export_command
 from bench.cli_metadata import add_meta_option
+from bench.locks import LockDirError
 from drivers.errors import LinkError
 
 #: How long ``actuator reset`` waits for an e-stopped controller to taper out of its stop (s).
@@ -473,6 +474,9 @@ def main(argv: list[str] | None = None) -> int:
     except LinkError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LINK
+    except LockDirError as exc:  # the environment names no usable lock directory: nothing opened
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
     except KeyboardInterrupt:  # Ctrl-C before a command took it over (a run: before the devices opened)
         print("interrupted: nothing moved", file=sys.stderr)
         return EXIT_STOPPED

@@ -87,6 +87,17 @@ class InUseError(RuntimeError):
         super().__init__(f"{what} is in use by {holder or 'another process'}")
 
 
+class LockDirError(ValueError):
+    """The lock directory cannot be used (``$WFSBENCH_LOCK_DIR`` names a file, a place under one, or
+    a directory this user may not write): nothing was opened."""
+
+    def __init__(self, directory: Path, reason: str) -> None:
+        super().__init__(
+            f"the lock directory {directory} cannot be used ({reason}): set {LOCK_DIR_ENV} to a"
+            " directory every user of the bench may write, or leave it unset"
+        )
+
+
 def _lock_path(key: str) -> Path:
     readable = re.sub(r"[^A-Za-z0-9._-]+", "_", key).strip("_")[-80:]
     digest = hashlib.sha256(key.encode()).hexdigest()[:12]
@@ -98,15 +109,18 @@ def _open_lock_file(path: Path) -> tuple[int, bool]:
     written (a file another user created before may be read-only to us: flock works on it all the
     same)."""
     directory = path.parent
-    if not directory.is_dir():
-        with contextlib.suppress(FileExistsError):
-            directory.mkdir(parents=True)
-            with contextlib.suppress(OSError):
-                os.chmod(directory, 0o1777)  # shared like /tmp: every user may add lock files
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
-    except PermissionError:
-        return os.open(path, os.O_RDONLY | os.O_CLOEXEC), False
+        if not directory.is_dir():
+            with contextlib.suppress(FileExistsError):
+                directory.mkdir(parents=True)
+                with contextlib.suppress(OSError):
+                    os.chmod(directory, 0o1777)  # shared like /tmp: every user may add lock files
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        except PermissionError:
+            return os.open(path, os.O_RDONLY | os.O_CLOEXEC), False
+    except OSError as exc:
+        raise LockDirError(directory, exc.strerror or str(exc)) from None
     with contextlib.suppress(OSError):
         os.fchmod(fd, 0o666)
     return fd, True

@@ -18,7 +18,7 @@ import sys
 import pytest
 
 from bench import locks
-from bench.cli import EXIT_COMPLETE, EXIT_LINK
+from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_LINK, main
 from bench.store import open_campaign
 from drivers.register_map import Command, ControllerState, WaveformCode
 from tests.sequence_texts import sequence_text
@@ -210,3 +210,19 @@ def test_locks_are_reentrant_within_a_process():
     assert not _locked_by_another(key)  # released by the last holder: free again
     with locks.holding(key, "a thing"):
         assert _locked_by_another(key)
+
+
+@pytest.mark.parametrize("under", ["afile", "afile/locks"], ids=["a file", "under a file"])
+def test_an_unusable_lock_directory_is_refused_naming_it_before_anything_opens(
+    tmp_path, monkeypatch, capsys, under
+):
+    """``WFSBENCH_LOCK_DIR`` naming a file, or a place under one: the run says which directory and
+    what to do, exit 3, and writes no campaign file (it was a traceback)."""
+    (tmp_path / "afile").write_text("not a directory\n")
+    monkeypatch.setenv(locks.LOCK_DIR_ENV, str(tmp_path / under))
+    out = tmp_path / "c.h5"
+    assert main(["run", str(ROOT / "sequences" / "files" / "smoke.toml"), "--out", str(out)]) == EXIT_INVALID
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: the lock directory {tmp_path / under} cannot be used (")
+    assert f"set {locks.LOCK_DIR_ENV} to a directory" in err and "Traceback" not in err
+    assert not out.exists()
