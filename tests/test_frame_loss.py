@@ -231,10 +231,18 @@ def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames
     """The search's five dwells are holds 0-4, the track's first hold is hold 5. The track's looks
     that lost frames are passed over, and the resonance it finds is the loss-free track's within 1 %."""
     losses = bursts_of(10 if holds is None else 350, hold_frames=1500, holds=holds)
-    _, events, plate, status = run(tmp_path, kind, losses)
+    path, events, plate, status = run(tmp_path, kind, losses)
     assert status == "complete"
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     looks = [e for e in events if isinstance(e, ev.ResonanceTracked)]
+    with open_campaign(path) as campaign:  # the looks' times count the frames lost before them
+        (run_view,) = campaign.runs
+        lost_before = [
+            sum(e.fields["missing"] for e in run_view.events if e.kind == "gap" and e.sample < look.sample)
+            for look in looks
+        ]
+        times_s = run_view.track_record().time_s
+    assert np.allclose(times_s, (np.array([look.sample for look in looks]) + lost_before) / 1000.0)
     reference = [e for e in loss_free(kind)[1] if isinstance(e, ev.ResonanceTracked)]
     assert looks and reference
     assert (

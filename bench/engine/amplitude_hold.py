@@ -120,7 +120,6 @@ class HeldAmplitude:
         self._segment_start: int | None = None  # run sample of the present hold segment's start
         self._segment: list[tuple[np.ndarray, np.ndarray]] = []  # (seq, z) until the window is full
         self._window_start_seq: int | None = None  # the window's first frame counter
-        self._window_start_sample = 0  # ... and its run sample
         self._checked = False
         self._pending: float | None = None  # an update sent, until its ramp ends
 
@@ -164,7 +163,7 @@ class HeldAmplitude:
         if len(seq) == 0:
             return
         if self._window_start_seq is None:
-            self._window_start_seq, self._window_start_sample = int(seq[0]), sample
+            self._window_start_seq = int(seq[0])
         offsets = frame_offsets(seq, self._window_start_seq)
         inside = offsets < self._window
         self._segment.append((offsets[inside], z[inside]))

@@ -1498,6 +1498,7 @@ class _RunRecording:
         overrun = round((planned_s + e.timing.end_margin_s) * e.sample_rate_hz)
         end_deadline: int | None = None  # in elapsed samples, once the start is seen
         stopping = False  # tapered out early, on a pause or an abort request
+        start_seq: int | None = None  # the frame counter where the excitation started
         while not tracker.ended:
             columns = self._next_columns()
             first = self.samples - len(columns.get("status", ()))
@@ -1516,7 +1517,9 @@ class _RunRecording:
                 raise RunStoppedError.estop()
             freq_hz = None
             if tracker.started and columns:
-                t_s = (first + np.arange(len(columns["status"])) - tracker.start) / e.sample_rate_hz
+                if start_seq is None:  # the excitation's time runs by the frame counter: gaps count
+                    start_seq = int(self.seq_between(tracker.start, tracker.start + 1)[0])
+                t_s = frame_offsets(columns["seq"], start_seq) / e.sample_rate_hz
                 freq_hz = excitation_frequency_hz(setpoint, t_s)
             self._guard(columns, freq_hz=freq_hz)
             if not stopping and state in (RunState.PAUSING, RunState.ABORTING):

@@ -17,7 +17,7 @@ the window's reference sample. Offsets count samples at the acquisition's rate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -69,12 +69,12 @@ class SineFit:
     (first to last sample, both included) of which ``frames_present`` frames were there.
 
     ``phasors``: each channel's fundamental (channel units, ``t`` from the window's first sample);
-    ``offsets``: each channel's mean; ``residual_rms``: what the fit leaves, per channel."""
+    ``means``: each channel's fitted offset (its mean); ``residual_rms``: what the fit leaves, per channel."""
 
     freq_hz: float
     sample_rate_hz: float
     phasors: np.ndarray
-    offsets: np.ndarray
+    means: np.ndarray
     residual_rms: np.ndarray
     frames_present: int
     span_samples: int
@@ -163,12 +163,4 @@ def fit_latest_cycles(
     except ValueError:
         return None
     # the window's span is the whole cycles of time, whether or not its first frames came
-    return SineFit(
-        fit.freq_hz,
-        fit.sample_rate_hz,
-        fit.phasors,
-        fit.offsets,
-        fit.residual_rms,
-        fit.frames_present,
-        round(n_cycles * cycle),
-    )
+    return replace(fit, span_samples=round(n_cycles * cycle))

@@ -497,7 +497,7 @@ class RunView:
             return np.array([float(look[name]) for look in looks])
 
         return TrackRecord(
-            column("sample") / self.sample_rate_hz,
+            self._true_time_s(column("sample").astype(np.int64)),
             column("drive_hz"),
             column("resonance_hz"),
             column("ratio"),
@@ -506,6 +506,16 @@ class RunView:
             done[-1].verdict if done else "",
             done[-1].note if done else "",
         )
+
+    def _true_time_s(self, ends: np.ndarray) -> np.ndarray:
+        """The run's time (s) at run samples ``ends`` (each the sample after a window's last), by the
+        frame counter where the run recorded it: frames lost before count as time."""
+        seq = self.channels.get(SEQ_CHANNEL)
+        if seq is None or len(seq) == 0 or len(ends) == 0:
+            return ends / self.sample_rate_hz
+        offsets = frame_offsets(seq)
+        last = np.clip(ends - 1, 0, len(offsets) - 1)
+        return (offsets[last] + 1 + (ends - 1 - last)) / self.sample_rate_hz
 
     def sweep_record(self) -> SweepRecord:
         """The sweep (point 0) with its start, end, duration and amplitude from the run's step."""
