@@ -64,6 +64,9 @@ def test_smoke_sequence_runs_into_a_file_h5dump_reads_as_documented(tmp_path):
         for i, step in enumerate(sequence.steps)
         if step.kind in ("free_run", "dwell_grid", "sweep")
     }
+    for run_id in expected:  # each analysis names its run (it may print after the next run started)
+        started = run.stdout.index(f"run {run_id} (")
+        assert run.stdout.find(f"analysis of run {run_id} (", started) > started, run.stdout
     results = {"free_run": "plate_mass", "dwell_grid": "shaker", "sweep": "sweep"}
     with open_campaign(out) as campaign:
         assert campaign.sequence_name == "smoke"

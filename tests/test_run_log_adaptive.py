@@ -1,4 +1,5 @@
-"""The command line's run log shows the refinement as it happens and each adaptive dwell's verdict."""
+"""The command line's run log shows the refinement as it happens and each adaptive dwell's verdict;
+each run's analysis under a heading that names its run."""
 
 from __future__ import annotations
 
@@ -47,3 +48,9 @@ def test_an_adaptive_point_shows_its_verdict_and_uncertainty_a_fixed_one_does_no
     assert RunLog.line(adaptive) == (
         "  point 9 at 40.6 Hz: done, commanded 2.000 mm, achieved 1.990 mm; target, u 0.41 % / 0.24 deg"
     )
+
+
+def test_an_analysis_is_headed_by_the_run_it_analysed() -> None:
+    """The analysis ends after its run, often after the next run started: its lines name their run."""
+    done = ev.AnalysisDone("paper-s002-dwell_grid", "shaker", ("tyre 1.5 bar: k 210 N/mm",), {})
+    assert RunLog.line(done) == "analysis of run paper-s002-dwell_grid (shaker):\n  tyre 1.5 bar: k 210 N/mm"

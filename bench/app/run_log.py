@@ -58,8 +58,9 @@ class RunLog:
                 return ev.host_stall_text(event)
             case ev.RunFinished():
                 return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"
-            case ev.AnalysisDone():
-                return "\n".join(f"  {line}" for line in event.summary)
+            case ev.AnalysisDone():  # may arrive after the next run's start: it names its run
+                heading = f"analysis of run {event.run_id} ({event.name}):"
+                return "\n".join([heading, *(f"  {line}" for line in event.summary)])
             case ev.SequenceFinished():
                 return f"sequence {event.status}{': ' + event.reason if event.reason else ''}"
         return None
