@@ -57,7 +57,7 @@ def import_time_s() -> float:
     def interpreter(code: str) -> float:
         return best_time_s(lambda: subprocess.run([sys.executable, "-c", code], check=True), repeats=3)
 
-    return interpreter("import bench.cli, bench.demo, bench.app.report") - interpreter("pass")
+    return interpreter("import bench.cli.main, bench.demo, bench.app.report") - interpreter("pass")
 
 
 def plant_time_s(sample_time_s: float) -> float:

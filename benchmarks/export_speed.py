@@ -3,7 +3,7 @@
 The campaign file is the demo's (hammer test, shaker free run and 9 dwell grids, four-post free run
 and sweep); it is made first with ``wfsbench demo`` unless ``--campaign`` names one (not timed).
 Timed, each the best of ``--repeats``, in this process (imports paid before): the export of every run
-in each format, as ``wfsbench export`` does it (``bench.cli_export.export``; UFF 58 includes the
+in each format, as ``wfsbench export`` does it (``bench.cli.export.export``; UFF 58 includes the
 analysis of the whole file, which gives its FRFs). Baseline in the same run: reading every channel of
 every run with h5py (``read_every_channel``). Sizes against the campaign file's (HDF5, gzip level 1).
 
@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.cli_export import FORMATS, export
+from bench.cli.export import FORMATS, export
 from benchmarks.report_speed import campaign_or_demo, read_every_channel
 from benchmarks.timing import best_time_s
 

@@ -5,6 +5,7 @@ settled by the controller's state, not failed (nor re-sent)."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -110,6 +111,36 @@ def test_late_replies_to_start_and_stop_are_settled_by_the_status():
         assert faults.delay_next == 0, "the stop's reply was the late one"
         assert actuator.read_status().status.state is not ControllerState.RUNNING
         assert InterlockFlag.WATCHDOG not in lab.bench.controller.flags
+
+
+def _interlocked(lab: SimulatedLab, actuator: ThreadedActuator) -> None:
+    """The controller interlocked by its own watchdog (a dwell left unbeaten), at rest."""
+    actuator.set_hydraulics("low")
+    actuator.set_hydraulics("high")
+    actuator.configure(DwellSetpoint(freq_hz=10.0, amplitude_mm=1.0, taper_in_s=0.2, taper_out_s=0.2))
+    lab.bench.controller.write_setpoints({"watchdog_ms": 100})
+    actuator.start()
+    controller = lab.bench.controller
+    wait_until(lambda: controller.state is ControllerState.INTERLOCK, 10.0, "the watchdog's interlock")
+    wait_until(lambda: not actuator.read_status().status.moving, 10.0, "the taper's end")
+
+
+@pytest.mark.parametrize("applied", [True, False], ids=["reset applied", "reset not applied"])
+def test_a_reset_whose_reply_is_late_is_settled_by_the_status_and_sent_again_if_not_taken(applied, caplog):
+    """A starved host misses the reset's reply: the status read after it decides. Taken, the reset
+    stands (sent once); not taken (still interlocked), it is sent once more and the controller is
+    released either way, so the engine is not left failed by a reply it did not see in time."""
+    with SimulatedLab() as lab, quiet_actuator(lab) as actuator:
+        _interlocked(lab, actuator)
+        faults = lab.server.faults
+        faults.delay_next, faults.delay_s, faults.exception_next = 1, LATE_S, 0 if applied else 1
+        with caplog.at_level(logging.WARNING, logger="bench.app.actuator_thread"):
+            actuator.reset_interlock()
+        assert faults.delay_next == 0 and faults.exception_next == 0, "the reset's reply was the late one"
+        assert actuator.read_status().status.state is ControllerState.HYDRAULICS_LOW
+        assert not lab.bench.controller.flags
+        (said,) = [r.getMessage() for r in caplog.records if r.getMessage().startswith("reset: ")]
+        assert said.endswith("reads hydraulics_low: done" if applied else "still reads interlock: sent again")
 
 
 def test_a_late_reply_to_a_setpoint_write_writes_the_setpoint_again_and_start_goes_through():

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.cli_analysis import EXIT_NOT_CAMPAIGN, EXIT_OK
+from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
 from bench.store import StoreError, add_results, open_campaign
@@ -62,7 +62,7 @@ def _free_run_results(path: Path) -> dict[str, float]:
 def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data(smoke_file):
     raw_before = _raw_digest(smoke_file)
     text = wfsbench("analyze", str(smoke_file))
-    assert text.returncode == EXIT_OK, text.stderr
+    assert text.returncode == ExitCode.OK, text.stderr
     assert re.search(
         r"^== \S+ \(free_run: plate_mass; stored as results/plate_mass-reanalysis-1\)$", text.stdout, re.M
     ), text.stdout
@@ -71,7 +71,7 @@ def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data
     assert "2 mm Model" in text.stdout and "valid band" in text.stdout
 
     run = wfsbench("analyze", str(smoke_file), "--json")
-    assert run.returncode == EXIT_OK, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     doc = json.loads(run.stdout)
     assert (doc["schema"], doc["version"]) == ("wfs-bench-analysis", 2)
     assert doc["file"] == str(smoke_file) and doc["sequence_name"] == "smoke"
@@ -122,7 +122,7 @@ def test_report_writes_every_figure_and_one_self_contained_page(smoke_file, tmp_
         names_before = {run.run_id: run.result_names for run in campaign.runs}
     out = tmp_path / "report"
     run = wfsbench("report", str(smoke_file), "--out", str(out))
-    assert run.returncode == EXIT_OK, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     figures = [
         Path(line.removeprefix("figure ")) for line in run.stdout.splitlines() if line.startswith("figure ")
     ]
@@ -131,7 +131,7 @@ def test_report_writes_every_figure_and_one_self_contained_page(smoke_file, tmp_
     assert run.stdout.splitlines()[-1] == f"report {page}"
     assert "replacing" not in run.stdout
     again = wfsbench("report", str(smoke_file), "--out", str(out))  # the same folder: said first
-    assert again.returncode == EXIT_OK and again.stdout.splitlines()[0] == (
+    assert again.returncode == ExitCode.OK and again.stdout.splitlines()[0] == (
         f"replacing the report in {out} (its report.html and the figures of the same names)"
     )
     html = page.read_text(encoding="utf-8")
@@ -177,7 +177,7 @@ def test_files_that_are_no_campaign_are_refused_with_exit_3(kind, tmp_path, smok
         ("report", str(path), "--out", str(tmp_path / "out")),
     ):
         run = wfsbench(*command)
-        assert run.returncode == EXIT_NOT_CAMPAIGN, (command, run.stdout, run.stderr)
+        assert run.returncode == ExitCode.INVALID, (command, run.stdout, run.stderr)
         assert run.stdout == ""
         assert run.stderr.startswith(f"error: {path}"), run.stderr
         assert "Traceback" not in run.stderr
@@ -215,7 +215,7 @@ def test_the_masses_come_from_the_configuration_stored_in_the_file(smoke_file, t
     assert changed != text
     path = _with_config(smoke_file, tmp_path / "heavier_sensor.h5", changed)
     run = wfsbench("analyze", str(path), "--json")
-    assert run.returncode == EXIT_OK, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     doc = json.loads(run.stdout)
     assert doc["given"]["sensor_mass_kg"] == 4.1 == doc["sensor"]["mass_kg"]
 
@@ -223,7 +223,7 @@ def test_the_masses_come_from_the_configuration_stored_in_the_file(smoke_file, t
         smoke_file, tmp_path / "broken_config.h5", text.replace("sensor_kg = 3.82", "sensor_kg = -1")
     )
     run = wfsbench("analyze", str(broken))
-    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.returncode == ExitCode.INVALID
     assert run.stderr.startswith(f"error: {broken}: the stored bench configuration is invalid")
     assert "sensor_kg" in run.stderr
 
@@ -234,7 +234,7 @@ def test_report_into_a_file_or_under_one_is_refused_with_exit_3_before_the_analy
     refusals = ((afile, "exists and is not a directory"), (afile / "sub", f"{afile} is not a directory"))
     for out, why in refusals:
         run = wfsbench("report", str(smoke_file), "--out", str(out))
-        assert run.returncode == EXIT_NOT_CAMPAIGN, (run.stdout, run.stderr)
+        assert run.returncode == ExitCode.INVALID, (run.stdout, run.stderr)
         assert run.stdout == ""
         assert run.stderr.startswith(f"error: {out}: ") and why in run.stderr, run.stderr
         assert "Traceback" not in run.stderr
@@ -242,7 +242,7 @@ def test_report_into_a_file_or_under_one_is_refused_with_exit_3_before_the_analy
     # checked before the file is even opened: a file that is no campaign is not what is reported
     garbage = _garbage("text", tmp_path, smoke_file)
     run = wfsbench("report", str(garbage), "--out", str(afile))
-    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.returncode == ExitCode.INVALID
     assert run.stderr.startswith(f"error: {afile}: exists and is not a directory"), run.stderr
 
 
@@ -253,7 +253,7 @@ def test_every_sequence_appended_to_a_file_is_listed_in_the_report_and_the_json(
         run = wfsbench("run", str(SMOKE.with_name(sequence)), "--out", str(path))
         assert run.returncode == 0, run.stderr
     report = wfsbench("report", str(path), "--out", str(tmp_path / "report"))
-    assert report.returncode == EXIT_OK, report.stderr
+    assert report.returncode == ExitCode.OK, report.stderr
     html = (tmp_path / "report" / "report.html").read_text(encoding="utf-8")
     assert "<td>sequence that created the file</td><td>hammer</td>" in html
     assert "<td>sequences run</td><td>hammer (1 run), smoke (3 runs)</td>" in html
@@ -275,10 +275,10 @@ def test_a_directory_or_a_text_file_is_refused_in_one_plain_sentence(tmp_path):
     folder.mkdir()
     text.write_text("time,fz\n0,1\n")
     run = wfsbench("analyze", str(folder))
-    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.returncode == ExitCode.INVALID
     assert run.stderr == f"error: {folder}: a directory, not a campaign file (an HDF5 file, docs/hdf5.md)\n"
     run = wfsbench("analyze", str(text))
-    assert run.returncode == EXIT_NOT_CAMPAIGN
+    assert run.returncode == ExitCode.INVALID
     assert run.stderr == (
         f"error: {text}: not a readable HDF5 file"
         " (Unable to synchronously open file (file signature not found))\n"
@@ -292,5 +292,5 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(smoke_file):
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
     process.stdout.close()  # the reader has gone
     stderr = process.stderr.read().decode()
-    assert process.wait(timeout=120) == EXIT_OK, stderr
+    assert process.wait(timeout=120) == ExitCode.OK, stderr
     assert "Traceback" not in stderr and "BrokenPipeError" not in stderr

@@ -1,6 +1,6 @@
 """``wfsbench analyze`` says whether every analysis completed: exit code 0 and ``status`` complete
 only then; a run whose analysis failed (a channel it needs deleted from the file) gives exit code 5
-(``EXIT_PARTIAL``), ``status`` partial, the run's own status and why, in the text and the JSON."""
+(``ExitCode.INCOMPLETE``), ``status`` partial, the run's own status and why, in the text and the JSON."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from bench.cli_analysis import EXIT_OK, EXIT_PARTIAL
+from bench.cli.exit_codes import ExitCode
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
@@ -35,10 +35,10 @@ def _json(path: Path) -> tuple[int, dict]:
 
 def test_a_complete_analysis_exits_0_and_says_so(campaign):
     text = wfsbench("analyze", str(campaign))
-    assert text.returncode == EXIT_OK, text.stderr
+    assert text.returncode == ExitCode.OK, text.stderr
     assert text.stdout.splitlines()[-1] == "== analysis complete: 2 runs analysed"
     code, doc = _json(campaign)
-    assert code == EXIT_OK and doc["status"] == "complete"
+    assert code == ExitCode.OK and doc["status"] == "complete"
     assert [(r["run_id"], r["status"], r["error"], r["omitted"]) for r in doc["runs"]] == [
         ("free", "complete", None, []),
         ("grid", "complete", None, []),
@@ -51,12 +51,12 @@ def test_a_channel_deleted_from_the_file_fails_its_analysis_and_the_command(camp
     with h5py.File(broken, "r+") as file:
         del file["runs/grid/channels/fz_wfs_n"]
     text = wfsbench("analyze", str(broken))
-    assert text.returncode == EXIT_PARTIAL, text.stderr
+    assert text.returncode == ExitCode.INCOMPLETE, text.stderr
     last = text.stdout.splitlines()[-1]
     assert last.startswith("== analysis partial: 1 of 2 runs not complete (grid failed: ")
     assert "fz_wfs_n" in last and "missing" in last
     code, doc = _json(broken)
-    assert code == EXIT_PARTIAL and doc["status"] == "partial"
+    assert code == ExitCode.INCOMPLETE and doc["status"] == "partial"
     grid = next(r for r in doc["runs"] if r["run_id"] == "grid")
     assert grid["status"] == "failed" and "fz_wfs_n" in grid["error"]
     assert next(r for r in doc["runs"] if r["run_id"] == "free")["status"] == "complete"

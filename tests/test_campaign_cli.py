@@ -15,7 +15,8 @@ import pytest
 
 from bench.app.plan import plan_campaign
 from bench.app.run import run_campaign
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_REFUSED, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.config import load_bench_config
 from bench.store import open_campaign
 from sequences import load_sequence
@@ -40,7 +41,7 @@ def wfsbench(*args: str, timeout_s: float = 120) -> subprocess.CompletedProcess:
 def test_smoke_sequence_runs_into_a_file_h5dump_reads_as_documented(tmp_path):
     out = tmp_path / "smoke.h5"
     run = wfsbench("run", str(SMOKE), "--out", str(out))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     assert "smoke: complete" in run.stdout
 
     dump = subprocess.run(
@@ -91,7 +92,7 @@ def test_a_point_the_dry_run_refuses_stops_everything_before_it_starts(tmp_path)
     config.write_text('kind = "shaker"\n[limits]\nwfs_force_n = 700\n')
     out = tmp_path / "refused.h5"
     run = wfsbench("run", str(SMOKE), "--out", str(out), "--bench", str(config))
-    assert run.returncode == EXIT_REFUSED
+    assert run.returncode == ExitCode.REFUSED
     refused = [line for line in run.stderr.splitlines() if "beyond the limit" in line]
     assert len(refused) == 4, run.stderr
     for point, freq_hz in enumerate((10, 30, 40, 50)):
@@ -216,7 +217,7 @@ def test_invalid_files_are_refused_naming_file_key_and_reason_and_nothing_reache
     out = tmp_path / "campaign.h5"
     code = main(["run", str(sequence), "--out", str(out), "--bench", str(config)])
     stderr = capsys.readouterr().err
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert f"error: {tmp_path}/{case.named}" in stderr
     assert server.writes_received == 0
     assert not out.exists()
@@ -229,7 +230,7 @@ def test_empty_configuration_file_is_refused_by_the_command(tmp_path, lab_device
     sequence.write_text(GOOD_SEQUENCE)
     config.write_text("")
     run = wfsbench("run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config))
-    assert run.returncode == EXIT_INVALID
+    assert run.returncode == ExitCode.INVALID
     assert f"error: {config}: empty file" in run.stderr
     assert server.writes_received == 0
 
@@ -260,6 +261,6 @@ def test_a_real_wfs_beside_the_default_simulated_actuator_names_the_simulated_ke
     config, out = tmp_path / "lab.toml", tmp_path / "c.h5"
     config.write_text('[wfs]\ntransport = "serial"\ndevice = "/dev/ttyUSB1"\n')
     run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out))
-    assert run.returncode == EXIT_INVALID
+    assert run.returncode == ExitCode.INVALID
     assert f"{config}: actuator.transport: a simulated device cannot be mixed with real ones" in run.stderr
     assert not out.exists()

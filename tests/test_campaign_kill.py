@@ -22,9 +22,10 @@ import h5py
 import numpy as np
 import pytest
 
+from bench.app.pace import DoneBefore
 from bench.app.plan import plan_campaign
-from bench.app.progress import DoneBefore
 from bench.app.resume import done_in_file
+from bench.cli.exit_codes import ExitCode
 from bench.engine.amplitude import amplitude_mm
 from bench.numerics.sine_fit import fit_latest_cycles
 from bench.store import open_campaign
@@ -146,7 +147,7 @@ def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_
     assert done_in_file(plan, out) == DoneBefore(points=1, estimated_s=point_0.duration_s)  # resume skips it
 
     resumed = wfsbench("run", str(sequence), "--out", str(out), "--bench", str(config), "--resume")
-    assert resumed.returncode == 0, resumed.stderr
+    assert resumed.returncode == ExitCode.INCOMPLETE, resumed.stderr
     assert "point 0" not in resumed.stdout and "point 1 at 20 Hz: done" in resumed.stdout
     assert "progress: 1/2 points" in resumed.stdout  # point 0, done before the kill, counts as done
     subprocess.run([H5DUMP, "-H", str(out)], capture_output=True, timeout=60, check=True)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
-from bench.cli_analysis import EXIT_PARTIAL
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from sequences import shipped_file
 from tests.test_csv_import import GOOD_CSV, MAPPING
 
@@ -33,7 +33,7 @@ FOUR_POST_CONFIG = "configs/simulated_four_post.toml"
 PROBE = """
 import json, sys
 args, result, heavy = json.loads(sys.argv[1]), sys.argv[2], json.loads(sys.argv[3])
-from bench.cli import main
+from bench.cli.main import main
 try:
     code = main(args)
 except SystemExit as exit:
@@ -66,7 +66,7 @@ def imported_campaign(tmp_path_factory) -> Path:
     (folder / "mapping.toml").write_text(MAPPING)
     (folder / "free.csv").write_text(GOOD_CSV)
     out = folder / "campaign.h5"
-    assert main(["import-csv", str(folder / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(folder / "mapping.toml"), "--out", str(out)]) == ExitCode.OK
     return out
 
 
@@ -79,11 +79,11 @@ def imported_campaign(tmp_path_factory) -> Path:
         (["check", str(shipped_file("smoke.toml"))], 0),
         (["check", str(shipped_file("paper_shaker_adaptive.toml"))], 0),
         (["check", str(shipped_file("paper_four_post.toml")), "--bench", FOUR_POST_CONFIG], 0),
-        (["check", "missing.toml"], EXIT_INVALID),
-        (["analyze", "missing.h5"], EXIT_INVALID),
-        (["analyze", "--json", "missing.h5"], EXIT_INVALID),
-        (["import-csv", "missing.toml", "--out", "never.h5"], EXIT_INVALID),
-        (["show", "missing.h5"], EXIT_INVALID),
+        (["check", "missing.toml"], ExitCode.INVALID),
+        (["analyze", "missing.h5"], ExitCode.INVALID),
+        (["analyze", "--json", "missing.h5"], ExitCode.INVALID),
+        (["import-csv", "missing.toml", "--out", "never.h5"], ExitCode.INVALID),
+        (["show", "missing.h5"], ExitCode.INVALID),
     ],
     ids=lambda value: " ".join(Path(a).name for a in value) if isinstance(value, list) else None,
 )
@@ -95,7 +95,7 @@ def test_import_csv_of_a_garbage_mapping_loads_none_of_them(tmp_path):
     mapping = tmp_path / "mapping.toml"
     mapping.write_text('[source]\nname = "lab_b"\nnot toml at all [[\n')
     out = tmp_path / "x.h5"
-    assert run_offline(tmp_path, "import-csv", str(mapping), "--out", str(out)) == (EXIT_INVALID, [])
+    assert run_offline(tmp_path, "import-csv", str(mapping), "--out", str(out)) == (ExitCode.INVALID, [])
     assert not out.exists()
 
 
@@ -111,7 +111,7 @@ def test_import_csv_of_good_files_loads_none_of_them(tmp_path):
 def test_analyze_of_a_campaign_file_loads_none_of_them(tmp_path, imported_campaign, json_out):
     args = ["analyze", *(["--json"] if json_out else []), str(imported_campaign)]
     # the imported free run is three samples long: its analysis fails, so the exit code is partial's
-    assert run_offline(tmp_path, *args) == (EXIT_PARTIAL, [])
+    assert run_offline(tmp_path, *args) == (ExitCode.INCOMPLETE, [])
 
 
 def test_report_loads_only_the_plotting_library_of_them(tmp_path, imported_campaign):
@@ -123,7 +123,7 @@ def test_report_loads_only_the_plotting_library_of_them(tmp_path, imported_campa
 
 def test_report_of_a_missing_file_loads_no_device_client_simulator_or_engine(tmp_path):
     code, loaded = run_offline(tmp_path, "report", "missing.h5", "--out", str(tmp_path / "report"))
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert [m for m in loaded if m not in DRAWS] == []
 
 
@@ -131,5 +131,5 @@ def test_the_probe_sees_what_a_command_that_opens_the_bench_loads(tmp_path):
     """The check above is not vacuous: ``run`` loads the clients and the simulators (here it stops
     at the refused sequence file, after the imports the run needs)."""
     code, loaded = run_offline(tmp_path, "run", "missing.toml", "--out", str(tmp_path / "x.h5"))
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert {"pymodbus", "simulators", "bench.engine.engine"} <= set(loaded)

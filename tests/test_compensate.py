@@ -18,8 +18,8 @@ from bench.analysis.measurement_compensation import CompensationStream, design_f
 from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
 from bench.app.analyze import analyze_campaign
 from bench.app.compensate import CompensationRefusedError, prepare_compensation
-from bench.cli import main
-from bench.cli_compensate import EXIT_INVALID, EXIT_OK, EXIT_REFUSED
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.models.benches import TyreModel
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
@@ -147,9 +147,9 @@ def test_the_command_writes_the_force_and_the_exported_filters_reproduce_it(
     path, columns, truth = road
     out, exported, table = tmp_path / "out.h5", tmp_path / "filters.json", tmp_path / "filters.csv"
     args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)]
-    assert main([*args, "--filters", str(exported)]) == EXIT_OK
+    assert main([*args, "--filters", str(exported)]) == ExitCode.OK
     said = capsys.readouterr().out
-    assert main(args) == EXIT_INVALID  # the output is never replaced
+    assert main(args) == ExitCode.INVALID  # the output is never replaced
     with h5py.File(out, "r") as f:
         force, u95, t = f["f_contact_n"][()], f["u95_n"][()], f["t_s"][()]
         assert f.attrs["schema"] == "wfs-bench compensated force"
@@ -267,9 +267,8 @@ def test_a_measurement_the_campaign_does_not_cover_is_refused_naming_what_is_mis
 def test_the_command_refuses_with_exit_4_and_names_what_is_missing(campaign, tmp_path, capsys):
     out = tmp_path / "out.h5"
     # a run of the campaign file without the channels: the shaker's free run
-    assert (
-        main(["compensate", str(campaign), str(campaign), "--run", "free", "--out", str(out)]) == EXIT_REFUSED
-    )
+    code = main(["compensate", str(campaign), str(campaign), "--run", "free", "--out", str(out)])
+    assert code == ExitCode.REFUSED
     assert "run free: no fz_wfs_n, a_hub_m_s2 channel (it has z_base_m, f_plate_n)" in capsys.readouterr().err
     assert not out.exists()
 
@@ -283,7 +282,7 @@ def test_the_command_loads_no_device_client_simulator_engine_or_plotting(campaig
     code, loaded = run_offline(
         tmp_path, "compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(tmp_path / "o.h5")
     )
-    assert (code, loaded) == (EXIT_OK, [])
+    assert (code, loaded) == (ExitCode.OK, [])
 
 
 def test_a_run_recorded_without_the_wheel_is_refused_even_with_every_channel(tmp_path, capsys):
@@ -296,7 +295,7 @@ def test_a_run_recorded_without_the_wheel_is_refused_even_with_every_channel(tmp
         read_measurement(path, run_id="bare")
     out = tmp_path / "out.h5"
     args = ["compensate", str(path), str(path), "--run", "bare", "--pressure", "2.5", "--out", str(out)]
-    assert main(args) == EXIT_REFUSED
+    assert main(args) == ExitCode.REFUSED
     assert "without the wheel on the bench" in capsys.readouterr().err and not out.exists()
 
 
@@ -323,6 +322,6 @@ def test_a_pressure_that_is_no_number_of_bar_is_refused_before_anything_is_read(
     args = ["compensate", str(tmp_path / "c.h5"), str(tmp_path / "m.csv"), f"--pressure={pressure}"]
     with pytest.raises(SystemExit) as refused:  # the command line's own refusal
         main([*args, "--out", str(out)])
-    assert refused.value.code == EXIT_INVALID
+    assert refused.value.code == ExitCode.INVALID
     assert "a tyre pressure must be a positive number of bar" in capsys.readouterr().err
     assert not out.exists()

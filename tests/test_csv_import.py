@@ -14,7 +14,8 @@ import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
 from bench.app.run_analysis import RunAnalyser, replay_campaign
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
 from bench.store.csv_import import ImportLimits, import_campaign
@@ -121,7 +122,7 @@ def test_a_campaign_exported_to_foreign_csv_and_imported_gives_the_same_paramete
     mapping = export_campaign(smoke_campaign, tmp_path)
     imported = tmp_path / "imported.h5"
     run = wfsbench("import-csv", str(mapping), "--out", str(imported))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
 
     with open_campaign(smoke_campaign) as original, open_campaign(imported) as copy:
         assert [r.run_id for r in copy.runs] == [r.run_id for r in original.runs]
@@ -221,7 +222,7 @@ def test_garbage_csv_is_refused_with_file_line_and_column_and_leaves_nothing(tmp
     (tmp_path / "free.csv").write_text(text)
     out = tmp_path / "imported.h5"
     code = main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)])
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert f"error: {tmp_path}/{named}" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "free.csv",
@@ -253,7 +254,7 @@ def test_a_good_file_imports_with_its_units_converted(tmp_path, capsys):
     (tmp_path / "mapping.toml").write_text(MAPPING)
     (tmp_path / "free.csv").write_text(GOOD_CSV)
     out = tmp_path / "imported.h5"
-    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == ExitCode.OK
     assert (
         f"imported lab_b-r000-free_run (free_run, 1 point from 1 file); file {out}" in capsys.readouterr().out
     )
@@ -266,7 +267,7 @@ def test_a_good_file_imports_with_its_units_converted(tmp_path, capsys):
         (point,) = run.points
         assert (point.freq_hz, point.amplitude_mm, point.start_sample, point.end_sample) == (10, 2, 0, 3)
     # an existing campaign file is never replaced
-    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_INVALID
+    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == ExitCode.INVALID
 
 
 BAD_MAPPINGS = {
@@ -447,7 +448,7 @@ def test_the_sweep_campaign_of_the_impossible_cases_imports_as_it_is(tmp_path):
     """The base of the cases below is good: a sweep's duration within one sample of its file's."""
     mapping = _write_campaign_files(tmp_path, ("duration_s = 0.003", "duration_s = 0.0039"))
     out = tmp_path / "imported.h5"
-    assert main(["import-csv", str(mapping), "--out", str(out)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(mapping), "--out", str(out)]) == ExitCode.OK
     with open_campaign(out) as campaign:
         assert [r.kind for r in campaign.runs] == ["free_run", "sweep"]
 
@@ -457,7 +458,7 @@ def test_impossible_mapped_values_are_refused_naming_the_key_and_the_range(tmp_p
     changes, named = case
     mapping = _write_campaign_files(tmp_path, changes)
     out = tmp_path / "imported.h5"
-    assert main(["import-csv", str(mapping), "--out", str(out)]) == EXIT_INVALID
+    assert main(["import-csv", str(mapping), "--out", str(out)]) == ExitCode.INVALID
     assert capsys.readouterr().err == f"error: {mapping}: {named}\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["free.csv", "mapping.toml", "sweep.csv"]
 
@@ -471,7 +472,7 @@ def test_a_time_column_in_the_wrong_unit_is_caught_by_the_sample_rate(tmp_path, 
     )
     for name in ("free.csv", "sweep.csv"):
         (tmp_path / name).write_text("Zeit;Weg [mm];F_Platte [kN]\n0;0,5;1,25\n1;0,75;1,5\n2;1;1,75\n")
-    assert main(["import-csv", str(mapping), "--out", str(tmp_path / "out.h5")]) == EXIT_INVALID
+    assert main(["import-csv", str(mapping), "--out", str(tmp_path / "out.h5")]) == ExitCode.INVALID
     lines = capsys.readouterr().err.splitlines()
     assert lines == [
         f"error: {mapping}: runs[0].points[0].freq_hz: 10 Hz is not below half the sample rate of free.csv"
@@ -490,6 +491,6 @@ def test_a_csv_file_with_a_utf8_byte_order_mark_imports(tmp_path, encoding):
     (tmp_path / "mapping.toml").write_text(MAPPING.replace("[time]", f"{encoding}[time]"))
     (tmp_path / "free.csv").write_bytes(b"\xef\xbb\xbf" + GOOD_CSV.encode())
     out = tmp_path / "imported.h5"
-    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(tmp_path / "mapping.toml"), "--out", str(out)]) == ExitCode.OK
     with open_campaign(out) as campaign:
         np.testing.assert_allclose(campaign.runs[0].channels["z_base_m"], [0.5e-3, 0.75e-3, 1e-3], rtol=1e-7)

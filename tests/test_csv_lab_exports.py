@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.store import open_campaign
 from tests.test_csv_import import analysed
 
@@ -24,7 +25,7 @@ PLATE_KG = 12.0
 def imported(lab: str, folder: Path, capsys) -> tuple[Path, str]:
     """``lab``'s export imported into ``folder``; the file and what the command printed."""
     out = folder / f"{lab}.h5"
-    assert main(["import-csv", str(EXPORTS / lab / "mapping.toml"), "--out", str(out)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(EXPORTS / lab / "mapping.toml"), "--out", str(out)]) == ExitCode.OK
     return out, capsys.readouterr().out
 
 
@@ -82,7 +83,7 @@ def test_lab_b_one_continuous_file_per_run_imports_only_its_points(tmp_path, cap
     per_dwell.mkdir()
     _split_into_dwells(EXPORTS / "lab_b", per_dwell)
     split = per_dwell / "split.h5"
-    assert main(["import-csv", str(per_dwell / "mapping.toml"), "--out", str(split)]) == EXIT_COMPLETE
+    assert main(["import-csv", str(per_dwell / "mapping.toml"), "--out", str(split)]) == ExitCode.OK
     with open_campaign(path) as campaign, open_campaign(split) as other:
         for run, twin in zip(campaign.runs, other.runs, strict=True):
             assert run.n_samples == 400 * len(run.points)  # 0.8 s a point at 500 Hz; not the rest between
@@ -140,7 +141,7 @@ REFUSED = {
 def test_a_faulty_export_is_refused_naming_file_line_and_column_or_key(tmp_path, capsys, case):
     folder = EXPORTS / "refused" / case
     out = tmp_path / "refused.h5"
-    assert main(["import-csv", str(folder / "mapping.toml"), "--out", str(out)]) == EXIT_INVALID
+    assert main(["import-csv", str(folder / "mapping.toml"), "--out", str(out)]) == ExitCode.INVALID
     assert capsys.readouterr().err.startswith(f"error: {folder}/{REFUSED[case]}")
     assert not out.exists()
 

@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.store import csv_read, open_campaign
 from bench.store.csv_mapping import MappingError, load_mapping
 from bench.store.csv_units import UNITS, unit_named
@@ -83,7 +84,7 @@ def test_unknown_spellings_are_no_unit():
 )
 def test_units_row_and_delimiters_ending_the_lines(tmp_path, capsys, text):
     mapping = write(tmp_path, HEAD.format(csv="units_row = true") + FREE_RUN, free=text)
-    assert import_csv(mapping, capsys)[0] == EXIT_COMPLETE
+    assert import_csv(mapping, capsys)[0] == ExitCode.OK
     with open_campaign(tmp_path / "out.h5") as campaign:
         channels = campaign.runs[0].channels
         np.testing.assert_allclose(channels["z_base_m"], [1e-3, 4e-3], rtol=1e-7)
@@ -131,7 +132,7 @@ def test_units_row_and_delimiters_ending_the_lines(tmp_path, capsys, text):
 def test_what_stays_refused_with_a_units_row(tmp_path, capsys, text, error):
     mapping = write(tmp_path, HEAD.format(csv="units_row = true") + FREE_RUN, free=text)
     code, said = import_csv(mapping, capsys)
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert said.startswith(f"error: {tmp_path}/free.csv: {error}")
 
 
@@ -155,9 +156,9 @@ def test_a_file_read_in_blocks_is_read_whole_and_its_errors_at_their_lines(
     )
     code, said = import_csv(mapping, capsys)
     if error is not None:
-        assert (code, said) == (EXIT_INVALID, f"error: {tmp_path}/free.csv: {error}\n")
+        assert (code, said) == (ExitCode.INVALID, f"error: {tmp_path}/free.csv: {error}\n")
         return
-    assert code == EXIT_COMPLETE
+    assert code == ExitCode.OK
     with open_campaign(tmp_path / "out.h5") as campaign:
         np.testing.assert_allclose(campaign.runs[0].channels["z_base_m"], np.arange(1, 6) * 1e-3, rtol=1e-7)
 
@@ -175,7 +176,7 @@ def test_a_column_a_run_does_not_need_is_left_out_and_said(tmp_path, capsys):
         grid="Weg [mm];F_Platte [kN];Fz [N];a_Nabe [m/s²]\n1;2;3;4\n",
     )
     code, said = import_csv(mapping, capsys)
-    assert code == EXIT_COMPLETE, said
+    assert code == ExitCode.OK, said
     assert (
         "lab-r000-free_run (free_run, 1 point from 1 file, without fz_wfs_n, a_hub_m_s2: not in its files,"
         in said
@@ -196,7 +197,7 @@ def test_a_column_in_some_files_of_a_run_only_is_refused(tmp_path, capsys):
         other="Weg;F_Platte\nmm;kN\n1;2\n",
     )
     code, said = import_csv(mapping, capsys)
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert said == (
         f"error: {tmp_path}/other.csv: line 1, column 'Fz': missing, though free.csv of the same run has it"
         " (the header has: Weg, F_Platte)\n"
@@ -209,7 +210,7 @@ def test_a_column_in_none_of_the_files_is_refused_naming_its_key(tmp_path, capsy
     )
     code, said = import_csv(mapping, capsys)
     assert (code, said) == (
-        EXIT_INVALID,
+        ExitCode.INVALID,
         f"error: {mapping}: channels.fz_wfs_n.column: 'Fz' is a column of none of the CSV files"
         " that map it\n",
     )
@@ -237,7 +238,7 @@ def test_points_of_one_continuous_file_are_its_parts_only(tmp_path, capsys):
     mapping = write(
         tmp_path, HEAD.format(csv="units_row = true") + CONTINUOUS, run="Weg;F_Platte;Fz\nmm;N;N\n" + rows
     )
-    assert import_csv(mapping, capsys)[0] == EXIT_COMPLETE
+    assert import_csv(mapping, capsys)[0] == ExitCode.OK
     with open_campaign(tmp_path / "out.h5") as campaign:
         (run,) = campaign.runs
         np.testing.assert_allclose(run.channels["z_base_m"], np.array([2, 3, 4, 6, 7, 8]) * 1e-3, rtol=1e-7)
@@ -296,7 +297,7 @@ def test_parts_that_cannot_be_are_refused_naming_the_key(tmp_path, capsys, chang
     text = HEAD.format(csv="units_row = true") + CONTINUOUS.replace(*change)
     mapping = write(tmp_path, text, run="Weg;F_Platte;Fz\nmm;N;N\n" + rows)
     code, said = import_csv(mapping, capsys)
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert f"{mapping}: {error}" in said
 
 
@@ -307,7 +308,7 @@ def test_points_sharing_a_file_without_parts_are_refused(tmp_path, capsys):
     )
     mapping = write(tmp_path, text + "amplitude_mm = 2\n", free="Weg;F_Platte;Fz\nmm;N;N\n1;2;3\n4;5;6\n")
     code, said = import_csv(mapping, capsys)
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert said.startswith(
         f"error: {mapping}: runs[0].points[1].start_s: 0 s lies inside the part of free.csv that"
         " runs[0].points[0] holds (0 s to its end): the points of one file must not overlap"
@@ -330,7 +331,7 @@ fz_wfs_n = { column = "Fz [kN]" }
 def test_a_hammer_capture_at_its_own_rate_with_its_own_columns(tmp_path, capsys):
     rows = "".join(f"{0.05 * i:.2f},{0.001 * i:g}\n" for i in range(6))
     mapping = write(tmp_path, HAMMER, hammer="t [ms],Fz [kN]\n" + rows)
-    assert import_csv(mapping, capsys)[0] == EXIT_COMPLETE
+    assert import_csv(mapping, capsys)[0] == ExitCode.OK
     with open_campaign(tmp_path / "out.h5") as campaign:
         (run,) = campaign.runs
         assert (run.kind, run.sample_rate_hz, run.step["blows"]) == ("hammer", pytest.approx(20e3), 1)
@@ -342,7 +343,7 @@ def test_two_blows_of_one_capture_file_are_two_points(tmp_path, capsys):
     rows = "".join(f"{0.05 * i:.2f},{i:g}\n" for i in range(10))
     blows = "[[runs.points]]\nend_s = 0.0002\n[[runs.points]]\nstart_s = 0.0003\n"
     mapping = write(tmp_path, HAMMER + blows, hammer="t [ms],Fz [kN]\n" + rows)
-    assert import_csv(mapping, capsys)[0] == EXIT_COMPLETE
+    assert import_csv(mapping, capsys)[0] == ExitCode.OK
     with open_campaign(tmp_path / "out.h5") as campaign:
         (run,) = campaign.runs
         assert run.step["blows"] == 2

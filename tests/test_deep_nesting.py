@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from bench.cli import EXIT_INVALID
+from bench.cli.exit_codes import ExitCode
 from sequences.toml_text import MAX_NESTING, load_toml
 from tests.test_campaign_cli import SMOKE, wfsbench
 
@@ -54,7 +54,7 @@ def test_a_file_nested_too_deep_is_exit_3_naming_the_file(tmp_path, kind):
     else:
         answers = ["--answers", str(deep)] if kind == "run answers" else []
         result = wfsbench("run", sequence, "--out", str(tmp_path / "run.h5"), *bench, *answers)
-    assert result.returncode == EXIT_INVALID, result.stderr
+    assert result.returncode == ExitCode.INVALID, result.stderr
     assert result.stderr.startswith(f"error: {deep}: nested too deep: "), result.stderr
     assert "Traceback" not in result.stderr
     assert not list(tmp_path.glob("*.h5"))

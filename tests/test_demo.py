@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from bench.cli import main
+from bench.cli.main import main
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Suspension
 from bench.store import open_campaign
 from simulators.world import DAMPER_SETTINGS_NS_PER_M

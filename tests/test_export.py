@@ -19,8 +19,8 @@ import pyuff
 import rpc3
 
 from bench.app.analyze import analyze_campaign
-from bench.cli import main
-from bench.cli_export import EXIT_INVALID, EXIT_OK
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.export.rpc3 import BLOCK_BYTES, INT_FULL_SCALE, KEY_BYTES, PTS_PER_FRAME, RECORD_BYTES
 from bench.export.uff58 import CONTACT_NODE, PLUS_Z, WHEEL_NODE
 from bench.store import open_campaign
@@ -64,7 +64,7 @@ def _groups(mdf: mdfreader.Mdf) -> list[dict[str, str]]:
 
 def test_mdf4_holds_every_channel_with_units_roles_conditions_and_metadata(with_metadata, tmp_path):
     out = tmp_path / "smoke.mf4"
-    assert export(with_metadata, "--format", "mdf4", "--out", out) == EXIT_OK
+    assert export(with_metadata, "--format", "mdf4", "--out", out) == ExitCode.OK
     mdf = mdfreader.Mdf(str(out))
     info = mdfreader.MdfInfo(str(out))
     header = info["HD"]["Comment"]
@@ -94,7 +94,8 @@ def test_mdf4_holds_every_channel_with_units_roles_conditions_and_metadata(with_
 
 def test_mdf4_of_a_file_without_metadata_names_the_fields_empty(smoke_campaign, tmp_path):
     out = tmp_path / "free.mf4"
-    assert export(smoke_campaign, "--format", "mdf4", "--run", "smoke-s003-free_run", "--out", out) == EXIT_OK
+    code = export(smoke_campaign, "--format", "mdf4", "--run", "smoke-s003-free_run", "--out", out)
+    assert code == ExitCode.OK
     header = mdfreader.MdfInfo(str(out))["HD"]["Comment"]
     assert all(header[name] is None for name in METADATA_FIELDS)
     assert len(mdfreader.Mdf(str(out)).masterChannelList) == 1
@@ -145,7 +146,7 @@ def _characteristics(line: str) -> tuple:
 
 def test_uff58_holds_the_dwell_frfs_raw_and_compensated_with_their_uncertainty(with_metadata, tmp_path):
     out = tmp_path / "smoke.uff"
-    assert export(with_metadata, "--format", "uff58", "--out", out) == EXIT_OK
+    assert export(with_metadata, "--format", "uff58", "--out", out) == ExitCode.OK
     amp = analyze_campaign(with_metadata).knowledge.shaker[2.5].amplitudes[2e-3]
     # (what, FRF, response DOF, reference DOF, ordinate and denominator record 9/10 types)
     expected = [
@@ -206,11 +207,11 @@ def test_uff58_holds_the_dwell_frfs_raw_and_compensated_with_their_uncertainty(w
 
 def test_csv_reads_back_through_import_csv_as_the_recorded_points(smoke_campaign, tmp_path):
     out = tmp_path / "csv"
-    assert export(smoke_campaign, "--format", "csv", "--out", out) == EXIT_OK
+    assert export(smoke_campaign, "--format", "csv", "--out", out) == ExitCode.OK
     header, units = (out / "smoke-s009-dwell_grid.csv").read_text().splitlines()[:2]
     assert header.startswith("time_s,seq,sample,status,") and units.startswith("s,,,,")
     imported = tmp_path / "back.h5"
-    assert main(["import-csv", str(out / "mapping.toml"), "--out", str(imported)]) == EXIT_OK
+    assert main(["import-csv", str(out / "mapping.toml"), "--out", str(imported)]) == ExitCode.OK
     with open_campaign(smoke_campaign) as original, open_campaign(imported) as copy:
         assert [r.run_id for r in copy.runs] == [r.run_id for r in original.runs]
         for run, back in zip(original.runs, copy.runs, strict=True):
@@ -272,7 +273,8 @@ def test_rpc3_is_laid_out_as_the_format_describes_and_reads_back_within_its_reso
     smoke_campaign, tmp_path
 ):
     out = tmp_path / "rpc"
-    assert export(smoke_campaign, "--format", "rpc3", "--run", "smoke-s010-sweep", "--out", out) == EXIT_OK
+    code = export(smoke_campaign, "--format", "rpc3", "--run", "smoke-s010-sweep", "--out", out)
+    assert code == ExitCode.OK
     path = out / "smoke-s010-sweep.rsp"
     data = path.read_bytes()
     params = _rpc_header(data)
@@ -319,7 +321,8 @@ def test_rpc3_header_field_sizes_follow_the_record(smoke_campaign, tmp_path):
     """Every key fits 31 characters and every value 95 (a NUL ends each field): checked on the
     struct layout the format gives a record, ``32s96s``."""
     out = tmp_path / "rpc"
-    assert export(smoke_campaign, "--format", "rpc3", "--run", "smoke-s003-free_run", "--out", out) == EXIT_OK
+    code = export(smoke_campaign, "--format", "rpc3", "--run", "smoke-s003-free_run", "--out", out)
+    assert code == ExitCode.OK
     data = (out / "smoke-s003-free_run.rsp").read_bytes()
     n_params = int(_rpc_header(data)["NUM_PARAMS"])
     for i in range(n_params):
@@ -334,7 +337,8 @@ def test_an_unknown_run_an_existing_output_and_a_run_without_frfs_are_refused(
     smoke_campaign, tmp_path, capsys
 ):
     out = tmp_path / "x.mf4"
-    assert export(smoke_campaign, "--format", "mdf4", "--run", "no-such-run", "--out", out) == EXIT_INVALID
+    code = export(smoke_campaign, "--format", "mdf4", "--run", "no-such-run", "--out", out)
+    assert code == ExitCode.INVALID
     error = capsys.readouterr().err
     assert (
         "no run 'no-such-run'" in error and "smoke-s009-dwell_grid" in error and str(smoke_campaign) in error
@@ -342,13 +346,13 @@ def test_an_unknown_run_an_existing_output_and_a_run_without_frfs_are_refused(
     assert not out.exists()
 
     out.write_bytes(b"keep me")
-    assert export(smoke_campaign, "--format", "mdf4", "--out", out) == EXIT_INVALID
+    assert export(smoke_campaign, "--format", "mdf4", "--out", out) == ExitCode.INVALID
     assert f"{out}: exists" in capsys.readouterr().err and out.read_bytes() == b"keep me"
 
     uff = tmp_path / "free.uff"
     assert (
         export(smoke_campaign, "--format", "uff58", "--run", "smoke-s003-free_run", "--out", uff)
-        == EXIT_INVALID
+        == ExitCode.INVALID
     )
     assert "run smoke-s003-free_run has no FRF" in capsys.readouterr().err and not uff.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.mf4"]  # no temporary left behind
@@ -357,5 +361,5 @@ def test_an_unknown_run_an_existing_output_and_a_run_without_frfs_are_refused(
 def test_an_unknown_format_is_refused_with_the_formats(smoke_campaign, tmp_path, capsys):
     with pytest.raises(SystemExit) as stop:
         export(smoke_campaign, "--format", "xlsx", "--out", tmp_path / "x")
-    assert stop.value.code == EXIT_INVALID
+    assert stop.value.code == ExitCode.INVALID
     assert "invalid choice: 'xlsx'" in capsys.readouterr().err

@@ -18,7 +18,7 @@ from bench.analysis.frf import Frf
 from bench.analysis.plate_mass import identify_plate_mass
 from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
 from bench.analysis.shaker_models import shaker_response
-from bench.cli import EXIT_COMPLETE, EXIT_STOPPED
+from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
@@ -44,7 +44,7 @@ def _run(tmp_path: Path, sequence_text: str) -> tuple[Path, subprocess.Completed
 
 def _record(tmp_path: Path, sequence_text: str) -> Path:
     out, run = _run(tmp_path, sequence_text)
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     return out
 
 
@@ -81,7 +81,7 @@ def wheel_on_file(stopped, tmp_path_factory) -> Path:
 
 def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped):
     path, run = stopped
-    assert run.returncode == EXIT_STOPPED, run.stderr
+    assert run.returncode == ExitCode.STOPPED, run.stderr
     assert (
         "smoke: aborted: stopped before smoke-s008-dwell_grid: the free run smoke-s002-free_run gives an"
         " m_comp not to be trusted: m_comp misses the free run far outside its noise"

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import EXIT_STOPPED
+from bench.cli.exit_codes import ExitCode
 from bench.store import open_campaign
 from drivers.actuator import DEFAULT_WATCHDOG_MS
 from tests.test_campaign_cli import H5DUMP
@@ -66,7 +66,7 @@ def _frozen_run(tmp_path: Path, freeze_s: float) -> tuple[int, str, Path]:
 @pytest.mark.parametrize("freeze_s", [0.5, 1.0, 2.0, 5.0])
 def test_a_frozen_run_records_a_host_stall_with_its_frames_never_a_lost_link(tmp_path, freeze_s):
     code, output, out = _frozen_run(tmp_path, freeze_s)
-    assert code == EXIT_STOPPED, output
+    assert code == ExitCode.STOPPED, output
     assert "WFS link lost" not in output and "controller interlock: controller" not in output, output
     dump = subprocess.run(
         [H5DUMP, "-a", f"/runs/{RUN_ID}/status", "-d", f"/runs/{RUN_ID}/events", str(out)],

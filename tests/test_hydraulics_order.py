@@ -10,7 +10,7 @@ import struct
 
 from bench.app.devices import open_bench
 from bench.app.engine_build import build_engine
-from bench.cli import EXIT_INVALID
+from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from drivers.register_map import Command, ErrorCode
 from sequences import Hydraulics, Sequence, SineDwell, parse_sequence
@@ -48,12 +48,12 @@ def test_check_and_run_refuse_high_while_the_hydraulics_are_off_naming_each_step
     sequence = tmp_path / "long.toml"
     sequence.write_text(HIGH_FIRST)
     check = wfsbench("check", str(sequence))
-    assert check.returncode == EXIT_INVALID, check.stdout + check.stderr
+    assert check.returncode == ExitCode.INVALID, check.stdout + check.stderr
     first, *rest = check.stderr.splitlines()
     assert first == f"error: {sequence}: {REFUSED.format(i=0)}"
     assert rest[-1].strip() == f"{sequence}: {REFUSED.format(i=3)}"  # after "off", again
     run = wfsbench("run", str(sequence), "--out", str(tmp_path / "long.h5"))
-    assert run.returncode == EXIT_INVALID, run.stdout + run.stderr
+    assert run.returncode == ExitCode.INVALID, run.stdout + run.stderr
     assert run.stderr.splitlines()[0] == first
     assert not (tmp_path / "long.h5").exists()
 

@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 
 from bench.app.plan import plan_campaign
-from bench.cli import EXIT_INVALID, build_parser, main
-from bench.cli_metadata import META_HELP
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import build_parser, main
+from bench.cli.metadata import META_HELP
 from bench.config import ConfigError, default_bench_config, measured_bench, parse_bench_config
 from sequences import SequenceError, dump_sequence, parse_sequence, shipped_file
 from sequences.limits import BenchLimits
@@ -129,7 +130,7 @@ def test_meta_on_the_command_line_collects_its_keys_and_refuses_garbage(capsys):
         ):
             with pytest.raises(SystemExit) as exit_info:
                 main([*command, "--meta", bad])
-            assert exit_info.value.code == EXIT_INVALID
+            assert exit_info.value.code == ExitCode.INVALID
             assert f"error: argument --meta: {words}" in capsys.readouterr().err
 
 

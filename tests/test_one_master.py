@@ -18,7 +18,8 @@ import sys
 import pytest
 
 from bench import locks
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_LINK, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.store import open_campaign
 from drivers.register_map import Command, ControllerState, WaveformCode
 from tests.sequence_texts import sequence_text
@@ -94,14 +95,14 @@ def test_a_second_run_against_the_same_bench_is_refused_and_the_first_loses_noth
 
         writes_before = server.writes_received
         second = wfsbench("run", str(sequence), "--out", str(second_out), "--bench", str(config))
-        assert second.returncode == EXIT_LINK, second.stderr
+        assert second.returncode == ExitCode.UNAVAILABLE, second.stderr
         assert second.stderr.startswith(
             f"error: {config}: wfs.device: the WFS port {pty} is in use by process {first.pid} (wfsbench run"
         ) or f"is in use by process {first.pid} (cli.py run" in second.stderr, second.stderr
         assert not second_out.exists()
 
         same_file = wfsbench("run", str(sequence), "--out", str(first_out), "--bench", str(config))
-        assert same_file.returncode == EXIT_LINK, same_file.stderr
+        assert same_file.returncode == ExitCode.UNAVAILABLE, same_file.stderr
         assert same_file.stderr.startswith(
             f"error: {first_out}: in use: being written by process {first.pid} ("
         ), same_file.stderr
@@ -111,7 +112,7 @@ def test_a_second_run_against_the_same_bench_is_refused_and_the_first_loses_noth
         if first.poll() is None:
             first.send_signal(signal.SIGTERM)
             first.wait(30)
-    assert first.returncode == EXIT_COMPLETE, stdout + stderr
+    assert first.returncode == ExitCode.INCOMPLETE, stdout + stderr
     # neither refused run connected to the controller: the first run's connection was its only one
     assert server.server.connections_accepted == 1
     assert server.writes_received > writes_before
@@ -139,7 +140,7 @@ def test_a_controller_found_moving_is_refused_before_anything_is_written(tmp_pat
         for command in (Command.HYDRAULICS_LOW, Command.HYDRAULICS_HIGH, Command.START):
             assert ctrl.command(command) is None
     run = wfsbench("run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config))
-    assert run.returncode == EXIT_LINK, run.stderr
+    assert run.returncode == ExitCode.UNAVAILABLE, run.stderr
     host, port = server.address
     assert run.stderr.startswith(
         f"error: {config}: the actuator controller at {host}:{port} is RUNNING: an excitation runs that"
@@ -155,11 +156,11 @@ def test_wfs_monitor_and_actuator_status_are_refused_while_a_process_holds_the_d
     port = "/dev/null"  # any path: the key is its real path
     with locks.holding(locks.serial_key(port), f"the WFS port {port}"):
         monitor = wfsbench("wfs", "monitor", "--port", port, "--duration", "1")
-    assert monitor.returncode == EXIT_LINK
+    assert monitor.returncode == ExitCode.UNAVAILABLE
     assert monitor.stderr.startswith(f"error: the WFS port {port} is in use by process {os.getpid()} (")
     with locks.holding(locks.tcp_key("127.0.0.1", 1502), "the actuator controller at 127.0.0.1:1502"):
         status = wfsbench("actuator", "status", "--port", "1502")
-    assert status.returncode == EXIT_LINK
+    assert status.returncode == ExitCode.UNAVAILABLE
     assert status.stderr.startswith(
         f"error: the actuator controller at 127.0.0.1:1502 is in use by process {os.getpid()} ("
     ), status.stderr
@@ -221,7 +222,8 @@ def test_an_unusable_lock_directory_is_refused_naming_it_before_anything_opens(
     (tmp_path / "afile").write_text("not a directory\n")
     monkeypatch.setenv(locks.LOCK_DIR_ENV, str(tmp_path / under))
     out = tmp_path / "c.h5"
-    assert main(["run", str(ROOT / "sequences" / "files" / "smoke.toml"), "--out", str(out)]) == EXIT_INVALID
+    code = main(["run", str(ROOT / "sequences" / "files" / "smoke.toml"), "--out", str(out)])
+    assert code == ExitCode.INVALID
     err = capsys.readouterr().err
     assert err.startswith(f"error: the lock directory {tmp_path / under} cannot be used (")
     assert f"set {locks.LOCK_DIR_ENV} to a directory" in err and "Traceback" not in err

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID
+from bench.cli.exit_codes import ExitCode
 from bench.engine import events as ev
 from bench.store import open_campaign
 from tests.sequence_texts import sequence_text
@@ -51,7 +51,7 @@ def renamed_smoke(tmp_path_factory) -> tuple[Path, Path]:
     config, out = folder / "lab.toml", folder / "smoke.h5"
     config.write_text(RENAMED)
     run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     assert "smoke: complete" in run.stdout
     return config, out
 
@@ -112,10 +112,10 @@ def test_a_configuration_without_a_needed_role_is_refused_naming_key_and_role(tm
     config = tmp_path / "lab.toml"
     config.write_text('[aux.aux1]\nname = "f_spare_n"\nrole = "spare"\n')
     checked = wfsbench("check", str(SMOKE), "--bench", str(config))
-    assert checked.returncode == EXIT_INVALID
+    assert checked.returncode == ExitCode.INVALID
     assert f"{config}: aux: no input has the role plate_force" in checked.stderr
     run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(tmp_path / "x.h5"))
-    assert run.returncode == EXIT_INVALID and "plate_force" in run.stderr
+    assert run.returncode == ExitCode.INVALID and "plate_force" in run.stderr
     assert not (tmp_path / "x.h5").exists()
 
 
@@ -125,7 +125,7 @@ def test_a_sequence_whose_analysis_needs_an_unbound_role_is_refused(tmp_path):
     config = tmp_path / "lab.toml"
     config.write_text('[aux.aux2]\nname = "aux2_v"\nunit = "V"\nrole = "spare"\n')
     checked = wfsbench("check", str(SMOKE), "--bench", str(config))
-    assert checked.returncode == EXIT_INVALID
+    assert checked.returncode == ExitCode.INVALID
     assert "steps[10]: its analysis needs a channel with the role hub_acceleration" in checked.stderr
     assert "steps[9]" not in checked.stderr
 
@@ -144,9 +144,9 @@ def test_check_refuses_an_adaptive_grid_naming_a_channel_the_bench_does_not_reco
     sequence.write_text(ADAPTIVE.format(input=input_channel))
     checked = wfsbench("check", str(sequence), "--bench", str(config))
     if refused:
-        assert checked.returncode == EXIT_INVALID
+        assert checked.returncode == ExitCode.INVALID
         assert (
             f"{sequence}: steps[2].adaptive.input: the bench records no channel 'f_load_n'" in checked.stderr
         )
     else:
-        assert checked.returncode == EXIT_COMPLETE, checked.stderr
+        assert checked.returncode == ExitCode.OK, checked.stderr

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from bench.app.analyze import analyze_campaign
-from bench.cli_analysis import EXIT_OK
+from bench.cli.exit_codes import ExitCode
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
@@ -59,7 +59,7 @@ def files(tmp_path_factory) -> dict[str, Path]:
 
 def test_a_check_measurement_is_combined_and_its_spread_reported(files):
     run = wfsbench("analyze", str(files["check"]), "--json")
-    assert run.returncode == EXIT_OK, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     doc = json.loads(run.stdout)
     assert doc["status"] == "complete"
     assert [(r["run_id"], r["status"]) for r in doc["runs"]] == [

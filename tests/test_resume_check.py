@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID
+from bench.cli.exit_codes import ExitCode
 from bench.store import open_campaign
 from tests.test_campaign_cli import SMOKE, wfsbench
 
@@ -24,7 +24,7 @@ def test_a_sequence_with_another_amplitude_is_refused_naming_the_step_and_key(tm
     changed.write_text(SMOKE.read_text().replace("amplitudes_mm = [2]", "amplitudes_mm = [3]", 1))
     before = out.read_bytes()
     run = wfsbench("run", str(changed), "--out", str(out), "--resume")
-    assert run.returncode == EXIT_INVALID, run.stdout + run.stderr
+    assert run.returncode == ExitCode.INVALID, run.stdout + run.stderr
     assert run.stderr.strip() == (
         f"error: {out}: cannot resume: the sequence in {changed} differs from the one the file holds:"
         " steps[3].amplitudes_mm: [3] now, [2] in the file"
@@ -42,7 +42,7 @@ def test_a_copy_differing_in_comments_whitespace_and_key_order_resumes(tmp_path,
     same = tmp_path / "smoke_same.toml"
     same.write_text("# the same campaign, re-typed\n\n" + "\n".join(f"{line}   " for line in lines) + "\n")
     run = wfsbench("run", str(same), "--out", str(out), "--resume")
-    assert run.returncode == EXIT_COMPLETE, run.stdout + run.stderr
+    assert run.returncode == ExitCode.OK, run.stdout + run.stderr
 
 
 def test_a_bench_that_measures_differently_is_refused_and_connection_settings_may_change(
@@ -52,7 +52,7 @@ def test_a_bench_that_measures_differently_is_refused_and_connection_settings_ma
     heavy = tmp_path / "heavy.toml"
     heavy.write_text('kind = "shaker"\n[masses]\nsensor_kg = 4.0\n')
     run = wfsbench("run", str(SMOKE), "--out", str(out), "--resume", "--bench", str(heavy))
-    assert run.returncode == EXIT_INVALID, run.stdout + run.stderr
+    assert run.returncode == ExitCode.INVALID, run.stdout + run.stderr
     assert run.stderr.strip() == (
         f"error: {out}: cannot resume: the bench configuration {heavy} differs from the one the file"
         " holds: masses.sensor_kg: 4.0 now, 3.82 in the file"
@@ -61,4 +61,4 @@ def test_a_bench_that_measures_differently_is_refused_and_connection_settings_ma
     moved = tmp_path / "moved.toml"
     moved.write_text('kind = "shaker"\n[actuator]\nport = 1502\n[simulation]\npaced = false\n')
     run = wfsbench("run", str(SMOKE), "--out", str(out), "--resume", "--bench", str(moved), "--realtime")
-    assert run.returncode == EXIT_COMPLETE, run.stdout + run.stderr
+    assert run.returncode == ExitCode.OK, run.stdout + run.stderr

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID
+from bench.cli.exit_codes import ExitCode
 from tests.test_campaign_cli import SMOKE, wfsbench
 
 
@@ -23,7 +23,7 @@ def smoke_file(smoke_campaign: Path, tmp_path: Path) -> Path:
 def test_resuming_a_complete_campaign_runs_nothing_and_says_so(smoke_file):
     before = smoke_file.read_bytes()
     run = wfsbench("run", str(SMOKE), "--out", str(smoke_file), "--resume")
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     assert run.stdout.strip() == (
         f"{smoke_file}: every run of sequence 'smoke' is complete already: nothing was run"
         " (to run it again, write to another file)"
@@ -36,7 +36,7 @@ def test_resuming_with_a_sequence_the_file_does_not_hold_is_refused(smoke_file):
     before = smoke_file.read_bytes()
     hammer = SMOKE.with_name("hammer.toml")
     run = wfsbench("run", str(hammer), "--out", str(smoke_file), "--resume")
-    assert run.returncode == EXIT_INVALID, run.stdout + run.stderr
+    assert run.returncode == ExitCode.INVALID, run.stdout + run.stderr
     assert run.stderr.strip() == (
         f"error: {smoke_file}: cannot resume: it holds no run of sequence 'hammer' (it holds sequences"
         " smoke): there is nothing of it to continue; to add its runs to this file, run it without --resume"

@@ -25,7 +25,8 @@ from bench.app.plan import plan_campaign
 from bench.app.resume_check import ResumeMismatchError, check_resume
 from bench.app.run import run_campaign
 from bench.app.run_analysis import POST_PLATE
-from bench.cli import EXIT_INVALID, EXIT_REFUSED, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.config import load_bench_config
 from bench.dry_run import _World, dry_run
 from bench.engine.engine import Engine
@@ -107,7 +108,7 @@ def test_a_drive_beyond_the_velocity_limit_is_refused_by_check_naming_its_sample
     z[1500:] += 1.5
     write_csv_drive(tmp_path / "drive.csv", z)
     seq = sequence_file(tmp_path, 'file = "drive.csv"\n')
-    assert main(["check", str(seq), "--bench", str(FOUR_POST)]) == EXIT_REFUSED
+    assert main(["check", str(seq), "--bench", str(FOUR_POST)]) == ExitCode.REFUSED
     out = capsys.readouterr().out
     (line,) = [line for line in out.splitlines() if "velocity_mm_s" in line and "beyond" in line]
     found = re.search(
@@ -136,7 +137,7 @@ def test_a_class_d_road_at_60_km_h_is_beyond_the_post_and_the_run_is_refused_bef
     the 1000 mm/s named."""
     seq = sequence_file(tmp_path, 'road_class = "D"\nspeed_km_h = 60\nduration_s = 4\nseed = 1\n')
     out = tmp_path / "c.h5"
-    assert main(["run", str(seq), "--bench", str(FOUR_POST), "--out", str(out)]) == EXIT_REFUSED
+    assert main(["run", str(seq), "--bench", str(FOUR_POST), "--out", str(out)]) == ExitCode.REFUSED
     assert not out.exists()  # nothing opened, nothing written
     err = capsys.readouterr().err
     road = road_drive(
@@ -191,7 +192,7 @@ def test_a_csv_drive_with_garbage_is_refused_naming_file_line_and_column(tmp_pat
     header = "t [s],z [kN]" if column == "z [kN]" else "t [s],z [mm]"
     (tmp_path / "drive.csv").write_text("\n".join([header, *rows]) + "\n")
     seq = sequence_file(tmp_path, 'file = "drive.csv"\n')
-    assert main(["check", str(seq), "--bench", str(FOUR_POST)]) == EXIT_INVALID
+    assert main(["check", str(seq), "--bench", str(FOUR_POST)]) == ExitCode.INVALID
     err = capsys.readouterr().err
     assert f"steps[4].file: {tmp_path / 'drive.csv'}: line {line}, column {column!r}: {why}" in err
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import socket
 
-from bench.cli import EXIT_LINK
+from bench.cli.exit_codes import ExitCode
 from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
 from tests.test_run_unattended import SMOKE_ANSWERS
 
@@ -28,7 +28,7 @@ def test_an_actuator_controller_nobody_serves_is_named_by_its_keys_and_address(t
     )
     answers.write_text(SMOKE_ANSWERS)
     run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out), "--answers", str(answers))
-    assert run.returncode == EXIT_LINK, run.stdout + run.stderr
+    assert run.returncode == ExitCode.UNAVAILABLE, run.stdout + run.stderr
     first, *rest = run.stderr.splitlines()
     assert first.startswith(
         f"error: {config}: actuator.host, actuator.port: cannot reach the actuator controller at"
@@ -45,7 +45,7 @@ def test_a_wfs_port_that_does_not_open_is_named_by_its_key(tmp_path, lab_devices
     config.write_text(_bench_toml(server, str(missing)))
     answers.write_text(SMOKE_ANSWERS)
     run = wfsbench("run", str(SMOKE), "--bench", str(config), "--out", str(out), "--answers", str(answers))
-    assert run.returncode == EXIT_LINK, run.stdout + run.stderr
+    assert run.returncode == ExitCode.UNAVAILABLE, run.stdout + run.stderr
     assert run.stderr.startswith(
         f"error: {config}: wfs.device: cannot reach the WFS acquisition at {missing}: "
     ), run.stderr

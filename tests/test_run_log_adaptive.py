@@ -52,5 +52,5 @@ def test_an_adaptive_point_shows_its_verdict_and_uncertainty_a_fixed_one_does_no
 
 def test_an_analysis_is_headed_by_the_run_it_analysed() -> None:
     """The analysis ends after its run, often after the next run started: its lines name their run."""
-    done = ev.AnalysisDone("paper-s002-dwell_grid", "shaker", ("tyre 1.5 bar: k 210 N/mm",), {})
+    done = ev.AnalysisDone("paper-s002-dwell_grid", "shaker", ("tyre 1.5 bar: k 210 N/mm",), {}, "complete")
     assert RunLog.line(done) == "analysis of run paper-s002-dwell_grid (shaker):\n  tyre 1.5 bar: k 210 N/mm"

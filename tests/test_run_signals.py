@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_STOPPED
+from bench.cli.exit_codes import ExitCode
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT
 from tests.test_run_unattended import LONG_DWELL, RUN_ID
@@ -59,7 +59,7 @@ def test_sigterm_mid_dwell_tapers_out_and_marks_the_run_aborted_with_the_signal(
         told = stderr.next(60, "the handler's word")
         assert told.startswith("terminated (SIGTERM): stopping with a taper, the run marked aborted"), told
         rest = stdout.rest(DEADLINE_S)
-        assert proc.wait(timeout=DEADLINE_S) == EXIT_STOPPED
+        assert proc.wait(timeout=DEADLINE_S) == ExitCode.STOPPED
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -92,7 +92,7 @@ def test_the_terminal_closing_mid_dwell_tapers_out_and_marks_the_run_aborted(tmp
             seen += chunk
         os.close(master)  # the terminal goes away: the kernel hangs up its session
         master = -1
-        assert proc.wait(timeout=DEADLINE_S) == EXIT_STOPPED
+        assert proc.wait(timeout=DEADLINE_S) == ExitCode.STOPPED
     finally:
         if master >= 0:
             os.close(master)

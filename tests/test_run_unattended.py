@@ -20,9 +20,11 @@ import pytest
 
 from bench.app.answers import AnswersError, FileAnswers, load_answers
 from bench.app.interrupts import tell
-from bench.app.progress import DoneBefore, Progress
+from bench.app.pace import DoneBefore
+from bench.app.progress import Progress
 from bench.app.terminal import TerminalOperator
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_STOPPED, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.config import load_bench_config
 from bench.engine import events as ev
 from bench.store import open_campaign
@@ -148,7 +150,7 @@ def test_a_bad_answers_file_is_refused_before_anything_moves(tmp_path, lab_devic
     answers.write_text(text)
     config.write_text(_bench_toml(server, pty))
     code = main(["run", str(SMOKE), "--out", str(out), "--bench", str(config), "--answers", str(answers)])
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert f"error: {tmp_path}/{named}" in capsys.readouterr().err
     assert server.writes_received == 0
     assert not out.exists()
@@ -177,7 +179,7 @@ def test_every_problem_of_an_answers_file_is_reported_in_the_order_of_the_file(t
 
 def test_a_missing_answers_file_is_refused_by_the_command(tmp_path):
     run = wfsbench("run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(tmp_path / "no.toml"))
-    assert run.returncode == EXIT_INVALID
+    assert run.returncode == ExitCode.INVALID
     assert f"error: {tmp_path}/no.toml: cannot read the answers file" in run.stderr
     assert not (tmp_path / "c.h5").exists()
 
@@ -198,7 +200,7 @@ def test_an_unattended_run_records_the_file_answers(tmp_path):
     answers, out = tmp_path / "answers.toml", tmp_path / "smoke.h5"
     answers.write_text(SMOKE_ANSWERS)
     run = wfsbench("run", str(SMOKE), "--out", str(out), "--answers", str(answers))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     assert "enter the pressure read on the gauge -> 2.4 bar" in run.stdout
     with open_campaign(out) as campaign:
         grid = campaign.run("smoke-s009-dwell_grid")
@@ -288,7 +290,7 @@ def _cycle_peaks_mm(z_m: np.ndarray, samples_per_cycle: int) -> np.ndarray:
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tmp_path):
     code, stderr, out = _interrupted_run(tmp_path, taper_out_s=0.5, signals=1)
-    assert code == EXIT_STOPPED, stderr
+    assert code == ExitCode.STOPPED, stderr
     assert '"aborted"' in _h5dump_status(out)
     with open_campaign(out) as campaign:
         run = campaign.run(RUN_ID)
@@ -311,7 +313,7 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
 
     # the interrupted dwell is repeated by --resume (unpaced: seconds), and the run completes
     resumed = wfsbench("run", str(tmp_path / "long.toml"), "--out", str(out), "--resume")
-    assert resumed.returncode == EXIT_COMPLETE, resumed.stdout + resumed.stderr
+    assert resumed.returncode == ExitCode.INCOMPLETE, resumed.stdout + resumed.stderr
     with open_campaign(out) as campaign:
         run = campaign.run(RUN_ID)
         assert run.status == "complete"
@@ -324,7 +326,7 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
 def test_a_second_ctrl_c_during_the_taper_e_stops(tmp_path):
     """A 5 s taper out: the second SIGINT, sent once the first was taken, lands inside it."""
     code, stderr, out = _interrupted_run(tmp_path, taper_out_s=5.0, signals=2)
-    assert code == EXIT_STOPPED, stderr
+    assert code == ExitCode.STOPPED, stderr
     assert "interrupted again: e-stop" in stderr
     assert '"e-stopped"' in _h5dump_status(out)
 
@@ -413,7 +415,7 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     answers = tmp_path / "answers.toml"
     answers.write_text(SMOKE_ANSWERS)
     run = wfsbench("run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(answers))
-    assert run.returncode == EXIT_COMPLETE, run.stderr
+    assert run.returncode == ExitCode.OK, run.stderr
     assert "\x1b" not in run.stdout and "\r" not in run.stdout
     progress = [line for line in run.stdout.splitlines() if line.startswith("progress: ")]
     assert (
@@ -452,7 +454,7 @@ def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
             if not chunk:
                 break
             chunks.append(chunk)
-        assert proc.wait(timeout=120) == EXIT_COMPLETE, proc.stderr.read()
+        assert proc.wait(timeout=120) == ExitCode.OK, proc.stderr.read()
     finally:
         os.close(master)
         if proc.poll() is None:
@@ -514,7 +516,7 @@ def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_p
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == EXIT_STOPPED, err
+    assert proc.returncode == ExitCode.STOPPED, err
     assert b"interrupted: stopping with a taper" in err
     assert b"sequence aborted: no valid answer to prompt 'ready'" in shown + out
 
@@ -528,7 +530,7 @@ def test_ctrl_c_before_the_devices_open_ends_the_command_without_a_traceback(tmp
 
     monkeypatch.setattr("bench.app.plan.plan_campaign", interrupted)
     out = tmp_path / "c.h5"
-    assert main(["run", str(SMOKE), "--out", str(out)]) == EXIT_STOPPED
+    assert main(["run", str(SMOKE), "--out", str(out)]) == ExitCode.STOPPED
     assert capsys.readouterr().err == "interrupted: nothing moved\n"
     assert not out.exists()
 
@@ -639,7 +641,7 @@ def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, 
             if not chunk:
                 break
             shown += chunk
-        assert proc.wait(timeout=120) == EXIT_COMPLETE, shown
+        assert proc.wait(timeout=120) == ExitCode.INCOMPLETE, shown
     finally:
         os.close(master)
         if proc.poll() is None:

@@ -17,7 +17,7 @@ import pytest
 
 from bench.analysis.records import HUB_ACCELERATION, SHAKER_CHANNELS
 from bench.app.analyze import analyze_campaign
-from bench.cli_analysis import EXIT_OK
+from bench.cli.exit_codes import ExitCode
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
@@ -45,7 +45,7 @@ def files(tmp_path_factory) -> tuple[Path, Path]:
 def test_the_grid_without_hub_acceleration_is_analysed_in_full_and_says_what_it_left_out(files):
     _, without_hub = files
     run = wfsbench("analyze", str(without_hub), "--json")
-    assert run.returncode == EXIT_OK, run.stdout[-2000:] + run.stderr
+    assert run.returncode == ExitCode.OK, run.stdout[-2000:] + run.stderr
     doc = json.loads(run.stdout)
     assert doc["status"] == "complete"
     (amp,) = doc["shaker"][0]["amplitudes"]

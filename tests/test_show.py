@@ -15,7 +15,8 @@ from pathlib import Path
 import h5py
 import pytest
 
-from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_LINK, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.locks import LOCK_DIR_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,9 +44,9 @@ def campaign(smoke_campaign: Path, tmp_path: Path, monkeypatch) -> Path:
 
 def test_show_tells_what_the_campaign_holds_and_changes_nothing(campaign: Path, capsys) -> None:
     before = _state(campaign)
-    assert main(["show", str(campaign)]) == EXIT_COMPLETE
+    assert main(["show", str(campaign)]) == ExitCode.OK
     text = capsys.readouterr().out
-    assert main(["show", str(campaign), "--json"]) == EXIT_COMPLETE
+    assert main(["show", str(campaign), "--json"]) == ExitCode.OK
     doc = json.loads(capsys.readouterr().out)
     assert _state(campaign) == before  # not a byte, not the modification time
     assert not (campaign.parent.parent / "locks").exists()  # no lock file, not even its directory
@@ -100,11 +101,11 @@ def test_analyze_no_store_prints_and_leaves_the_file_as_it_was(campaign: Path, c
     from bench.report.html import report_html
 
     before = _state(campaign)
-    assert main(["analyze", str(campaign), "--no-store", "--json"]) == EXIT_COMPLETE
+    assert main(["analyze", str(campaign), "--no-store", "--json"]) == ExitCode.OK
     doc = json.loads(capsys.readouterr().out)
     assert [run["results_name"] for run in doc["runs"]] == [None, None, None]
     assert doc["metadata"]["operator"] == "Jürgen" and doc["metadata"]["notes"] == "new tyre\nrun in"
-    assert main(["analyze", str(campaign), "--no-store"]) == EXIT_COMPLETE
+    assert main(["analyze", str(campaign), "--no-store"]) == ExitCode.OK
     text = capsys.readouterr().out.splitlines()
     assert text[:5] == [
         f"== test metadata of {campaign}",
@@ -159,7 +160,7 @@ def _damaged(kind: str, tmp_path: Path, smoke_campaign: Path) -> Path:
 )
 def test_a_file_that_is_no_campaign_exits_3_naming_it(kind, says, tmp_path, smoke_campaign, capsys) -> None:
     path = _damaged(kind, tmp_path, smoke_campaign)
-    assert main(["show", str(path), "--json"]) == EXIT_INVALID
+    assert main(["show", str(path), "--json"]) == ExitCode.INVALID
     out, err = capsys.readouterr()
     assert out == "" and err.startswith(f"error: {path}: ") and says in err, err
 
@@ -178,8 +179,9 @@ writer.close()
 
 
 def test_a_file_being_written_is_refused_and_shown_once_closed(tmp_path: Path, monkeypatch, capsys) -> None:
-    """Refused with exit 2 while a process writes it: named by its writer lock, and, where that
-    lock is not seen (another lock directory), by HDF5's own lock; shown once the writer closed."""
+    """Refused with exit 2 while a process writes it (by show and by every command that reads a
+    campaign file): named by its writer lock, and, where that lock is not seen (another lock
+    directory), by HDF5's own lock; shown once the writer closed."""
     path = tmp_path / "held.h5"
     locks = tmp_path / "locks"
     env = {**os.environ, LOCK_DIR_ENV: str(locks)}
@@ -194,18 +196,31 @@ def test_a_file_being_written_is_refused_and_shown_once_closed(tmp_path: Path, m
     try:
         assert writer.stdout.readline() == "open\n"
         monkeypatch.setenv(LOCK_DIR_ENV, str(locks))
-        assert main(["show", str(path)]) == EXIT_LINK
+        assert main(["show", str(path)]) == ExitCode.UNAVAILABLE
         out, err = capsys.readouterr()
         assert out == "" and err.startswith(f"error: {path}: in use: being written by process {writer.pid} (")
         assert err.rstrip().endswith("show it once that has finished")
+        readers = (  # every command that reads a campaign file: the same code as show
+            ["analyze", str(path), "--no-store"],
+            ["report", str(path), "--out", str(tmp_path / "report")],
+            ["export", str(path), "--format", "mdf4", "--out", str(tmp_path / "held.mf4")],
+        )
+        for command in readers:
+            assert main(command) == ExitCode.UNAVAILABLE, command
+            said = capsys.readouterr().err
+            assert f"error: {path}: in use: being written by process {writer.pid} (" in said
         monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "other-locks"))
-        assert main(["show", str(path)]) == EXIT_LINK
+        assert main(["show", str(path)]) == ExitCode.UNAVAILABLE
         assert f"{path}: in use: being written by another process" in capsys.readouterr().err
     finally:
         writer.communicate("", timeout=60)
     assert writer.returncode == 0
-    assert main(["show", str(path)]) == EXIT_COMPLETE
+    assert main(["show", str(path)]) == ExitCode.OK
     assert "runs: none" in capsys.readouterr().out
+    # closed, it holds no run: nothing analysed is no complete analysis
+    assert main(["analyze", str(path), "--no-store"]) == ExitCode.INCOMPLETE
+    out = capsys.readouterr().out
+    assert out.splitlines()[-1] == "== analysis incomplete: the file holds no complete run to analyse"
 
 
 def test_a_run_whose_step_is_no_sequence_step_is_shown_from_its_points(tmp_path: Path, capsys) -> None:
@@ -231,10 +246,10 @@ def test_a_run_whose_step_is_no_sequence_step_is_shown_from_its_points(tmp_path:
         run.add_point(PointAttempt(0, 5.0, 1.0, 0, 100, 900, 1000))
         run.add_point(PointAttempt(1, 40.0, 0.5, 1000, 1100, 1900, 2000, requested_amplitude_mm=1.0))
         run.finish("complete")
-    assert main(["show", str(path), "--json"]) == EXIT_COMPLETE
+    assert main(["show", str(path), "--json"]) == ExitCode.OK
     (shown,) = json.loads(capsys.readouterr().out)["runs"]
     assert (shown["points_done"], shown["points_planned"]) == (2, None)
     assert (shown["freq_span_hz"], shown["amplitudes_mm"]) == ([5, 40], [1])
     assert shown["conditions"] == {"tyre_pressure_bar": None} and shown["tyre_pressure_bar"] is None
-    assert main(["show", str(path)]) == EXIT_COMPLETE
+    assert main(["show", str(path)]) == ExitCode.OK
     assert "    points 2 done (planned: not recorded); 5-40 Hz, at 1 mm," in capsys.readouterr().out

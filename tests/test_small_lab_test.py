@@ -23,7 +23,7 @@ import pytest
 from bench.analysis.shaker_models import shaker_response
 from bench.app.analyze import analyze_campaign
 from bench.app.run_analysis import RunAnalyser, RunInputs, initial_knowledge
-from bench.cli_analysis import EXIT_PARTIAL
+from bench.cli.exit_codes import ExitCode
 from bench.config import parse_bench_config
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
@@ -44,7 +44,7 @@ def small_test(tmp_path_factory) -> Path:
 
 def test_three_dwells_without_a_free_run_give_the_measured_ratios_and_say_why_no_fit(small_test):
     run = wfsbench("analyze", str(small_test))
-    assert run.returncode == EXIT_PARTIAL, run.stderr
+    assert run.returncode == ExitCode.INCOMPLETE, run.stderr
     text = run.stdout
     assert (
         "FLAG m_comp 12 kg nominal (the bench configuration's masses.plate_kg): not measured, no free run"

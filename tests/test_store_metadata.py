@@ -15,7 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.cli import EXIT_INVALID, main
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
 from bench.store import CampaignWriter, StoreError, add_results, open_campaign
 from bench.store.schema import METADATA_FIELDS, RUN_METADATA_FIELDS
 from sequences import shipped_file
@@ -165,7 +166,7 @@ def test_another_sensor_or_tyre_is_refused_before_anything_is_written(tmp_path: 
     assert _sha256(path) == before
     # wfsbench run refuses it before the bench is opened: exit 3, the file as it was
     code = main(["run", str(shipped_file("smoke.toml")), "--out", str(path), "--meta", "tyre_id=T-2"])
-    assert code == EXIT_INVALID
+    assert code == ExitCode.INVALID
     assert "/@tyre_id: 'T-2' now, 'T-1' in the file" in capsys.readouterr().err
     assert _sha256(path) == before and not path.with_name(path.name + ".log").exists()
 

@@ -226,12 +226,23 @@ class ThreadedActuator:
 
     def reset_interlock(self) -> None:
         """Reset the controller; after a lost link, reconnect and beat again first (the lost
-        heartbeat stays stopped until then, so that the controller's watchdog keeps its word)."""
+        heartbeat stays stopped until then, so that the controller's watchdog keeps its word). A
+        reset whose reply came too late to tell (:class:`CommandOutcomeUnknownError`) is settled by
+        the status read after it: still interlocked or e-stopped, it is sent once more."""
         if self.link_fault() is not None:
             self._call(self._client.connect())
             if self._heartbeat:
                 self._call(self._client.start_heartbeat(*self._beat))
-        self._call(self._client.reset_interlock())
+        try:
+            self._call(self._client.reset_interlock())
+        except CommandOutcomeUnknownError as exc:  # a starved host's late reply: read what it did
+            state = self._call(self._client.read_status()).state
+            if state not in (ControllerState.INTERLOCK, ControllerState.ESTOP):
+                log.warning("reset: %s; the controller reads %s: done", exc, state.name.lower())
+                return
+            # not taken: a reset releases a latch and moves nothing, so it is sent once more
+            log.warning("reset: %s; the controller still reads %s: sent again", exc, state.name.lower())
+            self._call(self._client.reset_interlock())
 
     def link_fault(self) -> str | None:
         """Set from the moment the connection dropped or the heartbeat could no longer be confirmed

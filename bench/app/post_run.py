@@ -154,7 +154,8 @@ class PostRunAnalysis:
             log.warning("analysis of %s failed: %s", run_id, outcome.error)
         if publish:
             results = {"summary": "\n".join(outcome.lines), **outcome.results}
-            self.publish(ev.AnalysisDone(run_id, outcome.name, outcome.lines, results))
+            why = outcome.error or "; ".join(outcome.omitted)
+            self.publish(ev.AnalysisDone(run_id, outcome.name, outcome.lines, results, outcome.status, why))
 
     def _lost(self, reason: str) -> None:
         """The analysis process is gone: every run sent and not answered is published as a

@@ -4,10 +4,8 @@
 On a terminal it is one status line redrawn in place, with the run log's lines written above it; in
 a pipe or a log file it degrades to one plain line per point started, without control codes.
 
-The ETA scales the sequence's remaining estimated duration by the rate observed so far: the seconds
-of wall time per second of recorded samples. The simulated bench runs much faster than real time
-(or paced, at real time), a real bench at real time plus its prompts and pauses; the observed rate
-covers all of them without knowing which.
+The figures (points, elapsed, ETA) are :class:`~bench.app.pace.SequencePace`'s, as on the terminal
+UI's Run screen.
 """
 
 from __future__ import annotations
@@ -16,14 +14,13 @@ import math
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
 
+from bench.app.pace import NOTHING_DONE, DoneBefore, SequencePace
 from bench.engine import events as ev
 from drivers.wfs_frame import Status
-from sequences.points import PointStatus
 
 #: Shortest interval (s, wall clock) between two redraws of the live line.
 REDRAW_PERIOD_S = 0.2
@@ -40,15 +37,6 @@ def clock_text(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
-@dataclass(frozen=True)
-class DoneBefore:
-    """What a resumed campaign file holds done already of a sequence (what the engine skips):
-    ``points`` and their share of the sequence's estimated duration (``estimated_s``)."""
-
-    points: int = 0
-    estimated_s: float = 0.0
-
-
 class Progress:
     """Subscriber: the progress of a sequence on ``stream``; :meth:`line` writes a log line.
 
@@ -62,21 +50,14 @@ class Progress:
         *,
         live: bool | None = None,
         clock: Callable[[], float] = time.monotonic,
-        done_before: DoneBefore = DoneBefore(),
+        done_before: DoneBefore = NOTHING_DONE,
     ) -> None:
         self.stream = stream
         self.live = stream.isatty() if live is None else live
         self.clock = clock
-        self.total_points = 0
-        self.estimated_s = 0.0
-        self.points_done = done_before.points
-        self._done_before_points = done_before.points
-        self._done_before_s = done_before.estimated_s
-        self.recorded_s = 0.0
+        self.pace = SequencePace(clock=clock, done_before=done_before)
         self.point: str | None = None  # what is under way, for people
         self.at_amplitude: bool | None = None  # a dwell: tapering in (False), at amplitude (True)
-        self._started_wall_s: float | None = None
-        self._sample_rate_hz = 0.0
         self._pressure_bar: float | None = None
         self._shown = False  # a live line is on the screen
         self._asking = False  # a prompt waits for its answer: its question owns the terminal's line
@@ -86,28 +67,17 @@ class Progress:
 
     @property
     def elapsed_s(self) -> float:
-        return 0.0 if self._started_wall_s is None else self.clock() - self._started_wall_s
+        return self.pace.elapsed_s
 
     @property
     def eta_s(self) -> float:
-        """The larger of two estimates, NaN until samples were recorded: the remaining estimated
-        duration times the observed wall seconds per recorded second, and the points still to do
-        times the wall seconds per point done so far. The first alone runs out early when points
-        last longer than planned (an adaptive grid's estimate holds every dwell at its shortest)."""
-        if self.recorded_s <= 0:
-            return math.nan
-        ahead_s = self.estimated_s - self._done_before_s - self.recorded_s
-        by_duration_s = max(ahead_s, 0.0) * self.elapsed_s / self.recorded_s
-        done_here = self.points_done - self._done_before_points
-        if done_here <= 0:
-            return by_duration_s
-        by_points_s = max(self.total_points - self.points_done, 0) * self.elapsed_s / done_here
-        return max(by_duration_s, by_points_s)
+        return self.pace.eta_s
 
     def status(self) -> str:
         """The status line: points done of total, the point under way, elapsed and ETA."""
+        pace = self.pace
         parts = [
-            f"{self.points_done}/{self.total_points} points",
+            f"{pace.points_done}/{pace.total_points} points",
             f"elapsed {clock_text(self.elapsed_s)}, ETA {clock_text(self.eta_s)}",
         ]
         if self.point is not None:  # last: a narrow terminal cuts the line's end
@@ -128,7 +98,8 @@ class Progress:
         self.stream.flush()
 
     def _draw(self) -> None:
-        done = self.points_done / self.total_points if self.total_points else 0.0
+        pace = self.pace
+        done = pace.points_done / pace.total_points if pace.total_points else 0.0
         filled = min(BAR_WIDTH, round(done * BAR_WIDTH))
         text = f"[{'#' * filled}{'.' * (BAR_WIDTH - filled)}] {self.status()}"
         width = shutil.get_terminal_size().columns
@@ -156,8 +127,6 @@ class Progress:
         return ", ".join([sweep, f"{step.get('amplitude_mm', math.nan):g} mm", *self._pressure_text()])
 
     def _recorded(self, event: ev.SamplesRecorded) -> None:
-        if self._sample_rate_hz > 0:
-            self.recorded_s += len(event) / self._sample_rate_hz
         if self.at_amplitude is False and "status" in event.columns:
             hold = np.asarray(event.columns["status"]) & int(Status.AMPLITUDE_HOLD)
             if hold.any():  # the controller's hold output: the taper in is over
@@ -181,13 +150,9 @@ class Progress:
             self.line(f"progress: {self.status()}")
 
     def __call__(self, event: ev.Event) -> None:
+        self.pace(event)
         match event:
-            case ev.SequenceStarted():
-                self.total_points = event.total_points
-                self.estimated_s = event.estimated_duration_s
-                self._started_wall_s = self.clock()
             case ev.RunStarted():
-                self._sample_rate_hz = event.sample_rate_hz
                 self._pressure_bar = event.conditions.get("tyre_pressure_bar")
                 if event.kind in ("sweep", "hammer"):  # one point, published at its end only
                     self._show(f"{event.run_id}: {self._run_text(event)}")
@@ -200,10 +165,7 @@ class Progress:
                 self._asked(event)
             case ev.PromptAnswered():
                 self._asking = False
-            case ev.GridRefined():  # an adaptive grid's added points: the sequence counts its coarse ones
-                self.total_points += len(event.added)
             case ev.PointDone():
-                self.points_done += event.status == PointStatus.DONE
                 if self.live and not self._asking:
                     self._draw()
             case ev.SequenceFinished():

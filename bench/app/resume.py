@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bench.app.pace import DoneBefore
 from bench.app.plan import CampaignPlan
-from bench.app.progress import DoneBefore
 from bench.app.resume_check import check_resume
 from bench.engine.engine import Engine, is_measurement
 from bench.store import open_campaign

@@ -226,12 +226,20 @@ class RunFinished:
 
 @dataclass(frozen=True)
 class AnalysisDone:
-    """Results of the analysis after a run: ``summary`` lines for people, ``results`` for storage."""
+    """Results of the analysis after a run: ``summary`` lines for people, ``results`` for storage;
+    ``status`` how far it got (``complete``, ``partial`` or ``failed``: the analysis's
+    :class:`~bench.analysis.campaign.AnalysisStatus`) and, when not complete, ``why``."""
 
     run_id: str
     name: str
     summary: tuple[str, ...]
     results: Mapping[str, Any]
+    status: str
+    why: str = ""
+
+    @property
+    def complete(self) -> bool:
+        return self.status == "complete"
 
 
 @dataclass(frozen=True)

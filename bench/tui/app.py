@@ -56,6 +56,8 @@ STATE_STYLES = {
     "failed": "bold white on red",
     "not open": "bold white on red",
 }
+#: The banner for q while a sequence runs (cleared when the sequence ends).
+QUIT_WHILE_RUNNING = "a sequence is under way: a aborts it (with a taper); q quits once it has ended"
 PANES = {"bench": "Bench", "sequence": "Sequence", "run": "Run", "results": "Results"}
 
 
@@ -141,6 +143,7 @@ class WfsBenchApp(App):
         #: the operator and notes typed in (m), recorded with the runs the next sequences begin
         self.run_metadata: dict[str, str] = {}
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
+        self.banner_text = ""  # what the banner says while it is shown
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -190,9 +193,11 @@ class WfsBenchApp(App):
         banner = self.main.query_one("#banner", Static)
         banner.update(text)
         banner.add_class("shown")
+        self.banner_text = text
 
     def clear_banner(self) -> None:
         self.main.query_one("#banner", Static).remove_class("shown")
+        self.banner_text = ""
 
     # -- keys -----------------------------------------------------------------------------------
 
@@ -212,7 +217,7 @@ class WfsBenchApp(App):
         if action in ("pause", "resume", "abort"):  # from dialogs too; p, r, a never while typing
             if self._typing() and not parameters:
                 return False
-            return engine is not None and (running or self.pane == "run" or bool(parameters))
+            return engine is not None and (running or bool(parameters))
         if action == "quit":  # from a prompt's dialog too; the help dialog's q closes it
             return not self._typing() and not isinstance(self.screen, HelpDialog)
         return True
@@ -260,7 +265,7 @@ class WfsBenchApp(App):
     async def action_quit(self) -> None:
         """Quit once no sequence runs; while one does, say what to do instead of ignoring the key."""
         if self.session.running.is_set():
-            self.show_banner("a sequence is under way: a aborts it (with a taper); q quits once it has ended")
+            self.show_banner(QUIT_WHILE_RUNNING)
             return
         self.exit()
 
@@ -490,6 +495,9 @@ class WfsBenchApp(App):
     def _sequence_finished(self, event: ev.SequenceFinished) -> None:
         if isinstance(self.screen, PromptDialog):  # an abort ended the sequence while it asked
             self.screen.close_unanswered()
+        self.main.query_one(RunPane).sequence_finished(event)
+        if self.banner_text == QUIT_WHILE_RUNNING:  # it has ended: q quits now
+            self.clear_banner()
         why = f": {event.reason}" if event.reason else ""
         if event.status == "complete":
             self.notify(f"sequence complete; file {self.session.out_path}")
@@ -529,7 +537,7 @@ class WfsBenchApp(App):
         trace = self.session.trace
         if self.pane == "run":
             run = self.main.query_one(RunPane)
-            run.show_progress(state, running)
+            run.show_progress(state, self.session.pace)
             if trace is not None:
                 run.show_trace(trace)
         elif self.pane == "bench" and engine is not None and self.session.devices is not None:

@@ -6,7 +6,6 @@ routes the session's messages to them and owns the keys."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 from rich.markup import escape
@@ -14,15 +13,15 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Input, Label, OptionList, Static
 
+from bench.app.analysis_plan import analysis_limits
 from bench.app.check import step_line
 from bench.app.durations import sequence_estimate_text
+from bench.app.pace import SequencePace
 from bench.app.plan import CampaignPlan
-from bench.app.progress import DoneBefore
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
 from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun, SequenceLaunched
 from sequences import shipped_files
-from sequences.points import PointStatus
 
 #: Shipped sequence files offered on the sequence screen.
 #: The shipped sequences as listed, the seconds-long smoke check first.
@@ -161,7 +160,16 @@ class SequencePane(Vertical):
             sequence_estimate_text(s),
             "[b]g[/b]: start this sequence",
         ]
-        lines += [f"  {step_line(i, step)}" for i, step in enumerate(s.steps)]
+        limits = analysis_limits(s, plan.config)  # what ``wfsbench check`` says of the analysis
+        if limits:
+            lines.append(
+                f"[b yellow]analysis limited ({len(limits)})[/b yellow]:"
+                " what the runs will not let the analysis give:"
+            )
+            lines += [f"  - {escape(limit)}" for limit in limits]
+        else:
+            lines.append("analysis: every run can be analysed in full")
+        lines += [f"  {escape(step_line(i, step))}" for i, step in enumerate(s.steps)]
         self.query_one("#seq-report", Static).update("\n".join(lines))
 
     def show_error(self, path: str, error: str) -> None:
@@ -187,12 +195,8 @@ class RunPane(Vertical):
         table.add_columns(
             "run", "point", "f Hz", "status", "target mm", "commanded mm", "achieved mm", "added because"
         )
-        self._started = 0.0
-        self._total = 0
-        self._done = 0
-        self._estimate_s = 0.0
-        self._before = DoneBefore()  # what the resumed file held done: counted, never run again
         self._launched: SequenceLaunched | None = None
+        self._ended: str | None = None  # what the sequence shown ended as (None: under way, or none)
 
     def launched(self, launched: SequenceLaunched) -> None:
         """A sequence goes to the engine; a resume's points done already count from its start."""
@@ -200,14 +204,20 @@ class RunPane(Vertical):
 
     def sequence_started(self, event: ev.SequenceStarted) -> None:
         launched = self._launched
-        self._before = launched.done_before if launched is not None and launched.resume else DoneBefore()
-        self._launched = None
-        self._started = time.monotonic()
-        self._total, self._estimate_s = event.total_points, event.estimated_duration_s
-        self._done = self._before.points
+        self._ended = None
         self.query_one("#run-points", DataTable).clear()
         resumed = " (resumed)" if launched is not None and launched.resume else ""
         self.query_one("#run-step", Static).update(f"sequence {event.sequence_name}{resumed}")
+
+    def sequence_finished(self, event: ev.SequenceFinished) -> None:
+        """Nothing is under way any more: the point line and the plots say so instead of showing the
+        last dwell as if it ran."""
+        self._ended = event.status
+        name = self._launched.name if self._launched is not None else "the sequence"
+        why = f": {event.reason}" if event.reason else ""
+        self.query_one("#run-step", Static).update(f"{name} {event.status}{why}; no point under way")
+        for plot_id in ("#plot-force", "#plot-disp"):
+            self.query_one(plot_id, BraillePlot).plot([], "no sequence running")
 
     def point_started(self, event: ev.PointStarted) -> None:
         pressure = event.conditions.get("tyre_pressure_bar")
@@ -218,14 +228,11 @@ class RunPane(Vertical):
         )
 
     def grid_refined(self, event: ev.GridRefined) -> str:
-        """Count the points an adaptive grid adds; return what to tell the technician."""
-        self._total += len(event.added)
+        """What to tell the technician of the points an adaptive grid adds."""
         added = "; ".join(f"{freq_hz:g} Hz ({reason})" for freq_hz, reason in event.added)
         return f"{event.run_id}: point added at {event.amplitude_mm:g} mm: {added}"
 
     def point_done(self, event: ev.PointDone) -> None:
-        if event.status == PointStatus.DONE:
-            self._done += 1
         achieved = f"{event.achieved_amplitude_mm:.3f}" if math.isfinite(event.achieved_amplitude_mm) else "-"
         table = self.query_one("#run-points", DataTable)
         table.add_row(
@@ -240,26 +247,29 @@ class RunPane(Vertical):
         )
         table.scroll_end(animate=False)
 
-    def show_progress(self, state: str, running: bool) -> None:
-        if not self._started:
+    def show_progress(self, state: str, pace: SequencePace | None) -> None:
+        """The state, points done of the total, elapsed and ETA (:class:`SequencePace`'s figures:
+        the ETA holds still while the operator is awaited); both clocks stop when the sequence ends."""
+        if pace is None or not pace.started:
             text = f"state [b]{state}[/b]; no sequence started"
         else:
-            elapsed = time.monotonic() - self._started
-            done_here = self._done - self._before.points  # this start's pace, not the file's
-            rest = (
-                elapsed / done_here * (self._total - self._done)
-                if done_here > 0
-                else max(self._estimate_s - self._before.estimated_s, 0.0)
-            )
-            eta = f"ETA {rest:5.0f} s" if running else "ended"
-            before = f" ({self._before.points} done before the resume)" if self._before.points else ""
+            before = pace.done_before.points
+            eta_s = pace.eta_s
+            eta = f"ETA {eta_s:5.0f} s" if math.isfinite(eta_s) else "ETA --"
+            if pace.ended:
+                eta = self._ended or "ended"
+            elif pace.awaiting_operator:
+                eta += " (waiting for the operator)"
+            resumed = f" ({before} done before the resume)" if before else ""
             text = (
-                f"state [b]{state}[/b]   points {self._done}/{self._total}{before}"
-                f"   elapsed {elapsed:5.0f} s   {eta}"
+                f"state [b]{state}[/b]   points {pace.points_done}/{pace.total_points}{resumed}"
+                f"   elapsed {pace.elapsed_s:5.0f} s   {eta}"
             )
         self.query_one("#run-progress", Static).update(text)
 
     def show_trace(self, trace: LiveTrace) -> None:
+        if self._ended is not None:  # the plots were cleared at the end: no dwell is under way
+            return
         t_s, v = trace.snapshot()
         if not t_s.size:
             return

@@ -27,8 +27,8 @@ import numpy as np
 from bench.analysis.campaign import CampaignKnowledge
 from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
+from bench.app.pace import DoneBefore, SequencePace
 from bench.app.plan import CampaignPlan, plan_campaign
-from bench.app.progress import DoneBefore
 from bench.app.resume import done_in_file, held_runs, sequence_complete
 from bench.app.run import run_on_engine
 from bench.app.run_analysis import initial_knowledge
@@ -270,6 +270,7 @@ class BenchSession:
         self.engine: Engine | None = None
         self.devices: BenchDevices | None = None
         self.trace: LiveTrace | None = None
+        self.pace: SequencePace | None = None  # the figures of the sequence started last
         self.knowledge: CampaignKnowledge | None = None
         self.running = threading.Event()  # a sequence is under way
         self._started = False  # the sequence under way got past its checks (the engine started it)
@@ -435,6 +436,7 @@ class BenchSession:
         self._started = False
         try:
             done_before = done_in_file(plan, self.out_path) if resume else DoneBefore()
+            self.pace = SequencePace(done_before=done_before)
             self.post(SequenceLaunched(plan.sequence.name, resume, done_before))
             run_log.info(
                 "%s sequence %s into %s%s",
@@ -499,7 +501,10 @@ class BenchSession:
     # -- the engine's thread --------------------------------------------------------------------
 
     def _on_event(self, event: ev.Event) -> None:
-        """Forward an event to the UI; samples go to the live trace; results get their curves."""
+        """Forward an event to the UI; every event to the pace; samples go to the live trace;
+        results get their curves."""
+        if self.pace is not None:
+            self.pace(event)
         if isinstance(event, ev.SamplesRecorded):
             self.trace.append(dict(event.columns), event.run_id)
             return

@@ -21,7 +21,7 @@ import pytest
 from bench.archive.build import FileOutcome, FileStatus, FileTask, InProcess, build_index, index_file
 from bench.archive.files import FileStat
 from bench.archive.store import part_paths, read_index
-from bench.cli import main
+from bench.cli.main import main
 from tests.archive.conftest import SIMULATED
 from tests.archive_files import copy_campaign
 

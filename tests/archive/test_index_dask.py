@@ -7,7 +7,7 @@ import os
 
 from bench.archive.build import dask_client
 from bench.archive.store import read_index
-from bench.cli import main
+from bench.cli.main import main
 
 
 def test_index_on_a_local_cluster_of_processes_equals_the_one_process_index(

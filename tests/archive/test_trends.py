@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 from bench.archive.trends import _dataset, eigenfrequencies, interlocks, one_copy_each, tyre_points
-from bench.cli import main
+from bench.cli.main import main
 from tests.archive.conftest import COPIES, SIMULATED
 
 

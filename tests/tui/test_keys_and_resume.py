@@ -10,7 +10,6 @@ from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.tui.app import WfsBenchApp
 from bench.tui.dialogs import FIELD_KEYS, ConfirmDialog, HelpDialog
-from bench.tui.panes import RunPane
 from bench.tui.session import HeldRuns
 from tests.tui.keys import press
 from tests.tui.test_tui import (
@@ -101,7 +100,7 @@ async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: W
         done_here = done_points(recorded, events_before)
         assert done_here < 20 - before, "a aborted the sequence before its end"
         await until(pilot, lambda: not app.session.running.is_set(), "the sequence's end")
-        assert app.query_one(RunPane)._done == before + done_here
+        assert app.session.pace.points_done == before + done_here
         await until(
             pilot, lambda: f"points {before + done_here}/20" in text_of(app, "#run-progress"), "the count"
         )

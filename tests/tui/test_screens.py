@@ -29,7 +29,7 @@ from tests.tui.test_tui import (
 FOOTER_KEYS = {
     "f2": ("? Help", "l Hyd. low", "h Hyd. high", "o Hyd. off", "t Tare", "x Reset", "q Quit"),
     "f3": ("? Help", "g Start", "q Quit"),
-    "f4": ("? Help", "p Pause", "r Resume", "a Abort", "q Quit"),
+    "f4": ("? Help", "q Quit"),  # p, r and a while a sequence runs only
     "f5": ("? Help", "q Quit"),
 }
 

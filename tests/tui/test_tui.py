@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 from rich.text import Text
 
+from bench.app.pace import SequencePace
 from bench.engine import events as ev
 from bench.engine.engine import GO_ON_DESPITE
 from bench.engine.states import RunState
 from bench.store import open_campaign
 from bench.tui.app import SessionMessage, WfsBenchApp
 from bench.tui.dialogs import HELP_TEXT, ConfirmDialog, HelpDialog, PromptDialog
-from bench.tui.panes import RunPane
 from bench.tui.session import BodeCurves, PastRun, PastRuns, RunResult
 from drivers.actuator import ActuatorClient
 from drivers.register_map import Command, ControllerState
@@ -266,20 +266,34 @@ async def test_abort_while_a_prompt_waits(app: WfsBenchApp) -> None:
 
 
 async def test_q_while_a_sequence_runs_says_so_and_quits_nothing(app: WfsBenchApp) -> None:
-    """q with the sequence waiting at a prompt: the banner says how to end it, the UI stays; once
-    the sequence is aborted, q quits."""
+    """q with the sequence waiting at a prompt: the banner says how to end it, the UI stays, the
+    Run screen says the operator is awaited. Once the sequence is aborted, the screen says it ended:
+    the banner gone, the clocks stopped, no point under way, empty plots, no p / r / a offered;
+    q quits."""
     async with app.run_test(size=(120, 40)) as pilot:
         recorded = await open_app(pilot, app)
         await check_smoke(pilot, app)
         await press(pilot, "g")
         await prompt_open(pilot, app, "remove_wheel")
         await press(pilot, "q")
-        banner = app.screen_stack[0]
-        await until(pilot, lambda: "sequence is under way" in text_of(banner, "#banner"), "the banner")
+        main = app.screen_stack[0]
+        await until(pilot, lambda: "sequence is under way" in text_of(main, "#banner"), "the banner")
         assert app.is_running and isinstance(app.screen, PromptDialog)
+        assert app.pane == "run"
+        await until(pilot, lambda: "waiting for the operator" in text_of(main, "#run-progress"), "the wait")
         await press(pilot, "a")
         await until(pilot, lambda: finished(recorded) is not None, "the end of the sequence")
         await until(pilot, lambda: not app.session.running.is_set(), "the session idle")
+        await until(pilot, lambda: not main.query_one("#banner").has_class("shown"), "the banner gone")
+        step = text_of(main, "#run-step")
+        assert step.startswith("smoke aborted: ") and step.endswith("; no point under way"), step
+        assert all(not main.query_one(p).series for p in ("#plot-force", "#plot-disp"))
+        assert not app.check_action("pause", ()) and not app.check_action("abort", ())
+        ended = text_of(main, "#run-progress")
+        assert ended.endswith("aborted"), ended
+        redraws = app.refreshes
+        await until(pilot, lambda: app.refreshes >= redraws + 5, "five redraws of the live view")
+        assert text_of(main, "#run-progress") == ended  # the elapsed clock stopped at the end
         await press(pilot, "q")
         await until(pilot, lambda: not app.is_running, "the UI to quit")
 
@@ -383,8 +397,14 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
     async with app.run_test(size=(120, 40)) as pilot:
         await open_app(pilot, app)
         run_id = "adaptive-s003-dwell_grid"
-        app.post_message(SessionMessage(ev.SequenceStarted("adaptive", "", "", 9, 60.0)))
-        app.post_message(SessionMessage(ev.GridRefined(run_id, 2.0, ((40.8, "model peak"),))))
+        pace = app.session.pace = SequencePace()
+
+        def deliver(event: ev.Event) -> None:  # as the session does: to the pace, then to the app
+            pace(event)
+            app.post_message(SessionMessage(event))
+
+        deliver(ev.SequenceStarted("adaptive", "", "", 9, 60.0))
+        deliver(ev.GridRefined(run_id, 2.0, ((40.8, "model peak"),)))
         done = ev.PointDone(
             9,
             40.8,
@@ -401,14 +421,14 @@ async def test_points_an_adaptive_grid_adds_are_told_with_their_reason(app: WfsB
             added_reason="model peak",
             run_id=run_id,
         )
-        app.post_message(SessionMessage(done))
+        deliver(done)
         await press(pilot, "f4")
         await until(pilot, lambda: app.query_one("#run-points").row_count == 1, "the added point's row")
         notes = [n.message for n in app._notifications]
         assert f"{run_id}: point added at 2 mm: 40.8 Hz (model peak)" in notes
         row = app.query_one("#run-points").get_row_at(0)
         assert row[1:4] == ["9", "40.8", "done"] and row[-1] == "model peak"
-        assert app.query_one(RunPane)._total == 10
+        await until(pilot, lambda: "points 1/10" in text_of(app, "#run-progress"), "the grown total")
 
 
 class PauseInTheSweep:

@@ -1,12 +1,12 @@
 """``wfsbench index`` and ``wfsbench trends``: campaign archives indexed into Parquet on Dask, and
 their trends drawn from the index (docs/index.md).
 
-Exit codes (both commands):
+Exit codes (both commands, :mod:`bench.cli.exit_codes`):
 
-- 0: done; for ``index``, every file found is in the index, those that could not be read listed
+- OK: done; for ``index``, every file found is in the index, those that could not be read listed
   with their status and error (on standard output, and in the index);
-- 2: the Dask scheduler could not be reached, or another index run holds the index directory;
-- 3: invalid input: a path that does not exist, an index directory that cannot be used (a file,
+- UNAVAILABLE: the Dask scheduler could not be reached, or another index run holds the index directory;
+- INVALID: invalid input: a path that does not exist, an index directory that cannot be used (a file,
   not writable, or an index of another version); for ``trends``, an index missing or empty, or an
   output directory that cannot be used: nothing was written.
 """
@@ -19,12 +19,11 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bench.cli.exit_codes import ExitCode
+
 if TYPE_CHECKING:
     from bench.archive.build import FileOutcome, IndexSummary
 
-EXIT_OK = 0
-EXIT_LINK = 2
-EXIT_INVALID = 3
 
 
 class _Bar:
@@ -81,7 +80,7 @@ def _index(args: argparse.Namespace) -> int:
     missing = [str(p) for p in roots if not p.exists()]
     if missing:
         print(f"error: no such file or directory: {', '.join(missing)}", file=sys.stderr)
-        return EXIT_INVALID
+        return ExitCode.INVALID
     out = Path(args.out)
     bar = _Bar()
     try:
@@ -93,13 +92,13 @@ def _index(args: argparse.Namespace) -> int:
                     summary = build_index(roots, out, OnDask(client), verify=args.verify, progress=bar)
     except IndexDirError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
+        return ExitCode.INVALID
     except (InUseError, OSError) as exc:  # another index run; a scheduler that does not answer
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_LINK
+        return ExitCode.UNAVAILABLE
     for line in summary_lines(summary, out):
         print(line)
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def _trends(args: argparse.Namespace) -> int:
@@ -112,11 +111,11 @@ def _trends(args: argparse.Namespace) -> int:
         written = write_trends(Path(args.results), Path(args.out))
     except (IndexDirError, ReportDirError) as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
+        return ExitCode.INVALID
     for figure in written.figures:
         print(f"figure {figure.path}")
     print(f"trends {written.page}")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def add_archive_commands(sub: argparse._SubParsersAction) -> None:

@@ -1,6 +1,7 @@
 """``wfsbench export``: a campaign file's runs or FRFs in a format other tools read (docs/export.md).
 
-Exit codes: 0 written; 3 refused, nothing written: the file is no campaign file, the run is not
+Exit codes (:mod:`bench.cli.exit_codes`): OK written; UNAVAILABLE a process is writing the
+file; INVALID, nothing written: the file is no campaign file, the run is not
 in it, the output exists (an export replaces nothing) or its folder does not, the format has
 nothing to write for the runs asked (UFF 58 of a run without FRFs), or a value cannot be written
 (a non-finite sample in RPC III).
@@ -12,8 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
-EXIT_OK = 0
-EXIT_INVALID = 3
+from bench.cli.exit_codes import ExitCode, unreadable_file_code
+
 FORMATS = ("mdf4", "uff58", "csv", "rpc3")
 
 
@@ -27,8 +28,8 @@ def _export(args: argparse.Namespace) -> int:
             print(line)
     except (ExportError, StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
-    return EXIT_OK
+        return unreadable_file_code(exc)
+    return ExitCode.OK
 
 
 def export(path: Path, fmt: str, out: Path, run_id: str | None) -> list[str]:

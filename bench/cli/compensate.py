@@ -1,12 +1,13 @@
 """``wfsbench compensate``: a measurement's WFS force compensated to the contact force with what a
 campaign identified (docs/compensate.md).
 
-Exit codes:
+Exit codes (:mod:`bench.cli.exit_codes`):
 
-- 0: compensated, the output (and the filters) written;
-- 3: an input cannot be used: the campaign file is no campaign file, the measurement or its mapping
+- OK: compensated, the output (and the filters) written;
+- UNAVAILABLE: a process is writing the campaign file (or a campaign-file measurement);
+- INVALID: an input cannot be used: the campaign file is no campaign file, the measurement or its mapping
   cannot be read, the output exists, the options contradict each other; nothing was written;
-- 4: refused: the campaign does not cover the measurement (no identification at its tyre pressure,
+- REFUSED: the campaign does not cover the measurement (no identification at its tyre pressure,
   a sample rate the filters cannot serve, a channel the measurement lacks); the message names what
   is missing; nothing was written.
 """
@@ -18,9 +19,7 @@ import math
 import sys
 from pathlib import Path
 
-EXIT_OK = 0
-EXIT_INVALID = 3
-EXIT_REFUSED = 4
+from bench.cli.exit_codes import ExitCode, unreadable_file_code
 
 
 class _StopError(Exception):
@@ -46,15 +45,15 @@ def _measurement(args: argparse.Namespace):
         mapping = load_channel_mapping(args.mapping) if args.mapping else None
         measurement = read_measurement(args.measurement, run_id=args.run_id, mapping=mapping)
     except (MissingChannelError, NotOnTheTyreError) as exc:
-        raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
+        raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
     except (MappingError, MeasurementError, StoreError) as exc:
-        raise _StopError(EXIT_INVALID, f"error: {exc}") from None
+        raise _StopError(unreadable_file_code(exc), f"error: {exc}") from None
     recorded = measurement.tyre_pressure_bar
     if args.pressure is None:
         return measurement, recorded
     if recorded is not None and abs(recorded - args.pressure) > 1e-9:
         raise _StopError(
-            EXIT_INVALID,
+            ExitCode.INVALID,
             f"error: --pressure {args.pressure:g} bar contradicts the {recorded:g} bar that"
             f" {measurement.source} records",
         )
@@ -70,19 +69,19 @@ def _compensation(args: argparse.Namespace):
     out = Path(args.out)
     if out.exists():
         raise _StopError(
-            EXIT_INVALID, f"error: {out}: exists; the output is never replaced (choose another --out)"
+            ExitCode.INVALID, f"error: {out}: exists; the output is never replaced (choose another --out)"
         )
     if args.filters and Path(args.filters).suffix.lower() not in (".json", ".csv"):
-        raise _StopError(EXIT_INVALID, f"error: --filters {args.filters}: give a .json or .csv file")
+        raise _StopError(ExitCode.INVALID, f"error: --filters {args.filters}: give a .json or .csv file")
     measurement, pressure = _measurement(args)
     try:
         analysis = analyze_campaign(Path(args.campaign))
     except (StoreError, CampaignFileError) as exc:
-        raise _StopError(EXIT_INVALID, f"error: {exc}") from None
+        raise _StopError(unreadable_file_code(exc), f"error: {exc}") from None
     try:
         return prepare_compensation(analysis, measurement, pressure)
     except CompensationRefusedError as exc:
-        raise _StopError(EXIT_REFUSED, f"refused: {exc}") from None
+        raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
 
 
 def _compensate(args: argparse.Namespace) -> int:
@@ -98,14 +97,14 @@ def _compensate(args: argparse.Namespace) -> int:
         return stop.code
     except OutputExistsError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
+        return ExitCode.INVALID
     for line in lines:
         print(line)
     if args.filters:
         offset = compensation.accelerometer_offset_m_s2
         print(f"filters {write_filters(args.filters, compensation.filters, offset)}")
     print(f"compensated {args.out}")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def _pressure_bar(text: str) -> float:

@@ -1,7 +1,7 @@
 """``wfsbench show FILE [--json]``: what a campaign file holds, read-only (docs/cli.md).
 
-Exit codes, in the command line's scheme: 0 shown; 2 a process is writing the file (its writer
-lock or HDF5's lock held: refused, nothing read); 3 the file is no campaign file (missing, not
+Exit codes (:mod:`bench.cli.exit_codes`): OK shown; UNAVAILABLE a process is writing the file (its writer
+lock or HDF5's lock held: refused, nothing read); INVALID the file is no campaign file (missing, not
 HDF5, another layout, truncated, damaged, a schema violation).
 """
 
@@ -11,28 +11,25 @@ import argparse
 import sys
 from pathlib import Path
 
+from bench.cli.exit_codes import ExitCode, unreadable_file_code
+
 
 def _show(args: argparse.Namespace) -> int:
     from bench.app.show import campaign_summary, summary_lines
-    from bench.cli import EXIT_COMPLETE, EXIT_INVALID, EXIT_LINK
     from bench.store import StoreError
-    from bench.store.schema import CampaignInUseError
 
     try:
         summary = campaign_summary(Path(args.file))
-    except CampaignInUseError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_LINK
     except StoreError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
+        return unreadable_file_code(exc)
     if args.json:
         import json
 
         print(json.dumps(summary, indent=2, allow_nan=False, ensure_ascii=False))
     else:
         print("\n".join(summary_lines(summary)))
-    return EXIT_COMPLETE
+    return ExitCode.OK
 
 
 def add_show_command(sub: argparse._SubParsersAction) -> None:

@@ -1,18 +1,12 @@
 """``wfsbench analyze`` and ``wfsbench report``: a campaign file analysed, as text, JSON or a report.
 
-Exit codes (both commands):
-
-- 0: analysed; for ``analyze``, every run's analysis complete;
-- 3: the file is no campaign file (missing, not HDF5, another layout, truncated, a schema
-  violation or an invalid stored configuration), or (``report`` only) the ``--out`` directory
-  cannot be used (a file, under a file, not writable; checked before the analysis): nothing was
-  written;
-- 4 (``analyze`` only): analysed and printed, but the results could not be stored in the file
-  (read-only file or directory; never with ``--no-store``, which opens the file read-only and
-  writes nothing);
-- 5 (``analyze`` only): analysed, printed and stored, but not every run's analysis is complete: one
-  failed (a channel it needs is missing from the file, its records are unusable, ...) or gave only
-  part of what its run is for; each is flagged with why (``report`` writes its page either way).
+Exit codes (:mod:`bench.cli.exit_codes`): OK; INVALID: the file is no campaign file (missing, not
+HDF5, another layout, truncated, a schema violation or an invalid stored configuration), or
+(``report``) the ``--out`` directory cannot be used (checked before the analysis): nothing was
+written; UNAVAILABLE: a process is writing the file; for ``analyze`` also INCOMPLETE: a run's
+analysis failed or is partial (each flagged with why), or the file holds no complete run; and
+NOT_STORED: analysed and printed, the results not stored (a read-only file; never with
+``--no-store``). ``report`` writes its page whatever the analyses' status.
 """
 
 from __future__ import annotations
@@ -22,19 +16,19 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bench.cli.exit_codes import ExitCode, unreadable_file_code
+
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis
 
-EXIT_OK = 0
-EXIT_NOT_CAMPAIGN = 3
-EXIT_NOT_STORED = 4
-EXIT_PARTIAL = 5
 
 
 def _status_line(analysis: CampaignAnalysis) -> str:
     """The analysis's status as the text output's last line: ``complete``, or ``partial`` with each
     run whose analysis failed or is partial, and why."""
     runs = analysis.not_complete
+    if not analysis.runs:
+        return "== analysis incomplete: the file holds no complete run to analyse"
     if not runs:
         n = len(analysis.runs)
         return f"== analysis complete: {n} run{'' if n == 1 else 's'} analysed"
@@ -54,14 +48,15 @@ def _analyze(args: argparse.Namespace) -> int:
         analysis = analyze_campaign(path)
     except (StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_NOT_CAMPAIGN
-    code, names = EXIT_PARTIAL if analysis.not_complete else EXIT_OK, {}
+        return unreadable_file_code(exc)
+    complete = analysis.runs and not analysis.not_complete
+    code, names = ExitCode.OK if complete else ExitCode.INCOMPLETE, {}
     if args.store:
         try:
             names = store_reanalysis(analysis)
         except StoreError as exc:
             print(f"error: results not stored: {exc}", file=sys.stderr)
-            code = EXIT_NOT_STORED
+            code = ExitCode.NOT_STORED
     if args.json:
         from bench.report.json_out import analysis_json_text
 
@@ -94,17 +89,17 @@ def _report(args: argparse.Namespace) -> int:
         written = write_report(Path(args.file), Path(args.out))
     except (StoreError, CampaignFileError, ReportDirError) as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return EXIT_NOT_CAMPAIGN
+        return unreadable_file_code(exc)
     for figure in written.figures:
         print(f"figure {figure.path}")
     print(f"report {written.page}")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
-    """Add ``analyze``, ``report`` and ``show`` (:mod:`bench.cli_show`) to the ``wfsbench``
+    """Add ``analyze``, ``report`` and ``show`` (:mod:`bench.cli.show`) to the ``wfsbench``
     subcommands: the commands that read a campaign file."""
-    from bench.cli_show import add_show_command
+    from bench.cli.show import add_show_command
 
     analyze = sub.add_parser(
         "analyze",
