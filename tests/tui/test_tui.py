@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from rich.text import Text
 
+from bench.app.analysis_plan import analysis_limits
 from bench.app.pace import SequencePace
 from bench.engine import events as ev
 from bench.engine.engine import GO_ON_DESPITE
@@ -692,3 +693,18 @@ async def test_a_free_run_not_to_be_trusted_is_put_to_the_technician(app: WfsBen
         assert done.reason.startswith("the operator declined: Before smoke-s009-dwell_grid: the free run")
         assert [e.kind for e in recorded.of(ev.RunStarted)] == ["free_run"]
         assert not [e for e in recorded.of(ev.PromptAsked) if e.prompt_id == "fit_wheel"]
+
+
+async def test_the_sequence_screen_says_what_the_analysis_will_lack_as_check_does(app: WfsBenchApp) -> None:
+    """The UI's check of a sequence lists the same analysis limits as ``wfsbench check`` (a dwell
+    with no pressure asked before it cannot be fitted), before g starts it."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_app(pilot, app)
+        await press(pilot, "f3")
+        await type_path(pilot, app, FILES / "long_dwell.toml")
+        await until(pilot, lambda: app.plan is not None, "the long dwell checked")
+        report = text_of(app, "#seq-report")
+        limits = analysis_limits(app.plan.sequence, app.plan.config)
+        assert limits and "no set_tyre_pressure prompt before it" in limits[0]
+        assert f"analysis limited ({len(limits)}): what the runs will not let the analysis give:" in report
+        assert all(f"- {limit}" in report for limit in limits), report
