@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from bench.analysis.campaign import CampaignKnowledge
+from bench.app.library_log import library_log, log_beside
 from bench.app.plan import plan_sequence
 from bench.app.report import write_report
 from bench.app.run import run_campaign
@@ -57,23 +58,27 @@ def run_demo(out_dir: Path, seed: int = 1, metadata: Mapping[str, str] | None = 
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / "campaign.h5"
     out.unlink(missing_ok=True)
+    log_beside(out).unlink(missing_ok=True)
     knowledge: CampaignKnowledge | None = None
     start = time.perf_counter()
-    for name, kind in DEMO_SEQUENCES:
-        config = default_bench_config(kind)
-        config = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, seed=seed))
-        path = shipped_file(name)
-        plan = plan_sequence(load_sequence(path, config.limits), config, path.read_text(), config.to_toml())
-        plan = plan.with_metadata(metadata or {})
-        if knowledge is None:
-            knowledge = initial_knowledge(config)
-        outcome = run_campaign(plan, out, knowledge=knowledge)
-        if outcome.status != "complete":
-            raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")
+    with library_log(log_beside(out)) as log:  # the links' warnings: to a file, not the screen
+        for name, kind in DEMO_SEQUENCES:
+            config = default_bench_config(kind)
+            config = dataclasses.replace(config, simulation=dataclasses.replace(config.simulation, seed=seed))
+            path = shipped_file(name)
+            sequence = load_sequence(path, config.limits)
+            plan = plan_sequence(sequence, config, path.read_text(), config.to_toml())
+            plan = plan.with_metadata(metadata or {})
+            if knowledge is None:
+                knowledge = initial_knowledge(config)
+            outcome = run_campaign(plan, out, knowledge=knowledge)
+            if outcome.status != "complete":
+                raise RuntimeError(f"demo sequence {name} ended {outcome.status}: {outcome.reason}")
     wall_s = time.perf_counter() - start
     lines = _report(knowledge, out, wall_s)
     written = write_report(out, out_dir / "report", knowledge=knowledge)
-    return [*lines, "", f"report ({len(written.figures)} figures): {written.page}"]
+    warned = [f"warnings of the links and libraries: {log.path}"] if log.written else []
+    return [*lines, *warned, "", f"report ({len(written.figures)} figures): {written.page}"]
 
 
 def _recorded_s(path: Path) -> float:

@@ -39,6 +39,7 @@ from bench.app.plan import plan_sequence
 from bench.config import Simulation, default_bench_config
 from bench.models.setup import BenchSetup
 from bench.store import open_campaign
+from benchmarks.timing import run_benchmark
 from sequences import DwellGrid, Sequence, crossover_amplitude_mm, load_sequence, shipped_file
 
 FIXED, ADAPTIVE = "paper_shaker.toml", "paper_shaker_adaptive.toml"
@@ -155,4 +156,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_benchmark(main)

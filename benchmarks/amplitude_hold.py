@@ -33,6 +33,7 @@ from bench.app import run as app_run
 from bench.app.plan import plan_sequence
 from bench.config import AmplitudeConfig, default_bench_config
 from bench.store import open_campaign
+from benchmarks.timing import run_benchmark
 from sequences import load_sequence, shipped_file
 
 BAND_HZ = (40.0, 70.0)
@@ -123,4 +124,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_benchmark(main)

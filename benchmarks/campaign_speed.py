@@ -27,7 +27,7 @@ from bench.config import default_bench_config
 from bench.engine import events as ev
 from bench.models.setup import BenchSetup
 from bench.store import open_campaign
-from benchmarks.timing import best_time_s
+from benchmarks.timing import best_time_s, run_benchmark
 from sequences import load_sequence, shipped_file
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell
 
@@ -108,4 +108,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_benchmark(main)

@@ -46,6 +46,7 @@ from bench.app.run_analysis import RunAnalyser, initial_knowledge, run_inputs, r
 from bench.app.simulated import SimulatedLabSettings
 from bench.config import default_bench_config
 from bench.store import open_campaign
+from benchmarks.timing import run_benchmark
 from drivers.wfs_reader import WfsReader
 from simulators.ports import TTY_RX_BUFFER_BYTES
 
@@ -185,4 +186,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_benchmark(main)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
+import subprocess
 from dataclasses import replace
 from pathlib import Path
 
@@ -325,3 +327,90 @@ def test_a_pressure_that_is_no_number_of_bar_is_refused_before_anything_is_read(
     assert refused.value.code == ExitCode.INVALID
     assert "a tyre pressure must be a positive number of bar" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_part_cut_from_a_longer_record_keeps_its_time(campaign, road, tmp_path, capsys):
+    """The second half of the road, cut at a gap as the refusal of a gap advises: the output's time
+    continues the record's (its CSV time column), not 0 again."""
+    _, columns, _ = road
+    half = columns[columns.shape[0] // 2 :]
+    part, out = tmp_path / "part.csv", tmp_path / "part.h5"
+    np.savetxt(part, half, delimiter=",", header="t_s,fz_wfs_n,a_hub_m_s2", comments="", fmt="%.17g")
+    code = main(["compensate", str(campaign), str(part), "--pressure", "2.5", "--out", str(out)])
+    assert code == ExitCode.OK
+    with h5py.File(out, "r") as f:
+        t = f["t_s"][()]
+    assert t[0] == pytest.approx(10.0) and np.allclose(t, half[:, 0], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        ("1e300", "", "line 9, column 'fz_wfs_n': '1e300' is 1e+300 in SI units"),
+        ("1e39", "", "line 9, column 'fz_wfs_n': '1e39' is 1e+39 in SI units"),  # float32: inf
+        ("2000", "scale = 1e300", "line 2, column 'fz_wfs_n': '2000' is 2e+303 in SI units"),
+    ],
+    ids=["1e300 N", "1e39 N", "scale 1e300"],
+)
+def test_a_value_no_sensor_reads_is_refused_naming_its_line(campaign, tmp_path, capsys, case):
+    """A damaged cell or a scale off by orders of magnitude: refused (exit 3) naming the line and
+    the column, and no output; it was compensated into 81 % non-finite values before."""
+    cell, mapping, said = case
+    path, out = tmp_path / "m.csv", tmp_path / "out.h5"
+    rows = [f"{i / 1000:.3f},{2000 + i},0.5" for i in range(2000)]
+    rows[7] = f"0.007,{cell},0.5"
+    path.write_text("t_s,fz_wfs_n,a_hub_m_s2\n" + "\n".join(rows) + "\n")
+    args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)]
+    if mapping:
+        table = tmp_path / "mapping.toml"
+        table.write_text(
+            '[time]\ncolumn = "t_s"\nunit = "s"\n[channels]\n'
+            f'fz_wfs_n = {{ column = "fz_wfs_n", unit = "N", {mapping} }}\n'
+            'a_hub_m_s2 = { column = "a_hub_m_s2", unit = "m/s^2" }\n'
+        )
+        args += ["--mapping", str(table)]
+    assert main(args) == ExitCode.INVALID
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {path}: {said}"), err
+    assert "beyond +/-1e+15, no measured value (a damaged cell, or a wrong unit or scale" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("where", ["missing folder", "existing file"])
+def test_a_filters_file_that_cannot_be_written_stops_everything_before_it_starts(
+    campaign, road, tmp_path, capsys, where
+):
+    """``--filters`` into a folder that does not exist, or onto a file: refused (exit 3) before
+    anything is computed, the output not written and the file there left as it was."""
+    path, _, _ = road
+    out = tmp_path / "out.h5"
+    filters = tmp_path / "nowhere" / "filters.json"
+    if where == "existing file":
+        filters = tmp_path / "filters.json"
+        filters.write_text("the lab's own\n")
+    args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)]
+    assert main([*args, "--filters", str(filters)]) == ExitCode.INVALID
+    err = capsys.readouterr().err
+    why = {
+        "missing folder": f"no folder {tmp_path / 'nowhere'}",
+        "existing file": "exists; it is never replaced (choose another name)",
+    }[where]
+    assert err == f"error: --filters {filters}: {why}\n"
+    assert not out.exists()
+    assert where == "missing folder" or filters.read_text() == "the lab's own\n"
+
+
+def test_a_temporary_a_killed_process_left_is_removed_by_the_next_output(campaign, road, tmp_path, capsys):
+    """A compensation killed while writing leaves its hidden temporary; the next command writing into
+    the folder removes it, and leaves one of a process still running alone."""
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    left = tmp_path / f".old.h5.{gone.pid}.partial"
+    running = tmp_path / f".other.h5.{os.getppid()}.partial"
+    left.write_bytes(b"half an HDF5 file")
+    running.write_bytes(b"being written")
+    path, _, _ = road
+    out = tmp_path / "out.h5"
+    code = main(["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)])
+    assert code == ExitCode.OK
+    assert sorted(p.name for p in tmp_path.iterdir()) == [running.name, "out.h5"]

@@ -208,6 +208,14 @@ GARBAGE = {
         "free.csv: line 1, column 'F_Platte [kp]': unknown unit 'kp'",
         "F_Platte [kp]",
     ),
+    "a force float32 cannot hold": (
+        "Weg [mm];F_Platte [kN]\n0,5;1,25\n0,75;1e36\n",
+        "free.csv: line 3, column 'F_Platte [kN]': '1e36' is 1e+39 in SI units (its unit and scale applied)",
+    ),
+    "a damaged cell": (
+        "Weg [mm];F_Platte [kN]\n0,5;1e300\n",
+        "free.csv: line 2, column 'F_Platte [kN]': '1e300' is 1e+303 in SI units",
+    ),
     "empty file": ("", "free.csv: line 1: empty file: no header line"),
     "header only": ("Weg [mm];F_Platte [kN]\n", "free.csv: line 2: no data rows after the header"),
 }

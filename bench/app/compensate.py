@@ -252,6 +252,7 @@ def write_output(compensation: Compensation, out: Path, *, campaign: Path) -> li
         out,
         n_samples=measurement.n_samples,
         sample_rate_hz=filters.fs_hz,
+        start_s=measurement.start_s,
         blocks=blocks(),
         attributes=attributes,
         arrays=arrays,

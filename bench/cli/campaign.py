@@ -13,20 +13,17 @@ from bench.cli.exit_codes import ExitCode
 from bench.cli.metadata import add_meta_option
 
 if TYPE_CHECKING:
+    from bench.app.library_log import LibraryLog
+    from bench.app.plan import CampaignPlan
     from bench.app.run import CampaignOutcome
 
 
 def _run(args: argparse.Namespace) -> int:
     from bench.app.answers import AnswersError, load_answers
     from bench.app.devices import DeviceUnreachableError
-    from bench.app.interrupts import RunInterrupts
-    from bench.app.pace import DoneBefore
+    from bench.app.library_log import library_log, log_beside
     from bench.app.plan import PlanRefusedError, plan_campaign
-    from bench.app.progress import Progress
-    from bench.app.resume import NothingToResumeError, done_in_file
-    from bench.app.run import hold_campaign_file, run_campaign
-    from bench.app.run_log import RunLog
-    from bench.app.terminal import TerminalOperator
+    from bench.app.resume import NothingToResumeError
     from bench.config import ConfigError
     from bench.locks import InUseError
     from sequences import SequenceError
@@ -41,40 +38,22 @@ def _run(args: argparse.Namespace) -> int:
     except PlanRefusedError as exc:
         print(f"refused by the dry run:\n{exc}", file=sys.stderr)
         return ExitCode.REFUSED
-    log_path = _log_beside(Path(args.out))
+    log_path = log_beside(Path(args.out))
     log_existed = log_path.exists()
-    logged_before = log_path.stat().st_size if log_existed else 0
     opened: list = []  # the engine, once the devices are open: from then on the log is the run's
-    try:
-        with hold_campaign_file(Path(args.out)):  # before the file is read: one writer per file
-            done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
-            progress = Progress(sys.stdout, done_before=done_before)
-            with RunInterrupts() as interrupts:
-                # at real devices without an answers file, the person at the terminal answers
-                asked = answers is None and not plan.config.simulated
-                outcome = run_campaign(
-                    plan,
-                    Path(args.out),
-                    resume=args.resume,
-                    operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
-                    answers=answers,
-                    subscribers=(RunLog(progress.line), progress),
-                    on_engine=lambda engine: (opened.append(engine), interrupts.attach(engine)),
-                )
-    except NothingToResumeError as exc:  # nothing opened, asked or moved: the campaign is complete
-        print(exc)
-        return ExitCode.OK
-    except (InUseError, DeviceUnreachableError, ValueError) as exc:
-        # a file or device held by another process, a device unreachable: a link problem; else invalid
-        print(f"error: {exc}", file=sys.stderr)
-        held = isinstance(exc, InUseError | DeviceUnreachableError)
-        return ExitCode.UNAVAILABLE if held else ExitCode.INVALID
-    finally:
-        logging.shutdown()  # the log file closed: kept, or removed below
-        if not opened and not log_existed:
-            log_path.unlink(missing_ok=True)  # nothing ran: the error above says it all, no file left
-        elif log_path.exists() and log_path.stat().st_size > logged_before:
-            print(f"warnings of the links and libraries: {log_path}", file=sys.stderr)
+    with library_log(log_path) as log:
+        try:
+            outcome = _run_plan(args, plan, answers, opened)
+        except NothingToResumeError as exc:  # nothing opened, asked or moved: the campaign is complete
+            print(exc)
+            return ExitCode.OK
+        except (InUseError, DeviceUnreachableError, ValueError) as exc:
+            # a file or device held by another process, a device unreachable: unavailable; else invalid
+            print(f"error: {exc}", file=sys.stderr)
+            held = isinstance(exc, InUseError | DeviceUnreachableError)
+            return ExitCode.UNAVAILABLE if held else ExitCode.INVALID
+        finally:
+            _said_of(log, kept=bool(opened) or log_existed)
     return _ended(plan.sequence.name, outcome, args.out)
 
 
@@ -90,15 +69,43 @@ def _ended(name: str, outcome: CampaignOutcome, out: str) -> ExitCode:
     return ExitCode.INCOMPLETE if incomplete else ExitCode.OK
 
 
-def _log_beside(out: Path) -> Path:
-    """Send log records (the drivers' warnings, pymodbus's raw frames and retries) to ``out.log``
-    instead of the terminal, where they would cut into the status line; the file is created only
-    when there is a warning to write."""
-    path = out.with_name(out.name + ".log")
-    handler = logging.FileHandler(path, delay=True)
-    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
-    logging.basicConfig(level=logging.WARNING, handlers=[handler], force=True)
-    return path
+def _run_plan(
+    args: argparse.Namespace, plan: CampaignPlan, answers: dict[str, float | str | bool] | None, opened: list
+) -> CampaignOutcome:
+    """Run the plan into ``args.out``, holding the file, with the progress on standard output and the
+    signals taken over; the engine goes into ``opened`` once the devices are open."""
+    from bench.app.interrupts import RunInterrupts
+    from bench.app.pace import DoneBefore
+    from bench.app.progress import Progress
+    from bench.app.resume import done_in_file
+    from bench.app.run import hold_campaign_file, run_campaign
+    from bench.app.run_log import RunLog
+    from bench.app.terminal import TerminalOperator
+
+    with hold_campaign_file(Path(args.out)):  # before the file is read: one writer per file
+        done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
+        progress = Progress(sys.stdout, done_before=done_before)
+        with RunInterrupts() as interrupts:
+            # at real devices without an answers file, the person at the terminal answers
+            asked = answers is None and not plan.config.simulated
+            return run_campaign(
+                plan,
+                Path(args.out),
+                resume=args.resume,
+                operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
+                answers=answers,
+                subscribers=(RunLog(progress.line), progress),
+                on_engine=lambda engine: (opened.append(engine), interrupts.attach(engine)),
+            )
+
+
+def _said_of(log: LibraryLog, *, kept: bool) -> None:
+    """Where the links' and libraries' warnings went; the log of a command that opened nothing is
+    removed (the error printed says it all)."""
+    if not kept:
+        log.path.unlink(missing_ok=True)
+    elif log.written:
+        print(f"warnings of the links and libraries: {log.path}", file=sys.stderr)
 
 
 def _tui(args: argparse.Namespace) -> int:

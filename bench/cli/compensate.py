@@ -71,8 +71,8 @@ def _compensation(args: argparse.Namespace):
         raise _StopError(
             ExitCode.INVALID, f"error: {out}: exists; the output is never replaced (choose another --out)"
         )
-    if args.filters and Path(args.filters).suffix.lower() not in (".json", ".csv"):
-        raise _StopError(ExitCode.INVALID, f"error: --filters {args.filters}: give a .json or .csv file")
+    if args.filters:
+        _check_filters_path(Path(args.filters))
     measurement, pressure = _measurement(args)
     try:
         analysis = analyze_campaign(Path(args.campaign))
@@ -84,25 +84,44 @@ def _compensation(args: argparse.Namespace):
         raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
 
 
+def _check_filters_path(filters: Path) -> None:
+    """The filters' file is checked before anything is computed or written, as ``--out`` is: a
+    .json or .csv file in a folder that exists, never over a file."""
+    if filters.suffix.lower() not in (".json", ".csv"):
+        raise _StopError(ExitCode.INVALID, f"error: --filters {filters}: give a .json or .csv file")
+    if filters.exists():
+        said = f"error: --filters {filters}: exists; it is never replaced (choose another name)"
+        raise _StopError(ExitCode.INVALID, said)
+    if not filters.parent.is_dir():
+        raise _StopError(ExitCode.INVALID, f"error: --filters {filters}: no folder {filters.parent}")
+
+
 def _compensate(args: argparse.Namespace) -> int:
     from bench.app.compensate import write_output
     from bench.report.filters import write_filters
     from bench.store.compensated import OutputExistsError
 
+    filters = Path(args.filters) if args.filters else None
     try:
         compensation = _compensation(args)
-        lines = write_output(compensation, Path(args.out), campaign=Path(args.campaign))
+        if filters is not None:  # first: a folder that went away meanwhile stops it before the output
+            write_filters(filters, compensation.filters, compensation.accelerometer_offset_m_s2)
+        try:
+            lines = write_output(compensation, Path(args.out), campaign=Path(args.campaign))
+        except BaseException:
+            if filters is not None:
+                filters.unlink(missing_ok=True)  # nothing of a failed compensation is left
+            raise
     except _StopError as stop:
         print(stop, file=sys.stderr)
         return stop.code
-    except OutputExistsError as exc:
+    except (OutputExistsError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID
     for line in lines:
         print(line)
-    if args.filters:
-        offset = compensation.accelerometer_offset_m_s2
-        print(f"filters {write_filters(args.filters, compensation.filters, offset)}")
+    if filters is not None:
+        print(f"filters {filters}")
     print(f"compensated {args.out}")
     return ExitCode.OK
 

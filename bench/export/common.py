@@ -9,14 +9,13 @@ once complete, so a failed export leaves nothing behind.
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from bench.store import CampaignFile, RunView
+from bench.store.temporary import temporary_beside
 from sequences.points import PointAttempt, PointStatus
 
 
@@ -39,7 +38,7 @@ def output_file(out: Path, suffix: str = "") -> Iterator[Path]:
     that insists on its own); renamed to ``out`` when the block ends without an error, removed
     otherwise."""
     check_output_free(out)
-    temporary = out.with_name(f".{out.name}.{os.getpid()}.part{suffix}")  # the writer creates it
+    temporary = temporary_beside(out, suffix)  # the writer creates it
     try:
         yield temporary
         temporary.rename(out)
@@ -47,25 +46,15 @@ def output_file(out: Path, suffix: str = "") -> Iterator[Path]:
         temporary.unlink(missing_ok=True)
 
 
-_FOLDER_MODE = 0o777
-
-
-def _umask() -> int:
-    """The process's file-mode creation mask (read by setting it, then put back)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 @contextmanager
 def output_folder(out: Path) -> Iterator[Path]:
     """A temporary folder beside ``out`` to write the export's files into; renamed to ``out`` when
     the block ends without an error, removed otherwise."""
     check_output_free(out)
-    temporary = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent))
+    temporary = temporary_beside(out)
+    temporary.mkdir()
     try:
         yield temporary
-        temporary.chmod(_FOLDER_MODE & ~_umask())  # as a plain mkdir would: mkdtemp makes it private
         temporary.rename(out)
     finally:
         if temporary.exists():

@@ -18,6 +18,7 @@ import numpy as np
 
 from bench.analysis.measurement_compensation import CompensatedBlock
 from bench.store.schema import GZIP_LEVEL, LIBVER
+from bench.store.temporary import temporary_beside
 
 SCHEMA_NAME = "wfs-bench compensated force"
 SCHEMA_VERSION = 1
@@ -25,7 +26,7 @@ SCHEMA_VERSION = 1
 CHUNK_SAMPLES = 16384
 #: The per-sample datasets: name -> (dtype, unit, description).
 SERIES = {
-    "t_s": ("f8", "s", "time of the sample from the measurement's first"),
+    "t_s": ("f8", "s", "time of the sample in the measurement's own time (its time column or stamps)"),
     "f_contact_n": ("f4", "N", "compensated contact force, positive in compression; NaN where not computed"),
     "u95_n": (
         "f4",
@@ -44,17 +45,19 @@ def write_compensated(
     *,
     n_samples: int,
     sample_rate_hz: float,
+    start_s: float = 0.0,
     blocks: Iterable[CompensatedBlock],
     attributes: Mapping[str, Any],
     arrays: Mapping[str, np.ndarray],
 ) -> Path:
-    """Write the ``blocks`` of a compensated record of ``n_samples`` at ``sample_rate_hz`` to a new
+    """Write the ``blocks`` of a compensated record of ``n_samples`` at ``sample_rate_hz``, its first
+    at ``start_s`` in the measurement's time, to a new
     file at ``path`` with the root ``attributes`` (numbers, strings, pairs of numbers) and the
     ``arrays`` (``group/name`` -> array: the filters, the parameters and their covariance)."""
     path = Path(path)
     if path.exists():
         raise OutputExistsError(f"{path}: exists; the output is never replaced (choose another --out)")
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    temporary = temporary_beside(path)
     try:
         with h5py.File(temporary, "w", libver=LIBVER) as f:
             f.attrs["schema"] = SCHEMA_NAME
@@ -79,7 +82,7 @@ def write_compensated(
             written = 0
             for block in blocks:
                 stop = block.start + block.force_n.size
-                datasets["t_s"][block.start : stop] = np.arange(block.start, stop) / sample_rate_hz
+                datasets["t_s"][block.start : stop] = start_s + np.arange(block.start, stop) / sample_rate_hz
                 datasets["f_contact_n"][block.start : stop] = block.force_n
                 datasets["u95_n"][block.start : stop] = block.u95_n
                 written = stop

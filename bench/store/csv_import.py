@@ -29,6 +29,7 @@ import numpy as np
 from bench.store.csv_mapping import ImportMapping, PointPart, RunMapping, SweepFile, mapping_error
 from bench.store.csv_read import CsvError, CsvTable, read_csv
 from bench.store.reader import REQUIRED_CHANNELS
+from bench.store.temporary import temporary_beside
 from bench.store.writer import CampaignWriter
 from sequences.channels import Channel, role_of_standard_name
 from sequences.points import PointAttempt
@@ -245,7 +246,7 @@ def import_campaign(
     read: dict[tuple, CsvTable] = {}
     runs = [read_run(run, mapping, read) for run in mapping.runs]
     check_mapped_values(mapping, runs, limits)
-    tmp = out_path.with_name(f".{out_path.name}.importing-{os.getpid()}")
+    tmp = temporary_beside(out_path)
     with _removed_on_failure(tmp):
         with CampaignWriter.create(
             tmp,

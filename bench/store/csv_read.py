@@ -38,6 +38,10 @@ _TIME = ""
 #: Python objects, made a continuous file 1.1-1.9x slower per MB than one file per dwell, with the
 #: garbage collector on or off; 4096 rows: 0.6-1.0x, benchmarks/csv_import_speed.py).
 BLOCK_ROWS = 4096
+#: The largest magnitude a measured value may have in its SI unit (N, m, m/s^2, s): far beyond any
+#: sensor's range, far below where float32 storage and the compensation's sums overflow. A value
+#: beyond is a damaged cell or a wrong unit or scale, never a measurement.
+LARGEST_SI_VALUE = 1e15
 
 
 class CsvError(ValueError):
@@ -54,7 +58,8 @@ class CsvError(ValueError):
 @dataclass(frozen=True)
 class CsvTable:
     """One CSV file read: its mapped ``columns`` that it has, by channel name, in SI units
-    (float64), its ``header`` (the columns' names, on line ``header_line``), ``sample_rate_hz``."""
+    (float64), its ``header`` (the columns' names, on line ``header_line``), ``sample_rate_hz``,
+    ``start_s``: the time of its first row (its time column's first value; 0 without one)."""
 
     path: Path
     header: tuple[str, ...]
@@ -62,6 +67,7 @@ class CsvTable:
     columns: dict[str, np.ndarray]
     sample_rate_hz: float
     n_rows: int
+    start_s: float = 0.0
 
     @property
     def length_s(self) -> float:
@@ -131,8 +137,23 @@ def _read(
             values = _column(path, [row[w.index] for row in rows], first_line, w.column, dialect.decimal)
             if isinstance(values, CsvError):
                 problems.append(values)
-            else:
-                parts[w.channel].append(values * w.factor)
+                continue
+            converted = values * w.factor
+            beyond = np.flatnonzero(~(np.abs(converted) <= LARGEST_SI_VALUE))
+            if beyond.size:
+                k = beyond[0]
+                problems.append(
+                    CsvError(
+                        path,
+                        first_line + k,
+                        w.column,
+                        f"{rows[k][w.index].strip()!r} is {converted[k]:.3g} in SI units (its unit and scale"
+                        f" applied): beyond +/-{LARGEST_SI_VALUE:g}, no measured value (a damaged cell, or"
+                        " a wrong unit or scale in the mapping)",
+                    )
+                )
+                continue
+            parts[w.channel].append(converted)
         if problems:
             raise min(problems, key=lambda e: e.line)
         n_rows += len(rows)
@@ -140,10 +161,11 @@ def _read(
         raise CsvError(path, data_line, None, "no data rows after the header")
     values = {channel: np.concatenate(arrays) for channel, arrays in parts.items()}
     if timing.column is None:
-        rate = timing.sample_rate_hz
+        rate, start_s = timing.sample_rate_hz, 0.0
     else:
-        rate = _rate_from_time(path, data_line, timing.column, values.pop(_TIME))
-    return CsvTable(path, tuple(header), header_line, values, rate, n_rows)
+        time_s = values.pop(_TIME)
+        rate, start_s = _rate_from_time(path, data_line, timing.column, time_s), float(time_s[0])
+    return CsvTable(path, tuple(header), header_line, values, rate, n_rows, start_s)
 
 
 def _without_end_delimiter(fields: list[str], n: int | None) -> list[str]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.store.csv_mapping import ChannelColumn, ChannelMapping, Dialect, Timing
-from bench.store.csv_read import TIME_STEP_TOLERANCE, CsvError, read_csv
+from bench.store.csv_read import LARGEST_SI_VALUE, TIME_STEP_TOLERANCE, CsvError, read_csv
 from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_named
 from bench.store.reader import open_campaign
 
@@ -58,12 +58,16 @@ class NotOnTheTyreError(MeasurementError):
 @dataclass(frozen=True)
 class Measurement:
     """``channels`` (``fz_wfs_n`` in N, ``a_hub_m_s2`` in m/s^2) at ``sample_rate_hz`` from
-    ``source`` (the file, and the run); ``tyre_pressure_bar`` when the source records it."""
+    ``source`` (the file, and the run); ``tyre_pressure_bar`` when the source records it;
+    ``start_s``: the time of the first sample in the source's own time (a CSV's time column, an MDF
+    file's time stamps; 0 where the source has none), so that a part cut from a longer record keeps
+    its place in it."""
 
     source: str
     sample_rate_hz: float
     channels: dict[str, np.ndarray]
     tyre_pressure_bar: float | None = None
+    start_s: float = 0.0
 
     @property
     def n_samples(self) -> int:
@@ -104,11 +108,11 @@ def read_measurement(
     if suffix in CAMPAIGN_SUFFIXES:
         if mapping is not None:
             raise MeasurementError(f"{path}: a campaign file's channels have their roles: no --mapping")
-        return _finite(_campaign_run(path, run_id))
+        return _checked(_campaign_run(path, run_id))
     if run_id is not None:
         raise MeasurementError(f"{path}: --run names a run of a campaign file (.h5), not of a {suffix} file")
     if suffix in MDF_SUFFIXES:
-        return _finite(_mdf(path, _wanted(mapping, path)))
+        return _checked(_mdf(path, _wanted(mapping, path)))
     if suffix == ".csv":
         return _csv(path, mapping)  # the CSV reader refuses a value that is not a finite number
     raise MeasurementError(
@@ -117,17 +121,21 @@ def read_measurement(
     )
 
 
-def _finite(measurement: Measurement) -> Measurement:
+def _checked(measurement: Measurement) -> Measurement:
     """``measurement``, refused when a channel holds a sample that is not a finite number (a gap,
-    an overload marked NaN): naming the channel, how many, and the first."""
+    an overload marked NaN) or one beyond any measured value (:data:`LARGEST_SI_VALUE`: a damaged
+    value, a wrong unit or scale): naming the channel, how many, and the first."""
     for name, x in measurement.channels.items():
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise MeasurementError(
-                f"{measurement.source}: {name} has {bad.size} samples that are not finite numbers, the"
-                f" first at sample {bad[0]} (t = {bad[0] / measurement.sample_rate_hz:g} s): cut the"
-                " measurement around them"
-            )
+        for bad, what in (
+            (np.flatnonzero(~np.isfinite(x)), "that are not finite numbers"),
+            (np.flatnonzero(np.abs(x) > LARGEST_SI_VALUE), f"beyond +/-{LARGEST_SI_VALUE:g} (SI units)"),
+        ):
+            if bad.size:
+                t_s = measurement.start_s + bad[0] / measurement.sample_rate_hz
+                raise MeasurementError(
+                    f"{measurement.source}: {name} has {bad.size} samples {what}, the first at sample"
+                    f" {bad[0]} (t = {t_s:g} s): cut the measurement around them"
+                )
     return measurement
 
 
@@ -177,9 +185,8 @@ def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
             raise MissingChannelError(
                 str(table.missing(column, f": the compensation needs {column.channel}")) + hint
             )
-    return Measurement(
-        str(path), table.sample_rate_hz, {c.channel: table.columns[c.channel] for c in columns}
-    )
+    channels = {c.channel: table.columns[c.channel] for c in columns}
+    return Measurement(str(path), table.sample_rate_hz, channels, start_s=table.start_s)
 
 
 def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
@@ -216,7 +223,7 @@ def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
         name: np.asarray(signal.samples, dtype=float) * _factor(path, column, signal.unit) * column.scale
         for name, (column, signal) in signals.items()
     }
-    return Measurement(str(path), rate, channels)
+    return Measurement(str(path), rate, channels, start_s=float(times[0][0]))
 
 
 def _rate(path: Path, t: np.ndarray) -> float:
