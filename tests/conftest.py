@@ -3,6 +3,7 @@ smoke sequence's campaign file."""
 
 from __future__ import annotations
 
+import fcntl
 from pathlib import Path
 
 import pytest
@@ -15,12 +16,13 @@ from simulators.controller_server import ControllerServer
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The longest tests first: the slow ones (whole campaigns), then the terminal UI's (seconds each,
+    """The longest tests first: the slow ones (whole campaigns; in the statistical tier, the
+    coverage over many seeds), then the terminal UI's (seconds each,
     waiting on the app's refreshes), then the rest in their order. The test workers take tests in
     this order, so a long test is not left to run alone at the end while the other workers idle."""
 
     def rank(item: pytest.Item) -> int:
-        if item.get_closest_marker("slow"):
+        if item.get_closest_marker("slow") or item.get_closest_marker("statistical"):
             return 0
         return 1 if item.path.parent.name == "tui" else 2
 
@@ -61,14 +63,24 @@ async def client(controller):
 
 
 @pytest.fixture(scope="session")
-def smoke_campaign(tmp_path_factory) -> Path:
-    """The shipped smoke sequence run on the unpaced simulated bench into a campaign file (read it,
-    do not change it: the tests of a worker share it)."""
+def smoke_campaign(tmp_path_factory, worker_id) -> Path:
+    """The shipped smoke sequence run on the unpaced simulated bench into a campaign file, once per
+    test run: the first test worker to ask records it (the others wait on its lock), all read it
+    (read it, do not change it)."""
     from bench.app.plan import plan_campaign
     from bench.app.run import run_campaign
 
-    sequence = Path(__file__).resolve().parents[1] / "sequences" / "files" / "smoke.toml"
-    path = tmp_path_factory.mktemp("smoke") / "smoke.h5"
-    outcome = run_campaign(plan_campaign(sequence), path)
-    assert outcome.status == "complete", outcome.reason
+    shared = tmp_path_factory.getbasetemp()
+    if worker_id != "master":  # the test workers' folders share a parent
+        shared = shared.parent
+    path = shared / "smoke-campaign" / "smoke.h5"
+    path.parent.mkdir(exist_ok=True)
+    with open(shared / "smoke-campaign.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            sequence = Path(__file__).resolve().parents[1] / "sequences" / "files" / "smoke.toml"
+            recording = path.with_name("recording.h5")
+            outcome = run_campaign(plan_campaign(sequence), recording)
+            assert outcome.status == "complete", outcome.reason
+            recording.rename(path)
     return path

@@ -21,7 +21,8 @@ from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
 from bench.store import StoreError, add_results, open_campaign
-from tests.test_campaign_cli import ROOT, SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import ROOT, SMOKE
 
 H5DUMP = shutil.which("h5dump")
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from bench.cli.main import main
 from bench.config import load_bench_config
 from bench.store import open_campaign
 from sequences import load_sequence
+from tests.commands import wfsbench, wfsbench_process
 from tests.served_lab import served_lab
 from tests.test_store_h5dump import _matches, documented_layout, parse_h5dump
 
@@ -28,19 +28,10 @@ SMOKE = ROOT / "sequences" / "files" / "smoke.toml"
 H5DUMP = shutil.which("h5dump")
 
 
-def wfsbench(*args: str, timeout_s: float = 120) -> subprocess.CompletedProcess:
-    """The ``wfsbench`` command in a subprocess (the installed console script, else the module)."""
-    script = Path(sys.executable).with_name("wfsbench")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
-    return subprocess.run(
-        [*command, *args], capture_output=True, text=True, timeout=timeout_s, cwd=ROOT, check=False
-    )
-
-
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_smoke_sequence_runs_into_a_file_h5dump_reads_as_documented(tmp_path):
     out = tmp_path / "smoke.h5"
-    run = wfsbench("run", str(SMOKE), "--out", str(out))
+    run = wfsbench_process("run", str(SMOKE), "--out", str(out))  # the console script, as a user runs it
     assert run.returncode == ExitCode.OK, run.stderr
     assert "smoke: complete" in run.stdout
 

@@ -29,8 +29,9 @@ from bench.cli.exit_codes import ExitCode
 from bench.engine.amplitude import amplitude_mm
 from bench.numerics.sine_fit import fit_latest_cycles
 from bench.store import open_campaign
+from tests.commands import wfsbench
 from tests.sequence_texts import sequence_text
-from tests.test_campaign_cli import H5DUMP, ROOT, wfsbench
+from tests.test_campaign_cli import H5DUMP, ROOT
 from tests.test_store_h5dump import parse_h5dump
 
 RATE_HZ = 1000.0  # the WFS frame rate of the configuration: a store chunk is one second of it

@@ -6,7 +6,8 @@ import subprocess
 import sys
 
 from sequences import shipped_file
-from tests.test_campaign_cli import ROOT, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import ROOT
 
 
 def check(*args: str) -> subprocess.CompletedProcess:

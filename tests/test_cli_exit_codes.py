@@ -13,8 +13,8 @@ import pytest
 
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
+from tests.commands import wfsbench
 from tests.sequence_texts import sequence_text
-from tests.test_campaign_cli import wfsbench
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -21,7 +21,7 @@ from bench.store import open_campaign
 from bench.store.csv_import import ImportLimits, import_campaign
 from bench.store.csv_mapping import ImportMapping, MappingError, load_mapping
 from bench.store.csv_read import CsvError, CsvTable, read_csv
-from tests.test_campaign_cli import wfsbench
+from tests.commands import wfsbench
 
 ROOT = Path(__file__).resolve().parents[1]
 G_M_S2 = 9.80665

@@ -9,7 +9,8 @@ import pytest
 
 from bench.cli.exit_codes import ExitCode
 from sequences.toml_text import MAX_NESTING, load_toml
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE
 
 
 def _nested(levels: int) -> str:

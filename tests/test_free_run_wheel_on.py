@@ -23,7 +23,8 @@ from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
 from tests.campaign_files import StoredRun, write_campaign
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE
 
 REMOVE_WHEEL = """[[steps]]
 type = "prompt"

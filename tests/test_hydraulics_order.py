@@ -14,7 +14,7 @@ from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from drivers.register_map import Command, ErrorCode
 from sequences import Hydraulics, Sequence, SineDwell, parse_sequence
-from tests.test_campaign_cli import wfsbench
+from tests.commands import wfsbench
 from tests.test_controller_server import _exchange, _mbap
 
 HIGH_FIRST = """\

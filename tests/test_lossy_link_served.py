@@ -32,8 +32,9 @@ from bench.store import open_campaign
 from drivers.wfs_commands import MAX_REPLY_LEN
 from sequences import dump_sequence
 from tests.campaign_lab import grid_sequence
+from tests.commands import wfsbench
 from tests.served_lab import served_lab
-from tests.test_campaign_cli import _bench_toml, wfsbench
+from tests.test_campaign_cli import _bench_toml
 
 LOSS_S, PERIOD_S = 0.35, 1.5
 #: A reply line of the WFS command set (drivers/wfs_commands.py): kept through a loss.
@@ -102,7 +103,7 @@ def test_a_grid_behind_a_line_that_loses_a_third_of_a_second_every_1_5_s(tmp_pat
             (tmp_path / "grid.toml").write_text(GRID)
             out = tmp_path / "lossy.h5"
             run = wfsbench(
-                "run", str(tmp_path / "grid.toml"), "--bench", str(config), "--out", str(out), timeout_s=300
+                "run", str(tmp_path / "grid.toml"), "--bench", str(config), "--out", str(out)
             )
         finally:
             line.close()

@@ -22,8 +22,9 @@ from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
 from bench.store import open_campaign
 from drivers.register_map import Command, ControllerState, WaveformCode
+from tests.commands import wfsbench, wfsbench_process
 from tests.sequence_texts import sequence_text
-from tests.test_campaign_cli import ROOT, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+from tests.test_campaign_cli import ROOT, _bench_toml, lab_devices  # noqa: F401 - a fixture
 from tests.waiting import LineReader, wait_until
 
 #: Generous bound for a ``wfsbench`` process to start and reach its dwell on a loaded machine.
@@ -152,14 +153,15 @@ def test_a_controller_found_moving_is_refused_before_anything_is_written(tmp_pat
 
 
 def test_wfs_monitor_and_actuator_status_are_refused_while_a_process_holds_the_device(tmp_path):
-    """The lock, not the device, refuses them: nothing needs to be served at these addresses."""
+    """The lock, not the device, refuses them: nothing needs to be served at these addresses. (The
+    commands run in processes of their own: a process's own locks are re-entrant.)"""
     port = "/dev/null"  # any path: the key is its real path
     with locks.holding(locks.serial_key(port), f"the WFS port {port}"):
-        monitor = wfsbench("wfs", "monitor", "--port", port, "--duration", "1")
+        monitor = wfsbench_process("wfs", "monitor", "--port", port, "--duration", "1")
     assert monitor.returncode == ExitCode.UNAVAILABLE
     assert monitor.stderr.startswith(f"error: the WFS port {port} is in use by process {os.getpid()} (")
     with locks.holding(locks.tcp_key("127.0.0.1", 1502), "the actuator controller at 127.0.0.1:1502"):
-        status = wfsbench("actuator", "status", "--port", "1502")
+        status = wfsbench_process("actuator", "status", "--port", "1502")
     assert status.returncode == ExitCode.UNAVAILABLE
     assert status.stderr.startswith(
         f"error: the actuator controller at 127.0.0.1:1502 is in use by process {os.getpid()} ("

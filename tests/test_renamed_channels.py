@@ -15,8 +15,9 @@ import pytest
 from bench.cli.exit_codes import ExitCode
 from bench.engine import events as ev
 from bench.store import open_campaign
+from tests.commands import wfsbench
 from tests.sequence_texts import sequence_text
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.test_campaign_cli import SMOKE
 from tests.test_campaign_faults import _check_file, _run_with_fault
 
 H5DUMP = shutil.which("h5dump")

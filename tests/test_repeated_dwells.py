@@ -24,7 +24,7 @@ from bench.cli.exit_codes import ExitCode
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
-from tests.test_campaign_cli import wfsbench
+from tests.commands import wfsbench
 
 SETUP = BenchSetup.paper_shaker(2.5, nonlinear=False)
 CHECK_HZ = np.array([34.0, 40.0])

@@ -7,7 +7,8 @@ from __future__ import annotations
 import re
 
 from bench.store import open_campaign
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE
 
 
 def _free_run_only(smoke_text: str) -> str:

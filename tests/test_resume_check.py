@@ -9,7 +9,8 @@ from pathlib import Path
 
 from bench.cli.exit_codes import ExitCode
 from bench.store import open_campaign
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE
 
 
 def _copy(src: Path, tmp_path: Path) -> Path:

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from bench.cli.exit_codes import ExitCode
-from tests.test_campaign_cli import SMOKE, wfsbench
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE
 
 
 @pytest.fixture

@@ -8,7 +8,8 @@ from __future__ import annotations
 import socket
 
 from bench.cli.exit_codes import ExitCode
-from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices  # noqa: F401 - a fixture
 from tests.test_run_unattended import SMOKE_ANSWERS
 
 

@@ -31,7 +31,8 @@ from bench.store import open_campaign
 from sequences import Prompt, Sequence, load_sequence
 from simulators.bench_sim import SimulatedBench
 from simulators.world import SimulatedOperator, SimulatedWorld
-from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices, wfsbench  # noqa: F401 - a fixture
+from tests.commands import wfsbench
+from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices  # noqa: F401 - a fixture
 from tests.waiting import LineReader
 
 ROOT = Path(__file__).resolve().parents[1]

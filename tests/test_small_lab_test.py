@@ -28,7 +28,7 @@ from bench.config import parse_bench_config
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
-from tests.test_campaign_cli import wfsbench
+from tests.commands import wfsbench
 
 SETUP = BenchSetup.paper_shaker(2.5, nonlinear=False)
 FREQS_HZ = np.array([10.0, 25.0, 40.0])

@@ -12,8 +12,9 @@ import pytest
 from bench.app.devices import open_bench
 from bench.config import parse_bench_config
 from simulators.wfs_device import WfsDevice
+from tests.commands import wfsbench
 from tests.served_lab import served_lab
-from tests.test_campaign_cli import SMOKE, _bench_toml, wfsbench
+from tests.test_campaign_cli import SMOKE, _bench_toml
 from tests.test_run_unattended import SMOKE_ANSWERS
 from tests.waiting import wait_until
 
