@@ -323,9 +323,7 @@ class _Run:
                 self.summary.removed += 1
         for part in sorted(set(self.drop) | set(self.moved)):
             store.carry_over(part, self.drop.get(part, set()), self.moved.get(part, ()), writer)
-        writer.close()
-        for part in sorted(set(self.drop) | set(self.moved)):
-            part.unlink()
+        writer.publish(sorted(set(self.drop) | set(self.moved)))
         self.summary.rows_written = writer.rows
         return self.summary
 

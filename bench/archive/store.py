@@ -2,12 +2,13 @@
 
 ``RESULTS/part-<generation>-<n>.parquet``: each index run is a generation; it writes the rows it
 made into new parts and rewrites only the parts that held rows it replaced (files read again,
-removed, or found again under a new path with the same contents), then deletes those. A part is
-written under a hidden temporary name and renamed when complete, so a reader never sees half a
-part; should the run stop between writing its parts and deleting the ones they replace, a file has
-rows in two parts, and the next run keeps the newer part's (the higher generation) and drops the
-others. Read the whole index with ``read_parquet('RESULTS/*.parquet')`` (DuckDB) or
-:func:`read_index`.
+removed, or found again under a new path with the same contents), then deletes those. Its parts
+are written under hidden temporary names and published together at the run's end: renamed into
+place, then the parts they replace deleted, in one go that takes milliseconds. A run killed before
+it leaves the index as it was (the next run removes its temporaries), so a reader never sees half
+a part nor a file twice; only a run stopped inside that last step leaves a file with rows in two
+parts, and the next run keeps the newer part's (the higher generation) and drops the others. Read
+the whole index with ``read_parquet('RESULTS/*.parquet')`` (DuckDB) or :func:`read_index`.
 """
 
 from __future__ import annotations
@@ -104,13 +105,14 @@ def indexed_files(directory: Path) -> tuple[dict[str, IndexedFile], dict[Path, s
 
 
 class PartWriter:
-    """Writes the rows given to new parts of ``generation``: row groups of
-    :data:`ROWS_PER_GROUP` rows, at most :data:`FILES_PER_PART` files per part. Close it to
-    complete the last part."""
+    """Writes the rows given to new parts of ``generation``, under hidden temporary names: row groups
+    of :data:`ROWS_PER_GROUP` rows, at most :data:`FILES_PER_PART` files per part. :meth:`publish`
+    completes the last part and puts them all in place."""
 
     def __init__(self, directory: Path, generation: int) -> None:
         self.directory, self.generation = directory, generation
-        self.written: list[Path] = []
+        self.written: list[Path] = []  # the parts' names once published
+        self._completed: list[Path] = []  # the temporaries of the parts complete
         self.rows = 0
         self._pending: list[pa.Table] = []
         self._pending_rows = 0
@@ -146,12 +148,18 @@ class PartWriter:
         if self._writer is not None:
             assert self._temporary is not None
             self._writer.close()
-            os.replace(self._temporary, self.written[-1])
+            self._completed.append(self._temporary)
             self._writer = self._temporary = None
         self._files_in_part = 0
 
-    def close(self) -> None:
+    def publish(self, replaced: Iterable[Path]) -> None:
+        """Complete the last part, rename every part into place, then delete the ``replaced``
+        parts: a reader of ``*.parquet`` sees the index before or after, a file once."""
         self._finish_part()
+        for temporary, part in zip(self._completed, self.written, strict=True):
+            os.replace(temporary, part)
+        for part in replaced:
+            part.unlink()
 
 
 def next_generation(directory: Path) -> int:

@@ -230,11 +230,23 @@ class WfsBenchApp(App):
         return focused.screen is not self.screen_stack[0] or self.pane == "sequence"
 
     def on_key(self, event: events.Key) -> None:
-        """p, r or a that no binding took (nothing runs, on a screen other than Run): say so."""
+        """p, r or a that no binding took (nothing runs), or g on the Sequence screen that cannot
+        start anything: say why, so that a key is never silently ignored."""
+        if self._typing():
+            return
         verb = {"p": "pause", "r": "resume", "a": "abort"}.get(event.key)
-        if verb is not None and not self._typing():
+        if verb is not None:
             why = "the bench is not open" if self.session.engine is None else "no sequence is running"
             self.notify(f"{event.key}: {why}: nothing to {verb}", severity="warning")
+        elif event.key == "g" and self.pane == "sequence" and not self.check_action("start", ()):
+            self.notify(f"g: {self._why_not_started()}: nothing started", severity="warning")
+
+    def _why_not_started(self) -> str:
+        if self.session.engine is None:
+            return "the bench is not open"
+        if self.session.running.is_set():
+            return "a sequence is running"
+        return "no valid sequence is checked (choose one, or fix the one shown)"
 
     def on_descendant_focus(self, event: events.DescendantFocus) -> None:
         """A widget of a hidden pane never keeps the focus (it would take keys meant for the app)."""

@@ -13,17 +13,19 @@ import subprocess
 import sys
 from pathlib import Path
 
+import duckdb
 import h5py
 import numpy as np
 import pyarrow.compute as pc
 import pytest
 
+from bench.archive import store
 from bench.archive.build import FileOutcome, FileStatus, FileTask, InProcess, build_index, index_file
 from bench.archive.files import FileStat
 from bench.archive.store import part_paths, read_index
 from bench.cli.main import main
 from tests.archive.conftest import SIMULATED
-from tests.archive_files import copy_campaign
+from tests.archive_files import archive_campaign, copy_campaign
 
 #: A bench recording into a campaign file: the writer holds the file's lock until its standard
 #: input closes, then finishes the run and closes the file.
@@ -243,3 +245,51 @@ def test_a_fifo_or_a_device_named_like_a_campaign_is_listed_damaged_and_never_re
     }
     assert all("not a regular file" in row["error"] for row in files.values())
     assert sorted(Path(p).name for p, _, _ in summary.problems) == ["fifo.h5", "zero.h5"]
+
+
+class KilledAfter(Seen):
+    """The progress of a run that dies (as a killed process would) after ``n`` files were read."""
+
+    def __init__(self, n: int) -> None:
+        super().__init__()
+        self.n = n
+
+    def done(self, outcome: FileOutcome) -> None:
+        super().done(outcome)
+        if len(self.outcomes) == self.n:
+            raise KeyboardInterrupt("killed")
+
+
+def _duckdb_file_rows(out: Path) -> dict[str, int]:
+    """Per file path, its file rows as the documented reader sees them: DuckDB over the glob."""
+    with duckdb.connect() as db:
+        rows = db.execute(
+            f"select path, count(*) from read_parquet('{out}/*.parquet') where entry = 'file' group by path"
+        ).fetchall()
+    return dict(rows)
+
+
+def test_a_run_killed_mid_way_leaves_the_index_as_it_was_for_a_reader_of_the_glob(
+    archive, tmp_path, monkeypatch
+):
+    """An incremental run over more files than one part holds (one here, 1,024 in use) dies after
+    reading two of three changed files: the glob still reads every file once, as before the run;
+    the next run removes its temporaries and brings the index up to date."""
+    monkeypatch.setattr(store, "FILES_PER_PART", 1)
+    source, directory, out = next(iter(archive)), tmp_path / "many", tmp_path / "index"
+    for i in range(3):
+        copy_campaign(source, directory / f"c{i}.h5", archive_campaign(i))
+    _index(directory, out)
+    before = _duckdb_file_rows(out)
+    assert len(part_paths(out)) == 3 and before == {str(directory / f"c{i}.h5"): 1 for i in range(3)}
+    for i in range(3):  # every file's metadata edited: the next run reads all again
+        copy_campaign(source, directory / f"c{i}.h5", archive_campaign(i + 3))
+    with pytest.raises(KeyboardInterrupt):
+        build_index([directory], out, InProcess(), files_per_task=1, progress=KilledAfter(2))
+    assert any(name.startswith(".part-") for name in os.listdir(out)), "its parts written, not published"
+    assert _duckdb_file_rows(out) == before
+    seen, _ = _index(directory, out)
+    assert len(seen.opened) == 3 and _duckdb_file_rows(out) == before
+    operators = {row["path"]: row["operator"] for row in _file_rows(out).values()}
+    assert operators == {str(directory / f"c{i}.h5"): archive_campaign(i + 3).operator for i in range(3)}
+    assert not [name for name in os.listdir(out) if name.startswith(".")]

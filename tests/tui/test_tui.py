@@ -178,9 +178,8 @@ async def test_smoke_sequence_through_the_ui(app: WfsBenchApp, tmp_path: Path) -
         await press(pilot, "y")
         dialog = await prompt_open(pilot, app, "pressure")
         await press(pilot, *"9.9", "enter")
-        await pilot.pause()
+        await until(pilot, lambda: "9.9" in text_of(dialog, "#prompt-error"), "the refusal of 9.9 bar")
         assert app.screen is dialog, "a pressure beyond 0.5..4.5 bar must not close the dialog"
-        assert "9.9" in text_of(dialog, "#prompt-error")
         assert "0.5..4.5" in text_of(dialog, "#prompt-error")
         await press(pilot, *"2.5", "enter")
 
@@ -374,7 +373,8 @@ async def test_bad_sequence_file_shows_key_and_range(app: WfsBenchApp, tmp_path:
         assert "steps[0].freq_hz" in report and "0.1 <= freq_hz <= 100 Hz" in report
         app.query_one("#seq-shipped").focus()
         await press(pilot, "g")
-        await pilot.pause()
+        said = "g: no valid sequence is checked (choose one, or fix the one shown): nothing started"
+        await until(pilot, lambda: any(n.message == said for n in app._notifications), "g's answer")
         assert not app.session.running.is_set(), "nothing starts until the sequence is valid"
 
 
@@ -579,9 +579,11 @@ async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenc
         question = text_of(app.screen, "#confirm-question")
         assert "holds 1 run(s) of sequence 'smoke'" in question and "Resume it" in question
         await press(pilot, "n")
-        await pilot.pause()
+        def told() -> bool:
+            return any("nothing started" in n.message for n in app._notifications)
+
+        await until(pilot, told, "n's answer")
         assert not app.session.running.is_set()
-        assert any("nothing started" in n.message for n in app._notifications)
 
         await press(pilot, "g")
         await until(pilot, lambda: isinstance(app.screen, ConfirmDialog), "the offer again")
