@@ -250,6 +250,8 @@ class WfsBenchApp(App):
 
     def on_descendant_focus(self, event: events.DescendantFocus) -> None:
         """A widget of a hidden pane never keeps the focus (it would take keys meant for the app)."""
+        if not self.screen_stack:  # the app is closing: its screens went first
+            return
         widget, main = event.widget, self.main
         if widget.screen is not main:
             return
