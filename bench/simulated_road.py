@@ -24,7 +24,7 @@ from bench.analysis.compensation import advance_acceleration, hub_acceleration_c
 from bench.analysis.records import DISPLACEMENT, HUB_ACCELERATION, PLATE_FORCE, WFS_FORCE
 from bench.analysis.road_validation import (
     ERROR_BAND_HZ,
-    ForceErrors,
+    RoadValidation,
     band_limited,
     band_rms,
     coverage,
@@ -70,33 +70,6 @@ def simulate_road(setup: BenchSetup, drive: RoadDrive, *, seed: int) -> RoadReco
     record = plant.simulate(waveform, extra_s=1 / drive.sample_rate_hz)
     names = (WFS_FORCE, HUB_ACCELERATION, DISPLACEMENT, PLATE_FORCE, TRUTH_CHANNEL)
     return RoadRecord(drive, plant.output_rate_hz, {name: record[name] for name in names})
-
-
-@dataclass(frozen=True)
-class RoadValidation:
-    """The compensation of one simulated road drive against its true contact force.
-
-    ``identification``: what the compensation rested on; ``valid_band_hz`` its valid band; ``raw``,
-    ``hub_compensated`` (``F_wfs + m_wheel a_hub``, the lag undone) and ``model_compensated``: their
-    :class:`~bench.analysis.road_validation.ForceErrors`; ``truth_rms_n``: the true force's rms in the
-    same band; ``coverage_valid_band``: the share of samples whose true force lies in the 95 % band,
-    both limited to the valid band; ``coverage_whole``: the same unfiltered; ``median_u95_n``: the
-    band's median half-width; ``traces``: the signals over the span where the filters are defined
-    (``t_s``, ``truth``, ``raw``, ``hub_compensated``, ``model_compensated``, ``u95``, and
-    ``error_in_band``: the model-compensated force's error limited to the valid band), for figures."""
-
-    road_class: str
-    speed_km_h: float
-    identification: str
-    valid_band_hz: tuple[float, float]
-    raw: ForceErrors
-    hub_compensated: ForceErrors
-    model_compensated: ForceErrors
-    truth_rms_n: float
-    coverage_valid_band: float
-    coverage_whole: float
-    median_u95_n: float
-    traces: dict[str, np.ndarray]
 
 
 def validate_on_road(

@@ -37,6 +37,10 @@ class SensorSource(StrEnum):
         }[self]
 
 
+#: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
+PRESSURE_MATCH_BAR = 0.05
+
+
 class AnalysisStatus(StrEnum):
     """How far an analysis got: ``complete`` (everything the run is for), ``partial`` (what the data
     allows, with what it does not allow said: no tyre fit from fewer than four points), ``failed``

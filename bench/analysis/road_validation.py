@@ -92,3 +92,30 @@ def ratio_over_truth(force_n: np.ndarray, truth_n: np.ndarray, fs_hz: float) -> 
     f, s_tt = welch(truth_n, fs=fs_hz, nperseg=n)
     _, s_tf = csd(truth_n, force_n, fs=fs_hz, nperseg=n)
     return f[1:], s_tf[1:] / s_tt[1:]
+
+
+@dataclass(frozen=True)
+class RoadValidation:
+    """The compensation of one simulated road drive against its true contact force.
+
+    ``identification``: what the compensation rested on; ``valid_band_hz`` its valid band; ``raw``,
+    ``hub_compensated`` (``F_wfs + m_wheel a_hub``, the lag undone) and ``model_compensated``: their
+    :class:`~bench.analysis.road_validation.ForceErrors`; ``truth_rms_n``: the true force's rms in the
+    same band; ``coverage_valid_band``: the share of samples whose true force lies in the 95 % band,
+    both limited to the valid band; ``coverage_whole``: the same unfiltered; ``median_u95_n``: the
+    band's median half-width; ``traces``: the signals over the span where the filters are defined
+    (``t_s``, ``truth``, ``raw``, ``hub_compensated``, ``model_compensated``, ``u95``, and
+    ``error_in_band``: the model-compensated force's error limited to the valid band), for figures."""
+
+    road_class: str
+    speed_km_h: float
+    identification: str
+    valid_band_hz: tuple[float, float]
+    raw: ForceErrors
+    hub_compensated: ForceErrors
+    model_compensated: ForceErrors
+    truth_rms_n: float
+    coverage_valid_band: float
+    coverage_whole: float
+    median_u95_n: float
+    traces: dict[str, np.ndarray]

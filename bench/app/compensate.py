@@ -6,7 +6,7 @@ exactly as ``wfsbench analyze`` analyses it (nothing is written to it) and the c
 built from that analysis (:func:`compensation_basis`):
 
 - the tyre: the shaker identification at the measurement's tyre pressure (within
-  :data:`~bench.app.run_analysis.PRESSURE_MATCH_BAR`; no interpolation between pressures: the
+  :data:`~bench.analysis.campaign.PRESSURE_MATCH_BAR`; no interpolation between pressures: the
   paper's 250 / 390 / 420 kN/m at 1.5 / 2.5 / 3.5 bar are far from a line, and the error of an
   interpolation is unknown); of its amplitudes the one nearest the measurement's tyre deflection
   (``sqrt 2`` times the rms of the dynamic Fz over the tyre's stiffness, an equivalent sine), the
@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignKnowledge
+from bench.analysis.campaign import PRESSURE_MATCH_BAR, CampaignKnowledge
 from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
@@ -42,7 +42,6 @@ from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.analysis.runs import ShakerAmplitudeResult
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
 from bench.analysis.validation import AnalysisInputError
-from bench.app.run_analysis import PRESSURE_MATCH_BAR
 from bench.store.measurement import Measurement
 
 

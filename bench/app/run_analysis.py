@@ -36,7 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignKnowledge, PlateMassRun, RunAnalysis, SensorSource
+from bench.analysis.campaign import (
+    PRESSURE_MATCH_BAR,
+    CampaignKnowledge,
+    PlateMassRun,
+    RunAnalysis,
+    SensorSource,
+)
 from bench.analysis.measurement_compensation import CompensationFilters
 from bench.analysis.records import (
     HUB_ACCELERATION,
@@ -64,8 +70,6 @@ from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView
 from bench.store.measurement import Measurement
 
-#: Tyre pressures (bar) within a gauge's reading of each other: the same tyre for the analysis.
-PRESSURE_MATCH_BAR = 0.05
 #: The plate a four-post free run weighs, as :class:`PlateMassRun` names it.
 POST_PLATE = "four-post post"
 #: Where a nominal m_comp comes from, as reports name it.

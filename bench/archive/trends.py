@@ -28,7 +28,8 @@ from matplotlib.figure import Figure
 
 from bench.archive import columns as c
 from bench.archive.store import IndexDirError, check_part, part_paths
-from bench.report.figures import DPI, FigureFile
+from bench.report.axes import DPI
+from bench.report.figures import FigureFile
 
 # the report page's style and builders, so that both pages look alike
 from bench.report.html import PAGE_STYLE, figure_html, table_html

@@ -27,7 +27,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import FuncFormatter, Locator, MaxNLocator, NullFormatter
 
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.frf import Frf, ValidBand
@@ -41,9 +40,9 @@ from bench.analysis.runs import (
 )
 from bench.analysis.shaker_models import shaker_response
 from bench.models.parameters import WfsSensor
+from bench.report.axes import DPI, frequency_axes, new_figure
+from bench.report.replay_figures import road_replay_figure
 
-#: Pixels per inch of the PNGs (a 9 x 6.5 in figure is 900 x 650 px).
-DPI = 100
 #: Points of a model curve over the measured band.
 MODEL_GRID_POINTS = 300
 #: Normal quantile of the drawn uncertainty bars (95 %).
@@ -53,10 +52,6 @@ MAGNITUDE_MARGIN = 1.5
 #: Room beyond +/-180 deg on a phase axis, so that points at the wrap stay visible.
 PHASE_MARGIN_DEG = 10.0
 _MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
-#: Labelled frequencies per decade, coarse to fine; a log axis takes the first giving enough labels.
-FREQUENCY_TICK_SUBS = ((1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0, 7.0), tuple(float(k) for k in range(1, 10)))
-#: Labelled frequencies a log axis shows at least (when the finest subdivision gives them).
-MIN_FREQUENCY_LABELS = 5
 
 
 @dataclass(frozen=True)
@@ -67,51 +62,6 @@ class FigureFile:
     title: str
     caption: str
     path: Path
-
-
-def _new_figure(rows: int, *, sharex: bool = True) -> tuple[Figure, list[Axes]]:
-    """A 9 x 6.5 in figure on an Agg canvas with ``rows`` axes above each other."""
-    fig = Figure(figsize=(9, 6.5), dpi=DPI)  # fixed margins: a layout engine doubles the drawing time
-    FigureCanvasAgg(fig)
-    fig.subplots_adjust(left=0.09, right=0.98, top=0.95, bottom=0.08, hspace=0.12 if sharex else 0.3)
-    axes = fig.subplots(rows, 1, sharex=sharex, squeeze=False)[:, 0]
-    return fig, list(axes)
-
-
-class FrequencyLocator(Locator):
-    """Major ticks of a log frequency axis: 1-2-5 per decade (0.5, 1, 2, 5, 10 Hz) where that
-    labels at least :data:`MIN_FREQUENCY_LABELS` frequencies in view, else the finer 1-2-3-5-7 or
-    every integer multiple (a band of about one decade, 2.3-28 Hz, gets 3, 5, 7, 10, 20 Hz, not
-    only 5, 10, 20 Hz); a band narrower still (12-38 Hz) gets evenly spaced round numbers."""
-
-    def __call__(self) -> list[float]:
-        low, high = self.axis.get_view_interval()
-        return self.tick_values(low, high)
-
-    def tick_values(self, vmin: float, vmax: float) -> list[float]:
-        low, high = sorted((vmin, vmax))
-        if not (np.isfinite(low) and np.isfinite(high)) or low <= 0:
-            return []
-        decades = np.arange(np.floor(np.log10(low)), np.ceil(np.log10(high)) + 1)
-        for subs in FREQUENCY_TICK_SUBS:
-            candidates = sorted(float(f"{sub * 10.0**d:.6g}") for d in decades for sub in subs)
-            ticks = [t for t in candidates if low <= t <= high]
-            if len(ticks) >= MIN_FREQUENCY_LABELS:
-                return ticks
-        even = MaxNLocator(nbins=8, steps=[1, 2, 2.5, 5, 10], min_n_ticks=MIN_FREQUENCY_LABELS)
-        even = even.tick_values(low, high)
-        return [float(t) for t in even if low <= t <= high]
-
-
-def _frequency_axes(*axes: Axes) -> None:
-    """Log frequency axes labelled with plain numbers, enough of them to read (:class:`FrequencyLocator`),
-    a light grid."""
-    for ax in axes:
-        ax.set_xscale("log")
-        ax.xaxis.set_major_locator(FrequencyLocator())
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.grid(True, which="both", alpha=0.3)
 
 
 def _pressure_tag(pressure_bar: float) -> str:
@@ -127,7 +77,7 @@ def hammer_figure(analysis: CampaignAnalysis) -> Figure:
     fs = record.sample_rate_hz
     force = np.asarray(record.channels[WFS_FORCE], dtype=float)
     t_ms = 1e3 * np.arange(force.size) / fs
-    fig, (decay, spectrum) = _new_figure(2, sharex=False)
+    fig, (decay, spectrum) = new_figure(2, sharex=False)
     decay.plot(t_ms, force, lw=0.8, color="tab:blue", label="F_WFS")
     if HAMMER_FORCE in record.channels:
         decay.plot(t_ms, record.channels[HAMMER_FORCE], lw=0.8, color="tab:gray", label="hammer")
@@ -327,7 +277,7 @@ def _finish_panels(
     fig.legend(
         handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.955), ncol=3, fontsize=8, frameon=False
     )
-    _frequency_axes(*mags, *phases)
+    frequency_axes(*mags, *phases)
 
 
 def shaker_figure(pressure_bar: float, result: ShakerCampaignResult) -> Figure:
@@ -425,7 +375,7 @@ def shaker_compensated_figure(pressure_bar: float, result: ShakerCampaignResult)
 
 def four_post_ratios_figure(result: FourPostResult) -> Figure:
     """Raw, hub-acceleration and model-compensated ratios with each valid band shaded."""
-    fig, (mag, phase) = _new_figure(2)
+    fig, (mag, phase) = new_figure(2)
     curves = (
         ("raw", result.wfs_per_contact, result.valid_band_raw, "tab:red"),
         (
@@ -464,7 +414,7 @@ def four_post_ratios_figure(result: FourPostResult) -> Figure:
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=8, loc="upper left")
-    _frequency_axes(mag, phase)
+    frequency_axes(mag, phase)
     return fig
 
 
@@ -480,7 +430,7 @@ def four_post_hub_figure(result: FourPostResult, trace: ForceDifferenceTrace | N
     advance = np.exp(2j * np.pi * f * m.accelerometer_delay_s)
     inertial = m.mass_kg * frfs.accel_per_z.value[keep] * advance
     if trace is None:
-        fig, (mag, phase) = _new_figure(2)
+        fig, (mag, phase) = new_figure(2)
     else:
         fig = Figure(figsize=(9, 9), dpi=DPI)
         FigureCanvasAgg(fig)
@@ -508,7 +458,7 @@ def four_post_hub_figure(result: FourPostResult, trace: ForceDifferenceTrace | N
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=8)
-    _frequency_axes(mag, phase)
+    frequency_axes(mag, phase)
     return fig
 
 
@@ -588,7 +538,6 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 ),
             )
         )
-    from bench.report.replay_figures import road_replay_figure  # it draws with this module's axes
 
     for run_id, replay in k.road_replays.items():
         out.append(

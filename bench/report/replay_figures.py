@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 from bench.analysis.road_replay import RoadReplayResult
 from bench.analysis.road_validation import ERROR_BAND_HZ
-from bench.report.figures import _frequency_axes, _new_figure
+from bench.report.axes import frequency_axes, new_figure
 
 #: The forces drawn, with their labels, short labels and colours (the four-post figure's).
 CURVES = (
@@ -28,7 +28,7 @@ def road_replay_figure(run_id: str, result: RoadReplayResult) -> Figure:
     """Four panels: the contact force and each WFS force over a stretch of the drive, their errors
     against the contact force there (each force's rms error in 0-30 Hz in the title), the forces'
     spectra and the errors' spectra (N^2/Hz) up to the error band's top."""
-    fig, (forces, errors, spectra, error_spectra) = _new_figure(4, sharex=False)
+    fig, (forces, errors, spectra, error_spectra) = new_figure(4, sharex=False)
     fig.set_size_inches(9, 11)
     traces, f = result.traces, result.spectra["freq_hz"]
     t = traces["t_s"]
@@ -66,6 +66,6 @@ def road_replay_figure(run_id: str, result: RoadReplayResult) -> Figure:
         ax.grid(True, alpha=0.3)
         if np.ptp(t) > 0:
             ax.set_xlim(t[0], t[-1])
-    _frequency_axes(spectra, error_spectra)
+    frequency_axes(spectra, error_spectra)
     fig.subplots_adjust(top=0.92, bottom=0.05, hspace=0.45)
     return fig

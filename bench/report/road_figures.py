@@ -8,9 +8,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench.analysis.road_validation import ERROR_BAND_HZ, ratio_over_truth
-from bench.report.figures import _frequency_axes, _new_figure
-from bench.simulated_road import RoadValidation
+from bench.analysis.road_validation import ERROR_BAND_HZ, RoadValidation, ratio_over_truth
+from bench.report.axes import frequency_axes, new_figure
 
 #: The forces drawn, with their labels and colours (the four-post figure's).
 CURVES = (
@@ -27,7 +26,7 @@ LOWEST_HZ = 0.5
 def road_compensation_figure(result: RoadValidation) -> Figure:
     """Magnitude and phase of ``F / F_contact`` (Welch H1 over the true force) for the three forces
     in 0.5-30 Hz, the valid band shaded; below, ``TRACE_S`` of the forces in time."""
-    fig, (mag, phase, trace, error) = _new_figure(4, sharex=False)
+    fig, (mag, phase, trace, error) = new_figure(4, sharex=False)
     fig.set_size_inches(9, 11)
     traces = result.traces
     fs = 1 / (traces["t_s"][1] - traces["t_s"][0])
@@ -46,7 +45,7 @@ def road_compensation_figure(result: RoadValidation) -> Figure:
     )
     phase.set(xlabel="frequency (Hz)", ylabel="phase (deg)")
     mag.legend(fontsize=8, loc="upper left")
-    _frequency_axes(mag, phase)
+    frequency_axes(mag, phase)
     middle = traces["t_s"].size // 2
     span = slice(middle, middle + round(TRACE_S * fs))
     t = traces["t_s"][span]

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from bench.report.figures import FrequencyLocator, four_post_hub_figure, four_post_ratios_figure
+from bench.report.axes import FrequencyLocator
+from bench.report.figures import four_post_hub_figure, four_post_ratios_figure
 
 
 @pytest.mark.parametrize(
