@@ -21,9 +21,9 @@ import rpc3
 from bench.app.analyze import analyze_campaign
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
-from bench.export.rpc3 import BLOCK_BYTES, INT_FULL_SCALE, KEY_BYTES, PTS_PER_FRAME, RECORD_BYTES
 from bench.export.uff58 import CONTACT_NODE, PLUS_Z, WHEEL_NODE
 from bench.store import open_campaign
+from bench.store.rpc3 import BLOCK_BYTES, INT_FULL_SCALE, KEY_BYTES, PTS_PER_FRAME, RECORD_BYTES
 from bench.store.schema import METADATA_FIELDS
 
 #: What the other engineer's metadata writer puts at the campaign's root, for a file that has them.

@@ -30,7 +30,6 @@ from bench.cli.main import main
 from bench.config import load_bench_config
 from bench.dry_run import _World, dry_run
 from bench.engine.engine import Engine
-from bench.export.rpc3 import BLOCK_BYTES, header_bytes
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
 from bench.replay_drive import load_drives
@@ -39,6 +38,7 @@ from bench.report.json_out import analysis_json
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from bench.store import CampaignWriter, open_campaign
 from bench.store.drive_files import read_drive_file
+from bench.store.rpc3 import BLOCK_BYTES, header_bytes
 from drivers.register_map import ControllerState, ErrorCode
 from drivers.setpoints import DriveSetpoint
 from sequences import Sequence, SequenceError, load_sequence

@@ -9,7 +9,7 @@
   step evenly forward in a unit of time; the displacement column (by default the only other one)
   must be in a unit of length. A cell that is no number, a time that goes back or steps unevenly,
   a unit of another quantity: refused naming the file, the line and the column.
-- **RPC III** (``.rsp``, ``.drv``, ``.tim``, ``.rpc``; :mod:`bench.store.rpc3_read`): the channel
+- **RPC III** (``.rsp``, ``.drv``, ``.tim``, ``.rpc``; :mod:`bench.store.rpc3`): the channel
   named (its ``DESC.CHAN_n``; by default the only channel), its ``UNITS.CHAN_n`` a unit of length,
   at the file's ``DELTA_T``. An RPC III file fills its last frame up: a drive exported by this
   project carries up to one frame less a point of its last value at the end.
@@ -26,7 +26,7 @@ import numpy as np
 from bench.store.csv_mapping import ChannelColumn, Dialect, Timing
 from bench.store.csv_read import CsvError, read_csv
 from bench.store.csv_units import UNITS, known_units, unit_named
-from bench.store.rpc3_read import Rpc3Error, read_rpc3
+from bench.store.rpc3 import Rpc3Error, read_rpc3
 
 CSV_SUFFIXES = (".csv",)
 RPC3_SUFFIXES = (".rsp", ".drv", ".tim", ".rpc")

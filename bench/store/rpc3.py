@@ -1,8 +1,11 @@
-"""MTS RPC III time histories read, written from the format's published description (no maintained
-Python library reads them: ``rpc3-file`` on PyPI has pre-releases only), the reader of
-:mod:`bench.export.rpc3`'s files and of a lab's drive files (docs/sequences.md, *Road replay*).
+"""The MTS RPC III time-history codec, written from the format's published description (no
+maintained Python library reads or writes it: ``rpc3-file`` on PyPI has pre-releases only; the
+tests read this codec's files back with it): the writer of ``wfsbench export --format rpc3``
+(:mod:`bench.export.rpc3`) and the reader of those files and of a lab's drive files
+(docs/sequences.md, *Road replay*). One layout, below, for both directions.
 
-The layout read (the writer's, docs/export.md, in general):
+The layout (what the writer lays out: int16 data, one frame per group, little-endian; what the
+reader takes, in general):
 
 - **Header**: key/value records of 128 bytes (a 32-byte key, a 96-byte value, ASCII, ended by a
   NUL), four to a 512-byte block; the first three are ``FORMAT``, ``NUM_HEADER_BLOCKS`` and
@@ -15,12 +18,18 @@ The layout read (the writer's, docs/export.md, in general):
   programs write it: rpc3-file, for one) or big-endian (``BINARY_IEEE_BIG_END``); ``DELTA_T`` the
   sample interval (s).
 
+The writer's scale: a channel's ``SCALE.CHAN_n`` is its largest magnitude over ``INT_FULL_SCALE``
+(32752), so each channel uses the whole integer range and is resolved to half its scale; its last
+frame is filled up with its last value.
+
 Not read: half frames (``HALF_FRAMES`` other than 0), ``ASCII`` files.
 Every refusal names the file and the record or byte.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,14 +37,25 @@ import numpy as np
 
 RECORD_BYTES = 128
 KEY_BYTES = 32
+VALUE_BYTES = RECORD_BYTES - KEY_BYTES
 BLOCK_BYTES = 512
+RECORDS_PER_BLOCK = BLOCK_BYTES // RECORD_BYTES
+#: The integer full scale RPC III programs use (2^15 - 16).
+INT_FULL_SCALE = 32752
+#: Points per frame the writer lays out (and per group: one frame per group).
+PTS_PER_FRAME = 2048
+#: A scale's margin over the largest magnitude: ten times the relative rounding of its text.
+SCALE_MARGIN = 1 + 5e-9
+#: How numbers are written into the header (a real number in E format, as the format's examples).
+_NUMBER = "{:.9E}"
 _FORMATS = {"BINARY_IEEE_LITTLE_END": "<", "BINARY": "<", "BINARY_IEEE_BIG_END": ">"}
 _DATA_TYPES = {"SHORT_INTEGER": "i2", "FLOATING_POINT": "f4"}
 _LEADING = ("FORMAT", "NUM_HEADER_BLOCKS", "NUM_PARAMS")
 
 
 class Rpc3Error(ValueError):
-    """A file that is no readable RPC III time history: the message names the file and where."""
+    """A file that is no readable RPC III time history, or values that cannot be written as one:
+    the message names the file (or the channel) and where."""
 
 
 @dataclass(frozen=True)
@@ -147,3 +167,89 @@ def read_rpc3(path: str | Path) -> Rpc3File:
         name = header.get(f"DESC.CHAN_{k}", f"channel {k}")
         channels.append(Rpc3Channel(name, header.get(f"UNITS.CHAN_{k}", ""), values[k - 1] * scale))
     return Rpc3File(path, header, tuple(channels), 1.0 / delta_t)
+
+
+# -- writing ------------------------------------------------------------------------------------
+
+
+def _field(text: str, size: int, what: str) -> bytes:
+    data = text.encode("ascii", errors="replace")
+    if len(data) >= size:
+        raise Rpc3Error(f"RPC III header: {what} {text!r} is longer than {size - 1} characters")
+    return data.ljust(size, b"\0")
+
+
+def header_bytes(params: list[tuple[str, str]]) -> bytes:
+    """The header of ``params`` (after the three leading records, which this adds): whole blocks."""
+    n_params = len(params) + 3
+    n_blocks = math.ceil(n_params / RECORDS_PER_BLOCK)
+    records = [
+        ("FORMAT", "BINARY_IEEE_LITTLE_END"),
+        ("NUM_HEADER_BLOCKS", str(n_blocks)),
+        ("NUM_PARAMS", str(n_params)),
+        *params,
+    ]
+    body = b"".join(_field(k, KEY_BYTES, "key") + _field(v, VALUE_BYTES, f"value of {k}") for k, v in records)
+    return body.ljust(n_blocks * BLOCK_BYTES, b"\0")
+
+
+def channel_scale(values: np.ndarray) -> tuple[str, float]:
+    """The channel's ``SCALE`` as written (text) and as read back (the number the data are
+    quantised with, so writer and reader agree): its largest magnitude over the full scale, raised
+    by :data:`SCALE_MARGIN` so that the text's rounding never puts the largest value beyond it."""
+    largest = float(np.max(np.abs(values))) if values.size else 0.0
+    text = _NUMBER.format(largest * SCALE_MARGIN / INT_FULL_SCALE if largest > 0 else 1.0 / INT_FULL_SCALE)
+    return text, float(text)
+
+
+def time_history_bytes(
+    channels: Sequence[Rpc3Channel], sample_rate_hz: float, *, date: str = "", operation: str = ""
+) -> bytes:
+    """The whole RPC III response time history of ``channels`` (of equal length, finite values)
+    at ``sample_rate_hz``; ``date`` as the format writes it (``22-Feb-2000 10:20:11``)."""
+    n = channels[0].values.size if channels else 0
+    if not channels or n == 0 or any(c.values.size != n for c in channels):
+        raise Rpc3Error("RPC III: channels of one length and at least one sample are needed")
+    frames = math.ceil(n / PTS_PER_FRAME)
+    params = [
+        ("FILE_TYPE", "TIME_HISTORY"),
+        ("TIME_TYPE", "RESPONSE"),
+        ("DELTA_T", _NUMBER.format(1.0 / sample_rate_hz)),
+        ("CHANNELS", str(len(channels))),
+        ("DATE", date),
+        ("OPERATION", operation),
+        ("PTS_PER_FRAME", str(PTS_PER_FRAME)),
+        ("PTS_PER_GROUP", str(PTS_PER_FRAME)),
+        ("FRAMES", str(frames)),
+        ("HALF_FRAMES", "0"),
+        ("REPEATS", "1"),
+        ("DATA_TYPE", "SHORT_INTEGER"),
+        ("INT_FULL_SCALE", str(INT_FULL_SCALE)),
+        ("BYPASS_FILTER", "0"),
+        ("PARTITIONS", "1"),
+        ("PART.CHAN_1", "1"),
+        ("PART.NCHAN_1", str(len(channels))),
+    ]
+    data = np.empty((len(channels), frames * PTS_PER_FRAME), dtype="<i2")
+    for i, channel in enumerate(channels, start=1):
+        values = np.asarray(channel.values, dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise Rpc3Error(
+                f"channel {channel.name}: sample {bad[0]} is {values[bad[0]]}:"
+                " RPC III holds finite values only"
+            )
+        text, scale = channel_scale(values)
+        data[i - 1, :n] = np.rint(values / scale)
+        data[i - 1, n:] = data[i - 1, n - 1]
+        params += [
+            (f"DESC.CHAN_{i}", channel.name),
+            (f"UNITS.CHAN_{i}", channel.unit),
+            (f"SCALE.CHAN_{i}", text),
+            (f"LOWER_LIMIT.CHAN_{i}", _NUMBER.format(float(values.min()))),
+            (f"UPPER_LIMIT.CHAN_{i}", _NUMBER.format(float(values.max()))),
+            (f"MAP.CHAN_{i}", str(i)),
+        ]
+    # frames become groups (one frame each): channel after channel within each
+    groups = data.reshape(len(channels), frames, PTS_PER_FRAME).transpose(1, 0, 2)
+    return header_bytes(params) + groups.tobytes()
