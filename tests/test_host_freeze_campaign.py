@@ -43,7 +43,7 @@ WATCHDOG_ENDINGS = ("controller interlock: watchdog", "actuator link lost: ")
 def _frozen_run(tmp_path: Path, freeze_s: float) -> tuple[int, str, Path]:
     """``wfsbench run --realtime`` of a long dwell, stopped for ``freeze_s`` once the dwell is at
     amplitude, then continued: its exit code, its output and its campaign file."""
-    proc, out = long_dwell_run(tmp_path, taper_out_s=0.5, stderr=subprocess.STDOUT)
+    proc, out = long_dwell_run(tmp_path, taper_out_s=0.5, stderr=subprocess.STDOUT, flow_control=False)
     try:
         stdout = LineReader(proc.stdout)
         before = stdout.until(

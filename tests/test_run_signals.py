@@ -9,7 +9,6 @@ import os
 import pty
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,18 +17,14 @@ import pytest
 from bench.cli.exit_codes import ExitCode
 from bench.store import open_campaign
 from tests.test_campaign_cli import H5DUMP, ROOT
-from tests.test_run_unattended import LONG_DWELL, RUN_ID
+from tests.test_run_unattended import RUN_ID, long_dwell_command
 from tests.waiting import LineReader
 
 DEADLINE_S = 120.0  # wall clock, a timeout only
 
 
 def _command(tmp_path: Path) -> tuple[list[str], Path]:
-    sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
-    sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=0.5))
-    script = Path(sys.executable).with_name("wfsbench")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
-    return [*command, "run", str(sequence), "--out", str(out), "--realtime"], out
+    return long_dwell_command(tmp_path, taper_out_s=0.5)
 
 
 def _assert_tapered_and_aborted(out: Path, reason: str) -> None:

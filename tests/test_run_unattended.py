@@ -235,17 +235,34 @@ taper_out_s = {taper_out_s}
 RUN_ID = "long_dwell-s002-sine_dwell"
 
 
-def long_dwell_run(
-    tmp_path: Path, taper_out_s: float, *, stderr: int = subprocess.PIPE
-) -> tuple[subprocess.Popen, Path]:
-    """``wfsbench run --realtime`` of a 60 s dwell of 2 mm at 10 Hz, started (text pipes: its standard
-    output, and its standard error unless ``stderr`` says where), and its campaign file."""
+def long_dwell_command(
+    tmp_path: Path, taper_out_s: float, *, flow_control: bool = True
+) -> tuple[list[str], Path]:
+    """The command of a paced ``wfsbench run`` of a 60 s dwell of 2 mm at 10 Hz, and its campaign
+    file. With ``flow_control`` the simulated WFS waits for a reader the test machine holds up (its
+    own stalls, tenths of a second beside other test workers, would overrun a real tty's buffer and
+    lose frames a test of signals is not about); without it a held reader loses frames as a real
+    port's would."""
     sequence, out = tmp_path / "long.toml", tmp_path / "long.h5"
     sequence.write_text(LONG_DWELL.format(freq_hz=10, amplitude_mm=2, taper_out_s=taper_out_s))
     script = Path(sys.executable).with_name("wfsbench")
     command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
+    command += ["run", str(sequence), "--out", str(out)]
+    if not flow_control:
+        return [*command, "--realtime"], out
+    config = tmp_path / "paced.toml"
+    config.write_text('kind = "shaker"\n[simulation]\npaced = true\nflow_control = true\n')
+    return [*command, "--bench", str(config)], out
+
+
+def long_dwell_run(
+    tmp_path: Path, taper_out_s: float, *, stderr: int = subprocess.PIPE, flow_control: bool = True
+) -> tuple[subprocess.Popen, Path]:
+    """:func:`long_dwell_command` started (text pipes: its standard output, and its standard error
+    unless ``stderr`` says where), and its campaign file."""
+    command, out = long_dwell_command(tmp_path, taper_out_s, flow_control=flow_control)
     proc = subprocess.Popen(
-        [*command, "run", str(sequence), "--out", str(out), "--realtime"],
+        command,
         stdout=subprocess.PIPE,
         stderr=stderr,
         text=True,
