@@ -16,13 +16,13 @@ from simulators.controller_server import ControllerServer
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The longest tests first: the slow ones (whole campaigns; in the statistical tier, the
-    coverage over many seeds), then the terminal UI's (seconds each,
+    """The longest tests first: the slow ones (whole campaigns; in the validation tier, the
+    coverage over many seeds and the paper's campaign), then the terminal UI's (seconds each,
     waiting on the app's refreshes), then the rest in their order. The test workers take tests in
     this order, so a long test is not left to run alone at the end while the other workers idle."""
 
     def rank(item: pytest.Item) -> int:
-        if item.get_closest_marker("slow") or item.get_closest_marker("statistical"):
+        if item.get_closest_marker("slow") or item.get_closest_marker("validation"):
             return 0
         return 1 if item.path.parent.name == "tui" else 2
 

@@ -73,7 +73,7 @@ def _stiffness_covered(config, seeds: range) -> tuple[int, int]:
     return covered, flagged
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 def test_the_stated_sensor_covers_the_truth_and_the_assumed_one_never_does():
     """The intervals' coverage over 100 seeds: tests/analysis/test_analysis_coverage.py."""
     wrong, flagged = _stiffness_covered(default_bench_config(), range(5))

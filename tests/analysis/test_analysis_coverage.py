@@ -31,7 +31,7 @@ def _dwells(setup, freqs_hz, realism) -> list[DwellRecord]:
     return records
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 @pytest.mark.parametrize(
     ("free_run_grid_hz", "displacement_noise_m", "n_seeds"),
     [(FREE_RUN_GRID_HZ, 2e-6, 100), (FREE_RUN_GRID_HZ[:-1], 2e-6, 20), (FREE_RUN_GRID_HZ, 2e-5, 20)],

@@ -53,7 +53,7 @@ def errors_in_half_widths(shaker_nonlinear_campaign, four_post_free_run) -> dict
     return {name: np.array([row[name] for row in rows]) for name in rows[0]}
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 @pytest.mark.parametrize("name", [*SUSPENSION, "body_frequency_hz", "wheel_frequency_hz"])
 def test_quarter_car_intervals_cover_the_truth_over_seeds(errors_in_half_widths, name):
     units = errors_in_half_widths[name]

@@ -57,7 +57,7 @@ def _coverage_and_sigma_over_scatter(ratios, lo_hz: float, hi_hz: float) -> tupl
     return covered, float(np.sqrt(np.mean(sigma**2)) / scatter), h.size
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 def test_low_flank_intervals_cover_the_truth_and_are_not_wider_than_the_scatter(ratios):
     """0.45-1.15 Hz (6 bins, 180 intervals): coverage 95 % has a binomial sd of 1.6 %, so at least
     89 %; the scatter from 348 degrees of freedom has a relative sd of 3.8 %: sigma over scatter
@@ -71,7 +71,7 @@ def test_low_flank_intervals_cover_the_truth_and_are_not_wider_than_the_scatter(
     assert np.sqrt(np.mean(sigma[:, at] ** 2)) / abs(exact[at]) < 0.03  # was 5.3 % (Welch ratio)
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 def test_mid_band_intervals_cover_the_truth_and_are_not_wider_than_the_scatter(ratios):
     """2.2-27.5 Hz (6210 intervals: binomial sd 0.3 %): coverage 93-97 %; sigma over scatter
     0.95-1.1 (the residual of a ratio linear in frequency over three bins still holds a little of
@@ -82,7 +82,7 @@ def test_mid_band_intervals_cover_the_truth_and_are_not_wider_than_the_scatter(r
     assert 0.95 <= ratio <= 1.1, ratio
 
 
-@pytest.mark.statistical
+@pytest.mark.validation
 def test_top_flank_is_no_longer_biased_beyond_its_intervals(ratios):
     """27.5-29.2 Hz: the ratio of Welch FRFs covered the truth 7 % of the time there (its flank bias
     does not cancel where the ratio changes with frequency); now 89-93 % over 420 intervals (the end
