@@ -151,4 +151,4 @@ def test_the_bench_opens_the_paced_lab_in_its_own_process_and_closes_it():
         process = devices.lab._process
         assert process is not None and process.poll() is None
         assert devices.actuator.read_status().status.state == ControllerState.OFF
-    assert process.returncode == 0  # ended in order: its input closed, its devices stopped
+    assert process.poll() == 0  # ended in order: its input closed, its devices stopped

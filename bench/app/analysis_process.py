@@ -30,12 +30,11 @@ import pickle
 import queue
 import struct
 import subprocess
-import sys
 import threading
 from typing import IO, Any
 
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
-from bench.app.child_process import start_child
+from bench.app.child_process import Child, start_child
 from bench.app.run_analysis import RunAnalyser, RunInputs
 
 #: How long closing waits for the child to end once its input is closed (s).
@@ -59,7 +58,7 @@ class AnalysisProcess:
 
     def __init__(self, knowledge: CampaignKnowledge) -> None:
         self.knowledge = knowledge
-        self._process: subprocess.Popen[bytes] | None = None
+        self._process: Child | None = None
         self._outbox: queue.Queue[object] = queue.Queue()  # to the child; _END closes its input
         self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges] | BaseException] = queue.Queue()
         self._threads: list[threading.Thread] = []
@@ -117,7 +116,7 @@ class AnalysisProcess:
         apply_changes(self.knowledge, changes)
         return outcome
 
-    def _send_all(self, process: subprocess.Popen[bytes]) -> None:
+    def _send_all(self, process: Child) -> None:
         """The sender thread: everything queued, in order, until _END closes the child's input. A
         child that is gone ends it; the receiver then reports the child's end."""
         assert process.stdin is not None
@@ -128,7 +127,7 @@ class AnalysisProcess:
         except OSError:
             pass  # the child is gone: the receiver's end of file says so to whoever waits
 
-    def _receive(self, process: subprocess.Popen[bytes]) -> None:
+    def _receive(self, process: Child) -> None:
         assert process.stdout is not None
         try:
             while True:
@@ -250,9 +249,8 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
         write_message(stdout, (outcome, knowledge_changes(before, analyser.knowledge)))
 
 
-if __name__ == "__main__":
+def child_main(stdin: IO[bytes], stdout: IO[bytes]) -> None:
+    """The child's side (:mod:`bench.app.child_process`): background work, then the protocol."""
     if SCHEDULING_POLICY is not None:
         os.sched_setscheduler(0, SCHEDULING_POLICY, os.sched_param(0))
-    protocol_in, protocol_out = sys.stdin.buffer, sys.stdout.buffer
-    sys.stdout = sys.stderr  # a stray print cannot corrupt the protocol
-    _serve(protocol_in, protocol_out)
+    _serve(stdin, stdout)

@@ -28,12 +28,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import subprocess
-import sys
 import threading
 import traceback
 from typing import IO, Any
 
-from bench.app.child_process import start_child
+from bench.app.child_process import Child, start_child
 from bench.app.simulated import SimulatedLabSettings
 from sequences.channels import Role
 
@@ -60,7 +59,7 @@ class LabProcess:
         self.address: tuple[str, int] = ("", 0)
         self.wfs_port = ""
         self.operator = RemoteOperator(self)
-        self._process: subprocess.Popen[str] | None = None
+        self._process: Child | None = None
         self._lock = threading.Lock()  # one request and its reply at a time
 
     def __enter__(self) -> LabProcess:
@@ -213,6 +212,6 @@ def _serve(stdin: IO[str], stdout: IO[str]) -> None:
         send({"ended": None})
 
 
-if __name__ == "__main__":
-    protocol, sys.stdout = sys.stdout, sys.stderr  # a stray print cannot corrupt the protocol
-    _serve(sys.stdin, protocol)
+def child_main(stdin: IO[str], stdout: IO[str]) -> None:
+    """The child's side (:mod:`bench.app.child_process`): the lab's protocol."""
+    _serve(stdin, stdout)
