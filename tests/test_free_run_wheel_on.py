@@ -112,8 +112,11 @@ def test_a_free_run_with_the_wheel_on_is_flagged_with_every_fit_made_on_its_m_co
     assert any("rests on an m_comp its free run does not describe" in f for f in amplitude["findings"])
     # the selected model follows the measured tread resonance instead of absorbing it into m_comp:
     # before, Model 1 was chosen with a peak of 1 against a measured 8
+    # (the largest measured ratio rests on the wheel-on free run's m_comp, 12.97-13.28 kg over runs
+    # as its windows fall on the unpaced bench's timing: 3.9-5.5 seen; a model that absorbed the
+    # resonance reads 1)
     top = amplitude["largest_measured"]["ratio"]
-    assert top > 4
+    assert top > 2
     assert amplitude["selected_model"] != 1
     # the model's peak reaches the measured one (within 5 %: the largest measured point carries
     # its noise, and the model passes through the points, not above the largest)
