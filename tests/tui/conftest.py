@@ -13,8 +13,9 @@ FILES = Path(__file__).parent / "files"
 
 @pytest.fixture
 def app(tmp_path: Path) -> WfsBenchApp:
-    """The UI on the default simulated bench (as fast as the engine drains it)."""
-    return WfsBenchApp(None, tmp_path / "campaign.h5")
+    """The UI on the default simulated bench (as fast as the engine drains it), its controller's
+    watchdog set for a starved machine (files/fast.toml)."""
+    return WfsBenchApp(FILES / "fast.toml", tmp_path / "campaign.h5")
 
 
 @pytest.fixture
