@@ -162,12 +162,14 @@ class Simulation:
     process of their own (``own_process``; None: when paced, as hardware keeps its own time; an
     unpaced bench waits for its host anyway), and whether the paced WFS link has hardware flow
     control (``flow_control``: a host that stops reading holds the device back, which keeps up to
-    1 s of frames, instead of overrunning the port's 4095-byte buffer)."""
+    ``wfs_hold_s`` of frames, instead of overrunning the port's 4095-byte buffer). The unpaced link
+    always waits for its host, up to ``wfs_hold_s`` too (None: the simulated device's own, 1 s)."""
 
     seed: int = 1
     paced: bool = False
     own_process: bool | None = None
     flow_control: bool = False
+    wfs_hold_s: float | None = None
 
     @property
     def in_own_process(self) -> bool:
@@ -295,6 +297,7 @@ def measured_bench(config: BenchConfig) -> dict[str, object]:
     del data["actuator"], data["simulation"]["paced"], data["timing"], data["metadata"]
     data["simulation"].pop("own_process", None)
     data["simulation"].pop("flow_control", None)
+    data["simulation"].pop("wfs_hold_s", None)
     for key in ("transport", "device", "baudrate"):
         del data["wfs"][key]
     flat: dict[str, object] = {"simulated": config.simulated}
@@ -840,10 +843,15 @@ class _Reader:
 
     def simulation(self, data: dict) -> Simulation:
         d = Simulation()
-        t = self.table(data, "simulation", ("seed", "paced", "own_process", "flow_control"))
+        t = self.table(data, "simulation", ("seed", "paced", "own_process", "flow_control", "wfs_hold_s"))
         return Simulation(
             seed=self.number(t, "simulation", "seed", d.seed, lo=0, hi=2**32 - 1, integer=True),
             paced=self.boolean(t, "simulation", "paced", d.paced),
             own_process=self.boolean(t, "simulation", "own_process", False) if "own_process" in t else None,
             flow_control=self.boolean(t, "simulation", "flow_control", d.flow_control),
+            wfs_hold_s=(
+                self.number(t, "simulation", "wfs_hold_s", 1.0, lo=0.01, hi=60.0)
+                if "wfs_hold_s" in t
+                else None
+            ),
         )

@@ -16,11 +16,12 @@ runner change them under one lock.
 The output rate is the bench's: the plant models the acquisition's 10 kHz converter and its
 anti-alias decimation, so ``RATE`` changes the plant's oversampling (see :meth:`WfsDevice.valid_rates`).
 
-Backpressure: a block waits at most :data:`BACKPRESSURE_S` for the host to drain the link (it goes
-out in pieces of whole frames, a command reply or capture after the block); what is not sent
-by then is dropped (``frames_dropped``; the sequence counter shows the gap to the host) and, until
-the host drains again, later blocks are only offered briefly, so a host that stops reading never
-freezes the bench (the bench then runs in real time and the controller's watchdog fires).
+Backpressure: a block waits at most ``hold_s`` (default :data:`BACKPRESSURE_S`) for the host to
+drain the link (it goes out in pieces of whole frames, a command reply or capture after the block);
+what is not sent by then is dropped (``frames_dropped``; the sequence counter shows the gap to the
+host) and, until the host drains again, later blocks are only offered briefly, so a host that stops
+reading never freezes the bench (the bench then runs in real time and the controller's watchdog
+fires).
 
 Faults: byte faults on the outgoing stream (:class:`ByteFaults`), a stalled stream (a number of
 frames is not sent, the sequence counter runs on), bursts of frames lost at set places of every
@@ -79,7 +80,8 @@ LEVER_M = 0.3
 _MAX_LINE = 64
 #: the lowest output rate RATE accepts (Hz)
 MIN_RATE_HZ = 100
-#: the longest a block of frames waits for the host to drain the link before it is dropped (s)
+#: by default, the longest a block of frames waits for the host to drain the link before it is
+#: dropped (s)
 BACKPRESSURE_S = 1.0
 #: how long a block is offered while the host is not draining (s)
 _OVERFLOW_PROBE_S = 0.005
@@ -163,10 +165,15 @@ class WfsDevice:
         angle_rad: float = 0.0,
         boot: int = 1,
         aux_wiring: tuple[str | None, ...] = DEFAULT_AUX_WIRING,
+        hold_s: float = BACKPRESSURE_S,
     ) -> None:
         """``aux_wiring``: the bench channel each aux input (aux0..aux3) carries, None for an input
-        left open (it reads 0)."""
+        left open (it reads 0); ``hold_s``: the longest a block waits for a host that stops reading
+        before it is dropped (the device's buffer, in seconds of frames)."""
+        if not hold_s > 0:
+            raise ValueError(f"hold_s must be positive, got {hold_s}")
         self.link = link
+        self.hold_s = hold_s
         self.aux_wiring = aux_wiring
         self.bench = bench
         self.baudrate = baudrate
@@ -301,7 +308,7 @@ class WfsDevice:
             self.frames_unsent += len(frames)
             return
         data = self.faults.apply(encode(frames))
-        deadline = time.monotonic() + (_OVERFLOW_PROBE_S if self._overflowing else BACKPRESSURE_S)
+        deadline = time.monotonic() + (_OVERFLOW_PROBE_S if self._overflowing else self.hold_s)
         sent, link_lost = 0, False
         # written a piece of whole frames at a time, so that a reply waits for one piece at most
         for start in range(0, len(data), _WRITE_PIECE_BYTES):

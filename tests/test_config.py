@@ -10,6 +10,7 @@ from bench.config import (
     ConfigError,
     default_bench_config,
     load_bench_config,
+    measured_bench,
     parse_bench_config,
 )
 from drivers.errors import LimitError
@@ -105,6 +106,8 @@ SINGULAR = "[calibration]\nmatrix = [" + ", ".join(["[1, 0, 0, 0, 0, 0]"] * 6) +
         ("[actuator]\nwatchdog_ms = 500\n", "actuator.watchdog_ms", "would trip on one slow reply"),
         ('[wfs]\ntransport = "serial"\n', "wfs.device", "needs the serial device"),
         ('[simulation]\nflow_control = "yes"\n', "simulation.flow_control", "expected true or false"),
+        ("[simulation]\nwfs_hold_s = 0\n", "simulation.wfs_hold_s", "allowed 0.01 <= wfs_hold_s <= 60"),
+        ('[simulation]\nwfs_hold_s = "5 s"\n', "simulation.wfs_hold_s", "expected a number, got '5 s' (str)"),
         ("[wfs]\nrate_hz = 2000\n", "wfs.rate_hz", "allowed 100 <= rate_hz <= 1440"),
         ("[wfs]\nrate_hz = 1000\nbaudrate = 115200\n", "wfs.rate_hz", "allowed 100 <= rate_hz <= 180"),
         ("[limits]\nstroke_mm = nan\n", "limits.stroke_mm", "nan is not a finite number"),
@@ -224,3 +227,16 @@ def test_every_engine_timeout_is_a_configuration_key():
         parse_bench_config("[timing]\nwfs_silence_s = 0\n", "lab.toml")
     with pytest.raises(ConfigError, match=r"lab.toml: timing.link_s: unknown key"):
         parse_bench_config("[timing]\nlink_s = 1\n", "lab.toml")
+
+
+@pytest.mark.parametrize(("text", "hold_s"), [("", 1.0), ("[simulation]\nwfs_hold_s = 4.5\n", 4.5)])
+def test_the_simulated_wfs_hold_reaches_the_device(text, hold_s):
+    """[simulation] wfs_hold_s sets how long the simulated WFS holds frames for its host; unset, the
+    device's own (1 s); a resume may change it (it shapes no measurement)."""
+    from bench.app.devices import open_bench
+
+    config = parse_bench_config('kind = "shaker"\n' + text, "lab.toml")
+    assert parse_bench_config(config.to_toml(), "lab.toml") == config
+    assert measured_bench(config) == measured_bench(default_bench_config())
+    with open_bench(config) as devices:  # the simulated lab, in this process (unpaced)
+        assert devices.lab.device.hold_s == hold_s

@@ -12,6 +12,7 @@ from __future__ import annotations
 import threading
 
 import numpy as np
+import pytest
 
 from drivers.wfs_frame import FRAME_SIZE
 from drivers.wfs_reader import WfsReader
@@ -89,11 +90,14 @@ def test_a_host_stall_overruns_the_paced_link_and_the_lost_frames_are_counted():
     assert reader.last_arrival_s >= blocks[after].arrived_s
 
 
-def test_the_unpaced_link_waits_for_its_host_instead():
-    """Without a receive buffer bound (the unpaced bench's link) the same stall loses nothing."""
+@pytest.mark.parametrize(("hold_s", "stall_s"), [(1.0, 0.5), (0.2, 1.0)])
+def test_the_unpaced_link_waits_for_its_host_up_to_the_devices_hold(hold_s, stall_s):
+    """Without a receive buffer bound (the unpaced bench's link) a stall shorter than the device's
+    hold (``[simulation] wfs_hold_s``) loses nothing; a longer one loses what the device could not
+    send by then, each frame counted at both ends."""
     link = MemoryLink()
     bench = SimulatedBench.paper_shaker(seed=2)
-    device = WfsDevice(link, bench, seed=3)
+    device = WfsDevice(link, bench, seed=3, hold_s=hold_s)
     runner = BenchRunner(bench, paced=False, block_s=0.01)
     runner.sinks.append(device)
     device.start()
@@ -104,7 +108,7 @@ def test_the_unpaced_link_waits_for_its_host_instead():
         sub = reader.subscribe(lossless=True, max_frames=QUEUE_FRAMES)
         reader.start_stream()
         first = sub.read_frames(500, timeout_s=20)
-        threading.Event().wait(0.5)  # shorter than the device's 1 s wait for its host
+        threading.Event().wait(stall_s)  # the host stall: nothing taken, the reader is held
         second = sub.read_frames(1000, timeout_s=20)
         sub.close()
         reader.stop_stream()
@@ -113,5 +117,13 @@ def test_the_unpaced_link_waits_for_its_host_instead():
         reader.close()
         runner.stop()
         device.stop()
-    assert not first.gaps and not second.gaps and counters.frames_missing == 0
-    assert second.unread_s > 0.2  # the reader was held, but nothing was lost
+    assert not first.gaps and second.unread_s > 0.2  # the reader was held
+    if stall_s < hold_s:
+        assert not second.gaps and counters.frames_missing == 0 and device.frames_dropped == 0
+    else:
+        assert device.frames_dropped > 0 and counters.frames_missing == device.frames_dropped
+
+
+def test_the_devices_hold_must_be_positive():
+    with pytest.raises(ValueError, match="hold_s must be positive"):
+        WfsDevice(MemoryLink(), SimulatedBench.paper_shaker(seed=2), hold_s=0.0)

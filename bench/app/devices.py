@@ -76,6 +76,7 @@ def open_bench(
                 kind=config.kind,
                 paced=config.simulation.paced,
                 flow_control=config.simulation.flow_control,
+                wfs_hold_s=config.simulation.wfs_hold_s,
                 seed=config.simulation.seed,
                 tyre_pressure_bar=config.specimen.tyre_pressure_bar,
                 specimen_mounted=config.specimen.wheel_fitted,

@@ -24,7 +24,7 @@ from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
 from simulators.ports import TTY_RX_BUFFER_BYTES, PtyLink
-from simulators.wfs_device import WfsDevice
+from simulators.wfs_device import BACKPRESSURE_S, WfsDevice
 from simulators.world import SimulatedOperator, SimulatedWorld
 
 #: How far (s of samples) the unpaced bench may run ahead of the engine (``EngineTiming.backlog_s``):
@@ -44,14 +44,16 @@ class SimulatedLabSettings:
     tyre pressure, whether the wheel (car) is mounted, the tyre model (1-3, None: the world's
     default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing);
     ``flow_control``: the paced WFS link holds the device back when the host stops reading (up to
-    :data:`~simulators.wfs_device.BACKPRESSURE_S` of frames) instead of overrunning the port's
-    buffer; ``aux_roles``: the role of what each aux input of the WFS is wired to (the configuration's);
-    ``register_map``: the map the controller serves (the configuration's; None: the drivers'), so
-    that a map without the optional registers serves a controller without what they do."""
+    ``wfs_hold_s`` of frames, None: :data:`~simulators.wfs_device.BACKPRESSURE_S`; the unpaced link
+    always does) instead of overrunning the port's buffer; ``aux_roles``: the role of what each aux
+    input of the WFS is wired to (the configuration's); ``register_map``: the map the controller
+    serves (the configuration's; None: the drivers'), so that a map without the optional registers
+    serves a controller without what they do."""
 
     kind: str = "shaker"
     paced: bool = False
     flow_control: bool = False
+    wfs_hold_s: float | None = None
     seed: int = 1
     tyre_pressure_bar: float = 2.5
     specimen_mounted: bool = True
@@ -92,7 +94,12 @@ class SimulatedLab:
         self.link = PtyLink(rx_buffer_bytes=TTY_RX_BUFFER_BYTES if overruns else None)
         wiring = tuple(standard_name(role) if role in SIMULATED_SIGNALS else None for role in s.aux_roles)
         self.device = WfsDevice(
-            self.link, self.bench, seed=s.seed, speed_rad_s=s.wheel_speed_rad_s, aux_wiring=wiring
+            self.link,
+            self.bench,
+            seed=s.seed,
+            speed_rad_s=s.wheel_speed_rad_s,
+            aux_wiring=wiring,
+            hold_s=BACKPRESSURE_S if s.wfs_hold_s is None else s.wfs_hold_s,
         )
         self.runner = BenchRunner(self.bench, paced=s.paced)
         self.runner.sinks.append(self.device)
