@@ -50,7 +50,7 @@ def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back
     with AnalysisProcess(_fresh()) as process:
         for run in inputs:
             process.submit(run)
-        there = [process.next_result(RESULT_TIMEOUT_S) for _ in inputs]
+        there = [process.next_result(RESULT_TIMEOUT_S)[0] for _ in inputs]
         assert process.outstanding == 0 and process.next_result(0) is None
     assert [a.name for a in here] == ["plate_mass", "shaker", "sweep"]
     assert [(a.run_id, a.lines, a.results) for a in here] == [(a.run_id, a.lines, a.results) for a in there]
@@ -70,8 +70,8 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
     with AnalysisProcess(_fresh()) as process:
         process.submit(broken)
         process.submit(free_run)
-        flagged = process.next_result(RESULT_TIMEOUT_S)
-        analysed = process.next_result(RESULT_TIMEOUT_S)
+        flagged, _ = process.next_result(RESULT_TIMEOUT_S)
+        analysed, _ = process.next_result(RESULT_TIMEOUT_S)
     assert flagged.error.startswith("AttributeError") and flagged.lines[0].startswith("FLAG analysis failed")
     assert analysed.name == "plate_mass" and not analysed.error
     assert list(process.knowledge.analysed_runs) == ["broken-free_run", free_run.run_id]
@@ -82,7 +82,7 @@ def test_the_analysis_process_runs_as_batch_work_at_the_benchs_priority():
     of its results, and a lower one starves it on a busy host."""
     with AnalysisProcess(_fresh()) as process:
         process.submit(RunInputs("r", "free_run", {}))
-        assert process.next_result(RESULT_TIMEOUT_S).error  # answered: it has set its policy
+        assert process.next_result(RESULT_TIMEOUT_S)[0].error  # answered: it has set its policy
         pid = process._process.pid
         policy, child = os.sched_getscheduler(pid), os.getpriority(os.PRIO_PROCESS, pid)
     assert policy == SCHEDULING_POLICY == os.SCHED_BATCH

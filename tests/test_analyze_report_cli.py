@@ -62,8 +62,15 @@ def _free_run_results(path: Path) -> dict[str, float]:
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data(smoke_file):
     raw_before = _raw_digest(smoke_file)
-    text = wfsbench("analyze", str(smoke_file))
+    # the analysis stored after each run is read back: nothing new, nothing stored
+    stored_text = wfsbench("analyze", str(smoke_file))
+    assert stored_text.returncode == ExitCode.OK, stored_text.stderr
+    assert "\n== analysis as stored after each run by wfs-bench " in stored_text.stdout
+    assert "stored as results/" not in stored_text.stdout
+    # fitted again on request: the new fit's results stored under new names
+    text = wfsbench("analyze", str(smoke_file), "--reanalyse")
     assert text.returncode == ExitCode.OK, text.stderr
+    assert "\n== analysis analysed again: asked (--reanalyse)\n" in text.stdout
     assert re.search(
         r"^== \S+ \(free_run: plate_mass; stored as results/plate_mass-reanalysis-1\)$", text.stdout, re.M
     ), text.stdout
@@ -71,7 +78,7 @@ def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data
     assert re.search(m_comp, text.stdout, re.M)
     assert "2 mm Model" in text.stdout and "valid band" in text.stdout
 
-    run = wfsbench("analyze", str(smoke_file), "--json")
+    run = wfsbench("analyze", str(smoke_file), "--json", "--reanalyse")
     assert run.returncode == ExitCode.OK, run.stderr
     doc = json.loads(run.stdout)
     assert (doc["schema"], doc["version"]) == ("wfs-bench-analysis", 2)

@@ -139,7 +139,9 @@ def _matches(doc: Documented, obj: DumpedObject) -> bool:
         )
     if doc.kind == "number":
         return obj.kind == "attribute" and obj.dtype in _ATOMIC.values()
-    return obj.kind == "attribute" and obj.space == "scalar" and obj.dtype == doc.kind
+    # text: a scalar dataset of one string; else an attribute of the type named
+    kind, dtype = ("dataset", "str") if doc.kind == "text" else ("attribute", doc.kind)
+    return obj.kind == kind and obj.space == "scalar" and obj.dtype == dtype
 
 
 @pytest.fixture(scope="module")
@@ -180,6 +182,7 @@ def dumped(tmp_path_factory) -> dict[str, DumpedObject]:
     run.set_link_counters({"frames_ok": n, "gaps": 0})
     run.finish("complete")
     run.write_results("free_run", {"m_comp_kg": 12.0, "fit": {"freqs_hz": np.arange(5.0), "notes": ["ok"]}})
+    run.write_analysis_record('{"format": 1}')  # the store keeps the text; its reader checks it
     replay = writer.begin_run(  # a road replay: its drive attribute
         "002",
         kind="road_replay",

@@ -130,7 +130,11 @@ class CampaignAnalysis:
     number of runs) in the order they ran: the one that created the file (``sequence_name``) and
     those appended to it later. ``metadata``: the campaign's test metadata (field -> text, empty
     when not given; :mod:`sequences.metadata`). ``run_pressures_bar``: the tyre pressure each run
-    records (its ``set_tyre_pressure`` answer), by run id; a run without one is absent."""
+    records (its ``set_tyre_pressure`` answer), by run id; a run without one is absent.
+    ``source``: where the runs' analyses come from, as a reader says it (the records the analysis
+    stored after each run, or a refit and why); ``stored``: whether they are the stored records;
+    ``records``: the records of the runs analysed here (run id -> the record's text), which a file
+    without them can keep (:func:`~bench.app.analyze.store_records`)."""
 
     path: Path
     software_version: str
@@ -146,6 +150,9 @@ class CampaignAnalysis:
     sweep_record: SweepRecord | None = None
     metadata: Mapping[str, str] = field(default_factory=dict)
     run_pressures_bar: dict[str, float] = field(default_factory=dict)
+    source: str = ""
+    stored: bool = False
+    records: dict[str, str] = field(default_factory=dict)
 
     @property
     def status(self) -> AnalysisStatus:

@@ -4,12 +4,15 @@ The analysis of a run (a whole grid's tyre identification, the four-post quarter
 numerical work. In the bench's process it would hold the interpreter's lock against the WFS reader,
 the heartbeat and the engine's loop while the next run is under way; here it runs in a child
 interpreter (:mod:`bench.app.child_process`) holding a :class:`~bench.app.run_analysis.RunAnalyser`.
-The bench reads each run's records from its campaign file (:func:`~bench.app.run_analysis.run_inputs`;
-the file is the bench's own while it records) and sends them; the child sends back, for each, the
-analysis and what it changed in the campaign's knowledge. Both ways the messages are pickles, one after the
-other, on the child's standard input and output: first the campaign's knowledge, then one
+The bench reads each run's records from its campaign file
+(:func:`~bench.app.run_analysis.run_inputs`; the file is the bench's own while it records) and sends
+them; the child sends back, for each, the analysis, what it changed in the campaign's knowledge and
+the analysis's record. Both ways the messages are pickles, one after the other, on the child's
+standard input and output: first the campaign's knowledge, then one
 :class:`~bench.app.run_analysis.RunInputs` per run; back, for each run in the order they were sent,
-its ``RunAnalysis`` and what it changed in the campaign's knowledge (:func:`knowledge_changes`),
+its ``RunAnalysis``, what it changed in the campaign's knowledge
+(:func:`~bench.app.analysis_record.knowledge_changes`) and the record the campaign file keeps of it
+(:func:`~bench.app.analysis_record.record_text`: made here, off the bench's path), the changes of
 which :class:`AnalysisProcess` applies to the knowledge it was given. Only the changes travel: the
 whole knowledge grows with every run, and unpickling it after each would hold the interpreter's lock
 (and wake its garbage collector) for tens of milliseconds.
@@ -24,16 +27,16 @@ what :meth:`AnalysisProcess.submit` queued, as the child reads it between analys
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import pickle
 import queue
 import struct
 import subprocess
 import threading
-from typing import IO, Any
+from typing import IO
 
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
+from bench.app.analysis_record import KnowledgeChanges, analyse_and_record, apply_changes
 from bench.app.child_process import Child, start_child
 from bench.app.run_analysis import RunAnalyser, RunInputs
 
@@ -60,7 +63,7 @@ class AnalysisProcess:
         self.knowledge = knowledge
         self._process: Child | None = None
         self._outbox: queue.Queue[object] = queue.Queue()  # to the child; _END closes its input
-        self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges] | BaseException] = queue.Queue()
+        self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges, str] | BaseException] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self.outstanding = 0  # runs sent and not yet taken back
 
@@ -98,10 +101,10 @@ class AnalysisProcess:
         self._outbox.put(run)
         self.outstanding += 1
 
-    def next_result(self, timeout_s: float | None) -> RunAnalysis | None:
-        """The next analysis, its changes applied to :attr:`knowledge`, waiting up to ``timeout_s``
-        (None: until it comes; 0: only if it is there); None if none came. AnalysisProcessError if
-        the child ended before answering."""
+    def next_result(self, timeout_s: float | None) -> tuple[RunAnalysis, str] | None:
+        """The next analysis and its record's text (:mod:`bench.app.analysis_record`), its changes
+        applied to :attr:`knowledge`, waiting up to ``timeout_s`` (None: until it comes; 0: only if
+        it is there); None if none came. AnalysisProcessError if the child ended before answering."""
         if self.outstanding == 0:
             return None
         try:
@@ -112,9 +115,9 @@ class AnalysisProcess:
             self._results.put(result)  # every later call fails alike
             raise AnalysisProcessError(f"the analysis process ended: {result}")
         self.outstanding -= 1
-        outcome, changes = result
+        outcome, changes, record = result
         apply_changes(self.knowledge, changes)
-        return outcome
+        return outcome, record
 
     def _send_all(self, process: Child) -> None:
         """The sender thread: everything queued, in order, until _END closes the child's input. A
@@ -186,51 +189,6 @@ def _read_exactly(stream: IO[bytes], size: int) -> bytearray:
     return buffer
 
 
-#: What an analysis changed in the campaign's knowledge, by field: ("set", value) for a field given
-#: a new value, ("extend", items) for items appended to a list, ("update", items) for a dict's new or
-#: replaced entries.
-KnowledgeChanges = dict[str, tuple[str, Any]]
-
-
-def _snapshot(knowledge: CampaignKnowledge) -> dict[str, Any]:
-    """Each field's object, and a shallow copy of each list or dict, to compare with afterwards."""
-    snapshot = {}
-    for field in dataclasses.fields(knowledge):
-        value = getattr(knowledge, field.name)
-        copy = list(value) if isinstance(value, list) else dict(value) if isinstance(value, dict) else None
-        snapshot[field.name] = (value, copy)
-    return snapshot
-
-
-def knowledge_changes(before: dict[str, Any], knowledge: CampaignKnowledge) -> KnowledgeChanges:
-    """What changed in ``knowledge`` since ``before`` (:func:`_snapshot`)."""
-    changes: KnowledgeChanges = {}
-    for name, (old, copy) in before.items():
-        new = getattr(knowledge, name)
-        if new is not old:
-            changes[name] = ("set", new)
-        elif isinstance(new, list) and new[: len(copy)] == copy and len(new) > len(copy):
-            changes[name] = ("extend", new[len(copy) :])
-        elif isinstance(new, list) and new != copy:
-            changes[name] = ("set", new)
-        elif isinstance(new, dict):
-            updated = {key: value for key, value in new.items() if key not in copy or copy[key] is not value}
-            if updated:
-                changes[name] = ("update", updated)
-    return changes
-
-
-def apply_changes(knowledge: CampaignKnowledge, changes: KnowledgeChanges) -> None:
-    """Apply what :func:`knowledge_changes` found to another copy of the knowledge."""
-    for name, (how, value) in changes.items():
-        if how == "set":
-            setattr(knowledge, name, value)
-        elif how == "extend":
-            getattr(knowledge, name).extend(value)
-        else:
-            getattr(knowledge, name).update(value)
-
-
 def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
     """The child's side: the knowledge, then one analysis per run until its input closes. An
     analysis that fails in a way the analyser does not flag itself is sent back flagged too."""
@@ -240,13 +198,7 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
             run: RunInputs = read_message(stdin)
         except EOFError:
             return
-        before = _snapshot(analyser.knowledge)
-        try:
-            outcome = analyser.analyse(run)
-        except Exception as exc:
-            outcome = RunAnalysis.failed(run.run_id, run.kind, f"{type(exc).__name__}: {exc}")
-            analyser.knowledge.analysed_runs[run.run_id] = outcome
-        write_message(stdout, (outcome, knowledge_changes(before, analyser.knowledge)))
+        write_message(stdout, analyse_and_record(analyser, run, flag_defects=True))
 
 
 def child_main(stdin: IO[bytes], stdout: IO[bytes]) -> None:

@@ -27,7 +27,7 @@ from bench.engine.run_ids import RUN_ID
 from bench.store import add_results, open_campaign
 
 if TYPE_CHECKING:
-    from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
+    from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge, RunAnalysis
 
 #: How re-analysis results are named: ``<analysis name>-reanalysis-<n>``.
 REANALYSIS_NAME = re.compile(r"^(?P<name>.+)-reanalysis-(?P<n>[0-9]+)$")
@@ -64,32 +64,65 @@ def sequences_run(run_ids: Iterable[str]) -> tuple[tuple[str, int], ...]:
 
 
 def analyze_campaign(
-    path: str | Path, config: BenchConfig | None = None, knowledge: CampaignKnowledge | None = None
+    path: str | Path,
+    config: BenchConfig | None = None,
+    knowledge: CampaignKnowledge | None = None,
+    *,
+    reanalyse: bool = False,
 ) -> CampaignAnalysis:
-    """Analyse every complete run of the campaign file at ``path`` in order; ``config`` replaces
-    the configuration stored in the file (its masses). ``knowledge``: what the analysis of this
-    file's runs has established already (the post-run analysis of the campaign that wrote it, whose
-    analyses read the runs back from this file): the runs it took in are not analysed again, and
-    their analyses are those made as the campaign ran (a run analysed before later runs of its kind
-    existed says what it said then). Not both: the knowledge holds its masses. A file
-    that does not follow the schema raises :class:`~bench.store.StoreError` (which names the file
-    and the place); an analysis that fails for one run is a flagged :class:`RunAnalysis`, not an
-    error."""
+    """The analysis of every complete run of the campaign file at ``path``, in order: the one the
+    post-run analysis stored beside each run (:mod:`bench.app.analysis_record`), read back without
+    fitting anything; or, when ``reanalyse`` is asked, a run has no record this version reads, or
+    ``config`` replaces the configuration stored in the file (its masses), the runs analysed again
+    (:attr:`CampaignAnalysis.source` says which, and why). ``knowledge``: what the analysis of this
+    file's runs has established already (the post-run analysis of the campaign that wrote it, in
+    memory): the runs it took in are not analysed again. Not both: the knowledge holds its masses. A
+    file that does not follow the schema raises :class:`~bench.store.StoreError` (which names the
+    file and the place); an analysis that fails for one run is a flagged :class:`RunAnalysis`, not
+    an error."""
     path = Path(path)
     if config is not None and knowledge is not None:
         raise ValueError("give a configuration or a knowledge, not both: the knowledge holds its masses")
     with open_campaign(path) as campaign:
         from bench.analysis.campaign import CampaignAnalysis
-        from bench.app.run_analysis import RunAnalyser, initial_knowledge, replay_campaign
+        from bench.app.analysis_record import StoredAnalysis, analyse_and_record, stored_analysis
+        from bench.app.run_analysis import (
+            RunAnalyser,
+            RunInputs,
+            initial_knowledge,
+            replay_campaign,
+            runs_to_analyse,
+        )
 
         if config is None:
             config, source = stored_config(path, campaign.config_toml, campaign.config_name)
+            given = False
         else:
-            source = config.source
+            source, given = config.source, True
+        stored: StoredAnalysis | str
+        records: dict[str, str] = {}  # the records of the runs analysed here
+        if knowledge is not None:
+            stored = ""
+        elif given:
+            stored = "the bench configuration given replaces the stored one"
+        elif reanalyse:
+            stored = "asked (--reanalyse)"
+        else:
+            stored = stored_analysis(runs_to_analyse(campaign), initial_knowledge(config))
+        if isinstance(stored, StoredAnalysis):
+            knowledge, runs = stored.knowledge, stored.runs
+            how = f"as stored after each run by wfs-bench {', '.join(stored.software_versions)}"
+        else:
+            how = f"analysed again: {stored}" if stored else "as made while the campaign ran"
+            analyser = RunAnalyser(knowledge or initial_knowledge(config))
+            knowledge = analyser.knowledge
+
+            def analyse(run: RunInputs) -> RunAnalysis:
+                outcome, _, records[run.run_id] = analyse_and_record(analyser, run)
+                return outcome
+
+            runs = tuple(replay_campaign(campaign, analyser, analyse))
         masses = config.masses
-        if knowledge is None:
-            knowledge = initial_knowledge(config)
-        runs = tuple(replay_campaign(campaign, RunAnalyser(knowledge)))
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None
         )
@@ -117,6 +150,9 @@ def analyze_campaign(
                 for run in campaign.runs
                 if (pressure := run.conditions.get("tyre_pressure_bar")) is not None
             },
+            source=how,
+            stored=isinstance(stored, StoredAnalysis),
+            records=records,
         )
 
 
@@ -135,7 +171,8 @@ def next_reanalysis(path: str | Path) -> int:
 def store_reanalysis(analysis: CampaignAnalysis) -> dict[str, str]:
     """Write each analysed run's results beside it under a new name; returns run id -> the name.
     The stored result is the one the post-run analysis stores: the text summary and the scalar
-    results."""
+    results; a run without an analysis record (a file written before they were kept, or by another
+    writer) gets this analysis's, so that the file is fitted once."""
     n = next_reanalysis(analysis.path)
     names = {run.run_id: f"{run.name}-reanalysis-{n}" for run in analysis.runs}
     add_results(
@@ -144,5 +181,6 @@ def store_reanalysis(analysis: CampaignAnalysis) -> dict[str, str]:
             (run.run_id, names[run.run_id]): {"summary": "\n".join(run.lines), **run.results}
             for run in analysis.runs
         },
+        analysis.records,
     )
     return names

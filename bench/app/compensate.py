@@ -208,9 +208,12 @@ def prepare_compensation(
     return Compensation(measurement, filters, offset)
 
 
-def write_output(compensation: Compensation, out: Path, *, campaign: Path) -> list[str]:
+def write_output(
+    compensation: Compensation, out: Path, *, campaign: Path, campaign_analysis: str = ""
+) -> list[str]:
     """Compensate the whole measurement block by block into the HDF5 file ``out``
-    (:func:`bench.store.compensated.write_compensated`); the lines that say what was done."""
+    (:func:`bench.store.compensated.write_compensated`); the lines that say what was done.
+    ``campaign_analysis``: where the campaign's analysis came from (its stored records, or a refit)."""
     from bench.app.version import software_version
     from bench.store.compensated import write_compensated
 
@@ -220,6 +223,7 @@ def write_output(compensation: Compensation, out: Path, *, campaign: Path) -> li
         "software_version": software_version(),
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "campaign": str(campaign),
+        "campaign_analysis": campaign_analysis,
         "measurement": measurement.source,
         "identification": basis.label,
         "sample_rate_hz": filters.fs_hz,

@@ -144,18 +144,23 @@ class PostRunAnalysis:
                     return
                 if result is None:
                     return
-                self._done(result)
+                self._done(*result)
         finally:
             self._publishing = False
 
-    def _done(self, outcome: RunAnalysis) -> None:
+    def _done(self, outcome: RunAnalysis, record: str = "") -> None:
+        """Publish ``outcome`` with its ``record`` (none for an analysis the process never made)."""
         run_id, _, publish = self._sent.pop(0)
         if outcome.error:
             log.warning("analysis of %s failed: %s", run_id, outcome.error)
+        if not record:
+            log.warning("analysis of %s not kept as a record: readers will fit it again", run_id)
         if publish:
             results = {"summary": "\n".join(outcome.lines), **outcome.results}
             why = outcome.error or "; ".join(outcome.omitted)
-            self.publish(ev.AnalysisDone(run_id, outcome.name, outcome.lines, results, outcome.status, why))
+            self.publish(
+                ev.AnalysisDone(run_id, outcome.name, outcome.lines, results, outcome.status, why, record)
+            )
 
     def _lost(self, reason: str) -> None:
         """The analysis process is gone: every run sent and not answered is published as a

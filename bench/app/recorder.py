@@ -50,7 +50,10 @@ class Recorder:
             case ev.RunFinished():
                 self._finish(event)
             case ev.AnalysisDone():
-                self._finished[event.run_id].write_results(event.name, event.results)
+                run = self._finished[event.run_id]
+                run.write_results(event.name, event.results)
+                if event.record:
+                    run.write_analysis_record(event.record)
             case ev.SequenceFinished():
                 self.campaign.add_event(
                     "sequence finished", event.reason or event.status, status=event.status

@@ -53,16 +53,21 @@ def check_report_dir(out_dir: Path) -> None:
 
 
 def write_report(
-    campaign_path: str | Path, out_dir: str | Path, knowledge: CampaignKnowledge | None = None
+    campaign_path: str | Path,
+    out_dir: str | Path,
+    knowledge: CampaignKnowledge | None = None,
+    *,
+    reanalyse: bool = False,
 ) -> WrittenReport:
     """Analyse the campaign file and write its figures and ``report.html`` into ``out_dir``
     (created if needed; earlier figures of the same names are replaced). ``out_dir`` is checked
     first (:func:`check_report_dir`), so an unusable one costs no analysis; a write that fails
     anyway raises :class:`ReportDirError` too. ``knowledge``: the post-run analysis of the campaign
-    that wrote the file, whose runs are then not analysed again (:func:`analyze_campaign`)."""
+    that wrote the file, whose runs are then not analysed again; else the analysis stored after each
+    run, or (``reanalyse``, or none stored) a new fit (:func:`analyze_campaign`)."""
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
-    analysis = analyze_campaign(campaign_path, knowledge=knowledge)
+    analysis = analyze_campaign(campaign_path, knowledge=knowledge, reanalyse=reanalyse)
     # the plotting library is loaded once there is something to draw: a file refused costs no import
     from bench.report.figures import write_figures
     from bench.report.html import report_html

@@ -30,6 +30,7 @@ start from :func:`initial_knowledge` unless they are given what earlier runs est
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -418,13 +419,20 @@ def runs_to_analyse(campaign: CampaignFile) -> list[RunView]:
     ]
 
 
-def replay_campaign(campaign: CampaignFile, analyser: RunAnalyser) -> list[RunAnalysis]:
+def replay_campaign(
+    campaign: CampaignFile,
+    analyser: RunAnalyser,
+    analyse: Callable[[RunInputs], RunAnalysis] | None = None,
+) -> list[RunAnalysis]:
     """The analyses of :func:`runs_to_analyse` of ``campaign``, in this process; a run the
     analyser's knowledge has taken in already (analysed while the campaign ran, or carried from an
-    earlier sequence) gives the analysis it holds, without analysing it again."""
+    earlier sequence) gives the analysis it holds, without analysing it again. ``analyse``: how a
+    run is analysed with the analyser (default :meth:`RunAnalyser.analyse`; one that also keeps
+    its record: :func:`~bench.app.analysis_record.analyse_and_record`)."""
     known = analyser.knowledge.analysed_runs
+    analyse = analyse or analyser.analyse
     return [
-        known[run.run_id] if run.run_id in known else analyser.analyse(run_inputs(run, campaign))
+        known[run.run_id] if run.run_id in known else analyse(run_inputs(run, campaign))
         for run in runs_to_analyse(campaign)
     ]
 

@@ -64,11 +64,13 @@ TRIED_AGAIN = frozenset({FileStatus.LOCKED, FileStatus.CHANGING})
 @dataclass(frozen=True)
 class FileTask:
     """A file to index: its absolute ``path``, its stat when listed, and the SHA-256 of the indexed
-    files of its size (``known_sha256``): a file with one of them is not read."""
+    files of its size (``known_sha256``): a file with one of them is not read; ``reanalyse``: its runs
+    fitted again, not read from the analysis it stores."""
 
     path: str
     listed: FileStat
     known_sha256: tuple[str, ...] = ()
+    reanalyse: bool = False
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,7 @@ def index_file(task: FileTask) -> FileOutcome:
     stat, sha256 = seen
     if sha256 in task.known_sha256:
         return FileOutcome(task.path, FileStatus.INDEXED, stat, sha256, opened=False, rows=None)
-    status, error, columns, rows = _read(task.path)
+    status, error, columns, rows = _read(task.path, reanalyse=task.reanalyse)
     if FileStat.of(task.path) != stat:
         return _skipped(task, FileStatus.CHANGING, "changed while it was read: being written", stat)
     file_row = {"entry": c.FILE, "file_status": status, "error": error}
@@ -148,7 +150,7 @@ def _table(path: str, stat: FileStat, sha256: str | None, rows: list[Row]) -> pa
     return pa.Table.from_pylist(numbered, schema=c.arrow_schema())
 
 
-def _read(path: str) -> tuple[FileStatus, str | None, Row, list[Row]]:
+def _read(path: str, *, reanalyse: bool) -> tuple[FileStatus, str | None, Row, list[Row]]:
     """Open the campaign file (read only): its status and error, its file columns, and the rows
     of its runs, stored results and analysis."""
     from bench.app.analyze import CampaignFileError, analyze_campaign
@@ -169,7 +171,7 @@ def _read(path: str) -> tuple[FileStatus, str | None, Row, list[Row]]:
             return FileStatus.DAMAGED, f"/: unreadable attributes ({err})", {}, []
         status, error, analysis = FileStatus.INDEXED, None, None
         try:
-            analysis = analyze_campaign(path)
+            analysis = analyze_campaign(path, reanalyse=reanalyse)
         except (StoreError, CampaignFileError) as err:
             status, error = FileStatus.NOT_ANALYSED, _error(path, err)
         except Exception as err:  # a defect met in one file of an archive must not stop the others
@@ -284,22 +286,33 @@ def build_index(
     executor: Executor,
     *,
     verify: bool = False,
+    reanalyse: bool = False,
     files_per_task: int = FILES_PER_TASK,
     progress: Progress | None = None,
 ) -> IndexSummary:
     """Index the campaign files under ``roots`` into the index directory ``out_dir`` (created, or
-    brought up to date); one index run at a time per directory (its lock, :mod:`bench.locks`)."""
+    brought up to date); one index run at a time per directory (its lock, :mod:`bench.locks`).
+    ``reanalyse``: the files read are fitted again instead of read from the analysis they store."""
     out_dir = Path(out_dir)
     with locks.holding(locks.file_key(out_dir), f"the index {out_dir}"):
         store.open_index_dir(out_dir)
-        return _Run(roots, out_dir, verify, progress).run(executor, files_per_task)
+        return _Run(roots, out_dir, verify, progress, reanalyse=reanalyse).run(executor, files_per_task)
 
 
 class _Run:
     """One index run: the plan against the index held, the outcomes written, the parts replaced."""
 
-    def __init__(self, roots: Sequence[Path], out_dir: Path, verify: bool, progress: Progress | None) -> None:
+    def __init__(
+        self,
+        roots: Sequence[Path],
+        out_dir: Path,
+        verify: bool,
+        progress: Progress | None,
+        *,
+        reanalyse: bool,
+    ) -> None:
         self.roots, self.out_dir, self.verify, self.progress = roots, out_dir, verify, progress
+        self.reanalyse = reanalyse
         self.held, superseded = store.indexed_files(out_dir)
         self.drop: dict[Path, set[str]] = {part: set(paths) for part, paths in superseded.items()}
         self.by_contents: dict[int, dict[str, str]] = {}  # size -> sha256 -> a path indexed with it
@@ -342,7 +355,7 @@ class _Run:
             if unchanged and not self.verify:
                 self.summary.unchanged += 1
                 continue
-            yield FileTask(path, stat, tuple(self.by_contents.get(stat.size_bytes, {})))
+            yield FileTask(path, stat, tuple(self.by_contents.get(stat.size_bytes, {})), self.reanalyse)
 
     def _replace(self, held: store.IndexedFile) -> None:
         """The rows of ``held`` in its part are replaced (or dropped)."""

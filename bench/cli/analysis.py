@@ -45,13 +45,13 @@ def _analyze(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     try:
-        analysis = analyze_campaign(path)
+        analysis = analyze_campaign(path, reanalyse=args.reanalyse)
     except (StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return unreadable_file_code(exc)
     complete = analysis.runs and not analysis.not_complete
     code, names = ExitCode.OK if complete else ExitCode.INCOMPLETE, {}
-    if args.store:
+    if args.store and not analysis.stored:  # an analysis read from the records is in the file already
         try:
             names = store_reanalysis(analysis)
         except StoreError as exc:
@@ -67,6 +67,7 @@ def _analyze(args: argparse.Namespace) -> int:
     print(f"== test metadata of {analysis.path}")
     for line in metadata_lines(analysis.metadata):
         print(line)
+    print(f"== analysis {analysis.source}")
     for run in analysis.runs:
         stored = f"; stored as results/{names[run.run_id]}" if run.run_id in names else ""
         print(f"== {run.run_id} ({run.kind}: {run.name}{stored})")
@@ -86,7 +87,7 @@ def _report(args: argparse.Namespace) -> int:
     if (Path(args.out) / REPORT_PAGE).is_file():  # said first: the earlier report is replaced
         print(f"replacing the report in {args.out} (its {REPORT_PAGE} and the figures of the same names)")
     try:
-        written = write_report(Path(args.file), Path(args.out))
+        written = write_report(Path(args.file), Path(args.out), reanalyse=args.reanalyse)
     except (StoreError, CampaignFileError, ReportDirError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return unreadable_file_code(exc)
@@ -96,6 +97,17 @@ def _report(args: argparse.Namespace) -> int:
     return ExitCode.OK
 
 
+def add_reanalyse_option(parser: argparse.ArgumentParser) -> None:
+    """``--reanalyse``: fit the campaign's runs again instead of reading the analysis stored after
+    each run (docs/hdf5.md, *The analysis record*)."""
+    parser.add_argument(
+        "--reanalyse",
+        action="store_true",
+        help="fit every run again instead of reading the analysis stored after each run (a file"
+        " without stored analyses is always fitted again, and says so)",
+    )
+
+
 def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``analyze``, ``report`` and ``show`` (:mod:`bench.cli.show`) to the ``wfsbench``
     subcommands: the commands that read a campaign file."""
@@ -103,7 +115,8 @@ def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
 
     analyze = sub.add_parser(
         "analyze",
-        help="analyse a campaign file (any writer); results are stored in it under new names"
+        help="a campaign file's analysis: as stored after each run, or fitted again (--reanalyse, a"
+        " file without stored analyses); the results of a new fit are stored in it under new names"
         " (--no-store: only printed)",
     )
     analyze.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
@@ -114,9 +127,11 @@ def add_analysis_commands(sub: argparse._SubParsersAction) -> None:
         action="store_false",
         help="only print: store no results, open the file read-only (it is left byte for byte as it was)",
     )
+    add_reanalyse_option(analyze)
     analyze.set_defaults(run=_analyze)
     report = sub.add_parser("report", help="figures and a self-contained HTML page of a campaign file")
     report.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     report.add_argument("--out", required=True, help="directory for the PNG figures and report.html")
+    add_reanalyse_option(report)
     report.set_defaults(run=_report)
     add_show_command(sub)

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode
 
 if TYPE_CHECKING:
@@ -84,12 +85,13 @@ def _index(args: argparse.Namespace) -> int:
     out = Path(args.out)
     bar = _Bar()
     try:
+        options = {"verify": args.verify, "reanalyse": args.reanalyse, "progress": bar}
         with bar.progress:
             if args.workers == 0 and not args.scheduler:
-                summary = build_index(roots, out, InProcess(), verify=args.verify, progress=bar)
+                summary = build_index(roots, out, InProcess(), **options)
             else:
                 with dask_client(args.scheduler, args.workers or os.cpu_count() or 1) as client:
-                    summary = build_index(roots, out, OnDask(client), verify=args.verify, progress=bar)
+                    summary = build_index(roots, out, OnDask(client), **options)
     except IndexDirError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID
@@ -149,6 +151,7 @@ def add_archive_commands(sub: argparse._SubParsersAction) -> None:
     index.add_argument(
         "--verify", action="store_true", help="hash every file, not only those whose size or time changed"
     )
+    add_reanalyse_option(index)
     index.set_defaults(run=_index)
     trends = sub.add_parser(
         "trends",

@@ -19,6 +19,7 @@ import math
 import sys
 from pathlib import Path
 
+from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode, unreadable_file_code
 
 
@@ -61,7 +62,8 @@ def _measurement(args: argparse.Namespace):
 
 
 def _compensation(args: argparse.Namespace):
-    """The compensation of the measurement with the campaign's analysis (refused: what is missing)."""
+    """The compensation of the measurement with the campaign's analysis (refused: what is missing),
+    and where that analysis came from (:attr:`~bench.analysis.campaign.CampaignAnalysis.source`)."""
     from bench.app.analyze import CampaignFileError, analyze_campaign
     from bench.app.compensate import CompensationRefusedError, prepare_compensation
     from bench.store import StoreError
@@ -75,11 +77,11 @@ def _compensation(args: argparse.Namespace):
         _check_filters_path(Path(args.filters))
     measurement, pressure = _measurement(args)
     try:
-        analysis = analyze_campaign(Path(args.campaign))
+        analysis = analyze_campaign(Path(args.campaign), reanalyse=args.reanalyse)
     except (StoreError, CampaignFileError) as exc:
         raise _StopError(unreadable_file_code(exc), f"error: {exc}") from None
     try:
-        return prepare_compensation(analysis, measurement, pressure)
+        return prepare_compensation(analysis, measurement, pressure), analysis.source
     except CompensationRefusedError as exc:
         raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
 
@@ -103,11 +105,13 @@ def _compensate(args: argparse.Namespace) -> int:
 
     filters = Path(args.filters) if args.filters else None
     try:
-        compensation = _compensation(args)
+        compensation, analysis_source = _compensation(args)
         if filters is not None:  # first: a folder that went away meanwhile stops it before the output
             write_filters(filters, compensation.filters, compensation.accelerometer_offset_m_s2)
         try:
-            lines = write_output(compensation, Path(args.out), campaign=Path(args.campaign))
+            lines = write_output(
+                compensation, Path(args.out), campaign=Path(args.campaign), campaign_analysis=analysis_source
+            )
         except BaseException:
             if filters is not None:
                 filters.unlink(missing_ok=True)  # nothing of a failed compensation is left
@@ -170,4 +174,5 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="also export the filters for a real-time DSP (.json or .csv): taps, latency, rate, band",
     )
+    add_reanalyse_option(cmd)
     cmd.set_defaults(run=_compensate)

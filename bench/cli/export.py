@@ -13,6 +13,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode, unreadable_file_code
 
 FORMATS = ("mdf4", "uff58", "csv", "rpc3")
@@ -24,7 +25,8 @@ def _export(args: argparse.Namespace) -> int:
     from bench.store import StoreError
 
     try:
-        for line in export(Path(args.file), args.format, Path(args.out), args.run_id):
+        lines = export(Path(args.file), args.format, Path(args.out), args.run_id, reanalyse=args.reanalyse)
+        for line in lines:
             print(line)
     except (ExportError, StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -32,9 +34,10 @@ def _export(args: argparse.Namespace) -> int:
     return ExitCode.OK
 
 
-def export(path: Path, fmt: str, out: Path, run_id: str | None) -> list[str]:
+def export(path: Path, fmt: str, out: Path, run_id: str | None, *, reanalyse: bool = False) -> list[str]:
     """Export ``path`` (every run, or ``run_id``) as ``fmt`` to ``out``; the lines say what was
-    written. Refusals raise :class:`~bench.export.common.ExportError` or
+    written. UFF 58 writes the analysis's FRFs: as stored after each run, or fitted again
+    (``reanalyse``, or none stored). Refusals raise :class:`~bench.export.common.ExportError` or
     :class:`~bench.store.StoreError`, before anything is written."""
     from bench.export.common import ExportError, check_output_free, selected_runs
     from bench.store import open_campaign
@@ -59,15 +62,17 @@ def export(path: Path, fmt: str, out: Path, run_id: str | None) -> list[str]:
 
             return [f"rpc3 {p}" for p in write_rpc3(runs, out)]
         ids, created = {run.run_id for run in runs}, campaign.created
-    return _export_uff58(path, out, run_id, ids, created)
+    return _export_uff58(path, out, run_id, ids, created, reanalyse=reanalyse)
 
 
-def _export_uff58(path: Path, out: Path, run_id: str | None, ids: set[str], created: str) -> list[str]:
+def _export_uff58(
+    path: Path, out: Path, run_id: str | None, ids: set[str], created: str, *, reanalyse: bool
+) -> list[str]:
     from bench.app.analyze import analyze_campaign
     from bench.export.common import ExportError
     from bench.export.uff58 import campaign_functions, id_date, write_uff58
 
-    analysis = analyze_campaign(path)
+    analysis = analyze_campaign(path, reanalyse=reanalyse)
     functions = campaign_functions(analysis, ids)
     if not functions:
         which = f"run {run_id}" if run_id else "the campaign"
@@ -100,4 +105,5 @@ def add_export_command(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--out", required=True, metavar="PATH", help="new file (mdf4, uff58) or new folder (csv, rpc3)"
     )
+    add_reanalyse_option(parser)
     parser.set_defaults(run=_export)

@@ -228,7 +228,9 @@ class RunFinished:
 class AnalysisDone:
     """Results of the analysis after a run: ``summary`` lines for people, ``results`` for storage;
     ``status`` how far it got (``complete``, ``partial`` or ``failed``: the analysis's
-    :class:`~bench.analysis.campaign.AnalysisStatus`) and, when not complete, ``why``."""
+    :class:`~bench.analysis.campaign.AnalysisStatus`) and, when not complete, ``why``; ``record``:
+    the analysis kept as a record (JSON text, :mod:`bench.app.analysis_record`; empty when the
+    analysis process was lost before it made one)."""
 
     run_id: str
     name: str
@@ -236,6 +238,7 @@ class AnalysisDone:
     results: Mapping[str, Any]
     status: str
     why: str = ""
+    record: str = ""
 
     @property
     def complete(self) -> bool:

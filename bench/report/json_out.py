@@ -276,6 +276,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "sequence_name": analysis.sequence_name,
         "sequences": [{"name": name, "runs": runs} for name, runs in analysis.sequences],
         "config_source": analysis.config_source,
+        "analysis_source": analysis.source,
         "metadata": {name: analysis.metadata.get(name, "") for name in METADATA_FIELDS},
         "status": str(analysis.status),
         "given": {"sensor_mass_kg": analysis.sensor_mass_kg, "wheel_mass_kg": analysis.wheel_mass_kg},

@@ -369,6 +369,13 @@ class RunView:
             for k, v in _member(path, group, s.LINK, h5py.Group).attrs.items()
         }
         self._results = _member(path, group, s.RESULTS, h5py.Group)
+        self._analysis = group.get(s.ANALYSIS)
+        if self._analysis is not None and not (
+            isinstance(self._analysis, h5py.Dataset)
+            and self._analysis.shape == ()
+            and h5py.check_string_dtype(self._analysis.dtype) is not None
+        ):
+            raise StoreError(path, f"{where}/{s.ANALYSIS}", "the analysis record must be a string")
 
     def _channel_datasets(self, group: h5py.Group) -> dict[str, h5py.Dataset]:
         datasets = {}
@@ -395,6 +402,15 @@ class RunView:
                 )
         self.channel_specs = tuple(specs)
         return datasets
+
+    @property
+    def analysis_record(self) -> str | None:
+        """The run's analysis record as stored (JSON text: bench/app/analysis_record.py); None when
+        the run has none (not analysed yet, or written before records were kept)."""
+        if self._analysis is None:
+            return None
+        with _reading(self.path, self._analysis.name):
+            return self._analysis.asstr()[()]
 
     @property
     def result_names(self) -> tuple[str, ...]:

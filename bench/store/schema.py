@@ -62,14 +62,17 @@ POINTS = "points"
 EVENTS = "events"
 LINK = "link"
 RESULTS = "results"
+#: A run's analysis record: one JSON text (bench/app/analysis_record.py), written once.
+ANALYSIS = "analysis"
 
 CHANNEL_DTYPES = ("f4", "u4", "u2")
 POINT_STATUSES = tuple(PointStatus)
 
-_STR = h5py.string_dtype("utf-8")
+#: A UTF-8 variable-length string.
+STR = h5py.string_dtype("utf-8")
 
 #: numpy type of a points-table column, by the type of the :class:`PointAttempt` field it holds.
-_COLUMN_TYPES = {"int": "<i8", "float": "<f8", "str": _STR}
+_COLUMN_TYPES = {"int": "<i8", "float": "<f8", "str": STR}
 #: The points table: one column per field of :class:`~sequences.points.PointAttempt`, same names.
 POINT_DTYPE = np.dtype([(f.name, _COLUMN_TYPES[f.type]) for f in fields(PointAttempt)])
 #: Points-table fields added to version-2 files after the first were written (the amplitude held
@@ -110,7 +113,7 @@ def required_point_fields(version: int) -> tuple[str, ...]:
 
 
 EVENT_DTYPE = np.dtype(
-    [("time_unix_s", "<f8"), ("sample", "<i8"), ("kind", _STR), ("text", _STR), ("fields", _STR)]
+    [("time_unix_s", "<f8"), ("sample", "<i8"), ("kind", STR), ("text", STR), ("fields", STR)]
 )
 
 

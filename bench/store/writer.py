@@ -519,6 +519,12 @@ class RunWriter:
         _write_results(self._campaign.path, self._group, name, result)
         self._campaign.flush()
 
+    def write_analysis_record(self, text: str) -> None:
+        """Store the run's analysis record (a JSON text, docs/hdf5.md) as ``analysis``; written once,
+        also after :meth:`finish` (the analysis runs after the run)."""
+        _write_analysis_record(self._campaign.path, self._group, text)
+        self._campaign.flush()
+
     def flush(self) -> None:
         self._campaign.flush()
 
@@ -646,6 +652,14 @@ def _write_results(path: Path, run: h5py.Group, name: str, result: Mapping[str, 
     group.attrs[s.RESULT_STORED] = _now_iso()
 
 
+def _write_analysis_record(path: Path, run: h5py.Group, text: str) -> None:
+    """The run's analysis record as ``run/analysis``, refused if it has one (never overwritten)."""
+    if s.ANALYSIS in run:
+        where = f"{run.name}/{s.ANALYSIS}"
+        raise StoreError(path, where, "exists already: an analysis record is written once")
+    run.create_dataset(s.ANALYSIS, data=text, dtype=s.STR).attrs[s.RESULT_STORED] = _now_iso()
+
+
 def _check_stored_key(path: Path, where: str, result: Mapping[str, Any] | object) -> None:
     """A result's own top-level key may not take the name of the attribute that says when it was
     stored (:data:`~bench.store.schema.RESULT_STORED`)."""
@@ -653,15 +667,21 @@ def _check_stored_key(path: Path, where: str, result: Mapping[str, Any] | object
         raise StoreError(path, f"{where}/{s.RESULT_STORED}", "is the attribute saying when it was stored")
 
 
-def add_results(path: str | Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
+def add_results(
+    path: str | Path,
+    results: Mapping[tuple[str, str], Mapping[str, Any] | object],
+    analysis_records: Mapping[str, str] | None = None,
+) -> None:
     """Store the results of a re-analysis beside the runs of the campaign file at ``path``:
-    ``results`` maps (run id, result name) to a result. The file is checked by the reader first;
-    every name must be new (checked for all before anything is written: a refused re-analysis
-    leaves the file as it was). No file may be open for writing by a run at the same time."""
+    ``results`` maps (run id, result name) to a result; ``analysis_records``, run id to its analysis
+    record, for the runs that have none (a run's record is written once: one it has is kept). The
+    file is checked by the reader first; every name must be new (checked for all before anything is
+    written: a refused re-analysis leaves the file as it was). No file may be open for writing by a
+    run at the same time."""
     path = Path(path)
     _hold(path, "analyse it once that has finished")
     try:
-        _add_results(path, results)
+        _add_results(path, results, analysis_records or {})
     finally:
         locks.release(s.campaign_key(path))
 
@@ -701,7 +721,9 @@ def _hold(path: Path, advice: str) -> None:
         raise s.CampaignInUseError(path, exc.holder, advice) from None
 
 
-def _add_results(path: Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object]) -> None:
+def _add_results(
+    path: Path, results: Mapping[tuple[str, str], Mapping[str, Any] | object], records: Mapping[str, str]
+) -> None:
     open_campaign(path).close()
     try:
         file = h5py.File(path, "r+")
@@ -716,8 +738,14 @@ def _add_results(path: Path, results: Mapping[tuple[str, str], Mapping[str, Any]
             if name in runs[run_id][s.RESULTS]:
                 raise StoreError(path, where, "exists already: results are never overwritten")
             _check_stored_key(path, where, result)
+        for run_id in records:
+            if run_id not in runs:
+                raise StoreError(path, f"/{s.RUNS}/{run_id}", "no such run")
         for (run_id, name), result in results.items():
             _write_results(path, runs[run_id], name, result)
+        for run_id, text in records.items():
+            if s.ANALYSIS not in runs[run_id]:
+                _write_analysis_record(path, runs[run_id], text)
         file.flush()
 
 
