@@ -114,7 +114,8 @@ def test_analyze_no_store_prints_and_leaves_the_file_as_it_was(campaign: Path, c
         "  notes            new tyre",
         "                   run in",
     ]
-    assert text[5] == "== smoke-s003-free_run (free_run: plate_mass)"  # no "stored as"
+    assert text[5].startswith("== analysis as stored after each run by wfs-bench ")
+    assert text[6] == "== smoke-s003-free_run (free_run: plate_mass)"  # no "stored as"
     assert _state(campaign) == before
     assert not (campaign.parent.parent / "locks").exists()
     page = report_html(analyze_campaign(campaign), ())
