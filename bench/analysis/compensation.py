@@ -34,7 +34,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from scipy.signal import butter, sosfiltfilt, welch
 
 from bench.analysis.fir import (
     STOP_BAND_FACTOR,
@@ -89,6 +88,7 @@ def estimate_wheel_mass(
     correlated from sample to sample, so the white-noise ``s^2 (X'X)^-1`` would be far too small,
     and a flat in-band density is not exact either (the filter's skirts, coloured sensor noise).
     """
+    from scipy.signal import butter, sosfiltfilt
     fs = as_sample_rate(fs_hz)
     chans = {"f_contact": f_contact, "f_wfs": f_wfs, "a_hub": a_hub}
     if a_contact is not None:
@@ -138,6 +138,7 @@ def _coloured_noise_covariance(X: np.ndarray, res: np.ndarray, fs: float) -> np.
     residual. For noise flat over a band ``B`` this reduces to ``(X'X)^-1 RSS / (2 B N / fs)``: one
     correction for the band-limiting, not two.
     """
+    from scipy.signal import welch
     n = X.shape[0]
     f_psd, psd = welch(res, fs=fs, nperseg=min(n, 4096))
     spec = np.fft.rfft(X, axis=0)

@@ -26,7 +26,6 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, toeplitz
-from scipy.signal import freqz, lfilter
 
 from bench.analysis.validation import AnalysisInputError
 
@@ -37,6 +36,7 @@ STOP_BAND_FACTOR = 1.5
 
 def fir_response(taps: np.ndarray, freq_hz: np.ndarray, fs_hz: float) -> np.ndarray:
     """Complex frequency response of FIR ``taps`` at ``freq_hz`` (:func:`scipy.signal.freqz`)."""
+    from scipy.signal import freqz
     f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
     return freqz(np.asarray(taps, dtype=float), 1.0, worN=f, fs=fs_hz)[1].reshape(np.shape(freq_hz))
 
@@ -102,6 +102,7 @@ def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.n
     history is finite but wrong there), the last ``latency_samples`` input after it. Both are NaN,
     never a guess.
     """
+    from scipy.signal import lfilter
     y = lfilter(taps, [1.0], np.asarray(x, dtype=float))
     out = np.full(y.size, np.nan)
     out[: y.size - latency_samples] = y[latency_samples:]
@@ -126,6 +127,7 @@ class StreamingFir:
         self._zi = [np.zeros(t.size - 1) for t in self.taps]
 
     def process(self, *blocks: np.ndarray) -> np.ndarray:
+        from scipy.signal import lfilter
         if len(blocks) != len(self.taps):
             raise AnalysisInputError(f"expected {len(self.taps)} input blocks, got {len(blocks)}")
         sizes = {np.asarray(b).size for b in blocks}

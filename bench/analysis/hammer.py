@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import find_peaks, peak_widths, resample
 
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signal
 
@@ -79,6 +78,7 @@ class HammerResult:
 
 
 def _half_power(x: np.ndarray, fs: float) -> tuple[float, float]:
+    from scipy.signal import peak_widths
     n_fft = 1 << int(np.ceil(np.log2(max(64 * x.size, 1 << 16))))
     p = np.abs(np.fft.rfft(x, n_fft)) ** 2
     f = np.fft.rfftfreq(n_fft, 1 / fs)
@@ -105,6 +105,7 @@ def analyse_hammer_decay(
     response_n: np.ndarray, fs_hz: float, sensor_mass_kg: float, *, hammer_n: np.ndarray | None = None
 ) -> HammerResult:
     """Analyse a hammer test record (see the module docstring)."""
+    from scipy.signal import find_peaks, resample
     fs = as_sample_rate(fs_hz)
     x = as_signal("response", response_n, min_samples=64)
     if sensor_mass_kg <= 0:

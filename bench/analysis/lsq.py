@@ -20,8 +20,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import chi2 as chi2_distribution
 
 Z95 = 1.959964
 UNDETERMINED_RELATIVE_CI = 0.5
@@ -84,6 +82,7 @@ def chi2_far_outside_noise(chi2: float, dof: int) -> bool:
     """``chi2`` of whitened residuals with ``dof`` degrees of freedom exceeds the
     ``OUTSIDE_NOISE_QUANTILE`` quantile of its distribution and ``OUTSIDE_NOISE_MIN_REDUCED_CHI2``
     times ``dof``: the residuals are far larger than the data's stated uncertainty."""
+    from scipy.stats import chi2 as chi2_distribution
     dof = max(int(dof), 1)
     limit = max(chi2_distribution.ppf(OUTSIDE_NOISE_QUANTILE, dof), OUTSIDE_NOISE_MIN_REDUCED_CHI2 * dof)
     return bool(chi2 > limit)
@@ -132,6 +131,7 @@ def weighted_fit(
     ``jacobian``: the derivatives of the residuals, one column per parameter in the order of
     ``start`` (unscaled units); without it the solver differentiates by finite differences,
     at ``p`` residual evaluations per Jacobian."""
+    from scipy.optimize import least_squares
     names: Sequence[str] = tuple(start)
     sc = np.array([(scale or {}).get(n, abs(start[n]) or 1.0) for n in names], dtype=float)
     lo, hi = np.array([bounds[n] for n in names], dtype=float).T

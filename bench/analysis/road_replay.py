@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import welch
 
 from bench.analysis.compensation import advance_acceleration, hub_acceleration_compensation
 from bench.analysis.measurement_compensation import CompensationFilters, CompensationStream
@@ -113,6 +112,7 @@ class RoadReplayResult:
 
 
 def _spectra(signals: dict[str, np.ndarray], fs_hz: float) -> dict[str, np.ndarray]:
+    from scipy.signal import welch
     n = next(iter(signals.values())).size
     segment = min(round(SPECTRUM_SEGMENT_S * fs_hz), max(n // 2, 16))
     out: dict[str, np.ndarray] = {}

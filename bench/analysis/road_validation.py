@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import csd, welch
 
 from bench.analysis.validation import AnalysisInputError
 
@@ -88,6 +87,7 @@ def coverage(
 def ratio_over_truth(force_n: np.ndarray, truth_n: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """``F / F_contact`` over frequency (H1 with the true force as the reference: its own noise-free
     signal), Welch segments of :data:`RATIO_SEGMENT_S`; frequencies (Hz) and complex ratios."""
+    from scipy.signal import csd, welch
     n = min(round(RATIO_SEGMENT_S * fs_hz), force_n.size)
     f, s_tt = welch(truth_n, fs=fs_hz, nperseg=n)
     _, s_tf = csd(truth_n, force_n, fs=fs_hz, nperseg=n)

@@ -25,7 +25,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.signal import hilbert
 
 from bench.analysis.compensation import (
     ModelCompensator,
@@ -626,6 +625,7 @@ def sweep_amplitude_m(displacement_m: np.ndarray) -> float:
     """The displacement amplitude a sweep record shows: the median of its envelope (the magnitude
     of the analytic signal of the displacement less its median) over the record's middle half,
     clear of the tapers and of the transform's edge effects."""
+    from scipy.signal import hilbert
     z = np.asarray(displacement_m, dtype=float)
     envelope = np.abs(hilbert(z - np.median(z)))
     quarter = z.size // 4

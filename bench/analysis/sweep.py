@@ -52,7 +52,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import csd, spectrogram, welch
 
 from bench.analysis.frf import Frf
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
@@ -139,6 +138,7 @@ def _excitation_time_s(
 ) -> np.ndarray:
     """Energy centroid in time of the reference at each frequency ``f`` (short-window spectrogram),
     from the windows that hold no bridged stretch (``gaps_s``: what fills one is no excitation)."""
+    from scipy.signal import spectrogram
     short = max(seg // TIME_RESOLUTION_DIVISOR, 16)
     fc, tc, sxx = spectrogram(
         x, fs=fs, window="hann", nperseg=short, noverlap=short - max(short // 4, 1), detrend="constant"
@@ -195,6 +195,7 @@ def sweep_frfs(
     flank bin. Elsewhere a segment over a stretch sees all its channels bridged alike: the
     response's transient at the stretch's edges is what the coherence test judges.
     """
+    from scipy.signal import csd, welch
     fs = as_sample_rate(fs_hz)
     if estimator not in ESTIMATORS:
         raise AnalysisInputError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")

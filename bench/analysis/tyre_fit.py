@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, TypeVar
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from bench.analysis.frf import Frf
 from bench.analysis.lsq import (
@@ -687,6 +686,7 @@ def _peak(
     band: tuple[float, float],
 ) -> tuple[float, float]:
     """Frequency and height of the largest ``|F_wfs / F_contact|`` of the model in ``band``."""
+    from scipy.optimize import minimize_scalar
     tyre, rubber = _model_objects(model, values, wheel_mass_kg)
 
     def magnitude(f_hz: float | np.ndarray) -> np.ndarray:

@@ -27,9 +27,12 @@ from typing import IO, Any
 
 #: The modules a child runs, imported once by the server the children are forked from.
 CHILD_MODULES = ("bench.app.analysis_process", "bench.app.lab_process")
+#: The libraries the analysis imports where it first fits (so that a command that only reads a stored
+#: analysis never loads them), imported once by the server too.
+FITTING_LIBRARIES = ("scipy.optimize", "scipy.signal", "scipy.stats")
 
 _context = multiprocessing.get_context("forkserver")
-_context.set_forkserver_preload(list(CHILD_MODULES))
+_context.set_forkserver_preload([*CHILD_MODULES, *FITTING_LIBRARIES])
 
 
 class Child:

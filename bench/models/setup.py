@@ -11,7 +11,6 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
-from scipy.optimize import brentq
 
 from bench.models.benches import TyreModel, free_run, hammer_test, quarter_car, shaker_bench
 from bench.models.network import MechanicalNetwork
@@ -102,6 +101,7 @@ class BenchSetup:
         changes, so a balance below it is the response at the stick deflection. Linear tyres are
         returned unchanged.
         """
+        from scipy.optimize import brentq
         if self.nonlinearity is None or not self.has_tyre or amplitude_m <= 0:
             return self.tyre
         law = self.nonlinearity
@@ -134,6 +134,7 @@ class BenchSetup:
         with the deflection's rms and rms rate), found with the nominal tyre. Linear tyres are
         returned unchanged.
         """
+        from scipy.optimize import brentq
         if self.nonlinearity is None or not self.has_tyre:
             return self.tyre
         law = self.nonlinearity
