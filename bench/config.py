@@ -163,7 +163,7 @@ class Simulation:
     unpaced bench waits for its host anyway), and whether the paced WFS link has hardware flow
     control (``flow_control``: a host that stops reading holds the device back, which keeps up to
     ``wfs_hold_s`` of frames, instead of overrunning the port's 4095-byte buffer). The unpaced link
-    always waits for its host, up to ``wfs_hold_s`` too (None: the simulated device's own, 1 s)."""
+    always waits for its host, up to ``wfs_hold_s`` too (None: 1 s paced, 5 s unpaced)."""
 
     seed: int = 1
     paced: bool = False

@@ -229,10 +229,11 @@ def test_every_engine_timeout_is_a_configuration_key():
         parse_bench_config("[timing]\nlink_s = 1\n", "lab.toml")
 
 
-@pytest.mark.parametrize(("text", "hold_s"), [("", 1.0), ("[simulation]\nwfs_hold_s = 4.5\n", 4.5)])
+@pytest.mark.parametrize(("text", "hold_s"), [("", 5.0), ("[simulation]\nwfs_hold_s = 4.5\n", 4.5)])
 def test_the_simulated_wfs_hold_reaches_the_device(text, hold_s):
-    """[simulation] wfs_hold_s sets how long the simulated WFS holds frames for its host; unset, the
-    device's own (1 s); a resume may change it (it shapes no measurement)."""
+    """[simulation] wfs_hold_s sets how long the simulated WFS holds frames for its host; unset, on
+    the unpaced bench, as long as the engine takes the link's silence for its host's (5 s); a resume
+    may change it (it shapes no measurement)."""
     from bench.app.devices import open_bench
 
     config = parse_bench_config('kind = "shaker"\n' + text, "lab.toml")

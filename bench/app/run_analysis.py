@@ -70,6 +70,7 @@ from bench.models.parameters import WfsSensor
 from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView
 from bench.store.measurement import Measurement
+from sequences.runs import RunKind
 
 #: The plate a four-post free run weighs, as :class:`PlateMassRun` names it.
 POST_PLATE = "four-post post"
@@ -140,37 +141,70 @@ def lost_frames_note(run: RunView) -> str:
 
 
 def run_inputs(run: RunView, campaign: CampaignFile) -> RunInputs:
-    """Read what the analysis of ``run`` of ``campaign`` needs (:class:`RunInputs`)."""
-    conditions = dict(run.conditions)
-    inputs = RunInputs(run.run_id, run.kind, conditions, notes=run_event_notes(run))
+    """Read what the analysis of ``run`` of ``campaign`` needs (:class:`RunInputs`), as
+    :data:`INPUT_READERS` says for its kind."""
+    inputs = RunInputs(run.run_id, run.kind, dict(run.conditions), notes=run_event_notes(run))
     try:
-        if run.kind in ("hammer", "road_replay"):
-            return dataclasses.replace(
-                inputs,
-                hammer=run.hammer_record() if run.kind == "hammer" else None,
-                replay=run.road_replay_record() if run.kind == "road_replay" else None,
-            )
-        if run.kind in ("free_run", "tracked_dwell"):
-            return dataclasses.replace(
-                inputs,
-                dwells=tuple(run.dwell_records()) if run.kind == "free_run" else (),
-                track=run.track_record() if run.kind == "tracked_dwell" else None,
-            )
-        if run.kind == "dwell_grid" and (pressure := conditions.get("tyre_pressure_bar")) is not None:
-            grids = [
-                other
-                for other in campaign.runs
-                if other.kind == "dwell_grid"
-                and other.status == "complete"
-                and other.conditions.get("tyre_pressure_bar") == pressure
-            ]
-            dwells = tuple(record for grid in grids for record in grid.dwell_records())
-            return dataclasses.replace(inputs, dwells=dwells)
-        if run.kind == "sweep" and conditions.get("bench") == "four_post":
-            return dataclasses.replace(inputs, sweep=run.sweep_record())
+        return INPUT_READERS[RunKind(run.kind)](run, campaign, inputs)
     except (AnalysisInputError, ValueError) as exc:
         return dataclasses.replace(inputs, read_error=str(exc))
-    return inputs
+
+
+def _read_hammer(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    return dataclasses.replace(inputs, hammer=run.hammer_record())
+
+
+def _read_free_run(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    return dataclasses.replace(inputs, dwells=tuple(run.dwell_records()))
+
+
+def _read_grids(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    """Every complete grid of the campaign at the run's tyre pressure (none without one: the
+    analysis says that no pressure was answered)."""
+    pressure = inputs.conditions.get("tyre_pressure_bar")
+    if pressure is None:
+        return inputs
+    grids = [
+        other
+        for other in campaign.runs
+        if other.kind == RunKind.DWELL_GRID
+        and other.status == "complete"
+        and other.conditions.get("tyre_pressure_bar") == pressure
+    ]
+    dwells = tuple(record for grid in grids for record in grid.dwell_records())
+    return dataclasses.replace(inputs, dwells=dwells)
+
+
+def _read_sweep(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    """A four-post sweep's record; a sweep on the shaker is not analysed, so nothing is read."""
+    if inputs.conditions.get("bench") != "four_post":
+        return inputs
+    return dataclasses.replace(inputs, sweep=run.sweep_record())
+
+
+def _read_track(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    return dataclasses.replace(inputs, track=run.track_record())
+
+
+def _read_road_replay(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    return dataclasses.replace(inputs, replay=run.road_replay_record())
+
+
+#: What the analysis of each kind of run reads from its campaign file (one entry per kind:
+#: tests/test_run_kind_tables.py).
+INPUT_READERS: dict[RunKind, Callable[[RunView, CampaignFile, RunInputs], RunInputs]] = {
+    RunKind.HAMMER: _read_hammer,
+    RunKind.FREE_RUN: _read_free_run,
+    RunKind.DWELL_GRID: _read_grids,
+    RunKind.SWEEP: _read_sweep,
+    RunKind.TRACKED_DWELL: _read_track,
+    RunKind.ROAD_REPLAY: _read_road_replay,
+}
+
+
+#: What an analysis of one run gives: its name (``plate_mass``, ``shaker`` ...), its text lines and
+#: the scalar results stored beside the run.
+Analysed = tuple[str, list[str], dict[str, Any]]
 
 
 class RunAnalyser:
@@ -209,65 +243,58 @@ class RunAnalyser:
         result = self.knowledge.shaker[float(run.conditions["tyre_pressure_bar"])]
         return tuple(f"{r.label}: no tyre fit: {r.why}" for r in result.ratios_only.values())
 
-    def _analyse(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
-        k = self.knowledge
-        if run.kind == "hammer":
-            assert run.hammer is not None
-            result = analyse_hammer(run.hammer, sensor_mass_kg=k.sensor.mass_kg)
-            k.hammer = result
-            k.sensor = WfsSensor(
-                mass_kg=k.sensor.mass_kg,
-                eigenfrequency_hz=result.eigenfrequency_hz,
-                damping_ratio=result.damping_ratio_log_decrement,
-            )
-            k.sensor_source = SensorSource.HAMMER_TEST
-            return (
-                "hammer",
-                summary_lines(result),
-                {
-                    "eigenfrequency_hz": result.eigenfrequency_hz,
-                    "damping_ratio": result.damping_ratio_log_decrement,
-                },
-            )
-        if run.kind == "free_run":
-            records = list(run.dwells)
-            result = analyse_free_run(records)
-            if run.conditions.get("bench") == "four_post":
-                k.post_free_run = records
-                k.plate_masses.append(PlateMassRun(run.run_id, POST_PLATE, result))
-            else:
-                k.shaker_free_run = records
-                k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
-            return (
-                "plate_mass",
-                summary_lines(result),
-                {
-                    "m_comp_kg": result.plate.mass_kg,
-                    "m_comp_sigma_kg": result.plate.sigma_kg,
-                },
-            )
-        if run.kind == "dwell_grid":
-            return self._shaker(run)
-        if run.kind == "sweep":
-            return self._four_post(run)
-        if run.kind == "road_replay" and run.replay is not None:
-            return self._road_replay(run)
-        if run.kind == "tracked_dwell" and run.track is not None:
-            result = analyse_track(run.track)
-            return (
-                "track",
-                result.summary_lines(),
-                {
-                    "first_hz": result.first_hz,
-                    "last_hz": result.last_hz,
-                    "drift_hz_per_s": result.drift_hz_per_s,
-                    "verdict": result.verdict,
-                    "reason": result.reason,
-                },
-            )
-        raise ValueError(f"no analysis for a {run.kind} run")
+    def _analyse(self, run: RunInputs) -> Analysed:
+        """The analysis :data:`ANALYSES` names for the run's kind."""
+        return ANALYSES[RunKind(run.kind)](self, run)
 
-    def _shaker(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+    def _hammer(self, run: RunInputs) -> Analysed:
+        """The sensor's eigenfrequency and damping: the sensor model from then on."""
+        k = self.knowledge
+        if run.hammer is None:
+            raise ValueError("no hammer blow was read for this run")
+        result = analyse_hammer(run.hammer, sensor_mass_kg=k.sensor.mass_kg)
+        k.hammer = result
+        k.sensor = WfsSensor(
+            mass_kg=k.sensor.mass_kg,
+            eigenfrequency_hz=result.eigenfrequency_hz,
+            damping_ratio=result.damping_ratio_log_decrement,
+        )
+        k.sensor_source = SensorSource.HAMMER_TEST
+        results = {
+            "eigenfrequency_hz": result.eigenfrequency_hz,
+            "damping_ratio": result.damping_ratio_log_decrement,
+        }
+        return "hammer", summary_lines(result), results
+
+    def _free_run(self, run: RunInputs) -> Analysed:
+        """The plate mass m_comp of the shaker's plate or the four-post's post."""
+        k = self.knowledge
+        records = list(run.dwells)
+        result = analyse_free_run(records)
+        if run.conditions.get("bench") == "four_post":
+            k.post_free_run = records
+            k.plate_masses.append(PlateMassRun(run.run_id, POST_PLATE, result))
+        else:
+            k.shaker_free_run = records
+            k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
+        results = {"m_comp_kg": result.plate.mass_kg, "m_comp_sigma_kg": result.plate.sigma_kg}
+        return "plate_mass", summary_lines(result), results
+
+    def _track(self, run: RunInputs) -> Analysed:
+        """A tracked dwell's resonance over its looks."""
+        if run.track is None:
+            raise ValueError("no looks of the tracked dwell were read for this run")
+        result = analyse_track(run.track)
+        results = {
+            "first_hz": result.first_hz,
+            "last_hz": result.last_hz,
+            "drift_hz_per_s": result.drift_hz_per_s,
+            "verdict": result.verdict,
+            "reason": result.reason,
+        }
+        return "track", result.summary_lines(), results
+
+    def _shaker(self, run: RunInputs) -> Analysed:
         k = self.knowledge
         pressure = run.conditions.get("tyre_pressure_bar")
         if pressure is None:
@@ -291,10 +318,11 @@ class RunAnalyser:
             )
         return nominal_free_run(self.knowledge.plate_mass_kg, NOMINAL_PLATE_SOURCE)
 
-    def _road_replay(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+    def _road_replay(self, run: RunInputs) -> Analysed:
         k = self.knowledge
         record = run.replay
-        assert record is not None
+        if record is None:
+            raise ValueError("no road replay record was read for this run")
         posts = [p for p in k.plate_masses if p.plate == POST_PLATE]
         if not posts:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
@@ -344,7 +372,7 @@ class RunAnalyser:
         except CompensationRefusedError as exc:
             return None, str(exc)
 
-    def _four_post(self, run: RunInputs) -> tuple[str, list[str], dict[str, Any]]:
+    def _four_post(self, run: RunInputs) -> Analysed:
         k = self.knowledge
         if run.conditions.get("bench") != "four_post":
             note = (
@@ -386,6 +414,18 @@ class RunAnalyser:
                 **({"tyre_pressure_bar": float(pressure)} if pressure is not None else {}),
             },
         )
+
+
+#: The analysis of each kind of run: its name, its text and its scalars, what it established kept in
+#: the analyser's knowledge (one entry per kind: tests/test_run_kind_tables.py).
+ANALYSES: dict[RunKind, Callable[[RunAnalyser, RunInputs], Analysed]] = {
+    RunKind.HAMMER: RunAnalyser._hammer,
+    RunKind.FREE_RUN: RunAnalyser._free_run,
+    RunKind.DWELL_GRID: RunAnalyser._shaker,
+    RunKind.SWEEP: RunAnalyser._four_post,
+    RunKind.TRACKED_DWELL: RunAnalyser._track,
+    RunKind.ROAD_REPLAY: RunAnalyser._road_replay,
+}
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,13 @@ UNPACED_BACKLOG_S = UNPACED_BLOCK_S
 UNPACED_WFS_SILENCE_S = 5.0
 
 
+def default_hold_s(paced: bool) -> float:
+    """How long the simulated WFS holds frames for a host that stops reading, when the configuration
+    does not say: paced, the device's own buffer; unpaced (its devices on threads of the bench's
+    process, starved with it), as long as the engine takes the link's silence for its host's."""
+    return BACKPRESSURE_S if paced else UNPACED_WFS_SILENCE_S
+
+
 @dataclass(frozen=True)
 class SimulatedLabSettings:
     """``kind``: "shaker" or "four_post"; ``paced``: real time (a dry run one can watch) or as fast
@@ -45,10 +52,11 @@ class SimulatedLabSettings:
     default) and its non-linearity; ``wheel_speed_rad_s``: the wheel's rotation (0: standing);
     ``flow_control``: the paced WFS link holds the device back when the host stops reading (up to
     ``wfs_hold_s`` of frames, None: :data:`~simulators.wfs_device.BACKPRESSURE_S`; the unpaced link
-    always does) instead of overrunning the port's buffer; ``aux_roles``: the role of what each aux
-    input of the WFS is wired to (the configuration's); ``register_map``: the map the controller
-    serves (the configuration's; None: the drivers'), so that a map without the optional registers
-    serves a controller without what they do."""
+    always does, by default as long as the engine takes its silence for its host's,
+    :data:`UNPACED_WFS_SILENCE_S`) instead of overrunning the port's buffer; ``aux_roles``: the role
+    of what each aux input of the WFS is wired to (the configuration's); ``register_map``: the map
+    the controller serves (the configuration's; None: the drivers'), so that a map without the
+    optional registers serves a controller without what they do."""
 
     kind: str = "shaker"
     paced: bool = False
@@ -99,7 +107,7 @@ class SimulatedLab:
             seed=s.seed,
             speed_rad_s=s.wheel_speed_rad_s,
             aux_wiring=wiring,
-            hold_s=BACKPRESSURE_S if s.wfs_hold_s is None else s.wfs_hold_s,
+            hold_s=s.wfs_hold_s if s.wfs_hold_s is not None else default_hold_s(s.paced),
         )
         self.runner = BenchRunner(self.bench, paced=s.paced)
         self.runner.sinks.append(self.device)
