@@ -91,14 +91,6 @@ def _crc16_word_table() -> np.ndarray:
 _WORD_TABLE = _crc16_word_table()
 
 
-def crc16_ccitt(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor) of ``data``."""
-    crc = 0xFFFF
-    for byte in data:
-        crc = ((crc << 8) & 0xFFFF) ^ int(_TABLE[(crc >> 8) ^ byte])
-    return crc
-
-
 def crc16_rows(rows: np.ndarray) -> np.ndarray:
     """CRC-16/CCITT-FALSE of every row of a 2-D uint8 array with an even number of columns,
     vectorised over the rows and taking two bytes per step."""

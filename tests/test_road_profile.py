@@ -12,8 +12,8 @@ from scipy.signal import csd, welch
 from bench.models.benches import TyreModel
 from bench.models.road import (
     ISO_BAND_CYCLES_PER_M,
+    REFERENCE_CYCLES_PER_M,
     RoadClass,
-    band_variance_m2,
     displacement_psd_m3,
     road_drive,
 )
@@ -53,6 +53,13 @@ def test_the_profiles_spectrum_is_the_classes_in_every_octave(road_class, speed_
         # independent ones has a standard deviation of 1/sqrt(m); 4 of them fail once in 30000 bands
         assert abs(ratio[band].mean() - 1) < 4 / np.sqrt(m), (lo, hi, m, ratio[band].mean())
     assert (low_hz, high_hz) == pytest.approx(tuple(speed_km_h / 3.6 * n for n in ISO_BAND_CYCLES_PER_M))
+
+
+def band_variance_m2(road_class: RoadClass, band_cycles_per_m: tuple[float, float]) -> float:
+    """The closed-form variance of the profile over a spatial band: ``int Gd dn`` (m^2), for
+    waviness 2 ``Gd(n0) n0^2 (1 / n_low - 1 / n_high)``."""
+    low, high = band_cycles_per_m
+    return RoadClass(road_class).reference_psd_m3 * REFERENCE_CYCLES_PER_M**2 * (1 / low - 1 / high)
 
 
 def test_the_band_variance_is_the_integral_of_the_density():

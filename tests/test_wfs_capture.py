@@ -12,7 +12,7 @@ from bench.models.setup import BenchKind, BenchSetup
 from drivers.errors import CommandRejectedError, LinkTimeoutError
 from drivers.wfs_capture import HEADER_SIZE, Capture, crc16, decode_capture, encode_capture, message_size
 from drivers.wfs_commands import Reply
-from drivers.wfs_frame import crc16_ccitt, encode, new_frames
+from drivers.wfs_frame import crc16_rows, encode, new_frames
 from drivers.wfs_reader import WfsReader
 from drivers.wfs_stream import StreamParser
 from simulators.bench_sim import BenchRunner, SimulatedBench
@@ -47,7 +47,8 @@ def test_codec_round_trip_and_its_crc_is_the_frames():
     assert (decoded.rate_hz, decoded.pre_trigger_samples) == (10_000.0, 40)
     assert (decoded.trigger_level_n, decoded.baseline_n) == (500.0, -3.25)
     assert decoded.t_s[40] == 0.0 and decoded.t_s[0] == pytest.approx(-0.004)
-    assert crc16(message[2:22]) == crc16_ccitt(message[2:22])  # the frames' CRC-16/CCITT-FALSE
+    head = np.frombuffer(message[2:22], dtype=np.uint8).reshape(1, -1)
+    assert [crc16(message[2:22])] == crc16_rows(head).tolist()  # the frames' CRC-16/CCITT-FALSE
     for cut in (1, HEADER_SIZE - 1, HEADER_SIZE, len(message) - 1):
         assert decode_capture(message[:cut]) == (0, None)  # incomplete: wait
 

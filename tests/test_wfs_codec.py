@@ -10,7 +10,6 @@ from drivers.errors import MalformedReplyError
 from drivers.wfs_commands import Reply, format_command, parse_command, parse_reply
 from drivers.wfs_frame import (
     FRAME_SIZE,
-    crc16_ccitt,
     crc16_rows,
     decode,
     encode,
@@ -20,7 +19,9 @@ from drivers.wfs_frame import (
 
 
 def test_crc16_ccitt_false_check_value():
-    assert crc16_ccitt(b"123456789") == 0x29B1
+    rows = np.frombuffer(b"12345678", dtype=np.uint8).reshape(1, 8)  # the check string, even length
+    assert crc16_rows(rows).tolist() == [binascii.crc_hqx(b"12345678", 0xFFFF)]
+    assert binascii.crc_hqx(b"123456789", 0xFFFF) == 0x29B1  # the reference is CRC-16/CCITT-FALSE
 
 
 def test_crc_agrees_with_the_standard_library():
@@ -28,7 +29,6 @@ def test_crc_agrees_with_the_standard_library():
     rows = np.random.default_rng(3).integers(0, 256, (500, 60), dtype=np.uint8)
     reference = [binascii.crc_hqx(r.tobytes(), 0xFFFF) for r in rows]
     assert crc16_rows(rows).tolist() == reference
-    assert [crc16_ccitt(r.tobytes()) for r in rows] == reference
     frames = new_frames(50)
     frames["seq"] = np.arange(50)
     frames["boot"] = 7
@@ -59,7 +59,7 @@ def test_frame_layout_is_byte_exact():
     assert data[50:54] == struct.pack("<f", -2.0)  # aux2 at 42 + 8
     assert data[58:60] == b"\x04\x01"
     assert data[60:62] == b"\x02\x03"  # boot
-    assert data[62:64] == struct.pack("<H", crc16_ccitt(data[2:62]))
+    assert data[62:64] == struct.pack("<H", binascii.crc_hqx(data[2:62], 0xFFFF))
 
 
 def test_encode_decode_round_trip_and_single_bit_errors_detected():

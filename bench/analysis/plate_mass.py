@@ -172,18 +172,3 @@ def base_acceleration_signal(
     z = as_signals({"displacement": displacement_m}, min_samples=61)["displacement"]
     taps, latency = double_differentiator(fs, band_hz=band_hz)
     return apply_aligned(taps, z, latency)
-
-
-def contact_force_signal(
-    shaker_force_n: np.ndarray,
-    displacement_m: np.ndarray,
-    fs_hz: float,
-    plate: PlateMass,
-    *,
-    band_hz: float = 120.0,
-) -> np.ndarray:
-    """Time-domain contact force ``F_shaker - m_comp z''``, aligned with the inputs, with ``z''``
-    from :func:`base_acceleration_signal` (NaN at its edges)."""
-    sig = as_signals({"shaker_force": shaker_force_n, "displacement": displacement_m}, min_samples=61)
-    accel = base_acceleration_signal(sig["displacement"], fs_hz, band_hz=band_hz)
-    return sig["shaker_force"] - plate.mass_kg * accel

@@ -26,10 +26,6 @@ class ExcitationSpan:
     hold_end: int
     end: int
 
-    @property
-    def hold_samples(self) -> int:
-        return self.hold_end - self.hold_start
-
 
 class SpanTracker:
     """Follows the sync bits block by block until one excitation has started and ended.

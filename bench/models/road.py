@@ -61,13 +61,6 @@ def displacement_psd_m3(road_class: RoadClass, n_cycles_per_m: np.ndarray) -> np
     return RoadClass(road_class).reference_psd_m3 * (n / REFERENCE_CYCLES_PER_M) ** -WAVINESS
 
 
-def band_variance_m2(road_class: RoadClass, band_cycles_per_m: tuple[float, float]) -> float:
-    """The closed-form variance of the profile over a spatial band: ``int Gd dn`` (m^2), for
-    waviness 2 ``Gd(n0) n0^2 (1 / n_low - 1 / n_high)``."""
-    low, high = band_cycles_per_m
-    return RoadClass(road_class).reference_psd_m3 * REFERENCE_CYCLES_PER_M**2 * (1 / low - 1 / high)
-
-
 @dataclass(frozen=True)
 class RoadDrive:
     """A displacement drive: ``displacement_m`` sampled at ``sample_rate_hz`` from t = 0 (the road

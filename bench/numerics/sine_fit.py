@@ -84,11 +84,6 @@ class SineFit:
         return self.span_samples - self.frames_present
 
     @property
-    def missing_fraction(self) -> float:
-        """The fraction of the window's sample times with no frame (0: contiguous)."""
-        return self.frames_missing / self.span_samples if self.span_samples else 1.0
-
-    @property
     def cycles_present(self) -> float:
         """How many cycles' worth of frames the window holds."""
         return self.frames_present * self.freq_hz / self.sample_rate_hz
