@@ -34,6 +34,13 @@ from simulators.bench_sim import BenchBlock, SimulatedBench
 RUN_TIMEOUT_S = 60.0
 
 
+#: A paced simulated bench with its devices in the test's process (where faults are injected) and
+#: the WFS link flow-controlled, holding frames up to 5 s for a reader the test machine holds up: the
+#: devices starve with the test on a loaded machine (for over 1 s beside four busy processes), and a
+#: host stall that lost frames would end the run before what the test is about.
+PACED_IN_PROCESS = "[simulation]\npaced = true\nown_process = false\nflow_control = true\nwfs_hold_s = 5.0\n"
+
+
 def bench_config(tmp_path: Path, text: str = "", name: str = "bench.toml") -> BenchConfig:
     """The simulated shaker bench configured by TOML ``text`` (every key left out takes its default)."""
     path = tmp_path / name

@@ -12,7 +12,7 @@ from bench.engine import events as ev
 from bench.engine.states import RunState
 from bench.store import open_campaign
 from drivers.register_map import ControllerState
-from tests.campaign_lab import AtHold, bench_config, grid_sequence, lab_campaign
+from tests.campaign_lab import PACED_IN_PROCESS, AtHold, bench_config, grid_sequence, lab_campaign
 from tests.waiting import wait_until
 
 TOLERANCE = 0.02  # the amplitude control's default tolerance (docs/engine.md)
@@ -24,7 +24,7 @@ def test_pause_mid_point_repeats_the_point_on_resume_and_loses_or_doubles_none(t
     interrupted, its repetition done, and every point is done exactly once."""
     # paced: the pause meets a point under way; the lab in this process: the test reads its bench;
     # flow control: the test machine's own stalls lose no frames (a host stall would end the run)
-    config = bench_config(tmp_path, "[simulation]\npaced = true\nown_process = false\nflow_control = true\n")
+    config = bench_config(tmp_path, PACED_IN_PROCESS)
     sequence = grid_sequence((10.0, 20.0, 30.0))
     path = tmp_path / "campaign.h5"
     with lab_campaign(config, sequence, path) as campaign:

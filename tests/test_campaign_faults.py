@@ -22,6 +22,7 @@ from bench.engine.engine import RunOutcome
 from bench.store import open_campaign
 from drivers.register_map import ControllerState, InterlockFlag
 from tests.campaign_lab import (
+    PACED_IN_PROCESS,
     AtHold,
     ControllerSnapshot,
     ControllerTimeline,
@@ -47,10 +48,8 @@ RATE_HZ = 1000.0  # the WFS frame rate of the default configuration
 SCHEDULING_S = 1.0
 
 
-# real time: the faults meet the engine as on a real bench; the lab in this process: the faults are
-# injected into its devices; flow control: the test machine's own stalls lose no frames (a host
-# stall would end the run before the fault meets it)
-PACED = "[simulation]\npaced = true\nown_process = false\nflow_control = true\n"
+#: In real time, as a lab's bench runs (no frame lost but what the test loses on purpose).
+PACED = PACED_IN_PROCESS
 
 
 @dataclass

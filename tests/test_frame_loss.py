@@ -33,7 +33,7 @@ from bench.store import open_campaign
 from sequences import AdaptiveDwell, DwellGrid, Hydraulics, Sequence, TrackedDwell
 from simulators.bench_sim import BenchBlock
 from simulators.wfs_device import FrameLoss
-from tests.campaign_lab import bench_config, grid_sequence, lab_campaign
+from tests.campaign_lab import PACED_IN_PROCESS, bench_config, grid_sequence, lab_campaign
 
 AMPLITUDE_MM = 1.0
 #: A linear tyre; and host stalls of up to 0.9 s lose nothing on these links (unpaced the device waits
@@ -101,9 +101,8 @@ def tracked_sequence() -> Sequence:
     return Sequence("track", "", (Hydraulics("low"), Hydraulics("high"), step), "<test>")
 
 
-#: In real time (the devices in this process, the link with flow control: no frame lost but the
-#: bursts), as a lab's bench runs.
-PACED = "[simulation]\npaced = true\nown_process = false\nflow_control = true\n"
+#: In real time, as a lab's bench runs (no frame lost but what the test loses on purpose).
+PACED = PACED_IN_PROCESS
 KINDS = {
     "grid by repeats": (BY_REPEATS, lambda: grid_sequence(FREQS_HZ, AMPLITUDE_MM)),
     "held grid": (LINEAR, lambda: grid_sequence(FREQS_HZ, AMPLITUDE_MM)),
@@ -137,6 +136,7 @@ def loss_free(tmp_path_factory):
     def of(kind: str):
         if kind not in runs:
             runs[kind] = run(tmp_path_factory.mktemp("reference"), kind, ())
+            assert runs[kind][3] == "complete", (kind, runs[kind][3])
         return runs[kind]
 
     return of
@@ -155,6 +155,7 @@ def check_frfs_equal(reference: Path, lossy: Path) -> None:
     uncertainties of their difference (and 0.1 % of its value)."""
     expected = dwell_frfs(reference)
     for freq_hz, (h, sigma) in dwell_frfs(lossy).items():
+        assert freq_hz in expected, f"the loss-free run did not measure {freq_hz} Hz: {sorted(expected)}"
         h0, sigma0 = expected[freq_hz]
         assert abs(h - h0) <= 3 * math.hypot(sigma, sigma0) + 1e-3 * abs(h0), (freq_hz, h, h0)
 
