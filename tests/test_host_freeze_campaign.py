@@ -90,19 +90,22 @@ def test_a_frozen_run_records_a_host_stall_with_its_frames_never_a_lost_link(tmp
         status, reason, events = run.status, run.reason, list(run.events)
     interlocks = [e.fields["name"] for e in events if e.kind == "interlock"]
     assert status == "interlocked" and "WFS link lost" not in interlocks, (reason, interlocks)
-    # the freeze's stall: the one that lost frames (a stall of the machine's own may have lost none)
-    stalls = [e.fields for e in events if e.kind == "host stall" and e.fields["frames_lost"]]
+    # the freeze's stall: the longest (a stall of the machine's own is shorter and lost nothing)
+    stall = max((e.fields for e in events if e.kind == "host stall"), key=lambda f: f["stalled_s"])
     watchdog_s = DEFAULT_WATCHDOG_MS / 1000
-    (stall,) = stalls
     assert '"host stall"' in dump.stdout, dump.stdout
     # its length is the freeze's (the read the host held, counted to its return) ...
     # (within the signals' delivery: SIGSTOP may take effect later than SIGCONT does on a loaded
     # machine, so the process can be stopped for a little less than the test waited between them)
     assert freeze_s - SIGNAL_JITTER_S <= stall["stalled_s"] <= freeze_s + 0.5, stall
+    gaps = sum(e.fields["missing"] for e in events if e.kind == "gap")
+    if not stall["counted"]:  # the watchdog's ending came first, the stream stopped before its frames
+        assert freeze_s >= watchdog_s and stall["frames_lost"] == 0, stall
+        assert reason.startswith(WATCHDOG_ENDINGS), reason
+        return
     # ... and its frames the file's gaps: the freeze's frames but what the port kept; at least half
     # of them, as the devices' process shares the machine too, and what it made late (808 of the
     # 1 s freeze's 937 seen beside three other test workers) the port took after the freeze
-    gaps = sum(e.fields["missing"] for e in events if e.kind == "gap")
     assert stall["frames_lost"] <= gaps, (stall, gaps)
     assert (
         (freeze_s - 0.1) * RATE_HZ / 2 - KEPT_FRAMES

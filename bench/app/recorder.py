@@ -129,7 +129,7 @@ def _described(
         case ev.InterlockTripped():
             return "interlock", f"{event.name}: {event.reason}", {"name": event.name}
         case ev.HostStalled():
-            fields = {"stalled_s": event.stalled_s, "frames_lost": event.frames_lost}
+            fields = {name: getattr(event, name) for name in ("stalled_s", "frames_lost", "counted")}
             return "host stall", ev.host_stall_text(event), fields
     fields = {
         "index": event.index,

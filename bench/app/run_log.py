@@ -54,7 +54,7 @@ class RunLog:
                 return f"INTERLOCK {event.name}: {event.reason}"
             case ev.LimitReached():
                 return f"LIMIT {event.text}"
-            case ev.HostStalled() if event.frames_lost:  # a stall that lost nothing is in the file only
+            case ev.HostStalled() if event.frames_lost or not event.counted:  # none lost: in the file only
                 return ev.host_stall_text(event)
             case ev.RunFinished():
                 return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"

@@ -1598,11 +1598,12 @@ class _RunRecording:
         moments would be counted with it), and it stops nothing: the run has its ending already."""
         if self._stall is None:
             return
-        stalled_s, _, _, before = self._stall
+        stalled_s, _, end, before = self._stall
         self._stall = None
         ending = missing is None
         lost = (self.elapsed_samples - self.samples if ending else missing) - before
-        self.engine.bus.publish(ev.HostStalled(self.run_id, stalled_s, lost))
+        counted = not ending or lost > 0 or self.samples > end  # frames after the stall's block read
+        self.engine.bus.publish(ev.HostStalled(self.run_id, stalled_s, lost, counted))
         if lost and trips and not ending:
             self._trip(
                 "host stalled",

@@ -178,15 +178,24 @@ class PromptAnswered:
 @dataclass(frozen=True)
 class HostStalled:
     """The host left the WFS port unread for ``stalled_s`` seconds during run ``run_id`` (a busy
-    machine, not the link); ``frames_lost`` frames overran the port's buffer meanwhile."""
+    machine, not the link); ``frames_lost`` frames overran the port's buffer meanwhile. ``counted``:
+    whether frames after the stall were read, which show what it lost; a run that ended first (a
+    controller's watchdog that tripped while the host stood still) stops its stream before they come,
+    and its stall's losses are then not known."""
 
     run_id: str
     stalled_s: float
     frames_lost: int
+    counted: bool = True
 
 
 def host_stall_text(event: HostStalled) -> str:
     """How a log and the campaign file's events say a host stall."""
+    if not event.counted:
+        return (
+            f"host stall: the WFS port went unread for {event.stalled_s:.2f} s; the frames it lost are"
+            f" not known: the run ended before the stream after it was read ({event.run_id})"
+        )
     return (
         f"host stall: the WFS port went unread for {event.stalled_s:.2f} s,"
         f" {event.frames_lost} frames lost ({event.run_id})"
