@@ -58,9 +58,22 @@ def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     page_text = re.sub(r'src="data:image/png;base64,[A-Za-z0-9+/=]+"', "", html)
     assert "http" not in page_text and 'src="data:image/png;base64,' in html
 
-    # the whole file analysed again (any writer's file takes this path) finds what the campaign found
+    # the analysis the campaign stored, read back, and the whole file fitted again (any writer's
+    # file without records takes this path) find what the campaign found
     assert main(["analyze", str(tmp_path / "campaign.h5"), "--json"]) == 0
+    stored = json.loads(capsys.readouterr().out)
+    assert stored["analysis_source"].startswith("as stored after each run by wfs-bench ")
+    assert main(["analyze", str(tmp_path / "campaign.h5"), "--json", "--reanalyse"]) == 0
     doc = json.loads(capsys.readouterr().out)
+    assert doc["analysis_source"] == "analysed again: asked (--reanalyse)"
+    four_post_run = next(r for r in doc["runs"] if r["analysis"] == "four_post")
+    assert four_post_run["results_name"] == "four_post-reanalysis-1"
+    assert next(r for r in stored["runs"] if r["analysis"] == "four_post")["results_name"] is None
+    for key in ("hammer", "shaker", "four_post", "runs"):  # to the last digit, but the stored names
+        if key == "runs":
+            assert [{**r, "results_name": None} for r in doc[key]] == stored[key]
+        else:
+            assert doc[key] == stored[key], key
     assert doc["hammer"]["eigenfrequency_hz"] == pytest.approx(eigen, abs=0.05)
     assert [s["tyre_pressure_bar"] for s in doc["shaker"]] == [1.5, 2.5, 3.5]
     for shaker in doc["shaker"]:
@@ -74,8 +87,6 @@ def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     assert not car["quarter_car"]["undetermined"]
     truth = Suspension(damping_ns_per_m=DAMPER_SETTINGS_NS_PER_M["medium"])
     assert car["quarter_car"]["values"]["body_mass_kg"] == pytest.approx(truth.body_mass_kg, rel=0.02)
-    four_post_run = next(r for r in doc["runs"] if r["analysis"] == "four_post")
-    assert four_post_run["results_name"] == "four_post-reanalysis-1"
     with open_campaign(tmp_path / "campaign.h5") as campaign:
         run = campaign.run(four_post_run["run_id"])
         assert run.results("four_post")["m_wheel_kg"] == car["m_wheel_kg"]  # same data, same analysis
