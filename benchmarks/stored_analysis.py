@@ -74,8 +74,8 @@ def main() -> None:
         distinct_copies(Path(campaign), work / "files", args.files)
         per_file = []
         for tag, extra in (("stored", ()), ("refit", ("--reanalyse",))):
-            out = work / f"index-{tag}"
-            per_file.append(wfsbench_s("index", str(work / "files"), "--out", str(out), "--workers", "0", *extra))
+            out = str(work / f"index-{tag}")
+            per_file.append(wfsbench_s("index", str(work / "files"), "--out", out, "--workers", "0", *extra))
         print(f"campaign: {campaign} ({Path(campaign).stat().st_size / 1e6:.1f} MB)")
         print("| command | from the records (s) | --reanalyse (s) | refit / stored |")
         print("|---|---|---|---|")
