@@ -134,7 +134,7 @@ class CampaignAnalysis:
     ``source``: where the runs' analyses come from, as a reader says it (the records the analysis
     stored after each run, or a refit and why); ``stored``: whether they are the stored records;
     ``records``: the records of the runs analysed here (run id -> the record's text), which a file
-    without them can keep (:func:`~bench.app.analyze.store_records`)."""
+    without them can keep (:func:`~bench.app.analyze.store_reanalysis`)."""
 
     path: Path
     software_version: str

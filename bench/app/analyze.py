@@ -69,6 +69,7 @@ def analyze_campaign(
     knowledge: CampaignKnowledge | None = None,
     *,
     reanalyse: bool = False,
+    keep_records: bool = False,
 ) -> CampaignAnalysis:
     """The analysis of every complete run of the campaign file at ``path``, in order: the one the
     post-run analysis stored beside each run (:mod:`bench.app.analysis_record`), read back without
@@ -79,7 +80,9 @@ def analyze_campaign(
     memory): the runs it took in are not analysed again. Not both: the knowledge holds its masses. A
     file that does not follow the schema raises :class:`~bench.store.StoreError` (which names the
     file and the place); an analysis that fails for one run is a flagged :class:`RunAnalysis`, not
-    an error."""
+    an error. ``keep_records``: the runs fitted here keep their records
+    (:attr:`CampaignAnalysis.records`, for a caller that stores them); made only when asked, as
+    laying an analysis out as JSON costs a fraction of a second a campaign."""
     path = Path(path)
     if config is not None and knowledge is not None:
         raise ValueError("give a configuration or a knowledge, not both: the knowledge holds its masses")
@@ -121,7 +124,7 @@ def analyze_campaign(
                 outcome, _, records[run.run_id] = analyse_and_record(analyser, run)
                 return outcome
 
-            runs = tuple(replay_campaign(campaign, analyser, analyse))
+            runs = tuple(replay_campaign(campaign, analyser, analyse if keep_records else None))
         masses = config.masses
         hammer = next(
             (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None

@@ -45,7 +45,7 @@ def _analyze(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     try:
-        analysis = analyze_campaign(path, reanalyse=args.reanalyse)
+        analysis = analyze_campaign(path, reanalyse=args.reanalyse, keep_records=args.store)
     except (StoreError, CampaignFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return unreadable_file_code(exc)
