@@ -15,8 +15,9 @@ import pytest
 
 from bench.analysis import analyse_shaker_campaign
 from bench.analysis.frf import Frf
-from bench.analysis.plate_mass import identify_plate_mass
+from bench.analysis.plate_mass import PlateMass, identify_plate_mass
 from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
+from bench.analysis.runs import plate_mass_distrust, plate_mass_findings
 from bench.analysis.shaker_models import shaker_response
 from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
@@ -85,7 +86,7 @@ def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped
     assert run.returncode == ExitCode.STOPPED, run.stderr
     assert (
         "smoke: aborted: stopped before smoke-s008-dwell_grid: the free run smoke-s002-free_run gives an"
-        " m_comp not to be trusted: m_comp misses the free run far outside its noise"
+        " m_comp not to be trusted: m_comp misses the free run beyond any noise"
     ) in run.stdout
     assert "(was the specimen removed?)" in run.stdout
     assert "(repeat the free run into a new campaign file" in run.stdout
@@ -105,7 +106,7 @@ def test_a_free_run_with_the_wheel_on_is_flagged_with_every_fit_made_on_its_m_co
     free = shaker["free_run"]
     # the tyre's 390 kN/m left in F/Z: residuals of thousands of sigma, not a rigid mass
     assert free["residual_reduced_chi2"] > 1e4
-    assert any("far outside its noise" in f and "rigid" in f for f in free["flags"]), free["flags"]
+    assert any("beyond any noise" in f and "rigid" in f for f in free["flags"]), free["flags"]
     flagged = {f["run_id"] for f in doc["flags"] if "m_comp misses the free run" in f["flag"]}
     assert flagged == {r["run_id"] for r in doc["runs"] if r["analysis"] in ("plate_mass", "shaker")}
     (amplitude,) = shaker["amplitudes"]
@@ -172,3 +173,20 @@ def test_m_comp_of_a_plate_with_a_spring_keeps_its_noise_interval():
     sprung = identify_plate_mass(frf(390e3 - 18.0 * w2 + 0j))
     assert sprung.outside_noise and sprung.reduced_chi2 > 1e4
     assert sprung.sigma_kg == pytest.approx(rigid.sigma_kg / np.sqrt(max(rigid.reduced_chi2, 1.0)), rel=1e-9)
+
+
+def test_a_misfit_noise_can_give_is_a_finding_not_a_stop():
+    """The loaded suite's false stop: a rigid plate's free run of 3 dwells gave a reduced chi^2 of
+    6.55 (chi^2 32.75 over 5 degrees of freedom), which noise alone gives about once in 1,400 free
+    runs when each point's uncertainty is estimated. It is flagged for the user, and m_comp still
+    corrects the runs after it; a wheel left on (reduced chi^2 about 1e7) stops them."""
+    chance = PlateMass(12.0, 0.002, 189.0, 3, reduced_chi2=6.55)
+    assert chance.outside_noise and not chance.beyond_noise
+    assert plate_mass_distrust(chance) == ""
+    (finding,) = plate_mass_findings(chance)
+    assert "outside its noise (reduced chi^2 6.55" in finding and "fewer than 1 of 1000" in finding
+    wheel_on = PlateMass(11.4, 0.002, 4e5, 3, reduced_chi2=1.4e7)
+    assert wheel_on.beyond_noise
+    assert plate_mass_findings(wheel_on) == (plate_mass_distrust(wheel_on),)
+    assert "beyond any noise" in plate_mass_distrust(wheel_on)
+    assert "not physical" in plate_mass_distrust(PlateMass(-12.0, 0.002, 189.0, 3, reduced_chi2=1.0))

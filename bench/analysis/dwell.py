@@ -43,6 +43,10 @@ from bench.numerics.sine_fit import harmonic_phasors, sine_design
 #: ones when fewer lie within 25 % of it): 8 complex bins, 16 degrees of freedom, so the density is
 #: known to about 25 % (one sigma) even for a window of two cycles.
 MIN_NOISE_BINS = 8
+#: The fewest degrees of freedom a phasor's noise estimate has (:data:`MIN_NOISE_BINS` complex bins;
+#: a window too short for them is taken as white, over more samples than that): what a test of a
+#: fit's chi^2 against these uncertainties assumes of them (:func:`bench.analysis.lsq.chi2_exceedance`).
+NOISE_ESTIMATE_DOF = 2 * MIN_NOISE_BINS
 #: Probability that a settled dwell (stationary noise) is flagged by the residual test, all its
 #: channels together.
 SETTLING_FALSE_ALARM = 0.01

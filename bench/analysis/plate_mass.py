@@ -8,10 +8,12 @@ its weighted least-squares solution over all frequencies::
 (``s``: point uncertainty; each of Re, Im has variance s^2/2), inflated by the reduced chi^2 when the
 points scatter more than their uncertainty says, as long as the rigid-mass model still describes them.
 
-A free run whose misfit lies far outside its noise (chi^2 of the ``2n`` real residuals over ``2n - 1``
-degrees of freedom beyond :func:`~bench.analysis.lsq.chi2_far_outside_noise`, the test the tyre fits
-use) is no rigid plate: the wheel left on adds the tyre's stiffness ``k - m_T w^2`` to ``F/Z``
-(residuals of thousands of sigma). Its m_comp is flagged (:attr:`PlateMass.outside_noise`) and keeps
+A free run whose misfit lies beyond any noise (chi^2 of the ``2n`` real residuals over ``2n - 1``
+degrees of freedom beyond :func:`~bench.analysis.lsq.chi2_beyond_noise`; the points' uncertainties
+are estimates, :func:`~bench.analysis.lsq.chi2_exceedance`) is no rigid plate: the wheel left on
+adds the tyre's stiffness ``k - m_T w^2`` to ``F/Z``
+(residuals of thousands of sigma). Its m_comp is flagged (:attr:`PlateMass.beyond_noise`) and, like
+one merely outside its noise (:attr:`PlateMass.outside_noise`, the test the tyre fits use), keeps
 the interval its points' noise gives: the inflation assumes the model holds and the noise was
 understated, and an interval inflated by a model error (kilograms) would let the tyre fit, which
 takes m_comp's error as common to every ``F_contact/Z`` point, trade m_comp for the tread mass and
@@ -27,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.analysis.dwell import DwellFit, dwell_phasors
+from bench.analysis.dwell import NOISE_ESTIMATE_DOF, DwellFit, dwell_phasors
 from bench.analysis.fir import apply_aligned, double_differentiator
 from bench.analysis.frf import Frf, phasor_ratio
-from bench.analysis.lsq import chi2_far_outside_noise
+from bench.analysis.lsq import chi2_beyond_noise, chi2_far_outside_noise
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
 
 
@@ -48,13 +50,24 @@ class PlateMass:
 
     @property
     def outside_noise(self) -> bool:
-        """The rigid-mass fit misses the free run far outside its noise (see the module docstring):
-        the plate did not move as a rigid mass, so m_comp is no plate mass. A mass that was given
-        (no points) fits nothing."""
+        """The rigid-mass fit misses the free run far outside its noise (a rigid plate does this in
+        fewer than 1 of 1000 free runs; see the module docstring). A mass that was given (no
+        points) fits nothing."""
         if self.n_points == 0:
             return False
         dof = 2 * self.n_points - 1
-        return chi2_far_outside_noise(self.reduced_chi2 * dof, dof)
+        return chi2_far_outside_noise(self.reduced_chi2 * dof, dof, NOISE_ESTIMATE_DOF)
+
+    @property
+    def beyond_noise(self) -> bool:
+        """No noise explains the misfit (:func:`~bench.analysis.lsq.chi2_beyond_noise`): a free run
+        of a rigid plate gives it less than once in a million, a wheel left on every time. Only then
+        is m_comp withheld from the runs after it; a misfit merely outside the noise (once in a
+        thousand free runs of a good plate) is a finding the user reads."""
+        if self.n_points == 0:
+            return False
+        dof = 2 * self.n_points - 1
+        return chi2_beyond_noise(self.reduced_chi2 * dof, dof, NOISE_ESTIMATE_DOF)
 
 
 def identify_plate_mass(plate_per_z: Frf) -> PlateMass:
@@ -70,7 +83,7 @@ def identify_plate_mass(plate_per_z: Frf) -> PlateMass:
     n = int(use.sum())
     dof = 2 * n - 1
     chi2 = float(np.sum(2 * np.abs(resid) ** 2 / s**2))
-    inflation = 1.0 if chi2_far_outside_noise(chi2, dof) else max(chi2 / dof, 1.0)
+    inflation = 1.0 if chi2_far_outside_noise(chi2, dof, NOISE_ESTIMATE_DOF) else max(chi2 / dof, 1.0)
     sigma = np.sqrt(inflation / (2 * np.sum(w2**2 / s**2)))
     rms = float(np.sqrt(np.mean(np.abs(resid) ** 2)))
     return PlateMass(float(mass), float(sigma), rms, n, chi2 / dof)

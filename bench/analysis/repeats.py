@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bench.analysis.dwell import ChannelFit, DwellFit
+from bench.analysis.dwell import NOISE_ESTIMATE_DOF, ChannelFit, DwellFit
 from bench.analysis.lsq import chi2_far_outside_noise
 
 
@@ -84,7 +84,7 @@ def spread_of_repeats(
     spread, noise, outside = {}, {}, False
     for channel in responses:
         spread[channel], noise[channel], chi2, dof = _spread(fits, channel, displacement)
-        outside = outside or chi2_far_outside_noise(chi2, dof)
+        outside = outside or chi2_far_outside_noise(chi2, dof, NOISE_ESTIMATE_DOF)
     return RepeatSpread(label, fits[0].freq_hz, len(fits), spread, noise, outside)
 
 

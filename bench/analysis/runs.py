@@ -187,8 +187,8 @@ class FreeRunResult:
     """m_comp of a bench's plate from its free run: ``plate`` (mass, sigma, residual), the dwell
     ``fits`` (ascending frequency) and ``unsettled``: the dwells that did not settle, with why
     (their points are left out of m_comp); ``findings``: what the user must know about m_comp
-    (a mass that is not positive is not physical; a fit far outside the noise is no plate mass);
-    ``repeats``: the dwells measured more than once, combined, with their spread."""
+    (:func:`plate_mass_findings`); ``repeats``: the dwells measured more than once, combined, with
+    their spread."""
 
     plate: PlateMass
     fits: tuple[DwellFit, ...]
@@ -215,22 +215,35 @@ def nominal_free_run(mass_kg: float, source: str) -> FreeRunResult:
 def plate_mass_findings(plate: PlateMass) -> tuple[str, ...]:
     """Findings on m_comp: a mass that is not positive and finite (a plate cannot weigh zero or
     less, so the plate force or the displacement has the wrong sign or unit in the record), and a
-    rigid-mass fit far outside the free run's noise (:attr:`PlateMass.outside_noise`: something
-    besides the plate moved with it, such as a wheel left on the bench)."""
-    findings = []
-    if not (np.isfinite(plate.mass_kg) and plate.mass_kg > 0):
+    rigid-mass fit outside the free run's noise: beyond any noise (:attr:`PlateMass.beyond_noise`:
+    something besides the plate moved with it, such as a wheel left on the bench), or only outside it
+    (:attr:`PlateMass.outside_noise`: a good plate does that once in a thousand free runs)."""
+    findings = [reason] if (reason := plate_mass_distrust(plate)) else []
+    if plate.outside_noise and not plate.beyond_noise:
         findings.append(
+            f"m_comp misses the free run outside its noise (reduced chi^2 {plate.reduced_chi2:.3g},"
+            f" residual {plate.residual_rms_n_per_m:.3g} N/m rms; a rigid plate does this in fewer than"
+            " 1 of 1000 free runs): check the free run's record; m_comp keeps the interval its noise gives"
+        )
+    return tuple(findings)
+
+
+def plate_mass_distrust(plate: PlateMass) -> str:
+    """Why m_comp must not correct the contact force of the runs after it (empty: it may): a mass
+    that is not physical, or a fit that no noise explains (:attr:`PlateMass.beyond_noise`)."""
+    if not (np.isfinite(plate.mass_kg) and plate.mass_kg > 0):
+        return (
             f"m_comp {plate.mass_kg:.4g} kg is not physical (a plate mass is positive):"
             f" check the sign and units of the plate force {PLATE_FORCE} and the displacement {DISPLACEMENT}"
         )
-    if plate.outside_noise:
-        findings.append(
-            f"m_comp misses the free run far outside its noise (reduced chi^2 {plate.reduced_chi2:.3g},"
+    if plate.beyond_noise:
+        return (
+            f"m_comp misses the free run beyond any noise (reduced chi^2 {plate.reduced_chi2:.3g},"
             f" residual {plate.residual_rms_n_per_m:.3g} N/m rms): the plate did not move as a rigid"
             " mass (was the specimen removed?); m_comp and every contact force corrected with it are"
             " not to be trusted"
         )
-    return tuple(findings)
+    return ""
 
 
 def analyse_free_run(records: Sequence[DwellRecord], *, settle_s: float = DEFAULT_SETTLE_S) -> FreeRunResult:
@@ -450,7 +463,7 @@ def _analyse_amplitude(
         ident = identify_shaker(
             frfs.wfs_per_z, frfs.contact_per_z, wheel_mass_kg=wheel_mass_kg, sensor=sensor, errors=frfs.errors
         )
-        if plate.outside_noise:
+        if plate.beyond_noise:
             ident = replace(ident, findings=(*ident.findings, _unreliable_plate_finding(ident)))
         if plate.n_points == 0:
             ident = replace(ident, findings=(*ident.findings, _nominal_plate_finding(fits, plate)))

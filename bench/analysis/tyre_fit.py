@@ -41,6 +41,7 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
+from bench.analysis.dwell import NOISE_ESTIMATE_DOF
 from bench.analysis.frf import Frf
 from bench.analysis.lsq import (
     Z95,
@@ -131,7 +132,7 @@ class TyreFit(FitStatistics):
     @property
     def outside_noise(self) -> bool:
         """The fit misses the data by far more than its noise (see :func:`far_outside_noise`)."""
-        return far_outside_noise(self.lsq)
+        return far_outside_noise(self.lsq, NOISE_ESTIMATE_DOF)
 
 
 @dataclass(frozen=True)
@@ -398,7 +399,7 @@ def fit_tyre_model(
         )
 
     fit = solve(starts[0], FULL_BUDGET)
-    if len(starts) > 1 and far_outside_noise(fit):
+    if len(starts) > 1 and far_outside_noise(fit, NOISE_ESTIMATE_DOF):
         # the first start stopped far from the data: a short search from the others, the best
         # of them to convergence, kept if it does better
         found = min((solve(s, SEARCH_BUDGET) for s in starts[1:]), key=lambda f: f.chi2)

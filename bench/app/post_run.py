@@ -21,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
+from bench.analysis.runs import plate_mass_distrust
 from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError
 from bench.app.run_analysis import run_inputs, runs_to_analyse
 from bench.engine import events as ev
@@ -93,7 +94,8 @@ class PostRunAnalysis:
         contact force is corrected with a free run's plate mass (a dwell grid, a sweep, a road
         replay), the analyses of the free runs sent are waited for (they take well under a second;
         the bench is at rest between runs), and a sequence whose last free run gives an m_comp not
-        to be trusted (a finding: the plate did not move as a rigid mass, the mass is not physical)
+        to be trusted (the plate did not move as a rigid mass, the mass is not physical:
+        :func:`~bench.analysis.runs.plate_mass_distrust`)
         or could not be analysed stops before the run, with the reason."""
         if kind not in (RunKind.DWELL_GRID, RunKind.SWEEP, RunKind.ROAD_REPLAY):
             return None
@@ -105,10 +107,10 @@ class PostRunAnalysis:
         if last.error:
             return f"the free run {last.run_id} could not be analysed ({last.error}): its m_comp is unknown"
         weighed = [p for p in self.knowledge.plate_masses if p.run_id == last.run_id]
-        findings = weighed[-1].result.findings if weighed else ()
-        if findings:
+        distrust = plate_mass_distrust(weighed[-1].result.plate) if weighed else ""
+        if distrust:
             return (
-                f"the free run {last.run_id} gives an m_comp not to be trusted: {findings[0]};"
+                f"the free run {last.run_id} gives an m_comp not to be trusted: {distrust};"
                 " the runs after it would correct their contact force with it (repeat the free run into a"
                 " new campaign file: a resume of this one stops here again)"
             )
