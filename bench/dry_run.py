@@ -22,7 +22,7 @@ posts) changes what stands on the bench, and a free run always runs without the 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -38,10 +38,12 @@ from drivers.setpoints import DriveSetpoint, equivalent_sine
 from sequences.channels import Role
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
+from sequences.runs import RunKind
 from sequences.steps import (
     ACTION_BENCH_KIND,
     DwellGrid,
     FreeRun,
+    HammerTest,
     Prompt,
     RoadReplay,
     Sequence,
@@ -224,33 +226,10 @@ def dry_run(
             if needs is not None and needs != config.kind:
                 impossible.append(ActionRefusal(index, step.id, step.action, needs, config.kind))
             world.apply(step)
-        elif isinstance(step, SineDwell | DwellGrid | FreeRun):
-            setup = world.setup(free_run=isinstance(step, FreeRun))
-            dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
-            points += [world.predict_dwell(setup, index, j, dwell) for j, dwell in enumerate(dwells)]
-            if isinstance(step, DwellGrid) and step.adaptive is not None:
-                points += [
-                    world.predict_refinement(setup, index, len(dwells) + a, step, nominal_mm)
-                    for a, nominal_mm in enumerate(step.amplitudes_mm)
-                ]
-        elif isinstance(step, Sweep):
-            points.append(world.predict_sweep(world.setup(free_run=False), index, step))
-        elif isinstance(step, TrackedDwell):
-            # the search and the track, wherever its band may take it: as a sweep over that band
-            top = step.search_end_hz * (1 + step.freq_band_pct / 100)
-            band = Sweep(step.search_start_hz, top, step.track_s, step.amplitude_mm, mean_mm=step.mean_mm)
-            prediction = world.predict_sweep(world.setup(free_run=False), index, band)
-            points.append(replace(prediction, kind="tracked"))
-        elif isinstance(step, RoadReplay):
-            if config.kind != "four_post":
-                impossible.append(ActionRefusal(index, step.kind, "a road replay", "four_post", config.kind))
-                continue
-            assert drives is not None
-            drive = drives[index]
-            setpoint = replace(drive.setpoint, mean_mm=step.mean_mm)
-            prediction, beyond = world.predict_drive(world.setup(free_run=False), index, setpoint)
-            points.append(prediction)
-            impossible += [replace(r, source=str(drive.record.get("source", ""))) for r in beyond]
+        elif step.run_kind is not None:
+            predicted, refused = PREDICTIONS[step.run_kind](world, index, step, drives)
+            points += predicted
+            impossible += refused
     refusals = tuple(r for point in points if point.kind != "drive" for r in _refusals(point, config))
     return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
 
@@ -536,3 +515,84 @@ class _World:
             h = np.interp(bins, grid, response[name].real) + 1j * np.interp(bins, grid, response[name].imag)
             out[name] = np.fft.irfft(spectrum * h, size)[: z_m.size]
         return out
+
+
+#: What one measurement step adds to the dry run: its points' predictions and what the bench
+#: cannot do of it.
+Predicted = tuple[list[PointPrediction], list[ActionRefusal | DriveRefusal]]
+
+
+def _predict_dwells(
+    world: _World, index: int, step: SineDwell | DwellGrid, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    """Each dwell at its steady state; an adaptive grid's refinement band at each amplitude."""
+    return _dwell_points(world, index, step, free_run=False), []
+
+
+def _predict_free_run(
+    world: _World, index: int, step: FreeRun, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    """The grid's dwells without the specimen, whatever the prompts before it did."""
+    return _dwell_points(world, index, step.grid, free_run=True), []
+
+
+def _dwell_points(
+    world: _World, index: int, step: SineDwell | DwellGrid, *, free_run: bool
+) -> list[PointPrediction]:
+    setup = world.setup(free_run=free_run)
+    dwells = step.dwells()
+    points = [world.predict_dwell(setup, index, j, dwell) for j, dwell in enumerate(dwells)]
+    if isinstance(step, DwellGrid) and step.adaptive is not None:
+        points += [
+            world.predict_refinement(setup, index, len(dwells) + a, step, nominal_mm)
+            for a, nominal_mm in enumerate(step.amplitudes_mm)
+        ]
+    return points
+
+
+def _predict_sweep(
+    world: _World, index: int, step: Sweep, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    return [world.predict_sweep(world.setup(free_run=False), index, step)], []
+
+
+def _predict_tracked_dwell(
+    world: _World, index: int, step: TrackedDwell, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    """The search and the track, wherever its band may take it: as a sweep over that band."""
+    top = step.search_end_hz * (1 + step.freq_band_pct / 100)
+    band = Sweep(step.search_start_hz, top, step.track_s, step.amplitude_mm, mean_mm=step.mean_mm)
+    prediction = world.predict_sweep(world.setup(free_run=False), index, band)
+    return [replace(prediction, kind="tracked")], []
+
+
+def _predict_road_replay(
+    world: _World, index: int, step: RoadReplay, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    """The drive sample by sample on a four-post bench; refused on any other."""
+    config = world.config
+    if config.kind != "four_post":
+        return [], [ActionRefusal(index, step.kind, "a road replay", "four_post", config.kind)]
+    assert drives is not None
+    drive = drives[index]
+    setpoint = replace(drive.setpoint, mean_mm=step.mean_mm)
+    prediction, beyond = world.predict_drive(world.setup(free_run=False), index, setpoint)
+    return [prediction], [replace(r, source=str(drive.record.get("source", ""))) for r in beyond]
+
+
+def _predict_hammer(
+    world: _World, index: int, step: HammerTest, drives: Mapping[int, PlannedDrive] | None
+) -> Predicted:
+    """Nothing moves: the operator strikes the sensor with the actuator at rest."""
+    return [], []
+
+
+#: The dry run of each kind of run (tests/test_run_kind_tables.py: every kind is here).
+PREDICTIONS: dict[RunKind, Callable[..., Predicted]] = {
+    RunKind.DWELL_GRID: _predict_dwells,
+    RunKind.FREE_RUN: _predict_free_run,
+    RunKind.SWEEP: _predict_sweep,
+    RunKind.TRACKED_DWELL: _predict_tracked_dwell,
+    RunKind.ROAD_REPLAY: _predict_road_replay,
+    RunKind.HAMMER: _predict_hammer,
+}

@@ -3,8 +3,10 @@
 A step says what the bench does, once: the engine derives the driver's setpoint from it, the
 simulated world its waveform and the analysis its record. Lengths are in seconds and cycles,
 amplitudes in mm as an operator states them (``amplitude_m`` for the physics). Every step class has
-``kind``, its ``type`` in a sequence file, and ``estimated_duration_s``, the time the bench spends on
-it (operator prompts count 0 s: see :attr:`Sequence.estimated_duration_with_operator_s`).
+``kind``, its ``type`` in a sequence file, ``run_kind``, the kind of run it records (None: it
+records none; a single sine dwell is recorded as a grid of one point), and
+``estimated_duration_s``, the time the bench spends on it (operator prompts count 0 s: see
+:attr:`Sequence.estimated_duration_with_operator_s`).
 
 The steps hold whatever they are given; :func:`sequences.validation.validate` checks them.
 """
@@ -17,6 +19,7 @@ from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
 from sequences.errors import AnswerError
+from sequences.runs import RunKind
 
 #: Stated times of the steps that do not excite: the controller's hydraulic pressure ramp, a tare
 #: (the acquisition averages about a second at rest, plus the command round trips) and a slow move
@@ -73,6 +76,7 @@ class SineDwell:
     """
 
     kind: ClassVar[str] = "sine_dwell"
+    run_kind: ClassVar[RunKind | None] = RunKind.DWELL_GRID
 
     freq_hz: float
     amplitude_mm: float
@@ -110,6 +114,10 @@ class SineDwell:
     @property
     def estimated_duration_s(self) -> float:
         return self.duration_s
+
+    def dwells(self) -> tuple[SineDwell, ...]:
+        """The dwells of the run it records: itself (a grid of one point)."""
+        return (self,)
 
 
 def crossover_amplitude_mm(
@@ -182,6 +190,7 @@ class DwellGrid:
     """
 
     kind: ClassVar[str] = "dwell_grid"
+    run_kind: ClassVar[RunKind | None] = RunKind.DWELL_GRID
 
     freqs_hz: tuple[float, ...]
     amplitudes_mm: tuple[float, ...]
@@ -244,6 +253,7 @@ class FreeRun:
     """The grid's dwells with no wheel on the bench: the load cell sees only the plate (m_comp)."""
 
     kind: ClassVar[str] = "free_run"
+    run_kind: ClassVar[RunKind | None] = RunKind.FREE_RUN
 
     grid: DwellGrid
 
@@ -261,6 +271,7 @@ class Sweep:
     controller's ``sweep_duration_s`` register does."""
 
     kind: ClassVar[str] = "sweep"
+    run_kind: ClassVar[RunKind | None] = RunKind.SWEEP
 
     start_hz: float
     end_hz: float
@@ -303,6 +314,7 @@ class TrackedDwell:
     """
 
     kind: ClassVar[str] = "tracked_dwell"
+    run_kind: ClassVar[RunKind | None] = RunKind.TRACKED_DWELL
 
     search_start_hz: float
     search_end_hz: float
@@ -362,6 +374,7 @@ class RoadReplay:
     """
 
     kind: ClassVar[str] = "road_replay"
+    run_kind: ClassVar[RunKind | None] = RunKind.ROAD_REPLAY
 
     file: str = ""
     channel: str = ""
@@ -397,6 +410,7 @@ class HammerTest:
     """
 
     kind: ClassVar[str] = "hammer"
+    run_kind: ClassVar[RunKind | None] = RunKind.HAMMER
 
     trigger_level_n: float
     pre_trigger_s: float = 0.02
@@ -429,6 +443,7 @@ class Prompt:
     """
 
     kind: ClassVar[str] = "prompt"
+    run_kind: ClassVar[RunKind | None] = None
 
     id: str
     text: str
@@ -489,6 +504,7 @@ class Hydraulics:
     """Switch the hydraulic pressure: "off", "low" (positioning) or "high" (testing)."""
 
     kind: ClassVar[str] = "hydraulics"
+    run_kind: ClassVar[RunKind | None] = None
 
     level: str
 
@@ -502,6 +518,7 @@ class Tare:
     """Zero the WFS with the bench at rest."""
 
     kind: ClassVar[str] = "tare"
+    run_kind: ClassVar[RunKind | None] = None
 
     @property
     def estimated_duration_s(self) -> float:
@@ -513,6 +530,7 @@ class MeanPosition:
     """Move the actuator to a new static position (mm), e.g. to preload the tyre."""
 
     kind: ClassVar[str] = "mean_position"
+    run_kind: ClassVar[RunKind | None] = None
 
     mean_mm: float
 
@@ -550,7 +568,8 @@ STEP_TYPES: dict[str, type] = {
         MeanPosition,
     )
 }
-MEASUREMENT_TYPES = (SineDwell, DwellGrid, FreeRun, Sweep, TrackedDwell, RoadReplay, HammerTest)
+#: The steps that record a run.
+MEASUREMENT_TYPES = tuple(cls for cls in STEP_TYPES.values() if cls.run_kind is not None)
 
 
 def step_fields(step: Step) -> dict[str, object]:

@@ -6,12 +6,21 @@ from __future__ import annotations
 
 import pytest
 
+from bench.app.analysis_plan import ANALYSIS_NEEDS
+from bench.app.check import RUN_DESCRIPTIONS
 from bench.app.run_analysis import ANALYSES, INPUT_READERS, RunAnalyser, RunInputs, initial_knowledge
+from bench.app.show import EXCITATIONS
 from bench.config import default_bench_config
+from bench.dry_run import PREDICTIONS
 from sequences.runs import RunKind
+from sequences.steps import STEP_TYPES
 
 #: Each layer's table keyed by the run kind.
 TABLES = {
+    "the dry run (bench/dry_run.py PREDICTIONS)": PREDICTIONS,
+    "what the analysis will lack, said by check (bench/app/analysis_plan.py ANALYSIS_NEEDS)": ANALYSIS_NEEDS,
+    "the step's line in check (bench/app/check.py RUN_DESCRIPTIONS)": RUN_DESCRIPTIONS,
+    "the run's excitation in show (bench/app/show.py EXCITATIONS)": EXCITATIONS,
     "what the analysis reads (bench/app/run_analysis.py INPUT_READERS)": INPUT_READERS,
     "the analysis (bench/app/run_analysis.py ANALYSES)": ANALYSES,
 }
@@ -21,6 +30,13 @@ TABLES = {
 def test_every_run_kind_is_in_the_table(name):
     table = TABLES[name]
     assert set(table) == set(RunKind), f"{name}: missing {set(RunKind) - set(table)}"
+
+
+def test_every_run_kind_is_recorded_by_a_step():
+    """A step says which kind of run it records (an enum member); every kind has a step."""
+    made = {cls.run_kind for cls in STEP_TYPES.values()} - {None}
+    assert made == set(RunKind)
+    assert all(isinstance(cls.run_kind, RunKind | None) for cls in STEP_TYPES.values())
 
 
 @pytest.mark.parametrize("kind", list(RunKind))

@@ -17,10 +17,14 @@ may supply what a step lacks here: each line says so.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from bench.analysis.records import MIN_FIT_POINTS
 from bench.config import BenchConfig
 from sequences import DwellGrid, FreeRun, Prompt, RoadReplay, Sequence, SineDwell, Sweep
 from sequences.channels import Role
+from sequences.runs import RunKind
 
 #: What a campaign file the sequence runs into may hold already.
 _UNLESS_IN_FILE = "unless the campaign file it runs into holds one already"
@@ -37,7 +41,14 @@ class _Walk:
         #: per (pressure, grid amplitude in mm): the steps and the frequencies they dwell at
         self.grid_points: dict[tuple[float, float], tuple[list[int], set[float]]] = {}
 
+    def weighed(self, index: int, step: FreeRun) -> None:
+        """A free run: the runs after it have a measured m_comp."""
+        self.free_run = True
+
     def grid(self, index: int, step: DwellGrid | SineDwell) -> None:
+        """A dwell grid: the tyre fit on the shaker (a four-post bench's grid is recorded only)."""
+        if self.config.kind != "shaker":
+            return
         key = f"steps[{index}] {step.kind}"
         if self.pressure_bar is None:
             self.lines.append(
@@ -56,7 +67,7 @@ class _Walk:
                 f" {self.config.masses.plate_kg:g} kg (masses.plate_kg), nominal, not measured,"
                 f" {_UNLESS_IN_FILE}"
             )
-        for dwell in (step,) if isinstance(step, SineDwell) else step.dwells():
+        for dwell in step.dwells():
             amplitude_mm = dwell.requested_amplitude_mm or dwell.amplitude_mm
             steps, freqs = self.grid_points.setdefault((self.pressure_bar, amplitude_mm), ([], set()))
             if index not in steps:
@@ -81,6 +92,10 @@ class _Walk:
             f"{key}: the four-post analysis needs the tyre's shaker identification: run the shaker"
             " campaign into the same campaign file first"
         )
+
+    def needs_nothing(self, index: int, step: object) -> None:
+        """A run whose analysis needs nothing from the runs before it (a hammer test, a tracked
+        dwell's resonance)."""
 
     def replay(self, index: int, step: RoadReplay) -> None:
         key = f"steps[{index}] {step.kind}"
@@ -119,12 +134,18 @@ def analysis_limits(sequence: Sequence, config: BenchConfig) -> list[str]:
     for index, step in enumerate(sequence.steps):
         if isinstance(step, Prompt) and step.action == "set_tyre_pressure":
             walk.pressure_bar = float(step.target)
-        elif isinstance(step, FreeRun):
-            walk.free_run = True
-        elif isinstance(step, DwellGrid | SineDwell) and config.kind == "shaker":
-            walk.grid(index, step)
-        elif isinstance(step, Sweep):
-            walk.sweep(index, step)
-        elif isinstance(step, RoadReplay):
-            walk.replay(index, step)
+        elif step.run_kind is not None:
+            ANALYSIS_NEEDS[step.run_kind](walk, index, step)
     return walk.lines + walk.too_few_points()
+
+
+#: What each kind of run needs of the runs before it, said as it walks past them
+#: (tests/test_run_kind_tables.py: every kind is here).
+ANALYSIS_NEEDS: dict[RunKind, Callable[[_Walk, int, Any], None]] = {
+    RunKind.FREE_RUN: _Walk.weighed,
+    RunKind.DWELL_GRID: _Walk.grid,
+    RunKind.SWEEP: _Walk.sweep,
+    RunKind.ROAD_REPLAY: _Walk.replay,
+    RunKind.TRACKED_DWELL: _Walk.needs_nothing,
+    RunKind.HAMMER: _Walk.needs_nothing,
+}

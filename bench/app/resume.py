@@ -20,7 +20,7 @@ from bench.app.resume_check import check_resume
 from bench.engine.engine import Engine, is_measurement
 from bench.store import open_campaign
 from bench.store.writer import check_specimen
-from sequences import DwellGrid, FreeRun, SineDwell
+from sequences.runs import RunKind
 
 
 class ResumeFromFile:
@@ -114,8 +114,8 @@ def done_in_file(plan: CampaignPlan, out_path: Path) -> DoneBefore:
                 continue
             done = run.completed_point_indices()
             points += len(done)
-            if isinstance(step, SineDwell | DwellGrid | FreeRun):
-                dwells = (step,) if isinstance(step, SineDwell) else step.dwells()
+            if step.run_kind in (RunKind.DWELL_GRID, RunKind.FREE_RUN):
+                dwells = step.dwells()
                 # an adaptive grid's added points are beyond its planned dwells and its estimate
                 estimated_s += sum(dwells[i].duration_s for i in done if i < len(dwells))
             elif run.status == "complete":

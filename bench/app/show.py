@@ -17,6 +17,7 @@ reader saw could mix two flushes; the writer's own progress display shows a runn
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -36,10 +37,12 @@ from sequences import (
     SineDwell,
     Step,
     Sweep,
+    TrackedDwell,
 )
 from sequences.loader import step_from_fields
 from sequences.metadata import LABELS
 from sequences.points import PointStatus
+from sequences.runs import RunKind
 
 SCHEMA = "wfs-bench-show"
 #: Version 1 only gains keys; renaming or removing one, or changing its meaning, makes version 2.
@@ -117,17 +120,42 @@ def _planned(run: RunView) -> tuple[int, Excitation] | None:
 
 
 def _step_excitation(step: Step) -> Excitation:
-    if isinstance(step, DwellGrid | FreeRun):
-        grid = step.grid if isinstance(step, FreeRun) else step
-        span_hz = [float(min(grid.freqs_hz)), float(max(grid.freqs_hz))]
-        return sorted(map(float, set(grid.amplitudes_mm))), span_hz
-    if isinstance(step, SineDwell):
-        return [float(step.amplitude_mm)], [float(step.freq_hz)] * 2
-    if isinstance(step, Sweep):
-        return [float(step.amplitude_mm)], [float(step.start_hz), float(step.end_hz)]
-    if isinstance(step, HammerTest | RoadReplay):
-        return [], None
-    raise ValueError(f"a {step.kind} step records no run")
+    if step.run_kind is None:
+        raise ValueError(f"a {step.kind} step records no run")
+    return EXCITATIONS[step.run_kind](step)
+
+
+def _dwells_excitation(step: SineDwell | DwellGrid | FreeRun) -> Excitation:
+    """The grid's nominal amplitudes (before a bench limit lowered any) and its frequency span."""
+    dwells = step.dwells()
+    freqs = [float(d.freq_hz) for d in dwells]
+    amplitudes = sorted({float(d.requested_amplitude_mm or d.amplitude_mm) for d in dwells})
+    return amplitudes, [min(freqs), max(freqs)]
+
+
+def _sweep_excitation(step: Sweep) -> Excitation:
+    return [float(step.amplitude_mm)], [float(step.start_hz), float(step.end_hz)]
+
+
+def _tracked_dwell_excitation(step: TrackedDwell) -> Excitation:
+    """The search's band (the track follows the resonance found in it)."""
+    return [float(step.amplitude_mm)], [float(step.search_start_hz), float(step.search_end_hz)]
+
+
+def _no_excitation(step: HammerTest | RoadReplay) -> Excitation:
+    """A blow or a road: no amplitude or frequency span of a sine."""
+    return [], None
+
+
+#: The excitation each kind of run's step states (tests/test_run_kind_tables.py: every kind is here).
+EXCITATIONS: dict[RunKind, Callable[[Any], Excitation]] = {
+    RunKind.DWELL_GRID: _dwells_excitation,
+    RunKind.FREE_RUN: _dwells_excitation,
+    RunKind.SWEEP: _sweep_excitation,
+    RunKind.TRACKED_DWELL: _tracked_dwell_excitation,
+    RunKind.ROAD_REPLAY: _no_excitation,
+    RunKind.HAMMER: _no_excitation,
+}
 
 
 def _recorded_excitation(run: RunView) -> Excitation:
