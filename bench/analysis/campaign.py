@@ -51,6 +51,23 @@ class AnalysisStatus(StrEnum):
     FAILED = "failed"
 
 
+class AnalysisKind(StrEnum):
+    """What the analysis of a run gave, the name its results are stored under beside the run:
+    ``hammer`` (the sensor), ``plate_mass`` (a free run's m_comp), ``track`` (a tracked resonance),
+    ``shaker`` (a pressure's tyre identification), ``four_post`` (the quarter car), ``sweep`` (a
+    sweep on the shaker: recorded, not analysed), ``road_replay`` (the compensated road), or
+    ``analysis`` when it failed."""
+
+    HAMMER = "hammer"
+    PLATE_MASS = "plate_mass"
+    TRACK = "track"
+    SHAKER = "shaker"
+    FOUR_POST = "four_post"
+    SWEEP = "sweep"
+    ROAD_REPLAY = "road_replay"
+    FAILED = "analysis"
+
+
 @dataclass(frozen=True)
 class PlateMassRun:
     """A free run analysed: its ``run_id``, the ``plate`` it weighed (``"shaker plate"`` or
@@ -89,16 +106,15 @@ class CampaignKnowledge:
 
 @dataclass(frozen=True)
 class RunAnalysis:
-    """What the analysis of one run gave: ``name`` (what was analysed: ``hammer``, ``plate_mass``,
-    ``shaker``, ``four_post``, ``sweep``, ``track``, ``road_replay``, or ``analysis`` when it
-    failed), the text ``lines``, the scalar ``results`` stored beside the run, ``error`` (empty
+    """What the analysis of one run gave: ``name`` (what was analysed, :class:`AnalysisKind`), the
+    text ``lines``, the scalar ``results`` stored beside the run, ``error`` (empty
     when the analysis succeeded) and ``omitted``: what the data did not allow, each with why
     (empty when the analysis gave everything the run is for). The result objects go into the
     analyser's knowledge."""
 
     run_id: str
     kind: str
-    name: str
+    name: AnalysisKind
     lines: tuple[str, ...]
     results: dict[str, Any]
     error: str = ""
@@ -114,7 +130,8 @@ class RunAnalysis:
     @classmethod
     def failed(cls, run_id: str, kind: str, reason: str) -> RunAnalysis:
         """The analysis of a run that failed for ``reason``: a flag, the reason as its result."""
-        return cls(run_id, kind, "analysis", (f"FLAG analysis failed: {reason}",), {"error": reason}, reason)
+        flag = f"FLAG analysis failed: {reason}"
+        return cls(run_id, kind, AnalysisKind.FAILED, (flag,), {"error": reason}, reason)
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ import numpy as np
 
 from bench.analysis.campaign import (
     PRESSURE_MATCH_BAR,
+    AnalysisKind,
     CampaignKnowledge,
     PlateMassRun,
     RunAnalysis,
@@ -204,7 +205,7 @@ INPUT_READERS: dict[RunKind, Callable[[RunView, CampaignFile, RunInputs], RunInp
 
 #: What an analysis of one run gives: its name (``plate_mass``, ``shaker`` ...), its text lines and
 #: the scalar results stored beside the run.
-Analysed = tuple[str, list[str], dict[str, Any]]
+Analysed = tuple[AnalysisKind, list[str], dict[str, Any]]
 
 
 class RunAnalyser:
@@ -232,13 +233,13 @@ class RunAnalyser:
         self.knowledge.analysed_runs[run.run_id] = outcome
         return outcome
 
-    def _omitted(self, name: str, run: RunInputs) -> tuple[str, ...]:
+    def _omitted(self, name: AnalysisKind, run: RunInputs) -> tuple[str, ...]:
         """What the analysis ``name`` of ``run`` could not give, with why: a grid's amplitudes with
         too few dwells for a tyre fit, a road replay's model-compensated force."""
-        if name == "road_replay":
+        if name is AnalysisKind.ROAD_REPLAY:
             replay = self.knowledge.road_replays[run.run_id]
             return () if replay.identification else (f"model-compensated force: {replay.model_omitted}",)
-        if name != "shaker":
+        if name is not AnalysisKind.SHAKER:
             return ()
         result = self.knowledge.shaker[float(run.conditions["tyre_pressure_bar"])]
         return tuple(f"{r.label}: no tyre fit: {r.why}" for r in result.ratios_only.values())
@@ -264,7 +265,7 @@ class RunAnalyser:
             "eigenfrequency_hz": result.eigenfrequency_hz,
             "damping_ratio": result.damping_ratio_log_decrement,
         }
-        return "hammer", summary_lines(result), results
+        return AnalysisKind.HAMMER, summary_lines(result), results
 
     def _free_run(self, run: RunInputs) -> Analysed:
         """The plate mass m_comp of the shaker's plate or the four-post's post."""
@@ -278,7 +279,7 @@ class RunAnalyser:
             k.shaker_free_run = records
             k.plate_masses.append(PlateMassRun(run.run_id, "shaker plate", result))
         results = {"m_comp_kg": result.plate.mass_kg, "m_comp_sigma_kg": result.plate.sigma_kg}
-        return "plate_mass", summary_lines(result), results
+        return AnalysisKind.PLATE_MASS, summary_lines(result), results
 
     def _track(self, run: RunInputs) -> Analysed:
         """A tracked dwell's resonance over its looks."""
@@ -292,7 +293,7 @@ class RunAnalyser:
             "verdict": result.verdict,
             "reason": result.reason,
         }
-        return "track", result.summary_lines(), results
+        return AnalysisKind.TRACK, result.summary_lines(), results
 
     def _shaker(self, run: RunInputs) -> Analysed:
         k = self.knowledge
@@ -307,7 +308,7 @@ class RunAnalyser:
             sensor_source=k.sensor_source.text,
         )
         k.shaker[float(pressure)] = result
-        return "shaker", summary_lines(result), {"tyre_pressure_bar": float(pressure)}
+        return AnalysisKind.SHAKER, summary_lines(result), {"tyre_pressure_bar": float(pressure)}
 
     def _nominal_plate(self) -> FreeRunResult:
         """m_comp of a campaign without a free run: the configured plate mass, nominal."""
@@ -351,7 +352,7 @@ class RunAnalyser:
         for name, errors in result.errors.items():
             results[f"rms_error_{name}_n"] = errors.rms_n
             results[f"octave_rms_error_{name}_n"] = list(errors.octave_rms_n)
-        return "road_replay", result.summary_lines(), results
+        return AnalysisKind.ROAD_REPLAY, result.summary_lines(), results
 
     def _replay_compensation(self, run: RunInputs) -> tuple[CompensationFilters | None, str]:
         """The model compensation of a road replay at its rate, as ``wfsbench compensate`` builds it
@@ -379,7 +380,7 @@ class RunAnalyser:
                 "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
                 " from its dwell grids; the sweep analysis is the four-post bench's)"
             )
-            return "sweep", [note], {}
+            return AnalysisKind.SWEEP, [note], {}
         if not k.post_free_run:
             raise ValueError("no free run of the post in this campaign yet: its m_comp is unknown")
         pressure = run.conditions.get("tyre_pressure_bar")
@@ -407,7 +408,7 @@ class RunAnalyser:
         k.four_post = result
         lines = summary_lines(result)
         return (
-            "four_post",
+            AnalysisKind.FOUR_POST,
             [lines[0], *notes, *lines[1:]],
             {
                 "m_wheel_kg": result.wheel_mass.mass_kg,

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.campaign import AnalysisKind, CampaignAnalysis
 from bench.analysis.frf import Frf
 from bench.analysis.runs import FourPostResult, ShakerAmplitudeResult, ShakerCampaignResult
 from bench.export.common import output_file
@@ -174,9 +174,9 @@ def campaign_functions(analysis: CampaignAnalysis, run_ids: set[str] | None = No
         if run_ids is not None and run.run_id not in run_ids:
             continue
         pressure = run.results.get("tyre_pressure_bar")
-        if run.name == "shaker" and pressure in k.shaker:
+        if run.name is AnalysisKind.SHAKER and pressure in k.shaker:
             out += _shaker_functions(pressure, k.shaker[pressure], run.run_id)
-        elif run.name == "four_post" and k.four_post is not None:
+        elif run.name is AnalysisKind.FOUR_POST and k.four_post is not None:
             out += four_post_functions(k.four_post, run.run_id)
     return out
 

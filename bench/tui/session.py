@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignKnowledge
+from bench.analysis.campaign import AnalysisKind, CampaignKnowledge
 from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
 from bench.app.pace import DoneBefore, SequencePace
@@ -516,7 +516,8 @@ class BenchSession:
 
     def _bode(self, event: ev.AnalysisDone) -> tuple[BodeCurves, ...]:
         pressure = event.results.get("tyre_pressure_bar")
-        if event.name != "shaker" or self.knowledge is None or pressure not in self.knowledge.shaker:
+        shaker = event.name == AnalysisKind.SHAKER
+        if not shaker or self.knowledge is None or pressure not in self.knowledge.shaker:
             return ()
         curves = []
         for result in self.knowledge.shaker[pressure].amplitudes.values():
