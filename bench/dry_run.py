@@ -45,6 +45,7 @@ from sequences.steps import (
     FreeRun,
     HammerTest,
     Prompt,
+    PromptAction,
     RoadReplay,
     Sequence,
     SineDwell,
@@ -306,11 +307,11 @@ class _World:
         self._setups: dict[tuple[bool, float], BenchSetup] = {}
 
     def apply(self, prompt: Prompt) -> None:
-        if prompt.action == "set_tyre_pressure" and isinstance(prompt.target, int | float):
+        if prompt.action == PromptAction.SET_TYRE_PRESSURE and isinstance(prompt.target, int | float):
             self.pressure_bar = float(prompt.target)
-        elif prompt.action in ("remove_wheel", "car_off_posts"):
+        elif prompt.action in (PromptAction.REMOVE_WHEEL, PromptAction.CAR_OFF_POSTS):
             self.specimen_on = False
-        elif prompt.action in ("fit_wheel", "car_on_posts"):
+        elif prompt.action in (PromptAction.FIT_WHEEL, PromptAction.CAR_ON_POSTS):
             self.specimen_on = True
 
     def setup(self, *, free_run: bool) -> BenchSetup:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
+from enum import StrEnum
 from typing import ClassVar
 
 from sequences.errors import AnswerError
@@ -40,26 +41,42 @@ ROAD_CLASSES = ("A", "B", "C", "D")
 #: The spatial band (cycles/m) of a generated road by default: wavelengths from 20 m (longer ones
 #: the car's body rides over and the posts' stroke cannot play) down to ISO 8608's 0.35 m.
 ROAD_BAND_CYCLES_PER_M = (0.05, 2.83)
-HYDRAULIC_LEVELS = ("off", "low", "high")
+
+
+class HydraulicLevel(StrEnum):
+    """The hydraulic pressure a ``hydraulics`` step switches to: off, low (positioning), high
+    (testing)."""
+
+    OFF = "off"
+    LOW = "low"
+    HIGH = "high"
+
+
+class PromptAction(StrEnum):
+    """What a prompt asks the operator to do to the bench, and what the simulated operator does with
+    the answer in simulated mode."""
+
+    SET_TYRE_PRESSURE = "set_tyre_pressure"
+    REMOVE_WHEEL = "remove_wheel"
+    FIT_WHEEL = "fit_wheel"
+    CAR_ON_POSTS = "car_on_posts"
+    CAR_OFF_POSTS = "car_off_posts"
+    SET_DAMPER = "set_damper"
+    STRIKE_HAMMER = "strike_hammer"
+
+
+#: The members' words, as a sequence file spells them.
+HYDRAULIC_LEVELS = tuple(level.value for level in HydraulicLevel)
 ANSWER_TYPES = ("number", "confirm", "choice")
-#: What the simulated operator does with a prompt's answer in simulated mode.
-PROMPT_ACTIONS = (
-    "set_tyre_pressure",
-    "remove_wheel",
-    "fit_wheel",
-    "car_on_posts",
-    "car_off_posts",
-    "set_damper",
-    "strike_hammer",
-)
+PROMPT_ACTIONS = tuple(action.value for action in PromptAction)
 #: The bench on which a prompt action can be done at all (the others: on any bench): a wheel is
 #: fitted to the shaker, a car driven onto the four posts.
 ACTION_BENCH_KIND = {
-    "remove_wheel": "shaker",
-    "fit_wheel": "shaker",
-    "car_on_posts": "four_post",
-    "car_off_posts": "four_post",
-    "set_damper": "four_post",
+    PromptAction.REMOVE_WHEEL: "shaker",
+    PromptAction.FIT_WHEEL: "shaker",
+    PromptAction.CAR_ON_POSTS: "four_post",
+    PromptAction.CAR_OFF_POSTS: "four_post",
+    PromptAction.SET_DAMPER: "four_post",
 }
 _YES = ("yes", "y", "ok", "done", "true")
 _NO = ("no", "n", "false")
@@ -423,7 +440,7 @@ class HammerTest:
             id=f"strike_{blow}",
             text=f"Strike the sensor with the hammer (blow {blow} of {self.blows})",
             answer="confirm",
-            action="strike_hammer",
+            action=PromptAction.STRIKE_HAMMER,
         )
 
     @property

@@ -30,9 +30,11 @@ from sequences.steps import (
     DwellGrid,
     FreeRun,
     HammerTest,
+    HydraulicLevel,
     Hydraulics,
     MeanPosition,
     Prompt,
+    PromptAction,
     RoadReplay,
     Sequence,
     SineDwell,
@@ -131,7 +133,8 @@ def check_steps(steps: Iterable[tuple[int, Step]], limits: BenchLimits, source: 
     """The problems of ``(index, step)`` pairs; prompt ids must be unique across them."""
     problems: list[Problem] = []
     prompt_ids: dict[str, int] = {}
-    hydraulics = "off"  # a sequence brings the hydraulics up itself: they are off before its first step
+    # a sequence brings the hydraulics up itself: they are off before its first step
+    hydraulics = HydraulicLevel.OFF
     for index, step in steps:
         check = _Checker(source, f"steps[{index}]", limits)
         if type(step) in _STEP_CHECKS:
@@ -164,7 +167,7 @@ class _Checker:
     def hydraulics(self, level: object, before: str) -> str:
         """Check a hydraulics step given the level ``before`` it; the level after it."""
         self.one_of("level", level, HYDRAULIC_LEVELS)
-        if level == "high" and before == "off":
+        if level == HydraulicLevel.HIGH and before == HydraulicLevel.OFF:
             self.add(
                 "level",
                 "'high' while the hydraulics are off: the controller raises the pressure to high only from"
@@ -587,7 +590,8 @@ class _Checker:
 
     def _prompt_answer(self, step: Prompt, lo: float | None, hi: float | None, choices_ok: bool) -> None:
         """The answer type fits the action, the range/choices and the target."""
-        needs = {"set_tyre_pressure": "number", "set_damper": "choice"}.get(step.action or "")
+        answer_of_action = {PromptAction.SET_TYRE_PRESSURE: "number", PromptAction.SET_DAMPER: "choice"}
+        needs = answer_of_action.get(step.action or "")
         if needs and step.answer != needs:
             self.add("answer", f"action {step.action!r} needs answer = {needs!r}, got {step.answer!r}")
         if step.answer == "choice" and choices_ok and len(step.choices) < 2:
@@ -596,7 +600,7 @@ class _Checker:
             self.add("choices", f"only answer = 'choice' takes choices (answer is {step.answer!r})")
         if step.answer != "number" and (step.minimum is not None or step.maximum is not None):
             self.add("minimum", f"only answer = 'number' takes minimum/maximum (answer is {step.answer!r})")
-        if step.action == "set_tyre_pressure" and step.target is None:
+        if step.action == PromptAction.SET_TYRE_PRESSURE and step.target is None:
             self.add("target", "action 'set_tyre_pressure' needs the pressure asked for as target (bar)")
         if step.target is None:
             return

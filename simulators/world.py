@@ -27,6 +27,7 @@ from bench.models.parameters import (
     tyre_at_pressure,
 )
 from bench.models.setup import BenchKind, BenchSetup
+from sequences.steps import PROMPT_ACTIONS, PromptAction
 from simulators.bench_sim import SimulatedBench
 from simulators.plant import HalfSinePulse
 
@@ -205,22 +206,22 @@ class SimulatedWorld:
     # ------------------------------------------------------------------ operator actions
     def remove_wheel(self) -> None:
         """Take the wheel off the shaker: the plate runs alone (the free run)."""
-        self._require(WorldBench.SHAKER, "remove_wheel")
+        self._require(WorldBench.SHAKER, PromptAction.REMOVE_WHEEL)
         self._change(specimen_mounted=False, bare_sensor=False)
 
     def fit_wheel(self) -> None:
         """Fit the wheel (at the present tyre pressure) on the shaker."""
-        self._require(WorldBench.SHAKER, "fit_wheel")
+        self._require(WorldBench.SHAKER, PromptAction.FIT_WHEEL)
         self._change(specimen_mounted=True, bare_sensor=False)
 
     def car_on_posts(self) -> None:
         """Drive the car onto the four posts (the quarter car at the tyre pressure and damper)."""
-        self._require(WorldBench.FOUR_POST, "car_on_posts")
+        self._require(WorldBench.FOUR_POST, PromptAction.CAR_ON_POSTS)
         self._change(specimen_mounted=True, bare_sensor=False)
 
     def car_off_posts(self) -> None:
         """Drive the car off: the post runs alone (the post's free run)."""
-        self._require(WorldBench.FOUR_POST, "car_off_posts")
+        self._require(WorldBench.FOUR_POST, PromptAction.CAR_OFF_POSTS)
         self._change(specimen_mounted=False, bare_sensor=False)
 
     def set_tyre_pressure(self, pressure_bar: float) -> None:
@@ -231,7 +232,7 @@ class SimulatedWorld:
 
     def set_damper(self, setting: str) -> None:
         """Set the quarter car's damper to one of :data:`DAMPER_SETTINGS_NS_PER_M`."""
-        self._require(WorldBench.FOUR_POST, "set_damper")
+        self._require(WorldBench.FOUR_POST, PromptAction.SET_DAMPER)
         self._check_damper(setting)
         self._change(damper=setting)
 
@@ -279,31 +280,21 @@ class SimulatedOperator:
     the operator did not act; for ``strike_hammer`` a number is the blow's peak force in N).
     """
 
-    ACTIONS = (
-        "set_tyre_pressure",
-        "remove_wheel",
-        "fit_wheel",
-        "car_on_posts",
-        "car_off_posts",
-        "set_damper",
-        "strike_hammer",
-    )
-
     def __init__(self, world: SimulatedWorld) -> None:
         self.world = world
 
     def apply(self, action: str, answer: float | str | bool | None) -> None:
         """Do what the operator was asked, with the answer given. ValueError for an unknown action."""
-        if action not in self.ACTIONS:
-            raise ValueError(f"unknown operator action {action!r}; known: {', '.join(self.ACTIONS)}")
+        if action not in PROMPT_ACTIONS:
+            raise ValueError(f"unknown operator action {action!r}; known: {', '.join(PROMPT_ACTIONS)}")
         world = self.world
-        if action == "set_tyre_pressure":
+        if action == PromptAction.SET_TYRE_PRESSURE:
             world.set_tyre_pressure(float(answer))  # type: ignore[arg-type]
-        elif action == "set_damper":
+        elif action == PromptAction.SET_DAMPER:
             world.set_damper(str(answer))
         elif answer is False:
             return  # a confirmation declined: nothing was done
-        elif action == "strike_hammer":
+        elif action == PromptAction.STRIKE_HAMMER:
             if isinstance(answer, int | float) and not isinstance(answer, bool):
                 world.strike_hammer(float(answer))
             else:

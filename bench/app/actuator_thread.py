@@ -34,6 +34,7 @@ from drivers.setpoints import (
     FrequencyUpdate,
     SweepSetpoint,
 )
+from sequences.steps import HydraulicLevel
 
 T = TypeVar("T")
 log = logging.getLogger(__name__)
@@ -42,9 +43,9 @@ log = logging.getLogger(__name__)
 CALL_TIMEOUT_S = 5.0
 #: The controller state each hydraulics level of the contract commands.
 HYDRAULICS_STATES = {
-    "off": ControllerState.OFF,
-    "low": ControllerState.HYDRAULICS_LOW,
-    "high": ControllerState.HYDRAULICS_HIGH,
+    HydraulicLevel.OFF: ControllerState.OFF,
+    HydraulicLevel.LOW: ControllerState.HYDRAULICS_LOW,
+    HydraulicLevel.HIGH: ControllerState.HYDRAULICS_HIGH,
 }
 
 
@@ -200,9 +201,9 @@ class ThreadedActuator:
 
     def set_hydraulics(self, level: str) -> None:
         operation = {
-            "off": self._client.hydraulics_off,
-            "low": self._client.hydraulics_low,
-            "high": self._client.hydraulics_high,
+            HydraulicLevel.OFF: self._client.hydraulics_off,
+            HydraulicLevel.LOW: self._client.hydraulics_low,
+            HydraulicLevel.HIGH: self._client.hydraulics_high,
         }[level]
         wanted = HYDRAULICS_STATES[level]
         self._settled(f"hydraulics {level}", operation(), lambda state: state is wanted)

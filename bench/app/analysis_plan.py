@@ -25,6 +25,7 @@ from bench.config import BenchConfig
 from sequences import DwellGrid, FreeRun, Prompt, RoadReplay, Sequence, SineDwell, Sweep
 from sequences.channels import Role
 from sequences.runs import RunKind
+from sequences.steps import PromptAction
 
 #: What a campaign file the sequence runs into may hold already.
 _UNLESS_IN_FILE = "unless the campaign file it runs into holds one already"
@@ -132,7 +133,7 @@ def analysis_limits(sequence: Sequence, config: BenchConfig) -> list[str]:
     analysed in full."""
     walk = _Walk(config)
     for index, step in enumerate(sequence.steps):
-        if isinstance(step, Prompt) and step.action == "set_tyre_pressure":
+        if isinstance(step, Prompt) and step.action == PromptAction.SET_TYRE_PRESSURE:
             walk.pressure_bar = float(step.target)
         elif step.run_kind is not None:
             ANALYSIS_NEEDS[step.run_kind](walk, index, step)
