@@ -8,10 +8,13 @@ import pytest
 
 from bench.app.run_analysis import ANALYSES, INPUT_READERS, RunAnalyser, RunInputs, initial_knowledge
 from bench.config import default_bench_config
+from bench.engine.procedures import PROCEDURES
 from sequences.runs import RunKind
+from sequences.steps import MEASUREMENT_TYPES
 
 #: Each layer's table keyed by the run kind.
 TABLES = {
+    "the engine's procedure (bench/engine/procedures PROCEDURES)": PROCEDURES,
     "what the analysis reads (bench/app/run_analysis.py INPUT_READERS)": INPUT_READERS,
     "the analysis (bench/app/run_analysis.py ANALYSES)": ANALYSES,
 }
@@ -21,6 +24,13 @@ TABLES = {
 def test_every_run_kind_is_in_the_table(name):
     table = TABLES[name]
     assert set(table) == set(RunKind), f"{name}: missing {set(RunKind) - set(table)}"
+
+
+@pytest.mark.parametrize("step_type", MEASUREMENT_TYPES, ids=lambda t: t.kind)
+def test_every_measurement_step_is_run_by_a_procedure(step_type):
+    """A measurement step is run by its run kind's procedure: a new step type needs a kind the
+    engine has a procedure for."""
+    assert RunKind.of_step(step_type.kind) in PROCEDURES
 
 
 @pytest.mark.parametrize("kind", list(RunKind))
