@@ -214,6 +214,24 @@ class RunRecording:
         the hold's own: their sync bits were lost with them)."""
         return sum(missing for index, missing in self._gaps if start <= index <= stop)
 
+    def point_done(
+        self, index: int, freq_hz: float, amplitude_mm: float, span: ExcitationSpan, **attempt: Any
+    ) -> ev.PointDone:
+        """The end of an attempt at point ``index`` of this run (at ``freq_hz`` and ``amplitude_mm``)
+        over ``span``, with the frames the link lost in its hold; ``attempt``: its other fields."""
+        return ev.PointDone(
+            index,
+            freq_hz,
+            amplitude_mm,
+            span.start,
+            span.hold_start,
+            span.hold_end,
+            span.end,
+            frames_missing=self.frames_missing_between(span.hold_start, span.hold_end),
+            run_id=self.run_id,
+            **attempt,
+        )
+
     def check_excursion(self, target_mm: float, achieved_mm: float, where: str) -> None:
         """A measured amplitude beyond the target by more than the amplitude control's excursion
         tolerance is a limit reached, acted on with its configured action."""

@@ -20,6 +20,7 @@ from bench.engine.points import ExcitationSpan
 from bench.engine.procedures.held_amplitude import held_amplitude
 from bench.engine.recording import PointInterruptedError, RunRecording
 from bench.engine.run_context import RunContext
+from bench.engine.tracking import TrackWatch
 from drivers.setpoints import DwellSetpoint
 from sequences import AdaptiveDwell, FreeRun, SineDwell
 from sequences.points import PointStatus
@@ -103,21 +104,19 @@ def run_point(
                 context, recording, dwell, index=index, attempt=attempt, command_mm=command_mm
             )
         point = PointPlan(index, dwell, requested, added_reason, notch)
-        try:
-            span = recording.excite(
-                setpoint, planned_s=dwell.taper_in_s + hold_s + dwell.taper_out_s, watch=watch, held=held
-            )
-        except PointInterruptedError as interrupted:
-            publish_point(
-                context,
-                recording,
-                point,
-                attempt,
-                PointStatus.INTERRUPTED,
-                command_mm=command_mm,
-                span=interrupted.span,
-            )
-            context.wait_paused()
+        planned_s = dwell.taper_in_s + hold_s + dwell.taper_out_s
+        span = excite_point(
+            context,
+            recording,
+            point,
+            attempt,
+            setpoint,
+            command_mm=command_mm,
+            planned_s=planned_s,
+            watch=watch,
+            held=held,
+        )
+        if span is None:
             continue
         verdict = None if watch is None else watch.verdict()
         sent_mm = command_mm
@@ -148,6 +147,30 @@ def run_point(
         if decision.keep:
             return verdict
         command_mm, corrections = decision.corrected_mm, corrections + 1
+
+
+def excite_point(
+    context: RunContext,
+    recording: RunRecording,
+    point: PointPlan,
+    attempt: int,
+    setpoint: DwellSetpoint,
+    *,
+    command_mm: float,
+    planned_s: float,
+    watch: OnlineDwell | TrackWatch | None = None,
+    held: HeldAmplitude | None = None,
+) -> ExcitationSpan | None:
+    """Excite attempt ``attempt`` at ``point`` (``setpoint``, its amplitude ``command_mm``) and
+    return its span. An attempt a pause interrupted is published as ``interrupted``, and None
+    returned once the pause is over: the point is tried again."""
+    try:
+        return recording.excite(setpoint, planned_s=planned_s, watch=watch, held=held)
+    except PointInterruptedError as interrupted:
+        status, span = PointStatus.INTERRUPTED, interrupted.span
+        publish_point(context, recording, point, attempt, status, command_mm=command_mm, span=span)
+        context.wait_paused()
+        return None
 
 
 def _measured(
@@ -221,14 +244,11 @@ def publish_point(
             "phase_uncertainty_deg": verdict.phase_uncertainty_deg,
         }
     context.publish(
-        ev.PointDone(
+        recording.point_done(
             point.index,
             point.dwell.freq_hz,
             point.dwell.amplitude_mm,
-            span.start,
-            span.hold_start,
-            span.hold_end,
-            span.end,
+            span,
             status=status,
             attempt=attempt,
             requested_amplitude_mm=point.requested_mm,
@@ -236,8 +256,6 @@ def publish_point(
             achieved_amplitude_mm=achieved_mm,
             note=note,
             added_reason=point.added_reason,
-            frames_missing=recording.frames_missing_between(span.hold_start, span.hold_end),
             **adaptive,
-            run_id=recording.run_id,
         )
     )

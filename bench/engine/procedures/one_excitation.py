@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from bench.engine import events as ev
 from bench.engine.points import ExcitationSpan
 from bench.engine.recording import PointInterruptedError, RunRecording
 from bench.engine.run_context import RunContext
@@ -52,20 +51,15 @@ def publish_whole(
     ``status`` and ``attempt``; ``measured``: what the excitation showed (its achieved amplitude, a notch)."""
     freq_hz, amplitude_mm = commanded
     context.publish(
-        ev.PointDone(
+        recording.point_done(
             0,
             freq_hz,
             amplitude_mm,
-            span.start,
-            span.hold_start,
-            span.hold_end,
-            span.end,
+            span,
             status=status,
             attempt=attempt,
             requested_amplitude_mm=amplitude_mm,
             commanded_amplitude_mm=amplitude_mm,
-            frames_missing=recording.frames_missing_between(span.hold_start, span.hold_end),
             **measured,
-            run_id=recording.run_id,
         )
     )

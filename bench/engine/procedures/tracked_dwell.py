@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 
 from bench.engine import events as ev
-from bench.engine.procedures.dwell_point import PointPlan, publish_point, run_point
-from bench.engine.recording import PointInterruptedError, RunRecording
+from bench.engine.procedures.dwell_point import PointPlan, excite_point, publish_point, run_point
+from bench.engine.recording import RunRecording
 from bench.engine.run_context import MeasurementRun, RunContext
 from bench.engine.stops import RunStoppedError
 from bench.engine.tracking import GLIDE_S, Resonance, TrackWatch, TrackWindow, find_resonance
@@ -127,19 +127,17 @@ def _track(
         planned_s = step.taper_in_s + track_s + step.taper_out_s
         dwell = SineDwell(resonance.freq_hz, step.amplitude_mm)
         point = PointPlan(index, dwell, step.amplitude_mm)
-        try:
-            span = recording.excite(setpoint, planned_s=planned_s, watch=watch)
-        except PointInterruptedError as interrupted:
-            publish_point(
-                context,
-                recording,
-                point,
-                attempt,
-                PointStatus.INTERRUPTED,
-                command_mm=step.amplitude_mm,
-                span=interrupted.span,
-            )
-            context.wait_paused()
+        span = excite_point(
+            context,
+            recording,
+            point,
+            attempt,
+            setpoint,
+            command_mm=step.amplitude_mm,
+            planned_s=planned_s,
+            watch=watch,
+        )
+        if span is None:
             continue
         publish_point(
             context,
