@@ -25,6 +25,7 @@ from bench.engine.points import ExcitationSpan, SpanTracker, excitation_frequenc
 from bench.engine.run_context import MeasurementRun, RunContext
 from bench.engine.states import RunState
 from bench.engine.stops import RunStoppedError, stop_with_taper
+from bench.engine.tracking import TrackWatch
 from bench.numerics.sine_fit import SineFit, fit_latest_cycles, frame_offsets
 from drivers.errors import LinkError
 from drivers.setpoints import DriveSetpoint, DwellSetpoint, SweepSetpoint
@@ -244,16 +245,16 @@ class RunRecording:
         setpoint: DwellSetpoint | SweepSetpoint | DriveSetpoint,
         *,
         planned_s: float,
-        watch: OnlineDwell | None = None,
+        watch: OnlineDwell | TrackWatch | None = None,
         held: HeldAmplitude | None = None,
     ) -> ExcitationSpan:
         """Configure, start and record one excitation until the controller's active output falls.
 
-        ``watch`` follows an adaptive dwell's hold block by block: once it is done the excitation is
-        stopped with its taper (the hold ends where the controller's hold output falls). ``held``
-        holds a dwell's amplitude within its hold, block by block (each update it makes lengthens
-        the excitation's planned duration). A pause
-        request (the table ``pausing``) stops it with a taper and raises
+        ``watch`` follows an adaptive dwell's hold (or a tracked dwell's track) block by block: once
+        it is done the excitation is stopped with its taper (the hold ends where the controller's
+        hold output falls). ``held`` holds a dwell's amplitude within its hold, block by block (each
+        update it makes lengthens the excitation's planned duration). A pause request (the table
+        ``pausing``) stops it with a taper and raises
         :class:`PointInterruptedError` once it is at rest; an abort (``aborting``) tapers it out and
         ends the run; an e-stop or a tripped interlock ends the run."""
         context = self.context
