@@ -18,11 +18,6 @@ class RunKind(enum.StrEnum):
     ROAD_REPLAY = "road_replay"
     HAMMER = "hammer"
 
-    @classmethod
-    def of_step(cls, step_kind: str) -> RunKind:
-        """The kind of the run a measurement step of kind ``step_kind`` records."""
-        return cls.DWELL_GRID if step_kind == "sine_dwell" else cls(step_kind)
-
 
 class RunStatus(enum.StrEnum):
     """How a run ended, or ``incomplete`` while it runs (or when its writer died)."""

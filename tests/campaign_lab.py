@@ -23,7 +23,8 @@ from bench.app.engine_build import build_engine
 from bench.app.recorder import Recorder
 from bench.config import BenchConfig, load_bench_config
 from bench.engine import events as ev
-from bench.engine.engine import Engine, RunOutcome
+from bench.engine.engine import Engine
+from bench.engine.stops import RunOutcome
 from bench.store import CampaignWriter
 from drivers.register_map import MOVING_STATES, ControllerState
 from drivers.wfs_frame import Status

@@ -14,8 +14,8 @@ import pytest
 from bench.app.actuator_thread import ControllerReadback, ThreadedActuator
 from bench.app.simulated import SimulatedLab, SimulatedLabSettings
 from bench.engine import events as ev
-from bench.engine.engine import RunStoppedError
 from bench.engine.interlocks import ControllerInterlock, Observation, trips
+from bench.engine.stops import RunStoppedError
 from drivers.actuator import DEFAULT_TIMEOUT_S, ActuatorClient, ActuatorStatus
 from drivers.errors import CommandOutcomeUnknownError
 from drivers.register_map import ControllerState, ErrorCode, InterlockFlag

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.engine import events as ev
-from bench.engine.engine import RunOutcome
+from bench.engine.stops import RunOutcome
 from bench.store import open_campaign
 from drivers.register_map import ControllerState, InterlockFlag
 from tests.campaign_lab import (

@@ -12,11 +12,13 @@ from bench.app.run_analysis import ANALYSES, INPUT_READERS, RunAnalyser, RunInpu
 from bench.app.show import EXCITATIONS
 from bench.config import default_bench_config
 from bench.dry_run import PREDICTIONS
+from bench.engine.procedures import PROCEDURES
 from sequences.runs import RunKind
 from sequences.steps import STEP_TYPES
 
 #: Each layer's table keyed by the run kind.
 TABLES = {
+    "the engine's procedure (bench/engine/procedures PROCEDURES)": PROCEDURES,
     "the dry run (bench/dry_run.py PREDICTIONS)": PREDICTIONS,
     "what the analysis will lack, said by check (bench/app/analysis_plan.py ANALYSIS_NEEDS)": ANALYSIS_NEEDS,
     "the step's line in check (bench/app/check.py RUN_DESCRIPTIONS)": RUN_DESCRIPTIONS,

@@ -19,8 +19,9 @@ from bench.config import BenchConfig
 from bench.engine.amplitude import AmplitudeControl, FramesPresent
 from bench.engine.amplitude_hold import AmplitudeHold
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import Engine, SyncBits
+from bench.engine.engine import Engine
 from bench.engine.interlocks import standard_interlocks
+from bench.engine.points import SyncBits
 from drivers.wfs_frame import Status
 from drivers.wfs_transform import LoadProcessor
 

@@ -107,6 +107,10 @@ class AmplitudeControl:
         """The largest command allowed for ``target_mm``."""
         return min(self.max_command_mm, target_mm * (1 + self.command_margin))
 
+    def servo_gains(self) -> ServoGains:
+        """Fresh gains for one run, each start command within the command margin of its target."""
+        return ServoGains(1 + self.command_margin)
+
     def step(self, target_mm: float, achieved_mm: float) -> float:
         """The factor a correction scales the command by, within the step bound."""
         bound = self.max_step_factor

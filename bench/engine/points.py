@@ -17,6 +17,14 @@ from drivers.setpoints import DriveSetpoint, DwellSetpoint, SweepSetpoint
 
 
 @dataclass(frozen=True)
+class SyncBits:
+    """The frame status bits carrying the controller's sync outputs."""
+
+    active: int
+    hold: int
+
+
+@dataclass(frozen=True)
 class ExcitationSpan:
     """Run-sample indices: ``start`` first active sample, ``hold_start`` first hold sample,
     ``hold_end`` one past the last hold sample, ``end`` one past the last active sample."""

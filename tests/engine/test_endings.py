@@ -34,8 +34,9 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
 from bench.engine.contracts import PlannedDrive
-from bench.engine.engine import Engine, SyncBits
+from bench.engine.engine import Engine
 from bench.engine.interlocks import standard_interlocks
+from bench.engine.points import SyncBits
 from bench.engine.states import RunState
 from bench.engine.timing import EngineTiming
 from drivers.errors import CommandRejectedError, LimitError, LinkError, LinkTimeoutError

@@ -13,8 +13,9 @@ from bench.app.recorder import Recorder
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.engine import GO_ON_DESPITE, Engine, SyncBits
+from bench.engine.engine import GO_ON_DESPITE, Engine
 from bench.engine.interlocks import standard_interlocks
+from bench.engine.points import SyncBits
 from bench.engine.run_ids import RUN_ID
 from bench.engine.states import RunState, TransitionRefusedError
 from bench.engine.timing import EngineTiming
