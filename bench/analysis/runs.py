@@ -278,7 +278,11 @@ class ShakerAmplitudeResult:
     (unreliable points, left out of the fits), with why; ``hub_acceleration_recorded``: false when
     the dwells carry no hub acceleration: the clamped hub is then taken as not moving (the
     compensated ratio without its ``G_A a_hub`` term), which nothing checks; ``repeats``: the
-    dwells measured more than once, combined (one point each), with their spread.
+    dwells measured more than once, combined (one point each), with their spread;
+    ``band_conditions``: what the model-compensated band rests on that the campaign did not measure,
+    each with the error a stated deviation would cause (:func:`nominal_plate_condition`), and
+    ``plate_mass_tolerance_kg``: how far a nominal m_comp may be off with the band still holding
+    (None: m_comp was measured).
     """
 
     amplitude_m: float
@@ -294,6 +298,8 @@ class ShakerAmplitudeResult:
     model_peak: RatioPeak | None = None
     hub_acceleration_recorded: bool = True
     repeats: tuple[RepeatSpread, ...] = ()
+    band_conditions: tuple[str, ...] = ()
+    plate_mass_tolerance_kg: float | None = None
 
     @property
     def label(self) -> str:
@@ -479,6 +485,10 @@ def _analyse_amplitude(
         compensated = _compensated_ratio(fits, plate, comp, hub_recorded=hub_recorded)
         peak = ratio_peak(best, sensor, (fits[0].freq_hz, fits[-1].freq_hz))
         band_raw, band_comp = _ratio_band(frfs.wfs_per_contact), _ratio_band(compensated)
+        tolerance_kg, conditions = None, ()
+        if plate.n_points == 0:
+            tolerance_kg, condition = nominal_plate_condition(fits, plate, compensated, band_comp)
+            conditions = (condition,)
     return ShakerAmplitudeResult(
         amplitude_m,
         tuple(fits),
@@ -493,6 +503,55 @@ def _analyse_amplitude(
         peak,
         hub_recorded,
         grid.repeats,
+        conditions,
+        tolerance_kg,
+    )
+
+
+#: The deviation of a nominal m_comp whose error a band's condition states (kg): a plate weighed on
+#: a scale, or taken from a drawing, is known to about this.
+STATED_PLATE_DEVIATION_KG = 0.5
+
+
+def nominal_plate_condition(
+    fits: Sequence[DwellFit], plate: PlateMass, compensated: Frf, band: ValidBand
+) -> tuple[float, str]:
+    """How far a nominal m_comp may be off with the model-compensated ``band`` still holding (kg),
+    and the condition in words with the error :data:`STATED_PLATE_DEVIATION_KG` would cause.
+
+    An error ``dm`` makes the true contact force ``C + dm w^2 Z`` where the ratio was measured
+    against ``C``, and the tyre fit absorbs it into the tread mass, so the compensated ratio measured
+    on the bench does not show it: against the true contact force it is ``H C / (C + dm w^2 Z)``.
+    The tolerance is the smallest ``|dm|`` (either sign, on a grid 1 % apart) at which that leaves
+    the band's tolerances at one of its points; the error at the stated deviation is the largest
+    ``| |C / (C + dm w^2 Z)| - 1 |`` over the dwells."""
+    f = np.sort([d.freq_hz for d in fits])
+    z, _ = dwell_phasors(fits, DISPLACEMENT)
+    contact, _ = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    per_kg = (2 * np.pi * f) ** 2 * z / contact  # the true contact's change per kg, relative
+
+    def true_ratio(dm_kg: np.ndarray) -> np.ndarray:  # (masses, dwells): the factor on H
+        return 1 / (1 + dm_kg[:, None] * per_kg[None, :])
+
+    stated = np.abs(np.abs(true_ratio(np.array([STATED_PLATE_DEVIATION_KG, -STATED_PLATE_DEVIATION_KG]))) - 1)
+    worst = np.unravel_index(int(np.argmax(stated)), stated.shape)[1]
+    at_deviation = f"{STATED_PLATE_DEVIATION_KG:g} kg off: {100 * np.max(stated):.3g} % at {f[worst]:.4g} Hz"
+    if not band.determined:
+        return 0.0, f"rests on the nominal m_comp {plate.mass_kg:g} kg (no free run; {at_deviation})"
+    inside = (f >= band.lowest_hz) & (f <= band.upper_hz)
+    steps_kg = np.geomspace(1e-4, 100.0, 1400)  # 1 % apart
+    tolerance_kg = float(steps_kg[-1])
+    for sign in (1.0, -1.0):
+        ratio = compensated.value[inside][None, :] * true_ratio(sign * steps_kg)[:, inside]
+        outside = (np.abs(np.abs(ratio) - 1) > band.amplitude_tolerance) | (
+            np.abs(np.angle(ratio, deg=True)) > band.phase_tolerance_deg
+        )
+        broken = np.flatnonzero(outside.any(axis=1))
+        if broken.size:
+            tolerance_kg = min(tolerance_kg, float(steps_kg[max(broken[0] - 1, 0)]))
+    return tolerance_kg, (
+        f"holds only if the nominal m_comp {plate.mass_kg:g} kg (no free run) is right to"
+        f" {1000 * tolerance_kg:.3g} g ({at_deviation})"
     )
 
 

@@ -365,7 +365,7 @@ def _summary(analysis: CampaignAnalysis) -> str:
                     f"Model {int(fit.model)}",
                     *cells,
                     _band_cell(amp.valid_band_raw),
-                    _band_cell(amp.valid_band_compensated),
+                    "; ".join((_band_cell(amp.valid_band_compensated), *amp.band_conditions)),
                     more,
                 )
             )

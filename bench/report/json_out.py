@@ -140,6 +140,8 @@ def amplitude_json(result: ShakerAmplitudeResult) -> dict[str, Any]:
         "largest_measured": {"freq_hz": top_hz, "ratio": top},
         "valid_band_raw": band_json(result.valid_band_raw),
         "valid_band_compensated": band_json(result.valid_band_compensated),
+        "band_conditions": list(result.band_conditions),
+        "plate_mass_tolerance_kg": result.plate_mass_tolerance_kg,
         "compensator_design_error": result.compensator.design_error,
         "compensator_band_hz": result.compensator.band_hz,
         "unsettled": list(result.unsettled),

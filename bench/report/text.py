@@ -160,6 +160,7 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
         f" model-compensated {band_text(result.valid_band_compensated)}"
         f" (compensator design error {100 * result.compensator.design_error:.2f} %)"
     )
+    lines += [f"{label} model-compensated band {condition}" for condition in result.band_conditions]
     lines += repeats_lines(f"{label} ", result.repeats)
     if not result.hub_acceleration_recorded:
         lines.append(
