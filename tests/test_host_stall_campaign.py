@@ -78,8 +78,8 @@ def test_a_stall_whose_losses_were_not_read_says_so():
     """A run that ended before the frames after its stall were read does not claim it lost none."""
     seen = ev.HostStalled("r", 2.0, 17)
     unknown = ev.HostStalled("r", 2.0, 0, counted=False)
-    assert ev.host_stall_text(seen) == "host stall: the WFS port went unread for 2.00 s, 17 frames lost (r)"
-    assert ev.host_stall_text(unknown) == (
+    assert seen.text == "host stall: the WFS port went unread for 2.00 s, 17 frames lost (r)"
+    assert unknown.text == (
         "host stall: the WFS port went unread for 2.00 s; the frames it lost are not known: the run"
         " ended before the stream after it was read (r)"
     )

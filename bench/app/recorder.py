@@ -45,8 +45,7 @@ class Recorder:
                 | ev.LimitReached()
                 | ev.ResonanceTracked()
             ):
-                kind, text, fields = _described(event)
-                self._event(kind, text, **fields)
+                self._event(event.stored_as, event.text, **ev.stored_fields(event))
             case ev.RunFinished():
                 self._finish(event)
             case ev.AnalysisDone():
@@ -114,32 +113,3 @@ class Recorder:
                 f"event for run {run_id!r} while {self._run and self._run.run_id!r} is recorded"
             )
         return self._run
-
-
-def _described(
-    event: ev.InterlockTripped | ev.HostStalled | ev.AmplitudeChecked | ev.LimitReached | ev.ResonanceTracked,
-) -> tuple[str, str, dict]:
-    """The kind, text and fields of the run event that records ``event``."""
-    match event:
-        case ev.ResonanceTracked():
-            names = ("index", "sample", "drive_hz", "resonance_hz", "ratio", "phase_deg", "damping_ratio")
-            return "track", event.text, {name: getattr(event, name) for name in names}
-        case ev.LimitReached():
-            return "limit", event.text, {"name": event.name, "action": event.action}
-        case ev.InterlockTripped():
-            return "interlock", f"{event.name}: {event.reason}", {"name": event.name}
-        case ev.HostStalled():
-            fields = {name: getattr(event, name) for name in ("stalled_s", "frames_lost", "counted")}
-            return "host stall", ev.host_stall_text(event), fields
-    fields = {
-        "index": event.index,
-        "attempt": event.attempt,
-        "sample": event.sample,
-        "achieved_mm": event.achieved_mm,
-        "command_mm": event.command_mm,
-        "updated_mm": event.updated_mm,
-        "refusal": event.refusal,
-        "frames_missing": event.frames_missing,
-        "lost": event.lost,
-    }
-    return "amplitude", event.text, fields

@@ -55,7 +55,7 @@ class RunLog:
             case ev.LimitReached():
                 return f"LIMIT {event.text}"
             case ev.HostStalled() if event.frames_lost or not event.counted:  # none lost: in the file only
-                return ev.host_stall_text(event)
+                return event.text
             case ev.RunFinished():
                 return f"run {event.run_id}: {event.status}{': ' + event.reason if event.reason else ''}"
             case ev.AnalysisDone():  # may arrive after the next run's start: it names its run

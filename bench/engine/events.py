@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -100,6 +100,8 @@ class AmplitudeChecked:
     frames were lost on the link, and ``lost`` says why the window was not decided on (the same
     command is measured again over the next window; empty: it was decided on)."""
 
+    stored_as: ClassVar[str] = "amplitude"
+
     run_id: str
     index: int
     attempt: int
@@ -133,6 +135,8 @@ class ResonanceTracked:
     """One look at the resonance point ``index`` of run ``run_id`` tracks
     (:mod:`bench.engine.tracking`): the window's end (run sample), the drive frequency, the
     resonance estimated there, the ratio's magnitude and phase, the damping ratio."""
+
+    stored_as: ClassVar[str] = "track"
 
     run_id: str
     index: int
@@ -183,23 +187,25 @@ class HostStalled:
     controller's watchdog that tripped while the host stood still) stops its stream before they come,
     and its stall's losses are then not known."""
 
+    stored_as: ClassVar[str] = "host stall"
+
     run_id: str
     stalled_s: float
     frames_lost: int
     counted: bool = True
 
-
-def host_stall_text(event: HostStalled) -> str:
-    """How a log and the campaign file's events say a host stall."""
-    if not event.counted:
+    @property
+    def text(self) -> str:
+        """How a log and the campaign file's events say a host stall."""
+        if not self.counted:
+            return (
+                f"host stall: the WFS port went unread for {self.stalled_s:.2f} s; the frames it lost are"
+                f" not known: the run ended before the stream after it was read ({self.run_id})"
+            )
         return (
-            f"host stall: the WFS port went unread for {event.stalled_s:.2f} s; the frames it lost are"
-            f" not known: the run ended before the stream after it was read ({event.run_id})"
+            f"host stall: the WFS port went unread for {self.stalled_s:.2f} s,"
+            f" {self.frames_lost} frames lost ({self.run_id})"
         )
-    return (
-        f"host stall: the WFS port went unread for {event.stalled_s:.2f} s,"
-        f" {event.frames_lost} frames lost ({event.run_id})"
-    )
 
 
 @dataclass(frozen=True)
@@ -207,6 +213,8 @@ class LimitReached:
     """A limit tripped with an action milder than an interlock, during run ``run_id``: ``name`` (a
     response limit's level, "wfs_fz alarm", or a graded interlock), why, and its ``action``
     (indicate: recorded only; hold: the sequence pauses; stop: it ends, aborted)."""
+
+    stored_as: ClassVar[str] = "limit"
 
     run_id: str
     name: str
@@ -220,9 +228,28 @@ class LimitReached:
 
 @dataclass(frozen=True)
 class InterlockTripped:
+    """Interlock ``name`` tripped for ``reason``, during run ``run_id`` (None: between runs)."""
+
+    stored_as: ClassVar[str] = "interlock"
+
     name: str
     reason: str
     run_id: str | None
+
+    @property
+    def text(self) -> str:
+        return f"{self.name}: {self.reason}"
+
+
+#: The events a campaign file stores as a run's (or, between runs, the campaign's) events, each as
+#: its ``stored_as`` kind, its ``text`` and :func:`stored_fields`.
+StoredEvent = AmplitudeChecked | ResonanceTracked | HostStalled | LimitReached | InterlockTripped
+
+
+def stored_fields(event: StoredEvent) -> dict[str, object]:
+    """The fields a stored event keeps (docs/hdf5.md, *Events*): all of the event's but its run,
+    which the file says by where the event is."""
+    return {f.name: getattr(event, f.name) for f in fields(event) if f.name != "run_id"}
 
 
 @dataclass(frozen=True)
