@@ -22,6 +22,7 @@ from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells, simulate_hammer
 from tests.campaign_files import StoredRun, write_campaign
+from tests.documented import assert_documented
 
 TRUE_SENSOR = WfsSensor(eigenfrequency_hz=1600.0, damping_ratio=0.03)
 STATED = parse_bench_config("[sensor]\neigenfrequency_hz = 1600\ndamping_ratio = 0.03\n", "lab.toml")
@@ -81,6 +82,10 @@ def test_the_stated_sensor_covers_the_truth_and_the_assumed_one_never_does():
     print(f"\n  stiffness covered in {wrong} of 5 seeds told 2200 Hz, {right} of 10 told 1600 Hz")
     assert (wrong, flagged) == (0, 5)  # never covered, and each fit flagged far outside its noise
     assert right >= MIN_COVERED_OF_10 and right_flagged == 0
+    assert_documented(
+        "docs/configuration.md",
+        f"covers the truth in {wrong} of 5 noise seeds, told 1600 Hz in {right} of 10",
+    )
 
 
 @pytest.fixture(scope="module")

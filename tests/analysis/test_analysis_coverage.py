@@ -12,11 +12,18 @@ from bench.analysis.records import WHEEL_CHANNELS
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, TAPER_S
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell
+from tests.documented import assert_documented
 
 #: Seeds per case and the fewest of them whose interval must hold the truth: a correct 95 % interval
 #: covers fewer than 90 of 100 seeds with probability 1.2 %, fewer than 17 of 20 with 1.6 % (the
 #: seeds are fixed, so a pass is a pass). The default case takes 100 seeds, the others 20.
 SEEDS_AND_MIN_COVERED = {100: 90, 20: 17}
+#: How docs/analysis.md names each case after its figures.
+DOCUMENTED_CASES = {
+    "default": "at the default noise",
+    "free-run-without-100-hz": "without the 100 Hz free-run dwell",
+    "displacement-noise-x10": "with ten times the displacement noise",
+}
 
 
 def _dwells(setup, freqs_hz, realism) -> list[DwellRecord]:
@@ -37,7 +44,7 @@ def _dwells(setup, freqs_hz, realism) -> list[DwellRecord]:
     [(FREE_RUN_GRID_HZ, 2e-6, 100), (FREE_RUN_GRID_HZ[:-1], 2e-6, 20), (FREE_RUN_GRID_HZ, 2e-5, 20)],
     ids=["default", "free-run-without-100-hz", "displacement-noise-x10"],
 )
-def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m, n_seeds):
+def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m, n_seeds, request):
     setup = BenchSetup.paper_shaker(2.5, nonlinear=False)
     truth = setup.tyre
     names = ("stiffness_n_per_m", "damping_ns_per_m", "tread_mass_kg")
@@ -60,3 +67,6 @@ def test_intervals_cover_the_truth(free_run_grid_hz, displacement_noise_m, n_see
             covered[name] += abs(fit.values[name] - getattr(truth, name)) <= fit.ci95[name]
     print(f"\n  coverage over {n_seeds} seeds: {covered}")
     assert all(c >= SEEDS_AND_MIN_COVERED[n_seeds] for c in covered.values()), covered
+    case = DOCUMENTED_CASES[request.node.callspec.id]
+    figures = "/".join(str(c) for c in covered.values())
+    assert_documented("docs/analysis.md", f"{figures} of {n_seeds} seeds {case}")
