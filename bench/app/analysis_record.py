@@ -162,15 +162,20 @@ def knowledge_changes(before: dict[str, Any], knowledge: CampaignKnowledge) -> K
         new = getattr(knowledge, name)
         if new is not old:
             changes[name] = ("set", new)
-        elif isinstance(new, list) and new[: len(copy)] == copy and len(new) > len(copy):
-            changes[name] = ("extend", new[len(copy) :])
-        elif isinstance(new, list) and new != copy:
-            changes[name] = ("set", new)
+        elif isinstance(new, list) and not _same_items(new, copy):
+            kept = len(new) > len(copy) and _same_items(new[: len(copy)], copy)
+            changes[name] = ("extend", new[len(copy) :]) if kept else ("set", new)
         elif isinstance(new, dict):
             updated = {key: value for key, value in new.items() if key not in copy or copy[key] is not value}
             if updated:
                 changes[name] = ("update", updated)
     return changes
+
+
+def _same_items(items: list[Any], before: list[Any]) -> bool:
+    """The same objects in the same order: by identity, as the knowledge keeps results it never
+    changes in place (results hold arrays, which ``==`` would compare element by element)."""
+    return len(items) == len(before) and all(a is b for a, b in zip(items, before, strict=True))
 
 
 def apply_changes(knowledge: CampaignKnowledge, changes: KnowledgeChanges) -> None:
