@@ -6,28 +6,37 @@ exactly as ``wfsbench analyze`` analyses it (nothing is written to it) and the c
 built from that analysis (:func:`compensation_basis`):
 
 - the tyre: the shaker identification at the measurement's tyre pressure (within
-  :data:`~bench.analysis.campaign.PRESSURE_MATCH_BAR`; no interpolation between pressures: the
-  paper's 250 / 390 / 420 kN/m at 1.5 / 2.5 / 3.5 bar are far from a line, and the error of an
-  interpolation is unknown); of its amplitudes the one nearest the measurement's tyre deflection
-  (``sqrt 2`` times the rms of the dynamic Fz over the tyre's stiffness, an equivalent sine), the
-  others kept for the amplitude dependence; the selected model's fit with its covariance;
+  :data:`~bench.analysis.campaign.PRESSURE_MATCH_BAR`, a gauge's resolution, and said so; no
+  interpolation between pressures: the paper's 250 / 390 / 420 kN/m at 1.5 / 2.5 / 3.5 bar are far
+  from a line, and the error of an interpolation is unknown); of its amplitudes the one nearest the
+  measurement's tyre deflection (``sqrt 2`` times the rms of the dynamic Fz over the tyre's
+  stiffness, an equivalent sine), the others kept for the amplitude dependence; the selected
+  model's fit with its covariance;
 - the wheel mass (weighed, as the identification takes it) and, when the campaign has a four-post
-  run, its estimate's standard uncertainty and the accelerometer's lag it measured;
+  run, its estimate's standard uncertainty;
 - the sensor (the hammer test's, else as configured), its damping ratio uncertain by half the
   difference of the hammer test's two estimates;
-- the sensors' noise from the dwells' residuals; the filters' band, length and latency from the
-  campaign's compensator; the valid band where the campaign verified it.
+- the filters' band, length and latency from the campaign's compensator; the valid band where the
+  campaign verified it.
 
-Everything a measurement needs that the campaign does not cover is refused, naming it
-(:class:`CompensationRefusedError`).
+The measurement's own chain is the measurement's (:mod:`bench.store.measurement_chain`): the hub
+accelerometer's lag it states (the campaign's four-post lag only when stated so, or when the
+measurement is a run of the campaign file itself; else 0, said so), the valid band ends at the
+logger's stated bandwidth, and the sensors' noise is the larger of the campaign's and what the
+measurement shows above the filters' band (:mod:`bench.analysis.measurement_noise`). Everything the
+compensation rests on that the measurement does not show by itself is an :class:`Assumption`, which
+the output states. Everything a measurement needs that the campaign does not cover is refused,
+naming it (:class:`CompensationRefusedError`).
 """
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -38,15 +47,28 @@ from bench.analysis.measurement_compensation import (
     CompensationStream,
     design_filters,
 )
+from bench.analysis.measurement_noise import estimable, noise_band_hz, white_noise_rms
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
-from bench.analysis.runs import ShakerAmplitudeResult
+from bench.analysis.runs import ShakerAmplitudeResult, ShakerCampaignResult
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
 from bench.analysis.validation import AnalysisInputError
 from bench.store.measurement import Measurement
+from bench.store.measurement_chain import CAMPAIGN_LAG
+
+#: Pressures this close (bar) are one reading: float arithmetic, not a gauge.
+_SAME_PRESSURE_BAR = 1e-9
+#: Schema and version of ``wfsbench compensate --json`` (docs/compensate.md).
+JSON_SCHEMA = "wfs-bench-compensate"
+JSON_VERSION = 1
 
 
 class CompensationRefusedError(ValueError):
     """The campaign does not cover the measurement: the message names what is missing."""
+
+
+class MeasurementChainError(ValueError):
+    """What is stated of the measurement's chain contradicts the measurement itself (a logger's
+    bandwidth above half its sample rate): an input that cannot be used."""
 
 
 class IdentifiedCampaign(Protocol):
@@ -62,12 +84,36 @@ class IdentifiedCampaign(Protocol):
 
 
 @dataclass(frozen=True)
+class Assumption:
+    """One thing a compensation rests on that the measurement does not show by itself, as the
+    output states it (text, JSON, the output file's attributes).
+
+    ``key``: ``tyre_pressure``, ``hub_lag``, ``bandwidth``, ``noise_wfs``, ``noise_accel`` or
+    ``valid_band``; ``source``: ``stated`` (the command line, the measurement's mapping or record),
+    ``campaign`` (what the campaign identified), ``measured`` (estimated from the measurement) or
+    ``assumed`` (nothing stated: a default taken); ``text``: the sentence printed; ``values``: its
+    numbers by name, the unit in the name (None: not known), the same names in the JSON and as the
+    output file's attributes."""
+
+    key: str
+    source: str
+    text: str
+    values: dict[str, float | list[float] | None]
+
+    @property
+    def line(self) -> str:
+        return f"{self.source}: {self.text}"
+
+
+@dataclass(frozen=True)
 class Compensation:
-    """A measurement and the filters it is compensated with, ready to run block by block."""
+    """A measurement and the filters it is compensated with, ready to run block by block, with what
+    the compensation assumed (:class:`Assumption`, in the order the output states them)."""
 
     measurement: Measurement
     filters: CompensationFilters
     accelerometer_offset_m_s2: float
+    assumptions: tuple[Assumption, ...] = ()
 
     def blocks(self):
         """The compensated force and its 95 % half-width, block by block (:class:`CompensatedBlock`)."""
@@ -78,7 +124,13 @@ class Compensation:
         )
 
 
-def _shaker_at(analysis: IdentifiedCampaign, pressure_bar: float | None):
+def _shaker_at(
+    analysis: IdentifiedCampaign, pressure_bar: float | None
+) -> tuple[float, ShakerCampaignResult, Assumption]:
+    """The shaker identification at the measurement's tyre pressure and what it assumed of the
+    pressure: the identified pressure itself, or one within :data:`PRESSURE_MATCH_BAR` (a gauge's
+    resolution: two readings that far apart may be one pressure), said so; anything else is
+    refused (between identified pressures too: no interpolation)."""
     shaker = analysis.knowledge.shaker
     if not shaker:
         raise CompensationRefusedError(
@@ -92,45 +144,254 @@ def _shaker_at(analysis: IdentifiedCampaign, pressure_bar: float | None):
             f" identified the tyre at {known} bar"
         )
     nearest = min(shaker, key=lambda p: abs(p - pressure_bar))
-    if abs(nearest - pressure_bar) > PRESSURE_MATCH_BAR:
-        raise CompensationRefusedError(
-            f"tyre pressure {pressure_bar:g} bar: the campaign identified the tyre at {known} bar only"
-            f" (within {PRESSURE_MATCH_BAR:g} bar); the stiffness between pressures is not known well"
-            " enough to interpolate: identify the tyre at the measurement's pressure"
+    if abs(nearest - pressure_bar) > PRESSURE_MATCH_BAR + _SAME_PRESSURE_BAR:
+        raise CompensationRefusedError(_pressure_refusal(pressure_bar, sorted(shaker)))
+    return nearest, shaker[nearest], _pressure_assumption(pressure_bar, nearest)
+
+
+def _pressure_refusal(pressure_bar: float, identified_bar: list[float]) -> str:
+    """Why a tyre pressure no identification matches is refused: between two identified ones (not
+    interpolated), or beyond them (not extrapolated)."""
+    below = [p for p in identified_bar if p < pressure_bar]
+    above = [p for p in identified_bar if p > pressure_bar]
+    within = f"within {PRESSURE_MATCH_BAR:g} bar, a gauge's resolution"
+    if below and above:
+        where = (
+            f"lies between the campaign's identifications at {below[-1]:g} and {above[0]:g} bar"
+            f" ({within}, of neither)"
         )
-    return nearest, shaker[nearest]
+    else:
+        where = f"the campaign identified the tyre at {', '.join(f'{p:g}' for p in identified_bar)} bar only"
+        where += f" ({within})"
+    return (
+        f"tyre pressure {pressure_bar:g} bar: {where}; the stiffness between pressures is not known well"
+        " enough to interpolate (its error would not be in the band): identify the tyre at the"
+        " measurement's pressure"
+    )
 
 
-def _noise(result: ShakerAmplitudeResult, channel: str) -> float:
-    """The channel's white noise (rms per sample): the median residual of the dwells' fits."""
+def _pressure_assumption(pressure_bar: float, identified_bar: float) -> Assumption:
+    values = {"tyre_pressure_bar": pressure_bar, "identified_pressure_bar": identified_bar}
+    if abs(pressure_bar - identified_bar) <= _SAME_PRESSURE_BAR:
+        text = f"tyre pressure {pressure_bar:g} bar: the campaign identified the tyre at that pressure"
+        return Assumption("tyre_pressure", "stated", text, values)
+    difference_bar = abs(pressure_bar - identified_bar)
+    text = (
+        f"tyre pressure {pressure_bar:g} bar taken as the campaign's identification at"
+        f" {identified_bar:g} bar: within {PRESSURE_MATCH_BAR:g} bar, a gauge's resolution (two readings"
+        f" that far apart may be one pressure); the band does not hold the {difference_bar:.2g} bar between"
+    )
+    return Assumption("tyre_pressure", "assumed", text, values)
+
+
+def _campaign_noise(result: ShakerAmplitudeResult, channel: str) -> float:
+    """The channel's white noise (rms per sample) on the bench: the median residual of the dwells'
+    fits (0 when the dwells carry no such channel: a clamped hub needs no accelerometer)."""
     residuals = [fit.channels[channel].residual_rms for fit in result.fits if channel in fit.channels]
     return float(np.median(residuals)) if residuals else 0.0
 
 
-def _valid_band(
+#: How the output names each channel's noise: text, unit, the key of its assumption and values.
+_NOISE_NAMES = {
+    WFS_FORCE: ("Fz", "N", "noise_wfs", "n"),
+    HUB_ACCELERATION: ("hub acceleration", "m/s^2", "noise_accel", "m_s2"),
+}
+
+
+def _noise(
+    chosen: ShakerAmplitudeResult, measurement: Measurement, channel: str, design_band_hz: float
+) -> tuple[float, Assumption]:
+    """The channel's white noise the band carries: the larger of the campaign's (the bench's sensor)
+    and what the measurement shows above the filters' band (its own chain: sensor, cable, logger),
+    both estimates of one noise where the chain is the same; and what was assumed."""
+    name, unit, key, suffix = _NOISE_NAMES[channel]
+    campaign = _campaign_noise(chosen, channel)
+    stated = measurement.chain.bandwidth_hz
+    fs = measurement.sample_rate_hz
+    band = noise_band_hz(design_band_hz, fs, None if stated is None else float(stated.value))
+    measured = white_noise_rms(measurement.channels[channel], fs, band) if estimable(band) else None
+    used = max(campaign, measured or 0.0)
+    values = {
+        f"{key}_{suffix}": used,
+        f"{key}_campaign_{suffix}": campaign,
+        f"{key}_measured_{suffix}": measured,
+        "noise_band_hz": list(band) if measured is not None else None,
+    }
+    campaign_text = f"the campaign's {campaign:.3g} {unit} (its dwells' residuals)"
+    if measured is None:
+        text = (
+            f"{name} noise {used:.3g} {unit} rms per sample: {campaign_text}; the measurement's own is not"
+            f" estimated: from the filters' stop band, {band[0]:.4g} Hz, to {band[1]:.4g} Hz (0.3 of its"
+            " rate, or its logger's bandwidth) it holds too few frequencies"
+        )
+        return used, Assumption(key, "campaign" if campaign > 0 else "assumed", text, values)
+    shown = (
+        f"{measured:.3g} {unit} the measurement shows at {band[0]:.4g}-{band[1]:.4g} Hz (above what the"
+        " filters take of it)"
+    )
+    if measured >= campaign:
+        text = f"{name} noise {used:.3g} {unit} rms per sample: the {shown}, above {campaign_text}"
+        return used, Assumption(key, "measured", text, values)
+    text = f"{name} noise {used:.3g} {unit} rms per sample: {campaign_text}, above the {shown}"
+    return used, Assumption(key, "campaign", text, values)
+
+
+def _run_of(measurement: Measurement, analysis: IdentifiedCampaign) -> bool:
+    """Whether ``measurement`` is a run of the campaign file ``analysis`` analysed."""
+    if measurement.campaign_file is None:
+        return False
+    try:
+        return os.path.samefile(measurement.campaign_file, analysis.path)
+    except OSError:  # a campaign that is no file on disk (a run's analysis of the campaign so far)
+        return False
+
+
+def _hub_lag(
+    analysis: IdentifiedCampaign, measurement: Measurement, latency_s: float
+) -> tuple[float, Assumption]:
+    """The hub accelerometer's lag (s) the filters undo, and what was assumed: the measurement's
+    stated lag (or the campaign's, stated so with :data:`CAMPAIGN_LAG`); unstated, the campaign's
+    for a run of the campaign file itself (its accelerometer is the one the four-post run measured),
+    else 0 (an accelerometer without lag), said so: another accelerometer's lag is never applied."""
+    four_post = analysis.knowledge.four_post
+    campaign_s = four_post.wheel_mass.accelerometer_delay_s if four_post is not None else None
+    stated = measurement.chain.hub_lag_ms
+    campaign_ms = None if campaign_s is None else 1e3 * campaign_s
+    if stated is not None and stated.value == CAMPAIGN_LAG:
+        if campaign_s is None:
+            raise CompensationRefusedError(
+                f"{stated.where} states the campaign's accelerometer, but the campaign has no four-post run:"
+                " it measured no accelerometer's lag; state the measurement's in ms"
+            )
+        lag_s, source = campaign_s, "stated"
+        why = f"{stated.where} states the campaign's accelerometer, whose lag its four-post run measured"
+    elif stated is not None:
+        lag_s, source, why = float(stated.value) / 1e3, "stated", f"as {stated.where} states"
+    elif campaign_s is not None and _run_of(measurement, analysis):
+        lag_s, source = campaign_s, "campaign"
+        why = "the measurement is a run of the campaign file itself, whose four-post run measured it"
+    else:
+        lag_s, source = 0.0, "assumed"
+        measured = (
+            f"the campaign's four-post run measured {campaign_ms:.3g} ms of its own accelerometer, not"
+            " applied to another's"
+            if campaign_ms is not None
+            else "the campaign measured no accelerometer's lag"
+        )
+        why = (
+            f"the measurement states none, so an accelerometer without lag ({measured}); state it with"
+            f" --hub-lag-ms MS, or --hub-lag-ms {CAMPAIGN_LAG} for the campaign's accelerometer"
+        )
+    if lag_s >= latency_s:
+        raise CompensationRefusedError(
+            f"hub accelerometer lag {1e3 * lag_s:g} ms ({why}): the filters' latency of"
+            f" {1e3 * latency_s:g} ms cannot undo that much"
+        )
+    text = f"hub accelerometer lag {1e3 * lag_s:.3g} ms undone: {why}"
+    values = {"hub_lag_ms": 1e3 * lag_s, "campaign_hub_lag_ms": campaign_ms}
+    return lag_s, Assumption("hub_lag", source, text, values)
+
+
+def _verified_band(
     analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult, pressure_bar: float
-) -> tuple[float, float]:
-    """Where the campaign verified the compensation: the shaker's compensated band (the tyre path,
-    hub clamped), within the four-post's model-compensated band when the campaign has one (the hub
-    acceleration's path too: only a moving hub tests it)."""
+) -> tuple[tuple[float, float], str]:
+    """Where the campaign verified the compensation, and how: the shaker's compensated band (the
+    tyre path, hub clamped), within the four-post's model-compensated band when the campaign has one
+    (the hub acceleration's path too: only a moving hub tests it)."""
     bands = [chosen.valid_band_compensated]
+    how = "the shaker's compensated band (hub clamped)"
     if analysis.knowledge.four_post is not None:
         bands.append(analysis.knowledge.four_post.valid_band_model_compensated)
+        how += " within the four-post sweep's model-compensated band (hub moving)"
+    else:
+        how += " only: the campaign has no four-post run, so the hub acceleration's path is not verified"
     for band in bands:
         if not band.determined:
             raise CompensationRefusedError(
                 f"the compensation of the tyre at {pressure_bar:g} bar, {chosen.label} has no valid band"
                 " (the campaign's data did not verify it)"
             )
-    return max(b.lowest_hz for b in bands), min(b.upper_hz for b in bands)
+    return (max(b.lowest_hz for b in bands), min(b.upper_hz for b in bands)), how
+
+
+def _valid_band(
+    verified_hz: tuple[float, float], how: str, measurement: Measurement
+) -> tuple[tuple[float, float], Assumption, Assumption]:
+    """The valid band: where the campaign verified the compensation, ended at the logger's stated
+    bandwidth (above it the logger did not pass the signals unchanged); and what was assumed of the
+    bandwidth and the band. A bandwidth above half the rate contradicts the measurement
+    (:class:`MeasurementChainError`); one at or below the band's start leaves nothing valid
+    (refused)."""
+    lo, hi = verified_hz
+    stated = measurement.chain.bandwidth_hz
+    verified = {"valid_band_hz": [lo, hi], "verified_band_hz": [lo, hi]}
+    if stated is None:
+        text = (
+            f"logger bandwidth not stated: taken to pass Fz and the hub acceleration unchanged up to the"
+            f" valid band's {hi:.4g} Hz (state it with --bandwidth-hz HZ)"
+        )
+        band_text = f"valid band {lo:.4g}-{hi:.4g} Hz: {how}"
+        return (
+            verified_hz,
+            Assumption("bandwidth", "assumed", text, {"bandwidth_hz": None}),
+            Assumption("valid_band", "campaign", band_text, verified),
+        )
+    bandwidth = float(stated.value)
+    nyquist = measurement.sample_rate_hz / 2
+    if bandwidth > nyquist:
+        raise MeasurementChainError(
+            f"{stated.where} {bandwidth:g} Hz: above half the measurement's sample rate ({nyquist:g} Hz):"
+            " no logger passes that"
+        )
+    if bandwidth <= lo:
+        raise CompensationRefusedError(
+            f"{stated.where} {bandwidth:g} Hz: the logger's bandwidth ends at or below the valid band's"
+            f" start, {lo:.4g} Hz: nothing of the compensation would be valid"
+        )
+    band = (lo, min(hi, bandwidth))
+    text = f"logger bandwidth {bandwidth:g} Hz ({stated.where})"
+    if bandwidth < hi:
+        text += f": the valid band ends there, not at the campaign's {hi:.4g} Hz"
+        how += f", ended at the logger's bandwidth, {bandwidth:g} Hz"
+    values = {"valid_band_hz": list(band), "verified_band_hz": [lo, hi]}
+    return (
+        band,
+        Assumption("bandwidth", "stated", text, {"bandwidth_hz": bandwidth}),
+        Assumption("valid_band", "campaign", f"valid band {band[0]:.4g}-{band[1]:.4g} Hz: {how}", values),
+    )
+
+
+def _parameters(
+    analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """The uncertain parameters and their covariance: the tyre fit's (the m_comp nuisance left
+    out), the wheel mass's from a four-post run, the sensor's damping ratio from a hammer test."""
+    fit = chosen.identification.best_fit
+    names = [name for name in fit.lsq.values if name != PLATE_MASS_OFFSET]
+    index = [list(fit.lsq.values).index(name) for name in names]
+    covariance = fit.lsq.covariance[np.ix_(index, index)]
+    variances = {}
+    four_post = analysis.knowledge.four_post
+    if four_post is not None:
+        variances["wheel_mass_kg"] = four_post.wheel_mass.sigma_kg**2
+    hammer = analysis.knowledge.hammer
+    if hammer is not None:
+        variances["sensor_damping_ratio"] = (
+            (hammer.damping_ratio_half_power - hammer.damping_ratio_log_decrement) / 2
+        ) ** 2
+    full = np.zeros((len(names) + len(variances),) * 2)
+    full[: len(names), : len(names)] = covariance
+    full[len(names) :, len(names) :] = np.diag(list(variances.values()))
+    return (*names, *variances), full
 
 
 def compensation_basis(
     analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
-) -> CompensationBasis:
+) -> tuple[CompensationBasis, tuple[Assumption, ...]]:
     """What the campaign ``analysis`` gives the compensation of ``measurement`` at ``pressure_bar``
-    (see the module docstring); :class:`CompensationRefusedError` naming what is missing."""
-    identified_bar, shaker = _shaker_at(analysis, pressure_bar)
+    (see the module docstring), and what it assumed; :class:`CompensationRefusedError` naming what
+    is missing, :class:`MeasurementChainError` naming what contradicts the measurement."""
+    identified_bar, shaker, pressure = _shaker_at(analysis, pressure_bar)
     if not shaker.amplitudes:
         raise CompensationRefusedError(
             f"the tyre at {identified_bar:g} bar has no fit at any amplitude (too few dwells)"
@@ -141,33 +402,22 @@ def compensation_basis(
     amplitude = min(shaker.amplitudes, key=lambda a: abs(a - deflection_m))
     chosen = shaker.amplitudes[amplitude]
     fit = chosen.identification.best_fit
-    valid_band_hz = _valid_band(analysis, chosen, identified_bar)
-    names = [name for name in fit.lsq.values if name != PLATE_MASS_OFFSET]
-    index = [list(fit.lsq.values).index(name) for name in names]
-    covariance = fit.lsq.covariance[np.ix_(index, index)]
-    variances = {}
-    four_post = analysis.knowledge.four_post
-    delay_s = 0.0
-    if four_post is not None:
-        variances["wheel_mass_kg"] = four_post.wheel_mass.sigma_kg**2
-        delay_s = four_post.wheel_mass.accelerometer_delay_s
-    hammer = analysis.knowledge.hammer
-    if hammer is not None:
-        variances["sensor_damping_ratio"] = (
-            (hammer.damping_ratio_half_power - hammer.damping_ratio_log_decrement) / 2
-        ) ** 2
-    full = np.zeros((len(names) + len(variances),) * 2)
-    full[: len(names), : len(names)] = covariance
-    full[len(names) :, len(names) :] = np.diag(list(variances.values()))
     comp = chosen.compensator
-    return CompensationBasis(
+    latency_s = comp.latency_samples / comp.fs_hz
+    verified_hz, how = _verified_band(analysis, chosen, identified_bar)
+    valid_band_hz, bandwidth, band = _valid_band(verified_hz, how, measurement)
+    delay_s, lag = _hub_lag(analysis, measurement, latency_s)
+    noise_wfs_n, noise_wfs = _noise(chosen, measurement, WFS_FORCE, comp.band_hz)
+    noise_accel_m_s2, noise_accel = _noise(chosen, measurement, HUB_ACCELERATION, comp.band_hz)
+    parameters, covariance = _parameters(analysis, chosen)
+    basis = CompensationBasis(
         label=f"tyre at {identified_bar:g} bar, {chosen.label} (Model {int(fit.model)})",
         model=fit.model,
         tyre=fit.tyre,
         rubber=fit.rubber,
         sensor=shaker.sensor,
-        parameters=(*names, *variances),
-        covariance=full,
+        parameters=parameters,
+        covariance=covariance,
         alternatives=tuple(
             (
                 r.label,
@@ -179,13 +429,14 @@ def compensation_basis(
             if a != amplitude
         ),
         accelerometer_delay_s=delay_s,
-        noise_wfs_n=_noise(chosen, WFS_FORCE),
-        noise_accel_m_s2=_noise(chosen, HUB_ACCELERATION),
+        noise_wfs_n=noise_wfs_n,
+        noise_accel_m_s2=noise_accel_m_s2,
         band_hz=comp.band_hz,
         filter_s=comp.taps_wfs.size / comp.fs_hz,
-        latency_s=comp.latency_samples / comp.fs_hz,
+        latency_s=latency_s,
         valid_band_hz=valid_band_hz,
     )
+    return basis, (pressure, lag, bandwidth, noise_wfs, noise_accel, band)
 
 
 def prepare_compensation(
@@ -194,7 +445,7 @@ def prepare_compensation(
     """The basis from the campaign and the filters at the measurement's rate; refused (naming
     what) when the campaign does not cover the measurement. The hub acceleration's offset (its mean
     over the record: a hub does not accelerate on average) is removed before filtering."""
-    basis = compensation_basis(analysis, measurement, pressure_bar)
+    basis, assumptions = compensation_basis(analysis, measurement, pressure_bar)
     try:
         filters = design_filters(basis, measurement.sample_rate_hz)
     except AnalysisInputError as exc:
@@ -205,14 +456,85 @@ def prepare_compensation(
             f" {filters.n_taps} taps: nothing could be compensated"
         )
     offset = float(np.mean(measurement.channels[HUB_ACCELERATION]))
-    return Compensation(measurement, filters, offset)
+    return Compensation(measurement, filters, offset, assumptions)
+
+
+def _assumption_attributes(assumptions: tuple[Assumption, ...]) -> dict[str, Any]:
+    """The assumptions as the output file's root attributes: each value by its name (NaN where not
+    known), each source as ``<key>_source``, and every line as printed in ``assumptions``."""
+    attributes: dict[str, Any] = {}
+    for assumption in assumptions:
+        attributes[f"{assumption.key}_source"] = assumption.source
+        for name, value in assumption.values.items():
+            if isinstance(value, list):
+                attributes[name] = np.array(value, dtype=float)
+            elif name == "noise_band_hz":
+                attributes[name] = np.full(2, math.nan)
+            else:
+                attributes[name] = math.nan if value is None else float(value)
+    attributes["assumptions"] = "\n".join(a.line for a in assumptions)
+    return attributes
+
+
+@dataclass(frozen=True)
+class CompensationOutput:
+    """What ``wfsbench compensate`` did: the ``compensation`` written to ``out`` with the campaign
+    file ``campaign`` (its analysis from ``campaign_analysis``), the band's median half-width
+    ``median_u95_n``; as lines of text (:meth:`lines`) or JSON (:meth:`to_json`)."""
+
+    compensation: Compensation
+    campaign: Path
+    campaign_analysis: str
+    out: Path
+    median_u95_n: float
+
+    def lines(self) -> list[str]:
+        filters, basis = self.compensation.filters, self.compensation.filters.basis
+        measurement = self.compensation.measurement
+        lo, hi = basis.valid_band_hz
+        return [
+            f"campaign {self.campaign}: {basis.label}",
+            f"measurement {measurement.source}: {measurement.n_samples} samples at {filters.fs_hz:g} Hz",
+            *(assumption.line for assumption in self.compensation.assumptions),
+            f"filters {filters.n_taps} taps, latency {filters.latency_samples} samples"
+            f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:.4g}-{hi:.4g} Hz",
+            f"95 % band: median half-width {self.median_u95_n:.3g} N",
+        ]
+
+    def to_json(self, filters_path: Path | None) -> dict[str, Any]:
+        """The versioned JSON of the command (docs/compensate.md, *JSON*)."""
+        filters, basis = self.compensation.filters, self.compensation.filters.basis
+        measurement = self.compensation.measurement
+        return {
+            "schema": JSON_SCHEMA,
+            "version": JSON_VERSION,
+            "campaign": str(self.campaign),
+            "campaign_analysis": self.campaign_analysis,
+            "measurement": measurement.source,
+            "n_samples": measurement.n_samples,
+            "sample_rate_hz": filters.fs_hz,
+            "identification": basis.label,
+            "n_taps": filters.n_taps,
+            "latency_samples": filters.latency_samples,
+            "valid_band_hz": list(basis.valid_band_hz),
+            "median_u95_n": _finite_or_none(self.median_u95_n),
+            "assumptions": {
+                a.key: {"source": a.source, "text": a.text, **a.values} for a in self.compensation.assumptions
+            },
+            "out": str(self.out),
+            "filters": None if filters_path is None else str(filters_path),
+        }
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def write_output(
     compensation: Compensation, out: Path, *, campaign: Path, campaign_analysis: str = ""
-) -> list[str]:
+) -> CompensationOutput:
     """Compensate the whole measurement block by block into the HDF5 file ``out``
-    (:func:`bench.store.compensated.write_compensated`); the lines that say what was done.
+    (:func:`bench.store.compensated.write_compensated`); what was done (:class:`CompensationOutput`).
     ``campaign_analysis``: where the campaign's analysis came from (its stored records, or a refit)."""
     from bench.app.version import software_version
     from bench.store.compensated import write_compensated
@@ -229,13 +551,11 @@ def write_output(
         "sample_rate_hz": filters.fs_hz,
         "n_taps": filters.n_taps,
         "latency_samples": filters.latency_samples,
-        "valid_band_hz": np.array(basis.valid_band_hz),
         "design_band_hz": basis.band_hz,
         "accelerometer_delay_s": basis.accelerometer_delay_s,
         "accelerometer_offset_m_s2": compensation.accelerometer_offset_m_s2,
-        "noise_wfs_n": basis.noise_wfs_n,
-        "noise_accel_m_s2": basis.noise_accel_m_s2,
         "amplitude_alternatives": ", ".join(label for label, *_ in basis.alternatives),
+        **_assumption_attributes(compensation.assumptions),
     }
     arrays = {
         "filters/taps_wfs": filters.compensator.taps_wfs,
@@ -260,11 +580,4 @@ def write_output(
         attributes=attributes,
         arrays=arrays,
     )
-    lo, hi = basis.valid_band_hz
-    return [
-        f"campaign {campaign}: {basis.label}",
-        f"measurement {measurement.source}: {measurement.n_samples} samples at {filters.fs_hz:g} Hz",
-        f"filters {filters.n_taps} taps, latency {filters.latency_samples} samples"
-        f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:.4g}-{hi:.4g} Hz",
-        f"95 % band: median half-width {np.nanmedian(u95):.3g} N",
-    ]
+    return CompensationOutput(compensation, campaign, campaign_analysis, out, float(np.nanmedian(u95)))
