@@ -168,20 +168,20 @@ def _pressure_bar(text: str) -> float:
 def _hub_lag_ms(text: str) -> float | str:
     """A hub accelerometer lag given on the command line (:func:`bench.store.measurement_chain.
     hub_lag_ms`: a number of ms, 0 or more, or ``campaign``)."""
-    from bench.store.measurement_chain import hub_lag_ms
+    from bench.store.measurement_chain import from_text, hub_lag_ms
 
     try:
-        return hub_lag_ms(text)
+        return hub_lag_ms(from_text(text))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _bandwidth_hz(text: str) -> float:
     """A logger bandwidth given on the command line: a number of Hz above 0."""
-    from bench.store.measurement_chain import bandwidth_hz
+    from bench.store.measurement_chain import bandwidth_hz, from_text
 
     try:
-        return bandwidth_hz(text)
+        return bandwidth_hz(from_text(text))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

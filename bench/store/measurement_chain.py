@@ -42,7 +42,8 @@ class MeasurementChain:
 
 
 def hub_lag_ms(value: object) -> float | str:
-    """A stated hub accelerometer lag: a finite number of ms, 0 or more, or :data:`CAMPAIGN_LAG`.
+    """A stated hub accelerometer lag: a finite number of ms, 0 or more, or :data:`CAMPAIGN_LAG`
+    (command-line text through :func:`from_text` first).
     ValueError saying what is allowed otherwise (text, NaN, a negative lag: an accelerometer that
     reads ahead of the force)."""
     if value == CAMPAIGN_LAG:
@@ -65,14 +66,19 @@ def bandwidth_hz(value: object) -> float:
 
 
 def _number(value: object) -> float | None:
-    """``value`` as a finite float (a number, or the text of one on the command line), else None."""
-    if isinstance(value, bool):
+    """``value`` as a finite float when it is a number (not text: a mapping's ``"0.4"`` in quotes is
+    refused, as everywhere in a TOML file), else None."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
         return None
+    return float(value) if math.isfinite(value) else None
+
+
+def from_text(text: str) -> float | str:
+    """A value typed on the command line: the number it spells, else the text itself."""
     try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return None
-    return number if math.isfinite(number) else None
+        return float(text)
+    except ValueError:
+        return text
 
 
 def merged(recorded: MeasurementChain, given: MeasurementChain) -> MeasurementChain:
