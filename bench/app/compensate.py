@@ -47,7 +47,13 @@ from bench.analysis.measurement_compensation import (
     CompensationStream,
     design_filters,
 )
-from bench.analysis.measurement_noise import estimable, noise_band_hz, white_noise_rms
+from bench.analysis.measurement_noise import (
+    MIN_NOISE_BAND_HZ,
+    NOISE_BAND_END_FRACTION,
+    estimable,
+    noise_band_hz,
+    white_noise_rms,
+)
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.analysis.runs import ShakerAmplitudeResult, ShakerCampaignResult
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
@@ -219,10 +225,15 @@ def _noise(
     }
     campaign_text = f"the campaign's {campaign:.3g} {unit} (its dwells' residuals)"
     if measured is None:
+        end = (
+            "its logger's bandwidth"
+            if band[1] < NOISE_BAND_END_FRACTION * fs
+            else f"{NOISE_BAND_END_FRACTION:g} of its rate"
+        )
         text = (
             f"{name} noise {used:.3g} {unit} rms per sample: {campaign_text}; the measurement's own is not"
-            f" estimated: from the filters' stop band, {band[0]:.4g} Hz, to {band[1]:.4g} Hz (0.3 of its"
-            " rate, or its logger's bandwidth) it holds too few frequencies"
+            f" estimated: it shows no {MIN_NOISE_BAND_HZ:g} Hz between the filters' stop band,"
+            f" {band[0]:.4g} Hz, and {band[1]:.4g} Hz ({end})"
         )
         return used, Assumption(key, "campaign" if campaign > 0 else "assumed", text, values)
     shown = (
