@@ -86,7 +86,8 @@ def _compensation(args: argparse.Namespace):
     """The compensation of the measurement with the campaign's analysis (refused: what is missing),
     and where that analysis came from (:attr:`~bench.analysis.campaign.CampaignAnalysis.source`)."""
     from bench.app.analyze import CampaignFileError, analyze_campaign
-    from bench.app.compensate import CompensationRefusedError, MeasurementChainError, prepare_compensation
+    from bench.app.compensate import prepare_compensation
+    from bench.app.compensation_assumptions import CompensationRefusedError, MeasurementChainError
     from bench.store import StoreError
 
     out = Path(args.out)
