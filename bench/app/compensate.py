@@ -53,7 +53,6 @@ from bench.app.compensation_assumptions import (
     sensor_noise,
     shaker_at,
     valid_band,
-    verified_band,
 )
 from bench.store.measurement import Measurement
 
@@ -124,8 +123,7 @@ def compensation_basis(
     fit = chosen.identification.best_fit
     comp = chosen.compensator
     latency_s = comp.latency_samples / comp.fs_hz
-    verified_hz, how = verified_band(analysis, chosen, identified_bar)
-    valid_band_hz, bandwidth, band = valid_band(verified_hz, how, measurement)
+    valid_band_hz, bandwidth, band = valid_band(analysis, chosen, identified_bar, measurement)
     delay_s, lag = hub_lag(analysis, measurement, latency_s)
     noise_wfs_n, noise_wfs = sensor_noise(chosen, measurement, WFS_FORCE, comp.band_hz)
     noise_accel_m_s2, noise_accel = sensor_noise(chosen, measurement, HUB_ACCELERATION, comp.band_hz)

@@ -209,53 +209,60 @@ def _run_of(measurement: Measurement, analysis: IdentifiedCampaign) -> bool:
         return False
 
 
-def hub_lag(
-    analysis: IdentifiedCampaign, measurement: Measurement, latency_s: float
-) -> tuple[float, Assumption]:
-    """The hub accelerometer's lag (s) the filters undo, and what was assumed: the measurement's
-    stated lag (or the campaign's, stated so with :data:`CAMPAIGN_LAG`); unstated, the campaign's
-    for a run of the campaign file itself (its accelerometer is the one the four-post run measured),
-    else 0 (an accelerometer without lag), said so: another accelerometer's lag is never applied."""
+def _lag(analysis: IdentifiedCampaign, measurement: Measurement) -> tuple[float, str, str]:
+    """The hub accelerometer's lag (s), where it comes from (``stated``, ``campaign``, ``assumed``)
+    and why, as :func:`hub_lag` says it."""
     four_post = analysis.knowledge.four_post
     campaign_s = four_post.wheel_mass.accelerometer_delay_s if four_post is not None else None
     stated = measurement.chain.hub_lag_ms
-    campaign_ms = None if campaign_s is None else 1e3 * campaign_s
     if stated is not None and stated.value == CAMPAIGN_LAG:
         if campaign_s is None:
             raise CompensationRefusedError(
                 f"{stated.where} states the campaign's accelerometer, but the campaign has no four-post run:"
                 " it measured no accelerometer's lag; state the measurement's in ms"
             )
-        lag_s, source = campaign_s, "stated"
         why = f"{stated.where} states the campaign's accelerometer, whose lag its four-post run measured"
-    elif stated is not None:
-        lag_s, source, why = float(stated.value) / 1e3, "stated", f"as {stated.where} states"
-    elif campaign_s is not None and _run_of(measurement, analysis):
-        lag_s, source = campaign_s, "campaign"
+        return campaign_s, "stated", why
+    if stated is not None:
+        return float(stated.value) / 1e3, "stated", f"as {stated.where} states"
+    if campaign_s is not None and _run_of(measurement, analysis):
         why = "the measurement is a run of the campaign file itself, whose four-post run measured it"
-    else:
-        lag_s, source = 0.0, "assumed"
-        measured = (
-            f"the campaign's four-post run measured {campaign_ms:.3g} ms of its own accelerometer, not"
-            " applied to another's"
-            if campaign_ms is not None
-            else "the campaign measured no accelerometer's lag"
-        )
-        why = (
-            f"the measurement states none, so an accelerometer without lag ({measured}); state it with"
-            f" --hub-lag-ms MS, or --hub-lag-ms {CAMPAIGN_LAG} for the campaign's accelerometer"
-        )
+        return campaign_s, "campaign", why
+    measured = (
+        f"the campaign's four-post run measured {1e3 * campaign_s:.3g} ms of its own accelerometer, not"
+        " applied to another's"
+        if campaign_s is not None
+        else "the campaign measured no accelerometer's lag"
+    )
+    why = (
+        f"the measurement states none, so an accelerometer without lag ({measured}); state it with"
+        f" --hub-lag-ms MS, or --hub-lag-ms {CAMPAIGN_LAG} for the campaign's accelerometer"
+    )
+    return 0.0, "assumed", why
+
+
+def hub_lag(
+    analysis: IdentifiedCampaign, measurement: Measurement, latency_s: float
+) -> tuple[float, Assumption]:
+    """The hub accelerometer's lag (s) the filters undo, and what was assumed: the measurement's
+    stated lag (or the campaign's, stated so with :data:`CAMPAIGN_LAG`); unstated, the campaign's
+    for a run of the campaign file itself (its accelerometer is the one the four-post run measured),
+    else 0 (an accelerometer without lag), said so: another accelerometer's lag is never applied.
+    Refused when the filters' latency ``latency_s`` cannot undo it."""
+    lag_s, source, why = _lag(analysis, measurement)
     if lag_s >= latency_s:
         raise CompensationRefusedError(
             f"hub accelerometer lag {1e3 * lag_s:g} ms ({why}): the filters' latency of"
             f" {1e3 * latency_s:g} ms cannot undo that much"
         )
+    four_post = analysis.knowledge.four_post
+    campaign_ms = None if four_post is None else 1e3 * four_post.wheel_mass.accelerometer_delay_s
     text = f"hub accelerometer lag {1e3 * lag_s:.3g} ms undone: {why}"
     values = {"hub_lag_ms": 1e3 * lag_s, "campaign_hub_lag_ms": campaign_ms}
     return lag_s, Assumption("hub_lag", source, text, values)
 
 
-def verified_band(
+def _verified_band(
     analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult, pressure_bar: float
 ) -> tuple[tuple[float, float], str]:
     """Where the campaign verified the compensation, and how: the shaker's compensated band (the
@@ -278,13 +285,14 @@ def verified_band(
 
 
 def valid_band(
-    verified_hz: tuple[float, float], how: str, measurement: Measurement
+    analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult, pressure_bar: float, measurement: Measurement
 ) -> tuple[tuple[float, float], Assumption, Assumption]:
-    """The valid band: where the campaign verified the compensation, ended at the logger's stated
-    bandwidth (above it the logger did not pass the signals unchanged); and what was assumed of the
-    bandwidth and the band. A bandwidth above half the rate contradicts the measurement
-    (:class:`MeasurementChainError`); one at or below the band's start leaves nothing valid
-    (refused)."""
+    """The valid band: where the campaign verified the compensation (:func:`_verified_band`), ended
+    at the logger's stated bandwidth (above it the logger did not pass the signals unchanged); and
+    what was assumed of the bandwidth and the band. A bandwidth above half the rate contradicts the
+    measurement (:class:`MeasurementChainError`); one at or below the band's start leaves nothing
+    valid (refused)."""
+    verified_hz, how = _verified_band(analysis, chosen, pressure_bar)
     lo, hi = verified_hz
     stated = measurement.chain.bandwidth_hz
     verified = {"valid_band_hz": [lo, hi], "verified_band_hz": [lo, hi]}
