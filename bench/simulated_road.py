@@ -10,7 +10,10 @@ the motion the contact really made.
 
 :func:`validate_on_road` compensates such a drive with a campaign's identification, as
 ``wfsbench compensate`` does, and compares the raw, hub-acceleration-compensated and
-model-compensated forces with the truth (docs/compensate.md, *Validation on a simulated road*).
+model-compensated forces with the truth (docs/compensate.md, *Validation on a simulated road*). A
+road is read by the bench's own sensors (those of the simulated campaign: its accelerometer is the
+one the campaign's four-post run measured), or by others (:func:`other_sensors`: a road measured
+with another car's accelerometer and another logger).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from bench.models.road import RoadDrive
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import TRUTH_CHANNEL
 from bench.store.measurement import MEASUREMENT_CHANNELS, Measurement
+from bench.store.measurement_chain import CAMPAIGN_LAG, MeasurementChain, Stated
 from simulators.plant import IdealServo, PlantSimulator, SampledDrive, SensorRealism
 
 #: Frequencies over the road's band on which its tyre is linearised (a smooth density: a fine grid
@@ -42,6 +46,22 @@ from simulators.plant import IdealServo, PlantSimulator, SampledDrive, SensorRea
 TYRE_GRID_POINTS = 4000
 #: Raised-cosine tapers at the drive's ends (s): the car starts and stops at rest on its post.
 ROAD_TAPER_S = 0.5
+#: What a road read by the bench's own sensors states of its chain: the campaign's accelerometer.
+BENCH_CHAIN = MeasurementChain(
+    hub_lag_ms=Stated(CAMPAIGN_LAG, "the simulated road, read by the bench's sensors,")
+)
+
+
+def other_sensors(seed: int) -> SensorRealism:
+    """Sensors other than the bench's, as a road measured with another car and logger has them: a
+    hub accelerometer of half the bandwidth (300 Hz: twice the lag, 0.75 ms) and a WFS converter
+    three times as noisy (about 3 N rms per sample at 1 kHz, where the bench's has about 1 N)."""
+    bench = SensorRealism(seed=seed)
+    return replace(
+        bench,
+        accelerometer_bandwidth_hz=bench.accelerometer_bandwidth_hz / 2,
+        wfs_noise_n=3 * bench.wfs_noise_n,
+    )
 
 
 @dataclass(frozen=True)
@@ -55,16 +75,22 @@ class RoadRecord:
     channels: dict[str, np.ndarray]
 
 
-def simulate_road(setup: BenchSetup, drive: RoadDrive, *, seed: int) -> RoadRecord:
+def simulate_road(
+    setup: BenchSetup, drive: RoadDrive, *, seed: int, sensors: SensorRealism | None = None
+) -> RoadRecord:
     """The quarter car ``setup`` driving ``drive`` (tapered in and out by :data:`ROAD_TAPER_S`),
-    sensor noise seeded by ``seed``, recorded at the drive's sample rate. A non-linear tyre is
+    read by ``sensors`` (default: the bench's, noise seeded by ``seed``), recorded at the drive's
+    sample rate. A non-linear tyre is
     linearised for the road's spectrum (:meth:`BenchSetup.broadband_tyre`: statistical
     linearisation of its friction, its stiffness at the deflection's equivalent frequency)."""
     freq_hz = np.linspace(drive.band_hz[0], drive.band_hz[1], TYRE_GRID_POINTS)
     tyre = setup.broadband_tyre(freq_hz, drive.temporal_psd_m2_per_hz(freq_hz))
     linear = replace(setup, tyre=tyre, nonlinearity=None)
     plant = PlantSimulator(
-        linear, realism=SensorRealism(seed=seed), actuator=IdealServo(), output_rate_hz=drive.sample_rate_hz
+        linear,
+        realism=sensors or SensorRealism(seed=seed),
+        actuator=IdealServo(),
+        output_rate_hz=drive.sample_rate_hz,
     )
     waveform = SampledDrive(drive.displacement_m, drive.sample_rate_hz, ROAD_TAPER_S, ROAD_TAPER_S)
     record = plant.simulate(waveform, extra_s=1 / drive.sample_rate_hz)
@@ -79,13 +105,20 @@ def validate_on_road(
     *,
     pressure_bar: float,
     seed: int,
+    sensors: SensorRealism | None = None,
+    chain: MeasurementChain | None = None,
 ) -> RoadValidation:
-    """Drive ``setup`` over ``drive`` (:func:`simulate_road`), compensate what its sensors read as
-    ``wfsbench compensate`` does with the campaign ``analysis``, and compare with the true force."""
-    record = simulate_road(setup, drive, seed=seed)
+    """Drive ``setup`` over ``drive`` (:func:`simulate_road`, read by ``sensors``: the bench's by
+    default), compensate what the sensors read as ``wfsbench compensate`` does with the campaign
+    ``analysis`` and what ``chain`` states of them (default: :data:`BENCH_CHAIN` for the bench's
+    sensors, nothing for others), and compare with the true force."""
+    record = simulate_road(setup, drive, seed=seed, sensors=sensors)
     fs = record.sample_rate_hz
     channels = {name: record.channels[name] for name in MEASUREMENT_CHANNELS}
-    measurement = Measurement(f"road {drive.road_class} at {3.6 * drive.speed_m_s:g} km/h", fs, channels)
+    if chain is None:
+        chain = BENCH_CHAIN if sensors is None else MeasurementChain()
+    source = f"road {drive.road_class} at {3.6 * drive.speed_m_s:g} km/h"
+    measurement = Measurement(source, fs, channels, chain=chain)
     compensation = prepare_compensation(analysis, measurement, pressure_bar)
     blocks = list(compensation.blocks())
     model = np.concatenate([b.force_n for b in blocks])
@@ -120,5 +153,8 @@ def validate_on_road(
         coverage_valid_band=coverage(traces["model_compensated"], traces["u95"], truth, fs, (0.0, band[1])),
         coverage_whole=coverage(traces["model_compensated"], traces["u95"], truth, fs, None),
         median_u95_n=float(np.median(traces["u95"])),
+        noise_wfs_n=compensation.filters.basis.noise_wfs_n,
+        hub_lag_ms=1e3 * delay_s,
+        assumptions=tuple(a.line for a in compensation.assumptions),
         traces=traces,
     )

@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
+from bench.analysis.records import FREE_RUN_CHANNELS, DwellRecord, HammerRecord, SweepRecord
 from bench.config import BenchConfig, default_bench_config
+from bench.models.setup import BenchKind, BenchSetup
 from bench.store import CampaignWriter
 from sequences.channels import Channel
 from sequences.points import PointAttempt
@@ -100,3 +101,35 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
                 run.add_event(kind, text)
             run.finish(stored.status, stored.reason)
     return path
+
+
+def paper_corner_runs(car: BenchSetup, *, more_pressures_bar: tuple[float, ...] = ()) -> list[StoredRun]:
+    """The paper's procedure for one corner at 2.5 bar: the shaker's free run, the 2.5 bar grids at
+    1 / 2 / 5 mm, a 2 mm grid at each of ``more_pressures_bar``, the post's free run and the
+    four-post sweep of ``car`` (its last two runs: leave them out for a shaker-only campaign)."""
+    from bench.simulated_campaign import (
+        FREE_RUN_GRID_HZ,
+        PAPER_AMPLITUDES_M,
+        PAPER_SWEEP,
+        SHAKER_GRID_HZ,
+        simulate_dwells,
+        simulate_sweep,
+    )
+
+    free = simulate_dwells(BenchSetup.paper_free_run(), FREE_RUN_GRID_HZ, 2e-3, seed=100)
+    runs = [StoredRun("free", "free_run", tuple(free), {"wheel_fitted": False}, channels=FREE_RUN_CHANNELS)]
+    for i, amplitude in enumerate(PAPER_AMPLITUDES_M):
+        grid = simulate_dwells(BenchSetup.paper_shaker(2.5), SHAKER_GRID_HZ, amplitude, seed=10 + i)
+        runs.append(StoredRun(f"grid-{i}", "dwell_grid", tuple(grid), {"tyre_pressure_bar": 2.5}))
+    for i, pressure in enumerate(more_pressures_bar):
+        grid = simulate_dwells(BenchSetup.paper_shaker(pressure), SHAKER_GRID_HZ, 2e-3, seed=20 + i)
+        runs.append(
+            StoredRun(f"grid-{pressure:g}bar", "dwell_grid", tuple(grid), {"tyre_pressure_bar": pressure})
+        )
+    post = simulate_dwells(BenchSetup(BenchKind.FREE_RUN, rig=car.rig), FREE_RUN_GRID_HZ, 2e-3, seed=101)
+    sweep = simulate_sweep(car, PAPER_SWEEP, seed=102)
+    return [
+        *runs,
+        StoredRun("post-free", "free_run", tuple(post), {"bench": "four_post"}, channels=FREE_RUN_CHANNELS),
+        StoredRun("sweep", "sweep", (sweep,), {"bench": "four_post", "tyre_pressure_bar": 2.5}),
+    ]

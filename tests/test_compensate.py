@@ -17,23 +17,19 @@ import numpy as np
 import pytest
 
 from bench.analysis.measurement_compensation import CompensationStream, design_filters
-from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
+from bench.analysis.records import WHEEL_CHANNELS
 from bench.app.analyze import analyze_campaign
 from bench.app.compensate import CompensationRefusedError, prepare_compensation
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
 from bench.models.benches import TyreModel
 from bench.models.road import road_drive
-from bench.models.setup import BenchKind, BenchSetup
+from bench.models.setup import BenchSetup
 from bench.simulated_campaign import (
     FREE_RUN_GRID_HZ,
-    PAPER_AMPLITUDES_M,
-    PAPER_SWEEP,
-    SHAKER_GRID_HZ,
     simulate_dwells,
-    simulate_sweep,
 )
-from bench.simulated_road import simulate_road, validate_on_road
+from bench.simulated_road import BENCH_CHAIN, simulate_road, validate_on_road
 from bench.store.measurement import (
     Measurement,
     MeasurementError,
@@ -41,7 +37,7 @@ from bench.store.measurement import (
     NotOnTheTyreError,
     read_measurement,
 )
-from tests.campaign_files import StoredRun, write_campaign
+from tests.campaign_files import StoredRun, paper_corner_runs, write_campaign
 
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
 
@@ -50,18 +46,7 @@ CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
 def campaign(tmp_path_factory) -> Path:
     """The paper's procedure at one pressure, written as a campaign file: the shaker's free run, the
     2.5 bar grids at 1 / 2 / 5 mm, the post's free run and the four-post sweep of the car's corner."""
-    free = simulate_dwells(BenchSetup.paper_free_run(), FREE_RUN_GRID_HZ, 2e-3, seed=100)
-    runs = [StoredRun("free", "free_run", tuple(free), {"wheel_fitted": False}, channels=FREE_RUN_CHANNELS)]
-    for i, amplitude in enumerate(PAPER_AMPLITUDES_M):
-        grid = simulate_dwells(BenchSetup.paper_shaker(2.5), SHAKER_GRID_HZ, amplitude, seed=10 + i)
-        runs.append(StoredRun(f"grid-{i}", "dwell_grid", tuple(grid), {"tyre_pressure_bar": 2.5}))
-    post = simulate_dwells(BenchSetup(BenchKind.FREE_RUN, rig=CAR.rig), FREE_RUN_GRID_HZ, 2e-3, seed=101)
-    sweep = simulate_sweep(CAR, PAPER_SWEEP, seed=102)
-    runs += [
-        StoredRun("post-free", "free_run", tuple(post), {"bench": "four_post"}, channels=FREE_RUN_CHANNELS),
-        StoredRun("sweep", "sweep", (sweep,), {"bench": "four_post", "tyre_pressure_bar": 2.5}),
-    ]
-    return write_campaign(tmp_path_factory.mktemp("compensate") / "campaign.h5", runs)
+    return write_campaign(tmp_path_factory.mktemp("compensate") / "campaign.h5", paper_corner_runs(CAR))
 
 
 @pytest.fixture(scope="module")
@@ -148,7 +133,9 @@ def test_the_command_writes_the_force_and_the_exported_filters_reproduce_it(
 ):
     path, columns, truth = road
     out, exported, table = tmp_path / "out.h5", tmp_path / "filters.json", tmp_path / "filters.csv"
-    args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)]
+    # the road was read by the bench's own sensors: its accelerometer is the campaign's
+    args = ["compensate", str(campaign), str(path), "--pressure", "2.5", "--hub-lag-ms", "campaign"]
+    args += ["--out", str(out)]
     assert main([*args, "--filters", str(exported)]) == ExitCode.OK
     said = capsys.readouterr().out
     assert main(args) == ExitCode.INVALID  # the output is never replaced
@@ -177,7 +164,8 @@ def test_the_command_writes_the_force_and_the_exported_filters_reproduce_it(
     # the CSV export holds the same taps and description
     from bench.report.filters import write_filters
 
-    compensation = prepare_compensation(analysis, read_measurement(path, mapping=None), 2.5)
+    measurement = replace(read_measurement(path, mapping=None), chain=BENCH_CHAIN)
+    compensation = prepare_compensation(analysis, measurement, 2.5)
     write_filters(table, compensation.filters, compensation.accelerometer_offset_m_s2)
     with table.open() as f:
         lines = f.read().splitlines()

@@ -88,6 +88,7 @@ def ratio_over_truth(force_n: np.ndarray, truth_n: np.ndarray, fs_hz: float) -> 
     """``F / F_contact`` over frequency (H1 with the true force as the reference: its own noise-free
     signal), Welch segments of :data:`RATIO_SEGMENT_S`; frequencies (Hz) and complex ratios."""
     from scipy.signal import csd, welch
+
     n = min(round(RATIO_SEGMENT_S * fs_hz), force_n.size)
     f, s_tt = welch(truth_n, fs=fs_hz, nperseg=n)
     _, s_tf = csd(truth_n, force_n, fs=fs_hz, nperseg=n)
@@ -103,7 +104,9 @@ class RoadValidation:
     :class:`~bench.analysis.road_validation.ForceErrors`; ``truth_rms_n``: the true force's rms in the
     same band; ``coverage_valid_band``: the share of samples whose true force lies in the 95 % band,
     both limited to the valid band; ``coverage_whole``: the same unfiltered; ``median_u95_n``: the
-    band's median half-width; ``traces``: the signals over the span where the filters are defined
+    band's median half-width; ``noise_wfs_n``: the Fz noise the band carries; ``hub_lag_ms``: the
+    accelerometer's lag undone; ``assumptions``: what the compensation assumed, as it says it;
+    ``traces``: the signals over the span where the filters are defined
     (``t_s``, ``truth``, ``raw``, ``hub_compensated``, ``model_compensated``, ``u95``, and
     ``error_in_band``: the model-compensated force's error limited to the valid band), for figures."""
 
@@ -118,4 +121,7 @@ class RoadValidation:
     coverage_valid_band: float
     coverage_whole: float
     median_u95_n: float
+    noise_wfs_n: float
+    hub_lag_ms: float
+    assumptions: tuple[str, ...]
     traces: dict[str, np.ndarray]

@@ -6,32 +6,35 @@ exactly as ``wfsbench analyze`` analyses it (nothing is written to it) and the c
 built from that analysis (:func:`compensation_basis`):
 
 - the tyre: the shaker identification at the measurement's tyre pressure (within
-  :data:`~bench.analysis.campaign.PRESSURE_MATCH_BAR`; no interpolation between pressures: the
-  paper's 250 / 390 / 420 kN/m at 1.5 / 2.5 / 3.5 bar are far from a line, and the error of an
-  interpolation is unknown); of its amplitudes the one nearest the measurement's tyre deflection
-  (``sqrt 2`` times the rms of the dynamic Fz over the tyre's stiffness, an equivalent sine), the
-  others kept for the amplitude dependence; the selected model's fit with its covariance;
+  :data:`~bench.analysis.campaign.PRESSURE_MATCH_BAR`, a gauge's resolution, and said so; no
+  interpolation between pressures: the paper's 250 / 390 / 420 kN/m at 1.5 / 2.5 / 3.5 bar are far
+  from a line, and the error of an interpolation is unknown); of its amplitudes the one nearest the
+  measurement's tyre deflection (``sqrt 2`` times the rms of the dynamic Fz over the tyre's
+  stiffness, an equivalent sine), the others kept for the amplitude dependence; the selected
+  model's fit with its covariance;
 - the wheel mass (weighed, as the identification takes it) and, when the campaign has a four-post
-  run, its estimate's standard uncertainty and the accelerometer's lag it measured;
+  run, its estimate's standard uncertainty;
 - the sensor (the hammer test's, else as configured), its damping ratio uncertain by half the
   difference of the hammer test's two estimates;
-- the sensors' noise from the dwells' residuals; the filters' band, length and latency from the
-  campaign's compensator; the valid band where the campaign verified it.
+- the filters' band, length and latency from the campaign's compensator; the valid band where the
+  campaign verified it.
 
-Everything a measurement needs that the campaign does not cover is refused, naming it
-(:class:`CompensationRefusedError`).
+The measurement's own chain (its hub accelerometer's lag, its logger's bandwidth, its sensors'
+noise) and its tyre pressure are what :mod:`bench.app.compensation_assumptions` makes of them, each
+an :class:`Assumption` the output states. Everything a measurement needs that the campaign does not
+cover is refused, naming it (:class:`CompensationRefusedError`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Protocol
+from typing import Any
 
 import numpy as np
 
-from bench.analysis.campaign import PRESSURE_MATCH_BAR, CampaignKnowledge
 from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
@@ -42,32 +45,31 @@ from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.analysis.runs import ShakerAmplitudeResult
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
 from bench.analysis.validation import AnalysisInputError
+from bench.app.compensation_assumptions import (
+    Assumption,
+    CompensationRefusedError,
+    IdentifiedCampaign,
+    hub_lag,
+    sensor_noise,
+    shaker_at,
+    valid_band,
+)
 from bench.store.measurement import Measurement
 
-
-class CompensationRefusedError(ValueError):
-    """The campaign does not cover the measurement: the message names what is missing."""
-
-
-class IdentifiedCampaign(Protocol):
-    """What a compensation takes of a campaign: what its runs established (``knowledge``) and its
-    ``path``, which messages name (a whole file analysed, :class:`~bench.analysis.campaign.
-    CampaignAnalysis`, or the campaign a run's analysis is part of)."""
-
-    @property
-    def path(self) -> Path: ...
-
-    @property
-    def knowledge(self) -> CampaignKnowledge: ...
+#: Schema and version of ``wfsbench compensate --json`` (docs/compensate.md).
+JSON_SCHEMA = "wfs-bench-compensate"
+JSON_VERSION = 1
 
 
 @dataclass(frozen=True)
 class Compensation:
-    """A measurement and the filters it is compensated with, ready to run block by block."""
+    """A measurement and the filters it is compensated with, ready to run block by block, with what
+    the compensation assumed (:class:`Assumption`, in the order the output states them)."""
 
     measurement: Measurement
     filters: CompensationFilters
     accelerometer_offset_m_s2: float
+    assumptions: tuple[Assumption, ...] = ()
 
     def blocks(self):
         """The compensated force and its 95 % half-width, block by block (:class:`CompensatedBlock`)."""
@@ -78,59 +80,37 @@ class Compensation:
         )
 
 
-def _shaker_at(analysis: IdentifiedCampaign, pressure_bar: float | None):
-    shaker = analysis.knowledge.shaker
-    if not shaker:
-        raise CompensationRefusedError(
-            f"{analysis.path}: the campaign identified no tyre (no dwell grid with the wheel was"
-            " analysed): there is nothing to compensate with"
-        )
-    known = ", ".join(f"{p:g}" for p in sorted(shaker))
-    if pressure_bar is None:
-        raise CompensationRefusedError(
-            f"the measurement's tyre pressure is not known (give --pressure BAR): the campaign"
-            f" identified the tyre at {known} bar"
-        )
-    nearest = min(shaker, key=lambda p: abs(p - pressure_bar))
-    if abs(nearest - pressure_bar) > PRESSURE_MATCH_BAR:
-        raise CompensationRefusedError(
-            f"tyre pressure {pressure_bar:g} bar: the campaign identified the tyre at {known} bar only"
-            f" (within {PRESSURE_MATCH_BAR:g} bar); the stiffness between pressures is not known well"
-            " enough to interpolate: identify the tyre at the measurement's pressure"
-        )
-    return nearest, shaker[nearest]
-
-
-def _noise(result: ShakerAmplitudeResult, channel: str) -> float:
-    """The channel's white noise (rms per sample): the median residual of the dwells' fits."""
-    residuals = [fit.channels[channel].residual_rms for fit in result.fits if channel in fit.channels]
-    return float(np.median(residuals)) if residuals else 0.0
-
-
-def _valid_band(
-    analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult, pressure_bar: float
-) -> tuple[float, float]:
-    """Where the campaign verified the compensation: the shaker's compensated band (the tyre path,
-    hub clamped), within the four-post's model-compensated band when the campaign has one (the hub
-    acceleration's path too: only a moving hub tests it)."""
-    bands = [chosen.valid_band_compensated]
-    if analysis.knowledge.four_post is not None:
-        bands.append(analysis.knowledge.four_post.valid_band_model_compensated)
-    for band in bands:
-        if not band.determined:
-            raise CompensationRefusedError(
-                f"the compensation of the tyre at {pressure_bar:g} bar, {chosen.label} has no valid band"
-                " (the campaign's data did not verify it)"
-            )
-    return max(b.lowest_hz for b in bands), min(b.upper_hz for b in bands)
+def _parameters(
+    analysis: IdentifiedCampaign, chosen: ShakerAmplitudeResult
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """The uncertain parameters and their covariance: the tyre fit's (the m_comp nuisance left
+    out), the wheel mass's from a four-post run, the sensor's damping ratio from a hammer test."""
+    fit = chosen.identification.best_fit
+    names = [name for name in fit.lsq.values if name != PLATE_MASS_OFFSET]
+    index = [list(fit.lsq.values).index(name) for name in names]
+    covariance = fit.lsq.covariance[np.ix_(index, index)]
+    variances = {}
+    four_post = analysis.knowledge.four_post
+    if four_post is not None:
+        variances["wheel_mass_kg"] = four_post.wheel_mass.sigma_kg**2
+    hammer = analysis.knowledge.hammer
+    if hammer is not None:
+        variances["sensor_damping_ratio"] = (
+            (hammer.damping_ratio_half_power - hammer.damping_ratio_log_decrement) / 2
+        ) ** 2
+    full = np.zeros((len(names) + len(variances),) * 2)
+    full[: len(names), : len(names)] = covariance
+    full[len(names) :, len(names) :] = np.diag(list(variances.values()))
+    return (*names, *variances), full
 
 
 def compensation_basis(
     analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
-) -> CompensationBasis:
+) -> tuple[CompensationBasis, tuple[Assumption, ...]]:
     """What the campaign ``analysis`` gives the compensation of ``measurement`` at ``pressure_bar``
-    (see the module docstring); :class:`CompensationRefusedError` naming what is missing."""
-    identified_bar, shaker = _shaker_at(analysis, pressure_bar)
+    (see the module docstring), and what it assumed; :class:`CompensationRefusedError` naming what
+    is missing, :class:`MeasurementChainError` naming what contradicts the measurement."""
+    identified_bar, shaker, pressure = shaker_at(analysis, pressure_bar)
     if not shaker.amplitudes:
         raise CompensationRefusedError(
             f"the tyre at {identified_bar:g} bar has no fit at any amplitude (too few dwells)"
@@ -141,33 +121,21 @@ def compensation_basis(
     amplitude = min(shaker.amplitudes, key=lambda a: abs(a - deflection_m))
     chosen = shaker.amplitudes[amplitude]
     fit = chosen.identification.best_fit
-    valid_band_hz = _valid_band(analysis, chosen, identified_bar)
-    names = [name for name in fit.lsq.values if name != PLATE_MASS_OFFSET]
-    index = [list(fit.lsq.values).index(name) for name in names]
-    covariance = fit.lsq.covariance[np.ix_(index, index)]
-    variances = {}
-    four_post = analysis.knowledge.four_post
-    delay_s = 0.0
-    if four_post is not None:
-        variances["wheel_mass_kg"] = four_post.wheel_mass.sigma_kg**2
-        delay_s = four_post.wheel_mass.accelerometer_delay_s
-    hammer = analysis.knowledge.hammer
-    if hammer is not None:
-        variances["sensor_damping_ratio"] = (
-            (hammer.damping_ratio_half_power - hammer.damping_ratio_log_decrement) / 2
-        ) ** 2
-    full = np.zeros((len(names) + len(variances),) * 2)
-    full[: len(names), : len(names)] = covariance
-    full[len(names) :, len(names) :] = np.diag(list(variances.values()))
     comp = chosen.compensator
-    return CompensationBasis(
+    latency_s = comp.latency_samples / comp.fs_hz
+    valid_band_hz, bandwidth, band = valid_band(analysis, chosen, identified_bar, measurement)
+    delay_s, lag = hub_lag(analysis, measurement, latency_s)
+    noise_wfs_n, noise_wfs = sensor_noise(chosen, measurement, WFS_FORCE, comp.band_hz)
+    noise_accel_m_s2, noise_accel = sensor_noise(chosen, measurement, HUB_ACCELERATION, comp.band_hz)
+    parameters, covariance = _parameters(analysis, chosen)
+    basis = CompensationBasis(
         label=f"tyre at {identified_bar:g} bar, {chosen.label} (Model {int(fit.model)})",
         model=fit.model,
         tyre=fit.tyre,
         rubber=fit.rubber,
         sensor=shaker.sensor,
-        parameters=(*names, *variances),
-        covariance=full,
+        parameters=parameters,
+        covariance=covariance,
         alternatives=tuple(
             (
                 r.label,
@@ -179,13 +147,14 @@ def compensation_basis(
             if a != amplitude
         ),
         accelerometer_delay_s=delay_s,
-        noise_wfs_n=_noise(chosen, WFS_FORCE),
-        noise_accel_m_s2=_noise(chosen, HUB_ACCELERATION),
+        noise_wfs_n=noise_wfs_n,
+        noise_accel_m_s2=noise_accel_m_s2,
         band_hz=comp.band_hz,
         filter_s=comp.taps_wfs.size / comp.fs_hz,
-        latency_s=comp.latency_samples / comp.fs_hz,
+        latency_s=latency_s,
         valid_band_hz=valid_band_hz,
     )
+    return basis, (pressure, lag, bandwidth, noise_wfs, noise_accel, band)
 
 
 def prepare_compensation(
@@ -194,7 +163,7 @@ def prepare_compensation(
     """The basis from the campaign and the filters at the measurement's rate; refused (naming
     what) when the campaign does not cover the measurement. The hub acceleration's offset (its mean
     over the record: a hub does not accelerate on average) is removed before filtering."""
-    basis = compensation_basis(analysis, measurement, pressure_bar)
+    basis, assumptions = compensation_basis(analysis, measurement, pressure_bar)
     try:
         filters = design_filters(basis, measurement.sample_rate_hz)
     except AnalysisInputError as exc:
@@ -205,14 +174,85 @@ def prepare_compensation(
             f" {filters.n_taps} taps: nothing could be compensated"
         )
     offset = float(np.mean(measurement.channels[HUB_ACCELERATION]))
-    return Compensation(measurement, filters, offset)
+    return Compensation(measurement, filters, offset, assumptions)
+
+
+def _assumption_attributes(assumptions: tuple[Assumption, ...]) -> dict[str, Any]:
+    """The assumptions as the output file's root attributes: each value by its name (NaN where not
+    known), each source as ``<key>_source``, and every line as printed in ``assumptions``."""
+    attributes: dict[str, Any] = {}
+    for assumption in assumptions:
+        attributes[f"{assumption.key}_source"] = assumption.source
+        for name, value in assumption.values.items():
+            if isinstance(value, list):
+                attributes[name] = np.array(value, dtype=float)
+            elif name == "noise_band_hz":
+                attributes[name] = np.full(2, math.nan)
+            else:
+                attributes[name] = math.nan if value is None else float(value)
+    attributes["assumptions"] = "\n".join(a.line for a in assumptions)
+    return attributes
+
+
+@dataclass(frozen=True)
+class CompensationOutput:
+    """What ``wfsbench compensate`` did: the ``compensation`` written to ``out`` with the campaign
+    file ``campaign`` (its analysis from ``campaign_analysis``), the band's median half-width
+    ``median_u95_n``; as lines of text (:meth:`lines`) or JSON (:meth:`to_json`)."""
+
+    compensation: Compensation
+    campaign: Path
+    campaign_analysis: str
+    out: Path
+    median_u95_n: float
+
+    def lines(self) -> list[str]:
+        filters, basis = self.compensation.filters, self.compensation.filters.basis
+        measurement = self.compensation.measurement
+        lo, hi = basis.valid_band_hz
+        return [
+            f"campaign {self.campaign}: {basis.label}",
+            f"measurement {measurement.source}: {measurement.n_samples} samples at {filters.fs_hz:g} Hz",
+            *(assumption.line for assumption in self.compensation.assumptions),
+            f"filters {filters.n_taps} taps, latency {filters.latency_samples} samples"
+            f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:.4g}-{hi:.4g} Hz",
+            f"95 % band: median half-width {self.median_u95_n:.3g} N",
+        ]
+
+    def to_json(self, filters_path: Path | None) -> dict[str, Any]:
+        """The versioned JSON of the command (docs/compensate.md, *JSON*)."""
+        filters, basis = self.compensation.filters, self.compensation.filters.basis
+        measurement = self.compensation.measurement
+        return {
+            "schema": JSON_SCHEMA,
+            "version": JSON_VERSION,
+            "campaign": str(self.campaign),
+            "campaign_analysis": self.campaign_analysis,
+            "measurement": measurement.source,
+            "n_samples": measurement.n_samples,
+            "sample_rate_hz": filters.fs_hz,
+            "identification": basis.label,
+            "n_taps": filters.n_taps,
+            "latency_samples": filters.latency_samples,
+            "valid_band_hz": list(basis.valid_band_hz),
+            "median_u95_n": _finite_or_none(self.median_u95_n),
+            "assumptions": {
+                a.key: {"source": a.source, "text": a.text, **a.values} for a in self.compensation.assumptions
+            },
+            "out": str(self.out),
+            "filters": None if filters_path is None else str(filters_path),
+        }
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def write_output(
     compensation: Compensation, out: Path, *, campaign: Path, campaign_analysis: str = ""
-) -> list[str]:
+) -> CompensationOutput:
     """Compensate the whole measurement block by block into the HDF5 file ``out``
-    (:func:`bench.store.compensated.write_compensated`); the lines that say what was done.
+    (:func:`bench.store.compensated.write_compensated`); what was done (:class:`CompensationOutput`).
     ``campaign_analysis``: where the campaign's analysis came from (its stored records, or a refit)."""
     from bench.app.version import software_version
     from bench.store.compensated import write_compensated
@@ -229,13 +269,11 @@ def write_output(
         "sample_rate_hz": filters.fs_hz,
         "n_taps": filters.n_taps,
         "latency_samples": filters.latency_samples,
-        "valid_band_hz": np.array(basis.valid_band_hz),
         "design_band_hz": basis.band_hz,
         "accelerometer_delay_s": basis.accelerometer_delay_s,
         "accelerometer_offset_m_s2": compensation.accelerometer_offset_m_s2,
-        "noise_wfs_n": basis.noise_wfs_n,
-        "noise_accel_m_s2": basis.noise_accel_m_s2,
         "amplitude_alternatives": ", ".join(label for label, *_ in basis.alternatives),
+        **_assumption_attributes(compensation.assumptions),
     }
     arrays = {
         "filters/taps_wfs": filters.compensator.taps_wfs,
@@ -260,11 +298,4 @@ def write_output(
         attributes=attributes,
         arrays=arrays,
     )
-    lo, hi = basis.valid_band_hz
-    return [
-        f"campaign {campaign}: {basis.label}",
-        f"measurement {measurement.source}: {measurement.n_samples} samples at {filters.fs_hz:g} Hz",
-        f"filters {filters.n_taps} taps, latency {filters.latency_samples} samples"
-        f" ({1e3 * filters.latency_samples / filters.fs_hz:g} ms), valid band {lo:.4g}-{hi:.4g} Hz",
-        f"95 % band: median half-width {np.nanmedian(u95):.3g} N",
-    ]
+    return CompensationOutput(compensation, campaign, campaign_analysis, out, float(np.nanmedian(u95)))

@@ -71,6 +71,7 @@ from bench.models.parameters import WfsSensor
 from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView
 from bench.store.measurement import Measurement
+from bench.store.measurement_chain import CAMPAIGN_LAG, MeasurementChain, Stated
 from sequences.runs import RunKind
 
 #: The plate a four-post free run weighs, as :class:`PlateMassRun` names it.
@@ -366,7 +367,10 @@ class RunAnalyser:
             return None, "the run records no tyre pressure (no set_tyre_pressure prompt before it)"
         names = (WFS_FORCE, HUB_ACCELERATION)
         channels = {name: np.asarray(record.channels[name], dtype=float) for name in names}
-        measurement = Measurement(run.run_id, record.sample_rate_hz, channels, float(pressure))
+        chain = MeasurementChain()
+        if self.knowledge.four_post is not None:  # the replay's hub accelerometer is the one it measured
+            chain = MeasurementChain(hub_lag_ms=Stated(CAMPAIGN_LAG, "a road replay of this campaign"))
+        measurement = Measurement(run.run_id, record.sample_rate_hz, channels, float(pressure), chain=chain)
         campaign = _CampaignSoFar(Path("the campaign"), self.knowledge)
         try:
             return prepare_compensation(campaign, measurement, float(pressure)).filters, ""

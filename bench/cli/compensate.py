@@ -6,7 +6,8 @@ Exit codes (:mod:`bench.cli.exit_codes`):
 - OK: compensated, the output (and the filters) written;
 - UNAVAILABLE: a process is writing the campaign file (or a campaign-file measurement);
 - INVALID: an input cannot be used: the campaign file is no campaign file, the measurement or its mapping
-  cannot be read, the output exists, the options contradict each other; nothing was written;
+  cannot be read, the output exists, the options contradict each other or the measurement (a
+  bandwidth above half its rate); nothing was written;
 - REFUSED: the campaign does not cover the measurement (no identification at its tyre pressure,
   a sample rate the filters cannot serve, a channel the measurement lacks); the message names what
   is missing; nothing was written.
@@ -15,6 +16,7 @@ Exit codes (:mod:`bench.cli.exit_codes`):
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -32,7 +34,8 @@ class _StopError(Exception):
 
 
 def _measurement(args: argparse.Namespace):
-    """The measurement and its tyre pressure (the option's, else the one its source records)."""
+    """The measurement, with what the command line states of its chain, and its tyre pressure (the
+    option's, else the one its source records)."""
     from bench.store import StoreError
     from bench.store.csv_mapping import MappingError, load_channel_mapping
     from bench.store.measurement import (
@@ -49,6 +52,7 @@ def _measurement(args: argparse.Namespace):
         raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
     except (MappingError, MeasurementError, StoreError) as exc:
         raise _StopError(unreadable_file_code(exc), f"error: {exc}") from None
+    measurement = _with_stated_chain(measurement, args)
     recorded = measurement.tyre_pressure_bar
     if args.pressure is None:
         return measurement, recorded
@@ -61,11 +65,29 @@ def _measurement(args: argparse.Namespace):
     return measurement, args.pressure
 
 
+def _with_stated_chain(measurement, args: argparse.Namespace):
+    """The measurement with the chain the command line states beside the one its mapping states
+    (both may state a value only when they agree)."""
+    from dataclasses import replace
+
+    from bench.store.measurement_chain import MeasurementChain, Stated, merged
+
+    given = MeasurementChain(
+        hub_lag_ms=None if args.hub_lag_ms is None else Stated(args.hub_lag_ms, "--hub-lag-ms"),
+        bandwidth_hz=None if args.bandwidth_hz is None else Stated(args.bandwidth_hz, "--bandwidth-hz"),
+    )
+    try:
+        return replace(measurement, chain=merged(measurement.chain, given))
+    except ValueError as exc:
+        raise _StopError(ExitCode.INVALID, f"error: {exc}") from None
+
+
 def _compensation(args: argparse.Namespace):
     """The compensation of the measurement with the campaign's analysis (refused: what is missing),
     and where that analysis came from (:attr:`~bench.analysis.campaign.CampaignAnalysis.source`)."""
     from bench.app.analyze import CampaignFileError, analyze_campaign
-    from bench.app.compensate import CompensationRefusedError, prepare_compensation
+    from bench.app.compensate import prepare_compensation
+    from bench.app.compensation_assumptions import CompensationRefusedError, MeasurementChainError
     from bench.store import StoreError
 
     out = Path(args.out)
@@ -84,6 +106,8 @@ def _compensation(args: argparse.Namespace):
         return prepare_compensation(analysis, measurement, pressure), analysis.source
     except CompensationRefusedError as exc:
         raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
+    except MeasurementChainError as exc:
+        raise _StopError(ExitCode.INVALID, f"error: {exc}") from None
 
 
 def _check_filters_path(filters: Path) -> None:
@@ -109,7 +133,7 @@ def _compensate(args: argparse.Namespace) -> int:
         if filters is not None:  # first: a folder that went away meanwhile stops it before the output
             write_filters(filters, compensation.filters, compensation.accelerometer_offset_m_s2)
         try:
-            lines = write_output(
+            done = write_output(
                 compensation, Path(args.out), campaign=Path(args.campaign), campaign_analysis=analysis_source
             )
         except BaseException:
@@ -122,7 +146,10 @@ def _compensate(args: argparse.Namespace) -> int:
     except (OutputExistsError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID
-    for line in lines:
+    if args.json:
+        print(json.dumps(done.to_json(filters), indent=1))
+        return ExitCode.OK
+    for line in done.lines():
         print(line)
     if filters is not None:
         print(f"filters {filters}")
@@ -137,6 +164,27 @@ def _pressure_bar(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"a tyre pressure must be a positive number of bar, got {text!r}")
     return value
+
+
+def _hub_lag_ms(text: str) -> float | str:
+    """A hub accelerometer lag given on the command line (:func:`bench.store.measurement_chain.
+    hub_lag_ms`: a number of ms, 0 or more, or ``campaign``)."""
+    from bench.store.measurement_chain import from_text, hub_lag_ms
+
+    try:
+        return hub_lag_ms(from_text(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _bandwidth_hz(text: str) -> float:
+    """A logger bandwidth given on the command line: a number of Hz above 0."""
+    from bench.store.measurement_chain import bandwidth_hz, from_text
+
+    try:
+        return bandwidth_hz(from_text(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_compensate_command(sub: argparse._SubParsersAction) -> None:
@@ -168,6 +216,24 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="TOML: which column or MDF channel is fz_wfs_n and a_hub_m_s2, units, CSV dialect and time"
         " (the import's csv, time and channels tables, docs/import.md)",
+    )
+    cmd.add_argument(
+        "--hub-lag-ms",
+        type=_hub_lag_ms,
+        metavar="MS|campaign",
+        help="the lag of the measurement's hub accelerometer (ms), or 'campaign': the accelerometer the"
+        " campaign's four-post run measured; not stated: 0 (or the campaign's for a run of the campaign"
+        " file itself), said so",
+    )
+    cmd.add_argument(
+        "--bandwidth-hz",
+        type=_bandwidth_hz,
+        metavar="HZ",
+        help="the frequency up to which the measurement's logger passes Fz and the hub acceleration"
+        " unchanged (its anti-alias filter): the valid band ends there",
+    )
+    cmd.add_argument(
+        "--json", action="store_true", help="print what was done as JSON (docs/compensate.md) instead of text"
     )
     cmd.add_argument(
         "--filters",

@@ -12,10 +12,11 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.store import measurement_chain
 from bench.store.csv_units import (
     CHANNEL_SUFFIX_UNITS,
     TIME_UNIT,
@@ -244,26 +245,29 @@ class ChannelMapping:
     """How one measurement file's channels are read (``wfsbench compensate --mapping``,
     docs/compensate.md): the import's ``csv`` dialect, ``time`` table and ``channels`` table, with
     the same keys; ``timing`` None when the mapping has no ``time`` table (an MDF4 file keeps its
-    own time stamps)."""
+    own time stamps); ``chain``: what its ``measurement`` table states of the measurement's own
+    hub accelerometer and logger (:mod:`bench.store.measurement_chain`)."""
 
     path: Path
     dialect: Dialect
     timing: Timing | None
     channels: tuple[ChannelColumn, ...]
+    chain: measurement_chain.MeasurementChain = field(default_factory=measurement_chain.MeasurementChain)
 
 
 def load_channel_mapping(path: str | Path) -> ChannelMapping:
     """Read and check a measurement's mapping at ``path`` (tables ``csv``, ``time``,
-    ``channels``); :class:`MappingError` lists every problem of the file."""
+    ``channels``, ``measurement``); :class:`MappingError` lists every problem of the file."""
     path = Path(path)
     _, data = _parsed(path)
     r = _Reader(path)
-    r.keys(data, "", ("csv", "time", "channels"))
+    r.keys(data, "", ("csv", "time", "channels", measurement_chain.MAPPING_TABLE))
     mapping = ChannelMapping(
         path=path,
         dialect=r.dialect(r.table(data, "csv")),
         timing=r.timing(r.table(data, "time"), "time") if "time" in data else None,
         channels=r.channels(r.table(data, "channels"), "channels"),
+        chain=r.chain(r.table(data, measurement_chain.MAPPING_TABLE)),
     )
     if r.problems:
         raise mapping_error(path, data, r.problems)
@@ -386,6 +390,25 @@ class _Reader:
         except LookupError:
             self.add("csv.encoding", f"unknown encoding {encoding!r}")
         return Dialect(delimiter, decimal, int(skip), units_row, encoding)
+
+    def chain(self, t: dict) -> measurement_chain.MeasurementChain:
+        """The ``measurement`` table: the measurement's hub accelerometer lag and logger bandwidth,
+        each checked as the command line's options are (:mod:`bench.store.measurement_chain`)."""
+        where = measurement_chain.MAPPING_TABLE
+        keys = {
+            measurement_chain.HUB_LAG_KEY: measurement_chain.hub_lag_ms,
+            measurement_chain.BANDWIDTH_KEY: measurement_chain.bandwidth_hz,
+        }
+        self.keys(t, where, tuple(keys))
+        stated = {}
+        for key, check in keys.items():
+            if key not in t:
+                continue
+            try:
+                stated[key] = measurement_chain.Stated(check(t[key]), f"{self.path}: {where}.{key}")
+            except ValueError as exc:
+                self.add(f"{where}.{key}", str(exc))
+        return measurement_chain.MeasurementChain(**stated)
 
     def timing(self, t: dict, where: str) -> Timing:
         """The ``time`` table at ``where`` (``time`` or ``runs[i].time``)."""

@@ -11,12 +11,15 @@ Fz and the hub acceleration in SI units at one sample rate (docs/compensate.md).
 - **A campaign file's run** (``.h5``, with ``run_id``): the run's Fz and hub acceleration by their
   roles, and the tyre pressure its conditions record.
 
+What the measurement states of its own chain (its hub accelerometer's lag, its logger's bandwidth)
+comes with it: the mapping's ``measurement`` table (:mod:`bench.store.measurement_chain`).
+
 A file that lacks a channel is refused naming the channel and what the file has.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +28,7 @@ from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.store.csv_mapping import ChannelColumn, ChannelMapping, Dialect, Timing
 from bench.store.csv_read import LARGEST_SI_VALUE, TIME_STEP_TOLERANCE, CsvError, read_csv
 from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_named
+from bench.store.measurement_chain import MeasurementChain
 from bench.store.reader import open_campaign
 
 #: The channels a compensation reads.
@@ -61,13 +65,16 @@ class Measurement:
     ``source`` (the file, and the run); ``tyre_pressure_bar`` when the source records it;
     ``start_s``: the time of the first sample in the source's own time (a CSV's time column, an MDF
     file's time stamps; 0 where the source has none), so that a part cut from a longer record keeps
-    its place in it."""
+    its place in it; ``chain``: what the source states of its hub accelerometer and logger;
+    ``campaign_file``: the campaign file the measurement is a run of (None: another source)."""
 
     source: str
     sample_rate_hz: float
     channels: dict[str, np.ndarray]
     tyre_pressure_bar: float | None = None
     start_s: float = 0.0
+    chain: MeasurementChain = field(default_factory=MeasurementChain)
+    campaign_file: Path | None = None
 
     @property
     def n_samples(self) -> int:
@@ -111,10 +118,12 @@ def read_measurement(
         return _checked(_campaign_run(path, run_id))
     if run_id is not None:
         raise MeasurementError(f"{path}: --run names a run of a campaign file (.h5), not of a {suffix} file")
+    chain = mapping.chain if mapping is not None else MeasurementChain()
     if suffix in MDF_SUFFIXES:
-        return _checked(_mdf(path, _wanted(mapping, path)))
+        return replace(_checked(_mdf(path, _wanted(mapping, path))), chain=chain)
     if suffix == ".csv":
-        return _csv(path, mapping)  # the CSV reader refuses a value that is not a finite number
+        # the CSV reader refuses a value that is not a finite number
+        return replace(_csv(path, mapping), chain=chain)
     raise MeasurementError(
         f"{path}: unknown measurement format {suffix!r}: MDF4 (.mf4, .mdf, .mdf4), CSV (.csv) or a campaign"
         " file's run (.h5 with --run)"
@@ -164,6 +173,7 @@ def _campaign_run(path: Path, run_id: str | None) -> Measurement:
             run.sample_rate_hz,
             {name: np.asarray(channels[name], dtype=float) for name in MEASUREMENT_CHANNELS},
             float(pressure) if pressure is not None else None,
+            campaign_file=path,
         )
 
 

@@ -56,6 +56,15 @@ class SensorRealism:
     def wfs_step_n(self) -> float:
         return WFS_RANGE_N / WFS_RESOLUTION_STEPS
 
+    @property
+    def accelerometer_lag_s(self) -> float:
+        """The hub accelerometer's lag well below its bandwidth: the group delay of its second-order
+        Butterworth at low frequency, ``sqrt 2 / (2 pi f_c)`` (0.375 ms at 600 Hz); 0 without its
+        dynamics."""
+        if not self.accelerometer_dynamics:
+            return 0.0
+        return math.sqrt(2) / (2 * math.pi * self.accelerometer_bandwidth_hz)
+
 
 def accelerometer_system(bandwidth_hz: float) -> LinearSystem:
     """Second-order Butterworth low-pass from the true hub acceleration to the sensor reading."""
