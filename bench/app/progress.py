@@ -41,14 +41,14 @@ def clock_text(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
-class LiveStatus:
+class _LiveStatus:
     """The status on a terminal: one line, a bar and the status text, below the lines printed.
 
     Drawn on request only (no refresh thread), so that what is drawn follows the events and a test
     sees it exactly; standard output and error are left as they are (the prompts' questions and
     answers, the interrupt handler's word go to the terminal directly)."""
 
-    def __init__(self, stream: TextIO, clock: Callable[[], float]) -> None:
+    def __init__(self, stream: TextIO) -> None:
         self.display = progress_display(
             stream,
             BarColumn(bar_width=BAR_WIDTH),
@@ -57,7 +57,6 @@ class LiveStatus:
             auto_refresh=False,
             redirect_stdout=False,
             redirect_stderr=False,
-            get_time=clock,
         )
         self.task = self.display.add_task("", total=1.0)
 
@@ -108,13 +107,13 @@ class Progress:
         done_before: DoneBefore = NOTHING_DONE,
     ) -> None:
         self.stream = stream
-        self.live = redraws_in_place(stream) if live is None else live
         self.clock = clock
         self.pace = SequencePace(clock=clock, done_before=done_before)
         self.point: str | None = None  # what is under way, for people
         self.at_amplitude: bool | None = None  # a dwell: tapering in (False), at amplitude (True)
         self._pressure_bar: float | None = None
-        self._display = LiveStatus(stream, clock) if self.live else None
+        live = redraws_in_place(stream) if live is None else live
+        self._display = _LiveStatus(stream) if live else None
         self._last_draw_s = -math.inf
 
     def __enter__(self) -> Progress:
@@ -125,6 +124,11 @@ class Progress:
     ) -> None:
         if self._display is not None:
             self._display.end()
+
+    @property
+    def live(self) -> bool:
+        """A live display on a terminal (else plain lines)."""
+        return self._display is not None
 
     # -- figures ----------------------------------------------------------------------------
 
@@ -164,7 +168,7 @@ class Progress:
             self.stream.flush()
 
     def _draw(self) -> None:
-        """The live display brought up to date, and shown if it was not."""
+        """The live display (if any) brought up to date, and shown if it was not."""
         if self._display is not None:
             self._display.show(self._done(), self.status())
             self._last_draw_s = self.clock()
@@ -178,7 +182,7 @@ class Progress:
     def _show(self, point: str, at_amplitude: bool | None = None) -> None:
         """A new point (or a dwell's hold) under way: drawn live, or one plain line."""
         self.point, self.at_amplitude = point, at_amplitude
-        if self.live:
+        if self._display is not None:
             self._draw()
         else:
             self.line(f"progress: {self.status()}")
@@ -216,8 +220,7 @@ class Progress:
         """The operator answered: the live display comes back below the answer (without a point
         until the next one starts)."""
         self.point = None
-        if self.live:
-            self._draw()
+        self._draw()
 
     def __call__(self, event: ev.Event) -> None:
         self.pace(event)
