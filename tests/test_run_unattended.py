@@ -1,6 +1,6 @@
 """``wfsbench run`` for the lab: the answers file (checked whole before anything moves, applied to
 the simulated world), Ctrl-C (a tapered abort, a second one an e-stop; the file kept and marked),
-and the progress display (plain lines in a pipe, a redrawn line on a terminal)."""
+and the progress display (plain lines in a pipe, a live display of one line on a terminal)."""
 
 from __future__ import annotations
 
@@ -651,7 +651,7 @@ def test_a_prompt_on_a_terminal_gets_a_line_of_its_own_and_the_status_says_the_b
     waiting = screen.shown[-1]
     assert waiting.endswith(
         " 1/4 points | elapsed 0:01, ETA 0:03 | waiting for the operator: prompt fit_wheel"
-    )
+    )  # no longer "at amplitude": the point's phase is not the bench's
     assert (screen.current, screen.column, screen.cursor_shown) == ("", 0, True)  # the question's line
     asked = len(out.getvalue())
     clock.now_s += 5.0
