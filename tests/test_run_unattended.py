@@ -1,18 +1,22 @@
 """``wfsbench run`` for the lab: the answers file (checked whole before anything moves, applied to
 the simulated world), Ctrl-C (a tapered abort, a second one an e-stop; the file kept and marked),
-and the progress display (plain lines in a pipe, a redrawn line on a terminal)."""
+and the progress display (plain lines in a pipe, a live display of one line on a terminal)."""
 
 from __future__ import annotations
 
+import fcntl
 import io
 import math
 import os
 import pty
+import re
 import select
 import shutil
 import signal
+import struct
 import subprocess
 import sys
+import termios
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +36,7 @@ from sequences import Prompt, Sequence, load_sequence
 from simulators.bench_sim import SimulatedBench
 from simulators.world import SimulatedOperator, SimulatedWorld
 from tests.commands import wfsbench
+from tests.terminal_screen import Screen
 from tests.test_campaign_cli import SMOKE, _bench_toml, lab_devices  # noqa: F401 - a fixture
 from tests.waiting import LineReader
 
@@ -418,15 +423,52 @@ def test_points_an_adaptive_grid_adds_count_in_the_total():
     assert out.getvalue().splitlines()[-1].startswith("progress: 1/6 points")
 
 
-def test_progress_on_a_terminal_redraws_one_line_and_writes_log_lines_above_it():
+def test_progress_on_a_terminal_is_one_live_line_below_the_log_and_gone_at_the_end(monkeypatch):
+    """The log line whole above the status, the status with its figures on one line below it,
+    redrawn in place; once the sequence ends only the log is left, and the cursor is shown again."""
+    monkeypatch.setenv("COLUMNS", "300")  # the status whole: it is cut at the terminal's width
     clock, out = FakeClock(), io.StringIO()
-    _feed(Progress(out, live=True, clock=clock), clock)
-    text = out.getvalue()
-    assert "\n" not in text.split("  point 0 at 10 Hz: done\n")[1]  # after the log line: the bar only
-    log_at = text.index("  point 0 at 10 Hz: done")
-    assert text[log_at - 4 : log_at] == "\r\x1b[K"  # the bar was cleared before the log line
-    assert text.endswith("\x1b[K")
-    assert "\r[##........] 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1" in text
+    progress = Progress(out, live=True, clock=clock)
+    _feed(progress, clock)
+    screen = Screen().feed(out.getvalue())
+    assert screen.shown == ["  point 0 at 10 Hz: done", screen.current]  # the display: the line below
+    assert screen.current.endswith(
+        " 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002-dwell_grid point 1: 30 Hz, 1.5 mm, 2.5 bar,"
+        " tapering in"
+    )
+    assert "progress:" not in out.getvalue()
+    progress(ev.SequenceFinished("complete", ""))
+    screen = Screen().feed(out.getvalue())
+    assert screen.shown == ["  point 0 at 10 Hz: done"]
+    assert (screen.row, screen.column, screen.cursor_shown) == (1, 0, True)  # where the next line goes
+
+
+def test_on_a_narrow_terminal_the_status_is_cut_at_its_width_and_log_lines_stay_whole(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "60")
+    clock, out = FakeClock(), io.StringIO()
+    progress = Progress(out, live=True, clock=clock)
+    _feed(progress, clock)
+    long_line = "  point 1 at 30 Hz: done, commanded 1.500 mm, achieved 1.498 mm; settled, u 0.12 % / 0.1 deg"
+    progress.line(long_line)
+    progress(ev.PointStarted("seq-s002-dwell_grid", 2, 1, 40.0, 1.5, {"tyre_pressure_bar": 2.5}))
+    screen = Screen().feed(out.getvalue())
+    assert screen.shown == ["  point 0 at 10 Hz: done", long_line, screen.current]  # neither wrapped
+    assert len(screen.current) == 60 and screen.current.endswith("…")
+    assert " 1/4 points | elapsed 0:01, ETA 0:03 | seq-s002" in screen.current
+
+
+def test_a_dumb_terminal_takes_the_plain_lines(monkeypatch):
+    """A terminal that cannot erase a line (an editor's shell buffer) gets what a pipe gets."""
+    master, slave = os.openpty()
+    try:
+        with os.fdopen(os.dup(slave), "w") as terminal:
+            monkeypatch.setenv("TERM", "xterm-256color")
+            assert Progress(terminal).live
+            monkeypatch.setenv("TERM", "dumb")
+            assert not Progress(terminal).live
+    finally:
+        os.close(master)
+        os.close(slave)
 
 
 def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
@@ -447,19 +489,36 @@ def test_the_command_in_a_pipe_writes_no_control_codes(tmp_path):
     assert any(line.startswith("progress: 7/8 points | ") and line.endswith(sweep) for line in progress)
 
 
-def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
-    """Standard output a pseudo-terminal: the status line is redrawn in place (carriage return,
-    erase to the end of the line), and the run log's lines still end with a newline."""
-    answers = tmp_path / "answers.toml"
+def terminal_of(columns: int) -> tuple[int, int]:
+    """A pseudo-terminal ``columns`` wide (master, slave), as a terminal window is."""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 30, columns, 0, 0))
+    return master, slave
+
+
+def terminal_env() -> dict[str, str]:
+    """The environment of a command on a terminal: a terminal that redraws, its width its own."""
+    env = {key: value for key, value in os.environ.items() if key not in ("COLUMNS", "LINES")}
+    return {**env, "TERM": "xterm-256color"}
+
+
+def test_the_command_on_a_terminal_shows_a_live_status_that_leaves_only_the_log(tmp_path):
+    """Standard output a pseudo-terminal 200 columns wide: the status is drawn with its figures (the
+    sweep under way, 7 of 8 points done), never wider than the terminal; at the end the screen holds
+    the run log whole, the statuses the prompts left (where the bench waited) and nothing else of the
+    display, and the cursor is shown."""
+    answers, out = tmp_path / "answers.toml", tmp_path / "c.h5"
     answers.write_text(SMOKE_ANSWERS)
     script = Path(sys.executable).with_name("wfsbench")
     command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
-    master, slave = pty.openpty()
+    master, slave = terminal_of(200)
     proc = subprocess.Popen(
-        [*command, "run", str(SMOKE), "--out", str(tmp_path / "c.h5"), "--answers", str(answers)],
+        [*command, "run", str(SMOKE), "--out", str(out), "--answers", str(answers)],
+        stdin=subprocess.DEVNULL,
         stdout=slave,
         stderr=subprocess.PIPE,
         cwd=ROOT,
+        env=terminal_env(),
     )
     os.close(slave)
     chunks = []
@@ -479,11 +538,18 @@ def test_the_command_on_a_terminal_redraws_its_status_line(tmp_path):
             proc.kill()
             proc.wait()
     text = b"".join(chunks).decode()
-    assert "\r[..........] 0/8 points | elapsed " in text
-    assert "\x1b[K\r[#########.] 7/8 points | elapsed " in text  # the sweep under way: 7 done
-    assert "\r\x1b[K  point 0 at 10 Hz: done" in text
     assert "progress:" not in text
-    assert text.endswith(f"\r\x1b[Ksmoke: complete; file {tmp_path / 'c.h5'}\r\n")  # the bar cleared
+    screen = Screen().feed(text)
+    sweep = r".* 7/8 points \| elapsed \d+:\d\d, ETA \S+ \| smoke-s010-sweep: sweep 1-30 Hz, 1 mm, 2\.4 bar"
+    assert any(re.fullmatch(sweep, drawn) for drawn in screen.erased), screen.erased
+    statuses = [line for line in screen.shown if " points | elapsed " in line]
+    assert max(map(len, screen.erased + statuses)) <= 200
+    assert [status.rpartition(" | ")[2] for status in statuses] == [
+        f"waiting for the operator: prompt {prompt}" for prompt in ("remove_wheel", "fit_wheel", "pressure")
+    ]
+    assert "  point 0 at 10 Hz: done" in [line[:24] for line in screen.shown]
+    assert screen.shown[-1] == f"smoke: complete; file {out}"
+    assert screen.cursor_shown
 
 
 PROMPT_FIRST = """\
@@ -572,25 +638,31 @@ def test_the_interrupt_s_word_clears_the_progress_line_on_a_terminal_only(monkey
 
 
 def test_a_prompt_on_a_terminal_gets_a_line_of_its_own_and_the_status_says_the_bench_waits(monkeypatch):
-    monkeypatch.setenv("COLUMNS", "300")  # the status line whole: it is cut at the terminal's width
+    """At a prompt the status says the bench waits and is left as a line of its own, the cursor
+    below it and shown; nothing is drawn until the answer (a log line is only the line); then the
+    display comes back below."""
+    monkeypatch.setenv("COLUMNS", "300")  # the status whole: it is cut at the terminal's width
     clock, out = FakeClock(), io.StringIO()
     progress = Progress(out, live=True, clock=clock)
     _feed(progress, clock)
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 250, {"status": np.full(10, 0xFFFF, np.uint16)}))
-    asked = len(out.getvalue())
     progress(ev.PromptAsked("fit_wheel", "Fit the wheel"))
+    screen = Screen().feed(out.getvalue())
+    waiting = screen.shown[-1]
+    assert waiting.endswith(
+        " 1/4 points | elapsed 0:01, ETA 0:03 | waiting for the operator: prompt fit_wheel"
+    )  # no longer "at amplitude": the point's phase is not the bench's
+    assert (screen.current, screen.column, screen.cursor_shown) == ("", 0, True)  # the question's line
+    asked = len(out.getvalue())
     clock.now_s += 5.0
     progress(ev.SamplesRecorded("seq-s002-dwell_grid", 260, {"status": np.zeros(100, np.uint16)}))
     progress.line("  a log line while the question waits")
-    text = out.getvalue()[asked:]
-    assert text.startswith("\r[##........] 1/4 points | elapsed 0:01")
-    assert text.split("\x1b[K")[1:] == [
-        "\n  a log line while the question waits\n"
-    ]  # no redraw over the answer
-    assert "| waiting for the operator: prompt fit_wheel" in text and "at amplitude" not in text
+    assert out.getvalue()[asked:] == "  a log line while the question waits\n"  # nothing drawn
     progress(ev.PromptAnswered("fit_wheel", "Fit the wheel", True, None))
     progress(ev.PointStarted("seq-s002-dwell_grid", 2, 1, 40.0, 1.5, {}))
-    assert out.getvalue().endswith("seq-s002-dwell_grid point 2: 40 Hz, 1.5 mm, 2.5 bar, tapering in\x1b[K")
+    screen.feed(out.getvalue()[asked:])
+    assert screen.shown[-3:-1] == [waiting, "  a log line while the question waits"]
+    assert screen.current.endswith("| seq-s002-dwell_grid point 2: 40 Hz, 1.5 mm, 2.5 bar, tapering in")
 
 
 ASKS_AFTER_A_DWELL = """\
@@ -625,21 +697,22 @@ level = "off"
 
 def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, lab_devices):  # noqa: F811
     """Real devices and the command on a pseudo-terminal (its standard input and output): the
-    question comes on a line of its own, below a status that says the bench waits for the operator."""
+    question comes on a line of its own, below a status that says the bench waits for the operator,
+    the cursor shown; nothing is drawn over the question or the answer typed (the terminal's echo)."""
     server, pty_path = lab_devices
     sequence, config = tmp_path / "asks.toml", tmp_path / "bench.toml"
     sequence.write_text(ASKS_AFTER_A_DWELL)
     config.write_text(_bench_toml(server, pty_path))
     script = Path(sys.executable).with_name("wfsbench")
     command = [str(script)] if script.exists() else [sys.executable, "-m", "bench.cli"]
-    master, slave = pty.openpty()
+    master, slave = terminal_of(300)  # the status whole: it is cut at the terminal's width
     proc = subprocess.Popen(
         [*command, "run", str(sequence), "--out", str(tmp_path / "c.h5"), "--bench", str(config)],
         stdin=slave,  # all three the terminal: input() writes its question to standard error there
         stdout=slave,
         stderr=slave,
         cwd=ROOT,
-        env={**os.environ, "COLUMNS": "300", "TERM": "dumb"},
+        env=terminal_env(),
     )
     os.close(slave)
     shown = b""
@@ -665,6 +738,10 @@ def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, 
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    status, question = shown.decode().split("Is the bench clear [yes / no]: ")[0].rsplit("\r", 1)
-    assert question == "\n"  # the status line ended: the question starts a line of its own
-    assert status.endswith("| waiting for the operator: prompt ready\x1b[K")
+    question = "Is the bench clear [yes / no]: "
+    screen = Screen().feed(shown.decode().split(question)[0])
+    assert screen.shown[-1].endswith("| waiting for the operator: prompt ready")
+    assert (screen.current, screen.column, screen.cursor_shown) == ("", 0, True)
+    answered = Screen().feed(shown.decode()).shown
+    at = answered.index(f"{question}yes")
+    assert answered[at - 1] == screen.shown[-1]

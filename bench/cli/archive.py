@@ -32,17 +32,17 @@ class _Bar:
     the directories are walked as the files are read, so the total grows until the walk ends)."""
 
     def __init__(self) -> None:
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, MofNCompleteColumn, TimeElapsedColumn
 
-        self.progress = Progress(
-            TextColumn("indexing"),
+        from bench.app.live_display import progress_display
+
+        self.progress = progress_display(
+            sys.stderr,
+            "indexing",
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
-            TextColumn("{task.fields[problems]}"),
-            console=Console(stderr=True),
-            transient=True,
+            text="{task.fields[problems]}",
         )
         self.task = self.progress.add_task("index", total=0, problems="")
         self.to_read = self.problems = 0

@@ -84,8 +84,7 @@ def _run_plan(
 
     with hold_campaign_file(Path(args.out)):  # before the file is read: one writer per file
         done_before = done_in_file(plan, Path(args.out)) if args.resume else DoneBefore()
-        progress = Progress(sys.stdout, done_before=done_before)
-        with RunInterrupts() as interrupts:
+        with Progress(sys.stdout, done_before=done_before) as progress, RunInterrupts() as interrupts:
             # at real devices without an answers file, the person at the terminal answers
             asked = answers is None and not plan.config.simulated
             return run_campaign(
