@@ -19,6 +19,7 @@ from drivers.wfs_reader import WfsReader
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.ports import TTY_RX_BUFFER_BYTES, MemoryLink, PtyLink
 from simulators.wfs_device import WfsDevice
+from tests.waiting import wait_until
 
 STALL_S = 2.0
 QUEUE_FRAMES = 100  # the consumer's subscription: full after 0.1 s of frames, then the reader waits
@@ -94,7 +95,9 @@ def test_a_host_stall_overruns_the_paced_link_and_the_lost_frames_are_counted():
 def test_the_unpaced_link_waits_for_its_host_up_to_the_devices_hold(hold_s, stall_s):
     """Without a receive buffer bound (the unpaced bench's link) a stall shorter than the device's
     hold (``[simulation] wfs_hold_s``) loses nothing; a longer one loses what the device could not
-    send by then, each frame counted at both ends."""
+    send by then, each frame counted at both ends. The longer stall lasts until the device has
+    dropped frames (at least its hold): the unpaced bench shares the test's process, and on a busy
+    machine it may take longer than any fixed stall to fill the subscription and the link."""
     link = MemoryLink()
     bench = SimulatedBench.paper_shaker(seed=2)
     device = WfsDevice(link, bench, seed=3, hold_s=hold_s)
@@ -109,6 +112,8 @@ def test_the_unpaced_link_waits_for_its_host_up_to_the_devices_hold(hold_s, stal
         reader.start_stream()
         first = sub.read_frames(500, timeout_s=20)
         threading.Event().wait(stall_s)  # the host stall: nothing taken, the reader is held
+        if stall_s >= hold_s:  # ... until the device gave up waiting for it
+            wait_until(lambda: device.frames_dropped > 0, 60, "the device dropped frames")
         # beyond what the link held when the device gave up (64 KiB: 1024 frames), so that the
         # frames after a drop arrive
         second = sub.read_frames(3000, timeout_s=20)
