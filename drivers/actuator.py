@@ -551,6 +551,9 @@ class ActuatorClient:
 
         Raises ValueError (nothing written) when ``watchdog_ms`` is not longer than
         :meth:`longest_block_s`: one slow reply would then starve the heartbeat and trip the bench.
+        Arming is the one write sent again when its reply came too late to tell: it sets a
+        configuration and a first beat, the same whether it lands once or twice (a busy host's late
+        reply would otherwise leave the bench unopened).
         """
         longest_ms = self.longest_block_s(period_s) * 1000
         if watchdog_ms <= longest_ms:
@@ -560,7 +563,12 @@ class ActuatorClient:
                 f"period = {longest_ms:.0f} ms; lengthen the watchdog or shorten the timeout/attempts"
             )
         await self.stop_heartbeat()
-        await self._write({"watchdog_ms": watchdog_ms, "heartbeat": 1})
+        arm = {"watchdog_ms": watchdog_ms, "heartbeat": 1}
+        try:
+            await self._write(arm)
+        except CommandOutcomeUnknownError as exc:
+            log.warning("arming the watchdog: %s; sent again (it lands the same twice)", exc)
+            await self._write(arm)
         self._heartbeat_lost.clear()
         self._heartbeat_task = asyncio.create_task(
             self._beat(period_s, watchdog_ms / 1000), name="actuator-heartbeat"

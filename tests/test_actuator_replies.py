@@ -58,3 +58,25 @@ async def test_a_state_code_the_protocol_does_not_define_is_a_link_error(rtu_ove
         await client.read_status()
     assert isinstance(err.value, LinkError)
     assert not isinstance(err.value, ValueError)
+
+
+async def test_arming_the_watchdog_is_sent_again_when_its_reply_comes_too_late(bench):
+    """A busy host's late reply to the watchdog's arming left the bench unopened ("no reply ... not
+    re-sent"). Arming lands the same twice, so it is the one write sent again: over Modbus TCP (the
+    late reply is told apart by its transaction id) the bench arms, and the controller holds the
+    watchdog asked for."""
+    server = ControllerServer(bench)
+    host, port = await server.serve_tcp("127.0.0.1", 0)
+    client = ActuatorClient.tcp(host, port, timeout_s=TIMEOUT_S)
+    await client.connect()
+    try:
+        before = server.writes_received
+        server.faults.delay_next, server.faults.delay_s = 1, TIMEOUT_S + 0.15
+        await client.start_heartbeat(period_s=0.1, watchdog_ms=2000)
+        assert server.writes_received == before + 2
+        with bench.lock:
+            assert bench.controller.setpoints["watchdog_ms"] == 2000
+        await client.stop_heartbeat()
+    finally:
+        await client.close()
+        await server.close()
