@@ -408,14 +408,22 @@ def _unreliable_plate_finding(ident: ShakerIdentification) -> str:
     )
 
 
+def _contact_per_dwell(
+    fits: Sequence[DwellFit], plate: PlateMass
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each dwell's frequency (ascending), displacement phasor and contact-force phasor with
+    ``plate``'s m_comp: what an error in m_comp is measured against."""
+    z, _ = dwell_phasors(fits, DISPLACEMENT)
+    contact, _ = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    return np.sort([d.freq_hz for d in fits]), z, contact
+
+
 def _nominal_plate_finding(fits: Sequence[DwellFit], plate: PlateMass) -> str:
     """What an error in a nominal m_comp does: each kilogram moves every dwell's contact force by
     ``w^2 |Z|`` newtons (``F_contact = F_shaker + m_comp w^2 Z``) and, since ``w^2 dm`` is the form
     of a tread mass's inertia, the tread mass by as much the other way; neither is in the fit's
     intervals (the mass has no uncertainty of its own)."""
-    f = np.sort([d.freq_hz for d in fits])
-    z, _ = dwell_phasors(fits, DISPLACEMENT)
-    contact, _ = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    f, z, contact = _contact_per_dwell(fits, plate)
     per_kg_n = (2 * np.pi * f) ** 2 * np.abs(z)
     relative = per_kg_n / np.abs(contact)
     worst = int(np.argmax(relative))
@@ -525,9 +533,7 @@ def nominal_plate_condition(
     The tolerance is the smallest ``|dm|`` (either sign, on a grid 1 % apart) at which that leaves
     the band's tolerances at one of its points; the error at the stated deviation is the largest
     ``| |C / (C + dm w^2 Z)| - 1 |`` over the dwells."""
-    f = np.sort([d.freq_hz for d in fits])
-    z, _ = dwell_phasors(fits, DISPLACEMENT)
-    contact, _ = contact_force_phasors(fits, plate, shaker_force=PLATE_FORCE, displacement=DISPLACEMENT)
+    f, z, contact = _contact_per_dwell(fits, plate)
     per_kg = (2 * np.pi * f) ** 2 * z / contact  # the true contact's change per kg, relative
 
     def true_ratio(dm_kg: np.ndarray) -> np.ndarray:  # (masses, dwells): the factor on H
