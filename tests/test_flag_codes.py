@@ -5,6 +5,7 @@ code, so none may be."""
 from __future__ import annotations
 
 import ast
+import pickle
 import re
 from pathlib import Path
 
@@ -48,6 +49,13 @@ def test_a_flag_line_reads_as_its_text_and_carries_its_code():
     assert line == "FLAG rejected: 12 Hz clipped" and isinstance(line, str)
     by_hand = "FLAG written by hand"  # no code: not a flag of the analysis
     assert flags_of(["a line", line, by_hand]) == (Flag(FlagCode.REJECTED, "rejected: 12 Hz clipped"),)
+
+
+def test_a_flag_line_crosses_a_process_as_it_is():
+    """The post-run analysis sends its lines from its own process: pickled, a flag line keeps its code."""
+    line = flag(FlagCode.NOT_SETTLED, "not settled: 12 Hz")
+    back = pickle.loads(pickle.dumps(line))
+    assert back == line and isinstance(back, FlagLine) and back.flag == line.flag
 
 
 def test_the_flags_survive_the_record():

@@ -55,6 +55,10 @@ class FlagLine(str):
         line.flag = flag
         return line
 
+    def __reduce__(self) -> tuple[type[FlagLine], tuple[Flag]]:
+        """Made again from its flag: the post-run analysis sends its lines from its own process."""
+        return FlagLine, (self.flag,)
+
 
 def flag(code: FlagCode, text: str) -> FlagLine:
     """The line ``FLAG <text>`` carrying its code."""
