@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 import time
@@ -11,11 +12,14 @@ from typing import TYPE_CHECKING
 
 from bench.cli.exit_codes import ExitCode
 from bench.cli.metadata import add_meta_option
+from bench.cli.monitor import add_monitor_options
 
 if TYPE_CHECKING:
     from bench.app.library_log import LibraryLog
     from bench.app.plan import CampaignPlan
     from bench.app.run import CampaignOutcome
+    from bench.engine.engine import Engine
+    from bench.monitor.feed import BenchMonitor
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -24,15 +28,18 @@ def _run(args: argparse.Namespace) -> int:
     from bench.app.library_log import library_log, log_beside
     from bench.app.plan import PlanRefusedError, plan_campaign
     from bench.app.resume import NothingToResumeError
+    from bench.cli.monitor import monitor_listen, start_bench_monitor
     from bench.config import ConfigError
     from bench.locks import InUseError
+    from bench.monitor.listen import MonitorSettingsError, MonitorUnavailableError
     from sequences import SequenceError
 
     try:
+        listen = monitor_listen(args, args.monitor, "--monitor")
         bench_config = Path(args.bench) if args.bench else None
         plan = plan_campaign(Path(args.sequence), bench_config, realtime=args.realtime, metadata=args.meta)
         answers = load_answers(Path(args.answers), plan.sequence) if args.answers else None
-    except (SequenceError, ConfigError, AnswersError, OSError) as exc:
+    except (SequenceError, ConfigError, AnswersError, OSError, MonitorSettingsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID
     except PlanRefusedError as exc:
@@ -41,16 +48,18 @@ def _run(args: argparse.Namespace) -> int:
     log_path = log_beside(Path(args.out))
     log_existed = log_path.exists()
     opened: list = []  # the engine, once the devices are open: from then on the log is the run's
-    with library_log(log_path) as log:
+    with library_log(log_path) as log, contextlib.ExitStack() as stack:
         try:
-            outcome = _run_plan(args, plan, answers, opened)
+            monitor = stack.enter_context(start_bench_monitor(listen)) if listen is not None else None
+            outcome = _run_plan(args, plan, answers, opened, monitor)
         except NothingToResumeError as exc:  # nothing opened, asked or moved: the campaign is complete
             print(exc)
             return ExitCode.OK
-        except (InUseError, DeviceUnreachableError, ValueError) as exc:
-            # a file or device held by another process, a device unreachable: unavailable; else invalid
+        except (InUseError, DeviceUnreachableError, MonitorUnavailableError, ValueError) as exc:
+            # a file or device held by another process, a device unreachable, the monitor's address
+            # taken: unavailable; else invalid
             print(f"error: {exc}", file=sys.stderr)
-            held = isinstance(exc, InUseError | DeviceUnreachableError)
+            held = isinstance(exc, InUseError | DeviceUnreachableError | MonitorUnavailableError)
             return ExitCode.UNAVAILABLE if held else ExitCode.INVALID
         finally:
             _said_of(log, kept=bool(opened) or log_existed)
@@ -70,10 +79,15 @@ def _ended(name: str, outcome: CampaignOutcome, out: str) -> ExitCode:
 
 
 def _run_plan(
-    args: argparse.Namespace, plan: CampaignPlan, answers: dict[str, float | str | bool] | None, opened: list
+    args: argparse.Namespace,
+    plan: CampaignPlan,
+    answers: dict[str, float | str | bool] | None,
+    opened: list,
+    monitor: BenchMonitor | None,
 ) -> CampaignOutcome:
     """Run the plan into ``args.out``, holding the file, with the progress on standard output and the
-    signals taken over; the engine goes into ``opened`` once the devices are open."""
+    signals taken over; the engine goes into ``opened`` once the devices are open, and to the web
+    ``monitor`` (if any)."""
     from bench.app.interrupts import RunInterrupts
     from bench.app.pace import DoneBefore
     from bench.app.progress import Progress
@@ -87,6 +101,14 @@ def _run_plan(
         with Progress(sys.stdout, done_before=done_before) as progress, RunInterrupts() as interrupts:
             # at real devices without an answers file, the person at the terminal answers
             asked = answers is None and not plan.config.simulated
+
+            def on_engine(engine: Engine) -> None:
+                opened.append(engine)
+                interrupts.attach(engine)
+                if monitor is not None:
+                    monitor.feed.attach(engine, plan.config)
+                    monitor.feed.launched(done_before)
+
             return run_campaign(
                 plan,
                 Path(args.out),
@@ -94,7 +116,7 @@ def _run_plan(
                 operator=TerminalOperator(read=interrupts.interruptible(input)) if asked else None,
                 answers=answers,
                 subscribers=(RunLog(progress.line), progress),
-                on_engine=lambda engine: (opened.append(engine), interrupts.attach(engine)),
+                on_engine=on_engine,
             )
 
 
@@ -109,13 +131,27 @@ def _said_of(log: LibraryLog, *, kept: bool) -> None:
 
 def _tui(args: argparse.Namespace) -> int:
     """The technician's terminal UI; the log goes to a file beside the campaign file, not the screen."""
+    from bench.cli.monitor import monitor_listen, start_bench_monitor
+    from bench.monitor.listen import MonitorSettingsError, MonitorUnavailableError
     from bench.tui.app import WfsBenchApp
 
+    try:
+        listen = monitor_listen(args, args.monitor, "--monitor")
+    except MonitorSettingsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return ExitCode.INVALID
     out = Path(args.out or time.strftime("campaign-%Y%m%d-%H%M%S.h5"))
     logging.basicConfig(
         filename=f"{out}.log", level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", force=True
     )
-    WfsBenchApp(Path(args.bench) if args.bench else None, out).run()
+    with contextlib.ExitStack() as stack:
+        try:
+            monitor = stack.enter_context(start_bench_monitor(listen)) if listen is not None else None
+        except MonitorUnavailableError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return ExitCode.UNAVAILABLE
+        feed = monitor.feed if monitor is not None else None
+        WfsBenchApp(Path(args.bench) if args.bench else None, out, feed).run()
     return ExitCode.OK
 
 
@@ -227,6 +263,7 @@ def add_campaign_commands(sub: argparse._SubParsersAction) -> None:
     )
     run.add_argument("--realtime", action="store_true", help="pace the simulated bench in real time")
     add_meta_option(run, "the configuration and the sequence")
+    add_monitor_options(run)
     run.set_defaults(run=_run)
     check = sub.add_parser("check", help="validate and dry-run a sequence on the bench; nothing moves")
     check.add_argument("sequence", help="sequence file (TOML, docs/sequences.md)")
@@ -244,4 +281,5 @@ def add_campaign_commands(sub: argparse._SubParsersAction) -> None:
     tui = sub.add_parser("tui", help="the technician's terminal UI (docs/tui.md)")
     tui.add_argument("--bench", help="bench configuration (TOML); default: the simulated shaker bench")
     tui.add_argument("--out", help="campaign file (HDF5); default: campaign-<date>-<time>.h5 here")
+    add_monitor_options(tui)
     tui.set_defaults(run=_tui)

@@ -20,6 +20,7 @@ from bench.cli.compensate import add_compensate_command
 from bench.cli.devices import add_device_commands
 from bench.cli.exit_codes import ExitCode
 from bench.cli.export import add_export_command
+from bench.cli.monitor import add_monitor_command
 from bench.locks import LockDirError
 from drivers.errors import LinkError
 
@@ -61,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_export_command(sub)
     add_compensate_command(sub)
     add_archive_commands(sub)
+    add_monitor_command(sub)
     return parser
 
 

@@ -89,15 +89,19 @@ class Event:
     fields: Mapping[str, Any] = field(default_factory=dict)
 
 
-def open_campaign(path: str | Path) -> CampaignFile:
-    """Open and check the campaign file at ``path``; close it with ``close()`` or a ``with`` block."""
+def open_campaign(path: str | Path, *, while_written: bool = False) -> CampaignFile:
+    """Open and check the campaign file at ``path``; close it with ``close()`` or a ``with`` block.
+
+    ``while_written``: open it without HDF5's file lock, so that a file a run is writing can be
+    looked at (the web monitor): what its writer has flushed is read, and a read that meets a flush
+    under way fails as a :class:`StoreError` (try again). Never for anything that must be whole."""
     path = Path(path)
     if path.is_dir():
         raise StoreError(path, "", "a directory, not a campaign file (an HDF5 file, docs/hdf5.md)")
     if path.exists() and not path.is_file():  # a FIFO, a device, a socket: opening one may wait forever
         raise StoreError(path, "", "not a regular file, not a campaign file (an HDF5 file, docs/hdf5.md)")
     try:
-        file = h5py.File(path, "r")
+        file = h5py.File(path, "r", locking=False) if while_written else h5py.File(path, "r")
     except FileNotFoundError as err:
         raise StoreError(path, "", "no such file") from err
     except OSError as err:

@@ -11,7 +11,7 @@ drawing rate never depends on the acquisition's rate.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from textual import events
 from textual.app import App, ComposeResult, ScreenStackError
@@ -21,6 +21,7 @@ from textual.css.query import NoMatches
 from textual.message import Message
 from textual.widgets import ContentSwitcher, Footer, Input, OptionList, Static
 
+from bench.app.bench_status import Tone, is_reset, state_tone
 from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
 from bench.engine.states import ACTIVE, RunState
@@ -42,19 +43,17 @@ from bench.tui.session import (
 )
 from sequences import shipped_file
 
+if TYPE_CHECKING:
+    from bench.monitor.feed import MonitorFeed
+
 #: How often the live values and plots are redrawn (s).
 REFRESH_S = 0.1
-#: The state line's colour of each engine state (others: bold).
-STATE_STYLES = {
-    "running": "bold green",
-    "pausing": "bold yellow",
-    "paused": "bold yellow",
-    "aborting": "bold yellow",
-    "aborted": "bold yellow",
-    "e-stopped": "bold white on red",
-    "interlocked": "bold white on red",
-    "failed": "bold white on red",
-    "not open": "bold white on red",
+#: The state line's style of each tone (:mod:`bench.app.bench_status`: the tone of each state).
+TONE_STYLES = {
+    Tone.OK: "bold green",
+    Tone.CAUTION: "bold yellow",
+    Tone.ALARM: "bold white on red",
+    Tone.PLAIN: "bold",
 }
 #: The banner for q while a sequence runs (cleared when the sequence ends).
 QUIT_WHILE_RUNNING = "a sequence is under way: a aborts it (with a taper); q quits once it has ended"
@@ -130,9 +129,17 @@ class WfsBenchApp(App):
     AUTO_FOCUS = None
     ENABLE_COMMAND_PALETTE = False
 
-    def __init__(self, config_path: Path | None = None, out_path: Path = Path("campaign.h5")) -> None:
+    def __init__(
+        self,
+        config_path: Path | None = None,
+        out_path: Path = Path("campaign.h5"),
+        monitor: MonitorFeed | None = None,
+    ) -> None:
+        """``monitor``: the web monitor's feed (``--monitor``), fed by the bench session."""
         super().__init__()
-        self.session = BenchSession(config_path, out_path, lambda p: self.post_message(SessionMessage(p)))
+        self.session = BenchSession(
+            config_path, out_path, lambda p: self.post_message(SessionMessage(p)), monitor
+        )
         self.plan = None
         self.bench_name = "bench"
         self.interlock_names: tuple[str, ...] = ()
@@ -495,11 +502,7 @@ class WfsBenchApp(App):
                 self.show_banner(f"INTERLOCK {p.name}: {p.reason}")
             case ev.RunFinished() if p.status == "failed" or (p.status == "interlocked" and not self.tripped):
                 self.show_banner(f"run {p.run_id} {p.status}: {p.reason}")
-            case ev.StateChanged() if p.new.value == "hydraulics low" and p.old.value in (
-                "e-stopped",
-                "interlocked",
-                "failed",
-            ):
+            case ev.StateChanged() if is_reset(p):
                 self.tripped.clear()
                 self.failure = None
                 self.clear_banner()
@@ -544,7 +547,7 @@ class WfsBenchApp(App):
         running = self.session.running.is_set()
         state_line = self.main.query_one("#state", Static)
         # the state first, in its colour; the bench after it when the line has room for it
-        shown = f"[{STATE_STYLES.get(state, 'bold')}]{state}[/]"
+        shown = f"[{TONE_STYLES[state_tone(state)]}]{state}[/]"
         if len(state) + 3 + len(self.bench_name) <= state_line.content_region.width:
             shown += f"   {self.bench_name}"
         state_line.update(shown)

@@ -14,13 +14,15 @@ from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Input, Label, OptionList, Static
 
 from bench.app.analysis_plan import analysis_limits
+from bench.app.bench_status import interlock_lamps, point_text
 from bench.app.check import step_line
 from bench.app.durations import sequence_estimate_text
+from bench.app.live_trace import LiveTrace
 from bench.app.pace import SequencePace
 from bench.app.plan import CampaignPlan
 from bench.engine import events as ev
 from bench.tui.plot import BraillePlot, Series
-from bench.tui.session import BodeCurves, ControllerStatus, LiveTrace, PastRun, SequenceLaunched
+from bench.tui.session import BodeCurves, ControllerStatus, PastRun, SequenceLaunched
 from sequences import shipped_files
 
 #: Shipped sequence files offered on the sequence screen.
@@ -117,15 +119,16 @@ class BenchPane(Vertical):
             + "    "
             + lamp(wfs_connected, "WFS link " + ("up" if wfs_connected else "down"))
         )
-        lamps = [lamp(name not in tripped, name) for name in interlocks]
-        # an interlock tripped under a name without a lamp of its own lights one under its name:
-        # whatever ended a run interlocked shows red here
-        lamps += [lamp(False, name) for name in tripped if name not in interlocks]
-        if controller is not None and controller.interlock:  # its state, then what holds it
-            held = "" if controller.interlock == controller.state else f": {controller.interlock}"
-            lamps.append(lamp(False, f"controller {controller.state}{held}"))
-        if failure is not None:  # the engine stopped the bench itself: no interlock lamp tells why
-            lamps.append(lamp(False, f"sequence failed: {failure}"))
+        lamps = [
+            lamp(shown.ok, shown.text)
+            for shown in interlock_lamps(
+                interlocks,
+                tripped,
+                controller_state=controller.state if controller else None,
+                controller_interlock=controller.interlock if controller else None,
+                failure=failure,
+            )
+        ]
         self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))
         self.query_one("#bench-values", Static).update(live_text(trace, running))
         self.query_one("#bench-counters", Static).update(
@@ -220,12 +223,7 @@ class RunPane(Vertical):
             self.query_one(plot_id, BraillePlot).plot([], "no sequence running")
 
     def point_started(self, event: ev.PointStarted) -> None:
-        pressure = event.conditions.get("tyre_pressure_bar")
-        shown = f"{pressure:g} bar" if isinstance(pressure, float | int) else "not set"
-        self.query_one("#run-step", Static).update(
-            f"[b]{event.run_id}[/b]  point {event.index} attempt {event.attempt}:"
-            f" {event.freq_hz:g} Hz at {event.amplitude_mm:.3f} mm, tyre pressure {shown}"
-        )
+        self.query_one("#run-step", Static).update(f"[b]{event.run_id}[/b]  {point_text(event)}")
 
     def grid_refined(self, event: ev.GridRefined) -> str:
         """What to tell the technician of the points an adaptive grid adds."""

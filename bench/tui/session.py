@@ -16,17 +16,18 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bench.analysis.campaign import AnalysisKind, CampaignKnowledge
+from bench.app.bench_status import bench_description
 from bench.app.devices import BenchDevices, open_bench
 from bench.app.engine_build import build_engine
+from bench.app.live_trace import LiveTrace
 from bench.app.pace import DoneBefore, SequencePace
 from bench.app.plan import CampaignPlan, plan_campaign
 from bench.app.resume import done_in_file, held_runs, sequence_complete
@@ -40,16 +41,14 @@ from bench.engine.interlocks import interlock_names
 from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError, open_campaign
 from sequences import AnswerError, Prompt
-from sequences.channels import ChannelSet, Role, standard_name
+
+if TYPE_CHECKING:
+    from bench.monitor.feed import MonitorFeed
 
 log = logging.getLogger(__name__)
 #: The run's events, one readable line each (the CLI's run log lines), into the UI's log file.
 run_log = logging.getLogger("bench.tui.run")
 
-#: The live channels the UI plots and shows (wheel-frame Fz, plate force, displacement, hub
-#: acceleration), by recorded channel name.
-#: The roles shown live, each under its standard name whatever the bench calls its channel.
-LIVE_ROLES = (Role.WFS_FZ, Role.PLATE_FORCE, Role.BENCH_DISPLACEMENT, Role.HUB_ACCELERATION)
 #: How long the controller status may go unread while no sequence runs (s).
 STATUS_PERIOD_S = 0.5
 
@@ -166,58 +165,6 @@ class CommandFailed:
     reason: str
 
 
-class LiveTrace:
-    """The last ``window_s`` seconds of the live channels, written by the engine's thread and read
-    by the UI's; the UI decimates what it draws."""
-
-    def __init__(self, sample_rate_hz: float, channels: ChannelSet, window_s: float = 5.0) -> None:
-        """``channels``: the bench's recorded channels; the live roles are read from theirs."""
-        self.sample_rate_hz = sample_rate_hz
-        self._n = max(1, int(sample_rate_hz * window_s))
-        self._lock = threading.Lock()
-        self._sources = {
-            standard_name(role): channels.name_of(role) for role in LIVE_ROLES if channels.bound(role)
-        }
-        self._data = {standard_name(role): np.zeros(self._n, dtype=np.float64) for role in LIVE_ROLES}
-        self._filled = 0
-        self.samples_seen = 0
-        self.last_seen_s: float | None = None  # time.monotonic() of the newest samples
-        self.last_run: str | None = None  # the run that recorded them
-
-    def append(self, columns: dict[str, np.ndarray], run_id: str | None = None) -> None:
-        present = [name for name, source in self._sources.items() if source in columns]
-        if not present:
-            return
-        self.last_seen_s, self.last_run = time.monotonic(), run_id
-        n = len(columns[self._sources[present[0]]])
-        with self._lock:
-            for name in present:
-                block = np.asarray(columns[self._sources[name]], dtype=np.float64)[-self._n :]
-                buf = self._data[name]
-                buf[: self._n - len(block)] = buf[len(block) :]
-                buf[self._n - len(block) :] = block
-            self._filled = min(self._n, self._filled + n)
-            self.samples_seen += n
-
-    def snapshot(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """(time in s relative to the newest sample, values by channel) of what has been seen."""
-        with self._lock:
-            k = self._filled
-            values = {name: buf[self._n - k :].copy() for name, buf in self._data.items()}
-        t_s = (np.arange(k) - (k - 1)) / self.sample_rate_hz
-        return t_s, values
-
-    def latest(self) -> dict[str, float]:
-        with self._lock:
-            if not self._filled:
-                return {}
-            return {name: float(buf[-1]) for name, buf in self._data.items()}
-
-    def age_s(self) -> float | None:
-        """Seconds since the newest samples arrived (None: none yet)."""
-        return None if self.last_seen_s is None else time.monotonic() - self.last_seen_s
-
-
 class UiOperator:
     """The engine's operator: each prompt is handed to the UI, and the engine's thread waits for the
     technician's answer (already checked by the dialog). On the simulated bench the answer is also
@@ -258,8 +205,17 @@ class UiOperator:
 class BenchSession:
     """The open bench for the terminal UI. ``post(message)`` must be safe to call from any thread."""
 
-    def __init__(self, config_path: Path | None, out_path: Path, post: Callable[[object], None]) -> None:
+    def __init__(
+        self,
+        config_path: Path | None,
+        out_path: Path,
+        post: Callable[[object], None],
+        monitor: MonitorFeed | None = None,
+    ) -> None:
+        """``monitor``: the web monitor's feed, given the engine once the bench is open and told of
+        each sequence launched (``wfsbench tui --monitor``)."""
         self.config_path = config_path
+        self.monitor = monitor
         self.out_path = Path(out_path)
         self.post = post
         self.config: BenchConfig | None = None
@@ -313,9 +269,11 @@ class BenchSession:
                 self.trace = LiveTrace(float(self.config.wfs.rate_hz), self.config.channels)
                 self.engine.bus.subscribe(self._on_event)
                 self.engine.bus.subscribe(RunLog(self._log_lines))
-                where = "simulated lab" if devices.lab is not None else self.config.source
-                self.post(BenchOpened(f"{self.config.kind} bench ({where})", self._interlock_names()))
-                run_log.info("bench open: %s bench (%s), file %s", self.config.kind, where, self.out_path)
+                if self.monitor is not None:
+                    self.monitor.attach(self.engine, self.config)
+                description = bench_description(self.config)
+                self.post(BenchOpened(description, self._interlock_names()))
+                run_log.info("bench open: %s, file %s", description, self.out_path)
                 self.opened.set()
                 self._post_past_runs()
                 self._loop()
@@ -438,6 +396,8 @@ class BenchSession:
             done_before = done_in_file(plan, self.out_path) if resume else DoneBefore()
             self.pace = SequencePace(done_before=done_before)
             self.post(SequenceLaunched(plan.sequence.name, resume, done_before))
+            if self.monitor is not None:
+                self.monitor.launched(done_before)
             run_log.info(
                 "%s sequence %s into %s%s",
                 "resuming" if resume else "starting",
