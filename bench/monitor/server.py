@@ -57,6 +57,22 @@ SAFE_HEADERS = {
 READ_METHODS = ("GET", "HEAD")
 
 
+class _RefusalsUnquoted(logging.Filter):
+    """aiohttp's word on a request it refused (malformed, too long), without the request's text,
+    which may hold the token: the kind of error only, at INFO."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        kind = record.exc_info[0].__name__ if record.exc_info and record.exc_info[0] else "error"
+        record.msg, record.args = "monitor: a request was refused (%s)", (kind,)
+        record.exc_info, record.exc_text, record.stack_info = None, None, None
+        record.levelno, record.levelname = logging.INFO, "INFO"
+        return True
+
+
+#: On aiohttp's server logger from the first monitor on (one filter, however many monitors).
+REFUSALS_UNQUOTED = _RefusalsUnquoted()
+
+
 def page_file(name: str) -> bytes:
     return resources.files("bench.monitor").joinpath("page", name).read_bytes()
 
@@ -160,15 +176,16 @@ class MonitorServer:
             self._loop.close()
 
     async def _main(self) -> None:
+        logging.getLogger("aiohttp.server").addFilter(REFUSALS_UNQUOTED)
         self._closing = asyncio.Event()
         app = web.Application(middlewares=[self._guard], client_max_size=1024)
         for path in PAGE_FILES:
             app.router.add_get(path, self._page)
         app.router.add_get("/api/state", self._state)
         app.router.add_get("/api/stream", self._stream)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=CLOSE_GRACE_S)
         await runner.setup()
-        site = web.TCPSite(runner, self.listen.host, self.listen.port, shutdown_timeout=CLOSE_GRACE_S)
+        site = web.TCPSite(runner, self.listen.host, self.listen.port)
         try:
             await site.start()
         except OSError as exc:
