@@ -48,7 +48,7 @@ def test_loopback(host: str) -> None:
 def test_not_loopback_needs_a_token(host: str) -> None:
     assert not is_loopback(host)
     address = f"[{host}]:8080" if ":" in host else f"{host}:8080"
-    with pytest.raises(MonitorSettingsError, match="not a loopback address.*--monitor-token"):
+    with pytest.raises(MonitorSettingsError, match=r"not a loopback address.*--monitor-token"):
         listen_settings(address, "--monitor")
     assert listen_settings(address, "--monitor", token=TOKEN).token == TOKEN
 
