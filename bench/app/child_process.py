@@ -25,8 +25,9 @@ import subprocess
 from multiprocessing.connection import Connection
 from typing import IO, Any
 
-#: The modules a child runs, imported once by the server the children are forked from.
-CHILD_MODULES = ("bench.app.analysis_process", "bench.app.lab_process")
+#: The modules a child runs, imported once by the server the children are forked from (the web
+#: monitor's imports its server, aiohttp, in the child only: a bench without a monitor pays nothing).
+CHILD_MODULES = ("bench.app.analysis_process", "bench.app.lab_process", "bench.monitor.server_process")
 #: The libraries the analysis imports where it first fits (so that a command that only reads a stored
 #: analysis never loads them), imported once by the server too.
 FITTING_LIBRARIES = ("scipy.optimize", "scipy.signal", "scipy.stats")

@@ -59,11 +59,12 @@ def monitor_listen(args: argparse.Namespace, address: str | None, option: str) -
 
 
 def start_bench_monitor(listen: Listen) -> BenchMonitor:
-    """Listen (or :class:`~bench.monitor.server.MonitorUnavailableError`) and say where."""
+    """The monitor of a bench, its server in a process of its own; listening (or
+    :class:`~bench.monitor.listen.MonitorUnavailableError`), and said where."""
     from bench.monitor.feed import BenchMonitor
-    from bench.monitor.server import MonitorServer
+    from bench.monitor.server_process import ServerProcess
 
-    server = MonitorServer(listen)
+    server = ServerProcess(listen)
     server.start()
     print(f"monitor: {server.url} (read-only)", flush=True)
     return BenchMonitor(server)
