@@ -12,9 +12,10 @@ from typing import Any
 TIMEOUT_S = 10.0
 
 
-def exchange(port: int, request: bytes, host: str = "127.0.0.1") -> bytes:
-    """Send ``request`` as it is and read the whole answer (the server closes after it)."""
-    with socket.create_connection((host, port), timeout=TIMEOUT_S) as sock:
+def exchange(port: int, request: bytes, host: str = "127.0.0.1", timeout_s: float = TIMEOUT_S) -> bytes:
+    """Send ``request`` as it is and read the whole answer (the server closes after it);
+    TimeoutError when none comes within ``timeout_s``."""
+    with socket.create_connection((host, port), timeout=timeout_s) as sock:
         sock.sendall(request)
         chunks = []
         while chunk := sock.recv(65536):

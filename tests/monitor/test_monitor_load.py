@@ -3,18 +3,24 @@ the stream (one never reading a byte), under a bounded flood of requests, malfor
 refused methods, records what the bench records alone: every point done at its first attempt, every
 frame the link delivered recorded, none missing, no host stall. The viewers run as a process of
 their own (at another computer in a lab; here at a lower priority, as another computer's would not
-take the bench's time) and every reading viewer sees the run's final status."""
+take the bench's time) and every reading viewer sees the run's final status. Meanwhile
+``wfsbench monitor`` of the campaign file being recorded says so, with the recording process, and
+then shows it finished with every point."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+import time
+from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
 
+from tests.monitor.http import get_json
 from tests.monitor.monitored_run import ROOT, assert_untouched, monitored_run, recorded
+from tests.waiting import LineReader, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -22,8 +28,31 @@ VIEWERS_NICENESS = 10
 READERS, SILENT, FLOOD = 19, 1, 400
 
 
+def file_monitor(out: Path) -> tuple[subprocess.Popen, int]:
+    """``wfsbench monitor OUT`` (a viewer's tool: at the viewers' priority) once it reads the file."""
+    command = ["nice", f"-n{VIEWERS_NICENESS}", sys.executable, "-m", "bench.cli", "monitor", str(out)]
+    deadline = time.monotonic() + 60
+    while True:
+        process = subprocess.Popen(
+            [*command, "--listen", "127.0.0.1:0"],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        first = LineReader(process.stdout).next(60, "the file monitor's first line")
+        if first.startswith("monitor: "):
+            return process, int(urlsplit(first.split()[1]).port or 0)
+        process.wait(10)  # the file not yet written far enough to be read: again
+        assert time.monotonic() < deadline, first
+
+
 def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> None:
-    with monitored_run(tmp_path / "smoke.h5") as run:
+    out = tmp_path / "smoke.h5"
+    with monitored_run(out) as run:
+        wait_until(out.exists, 60, "the campaign file created")
+        watcher, watcher_port = file_monitor(out)
+        recording = get_json(watcher_port)
         viewers = subprocess.run(
             [
                 "nice",
@@ -45,6 +74,17 @@ def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> Non
         )
         said = run.lines.rest(60)
         assert run.process.wait(60) == 0, said
+    try:
+        wait_until(
+            lambda: get_json(watcher_port)["state"] == "finished", 30, "the file monitor to see the end"
+        )
+        finished = get_json(watcher_port)
+    finally:
+        watcher.terminate()
+        watcher.wait(30)
+    assert recording["state"] == "recording" and f"process {run.process.pid}" in recording["recorder"]
+    assert (finished["points_done"], finished["points_planned"], finished["recorder"]) == (8, 8, None)
+    assert [r["status"] for r in finished["runs"]] == ["complete", "complete", "complete"]
     assert viewers.returncode == 0, viewers.stderr
     seen = json.loads(viewers.stdout)
     assert "smoke: complete" in said

@@ -64,6 +64,15 @@ def flood(port: int, count: int) -> Counter:
         return Counter(pool.map(one, range(count)))
 
 
+def answer_to(port: int, bad: bytes) -> str:
+    """The status line the server answers ``bad`` with; "" when it waits for more (blank lines)
+    and the viewer gives up."""
+    try:
+        return exchange(port, bad, timeout_s=2.0).split(b"\r\n", 1)[0].decode()
+    except TimeoutError:
+        return ""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("port", type=int)
@@ -84,7 +93,7 @@ def main() -> None:
     if args.flood:
         said["flood"] = {str(k): v for k, v in flood(args.port, args.flood).items()}
     if args.bad:
-        said["malformed"] = [exchange(args.port, bad).split(b"\r\n", 1)[0].decode() for bad in MALFORMED]
+        said["malformed"] = [answer_to(args.port, bad) for bad in MALFORMED]
         said["refused"] = {m: request(args.port, m, "/api/state")[0] for m in ("POST", "PUT", "DELETE")}
     for thread in readers:
         thread.join(RUN_DEADLINE_S)
