@@ -25,15 +25,17 @@ import subprocess
 from multiprocessing.connection import Connection
 from typing import IO, Any
 
-#: The modules a child runs, imported once by the server the children are forked from (the web
-#: monitor's imports its server, aiohttp, in the child only: a bench without a monitor pays nothing).
-CHILD_MODULES = ("bench.app.analysis_process", "bench.app.lab_process", "bench.monitor.server_process")
+#: The modules a child runs; those of every bench are imported once by the server the children are
+#: forked from; the web monitor's (``--monitor`` only) in its child, so that a bench without a
+#: monitor pays nothing for it.
+PRELOADED_CHILDREN = ("bench.app.analysis_process", "bench.app.lab_process")
+CHILD_MODULES = (*PRELOADED_CHILDREN, "bench.monitor.server_process")
 #: The libraries the analysis imports where it first fits (so that a command that only reads a stored
 #: analysis never loads them), imported once by the server too.
 FITTING_LIBRARIES = ("scipy.optimize", "scipy.signal", "scipy.stats")
 
 _context = multiprocessing.get_context("forkserver")
-_context.set_forkserver_preload([*CHILD_MODULES, *FITTING_LIBRARIES])
+_context.set_forkserver_preload([*PRELOADED_CHILDREN, *FITTING_LIBRARIES])
 
 
 class Child:

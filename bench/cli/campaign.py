@@ -150,8 +150,10 @@ def _tui(args: argparse.Namespace) -> int:
         except MonitorUnavailableError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return ExitCode.UNAVAILABLE
-        feed = monitor.feed if monitor is not None else None
-        WfsBenchApp(Path(args.bench) if args.bench else None, out, feed).run()
+        feed, url = (monitor.feed, monitor.server.url) if monitor is not None else (None, None)
+        if url is not None:
+            logging.getLogger("bench.tui.run").info("web monitor: %s (read-only)", url)
+        WfsBenchApp(Path(args.bench) if args.bench else None, out, feed, url).run()
     return ExitCode.OK
 
 

@@ -134,9 +134,12 @@ class WfsBenchApp(App):
         config_path: Path | None = None,
         out_path: Path = Path("campaign.h5"),
         monitor: MonitorFeed | None = None,
+        monitor_url: str | None = None,
     ) -> None:
-        """``monitor``: the web monitor's feed (``--monitor``), fed by the bench session."""
+        """``monitor``: the web monitor's feed (``--monitor``), fed by the bench session; its
+        address (``monitor_url``) is said when the UI starts."""
         super().__init__()
+        self.monitor_url = monitor_url
         self.session = BenchSession(
             config_path, out_path, lambda p: self.post_message(SessionMessage(p)), monitor
         )
@@ -169,6 +172,8 @@ class WfsBenchApp(App):
 
     def on_mount(self) -> None:
         self.session.start()
+        if self.monitor_url is not None:
+            self.notify(f"web monitor: {self.monitor_url} (read-only)", timeout=30)
         self._show_tabs()
         self._refresh_timer = self.set_interval(REFRESH_S, self.refresh_live)
 
