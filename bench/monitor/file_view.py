@@ -11,20 +11,19 @@ last run's link counters; no live values (the file holds no "now").
 
 from __future__ import annotations
 
-import json
 import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from bench import locks
-from bench.analysis.campaign import flag_lines
 from bench.app.analysis_record import parse_record
 from bench.app.bench_status import interlock_lamps, state_tone
 from bench.config import parse_bench_config
-from bench.monitor.view import EVENTS_KEPT, STATE_FORMAT
+from bench.monitor.view import EVENTS_KEPT, STATE_FORMAT, analysis_entry
 from bench.store import StoreError, open_campaign
 from bench.store.schema import campaign_key
+from bench.store.typed import TypedFormatError
 from sequences import parse_sequence
 from sequences.points import PointStatus
 
@@ -97,8 +96,8 @@ def file_state(path: Path) -> dict[str, Any]:
 def _analysis(run_id: str, record: str) -> dict[str, Any]:
     """A run's stored analysis as the state lists it (a record this software cannot read: said)."""
     try:
-        outcome = parse_record(record).outcome
-    except (ValueError, TypeError, KeyError, json.JSONDecodeError) as exc:
+        return analysis_entry(parse_record(record).outcome)
+    except TypedFormatError as exc:
         why = f"its record cannot be read: {exc}"
         return {
             "run_id": run_id,
@@ -108,14 +107,6 @@ def _analysis(run_id: str, record: str) -> dict[str, Any]:
             "flags": [],
             "summary": [],
         }
-    return {
-        "run_id": run_id,
-        "analysis": str(outcome.name),
-        "status": str(outcome.status),
-        "why": outcome.error or "; ".join(outcome.omitted),
-        "flags": flag_lines(outcome.lines),
-        "summary": list(outcome.lines),
-    }
 
 
 class FileWatch:

@@ -14,13 +14,16 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from bench.analysis.campaign import flag_lines
+from bench.analysis.campaign import RunAnalysis
+from bench.analysis.flags import flags_of
+from bench.app.analysis_record import parse_record
 from bench.app.bench_status import interlock_lamps, is_reset, point_text, state_tone
 from bench.app.live_trace import LiveTrace
 from bench.app.pace import NOTHING_DONE, DoneBefore, SequencePace
 from bench.app.run_log import RunLog
 from bench.engine import events as ev
 from bench.engine.states import RunState
+from bench.store.typed import TypedFormatError
 
 #: Event lines kept for the page (the oldest are dropped; each has its number, so a viewer knows
 #: what it missed).
@@ -32,6 +35,37 @@ STATE_FORMAT = 1
 def finite(value: float) -> float | None:
     """A number for JSON: None for NaN or infinity (strict JSON has neither)."""
     return value if math.isfinite(value) else None
+
+
+def analysis_entry(analysis: RunAnalysis) -> dict[str, Any]:
+    """A run's analysis as the state lists it: its kind, status and why, its flags by code (as the
+    analysis JSON lists them, docs/analysis-json.md) and its lines."""
+    return {
+        "run_id": analysis.run_id,
+        "analysis": str(analysis.name),
+        "status": str(analysis.status),
+        "why": analysis.error or "; ".join(analysis.omitted),
+        "flags": [{"code": str(flag.code), "flag": flag.line} for flag in analysis.flags],
+        "summary": list(analysis.lines),
+    }
+
+
+def analysis_done_entry(event: ev.AnalysisDone) -> dict[str, Any]:
+    """The analysis an event announces, from the record it carries (its flags typed there); without
+    one (the analysis process lost first), from the event itself."""
+    try:
+        return analysis_entry(parse_record(event.record).outcome)
+    except TypedFormatError:
+        flags = [{"code": str(flag.code), "flag": flag.line} for flag in flags_of(event.summary)]
+        why, lines = event.why, list(event.summary)
+        return {
+            "run_id": event.run_id,
+            "analysis": event.name,
+            "status": event.status,
+            "why": why,
+            "flags": flags,
+            "summary": lines,
+        }
 
 
 class EventLines:
@@ -123,14 +157,7 @@ class BenchView:
                     status=event.status, reason=event.reason
                 )
             case ev.AnalysisDone():
-                self.analyses[event.run_id] = {
-                    "run_id": event.run_id,
-                    "analysis": event.name,
-                    "status": event.status,
-                    "why": event.why,
-                    "flags": flag_lines(event.summary),
-                    "summary": list(event.summary),
-                }
+                self.analyses[event.run_id] = analysis_done_entry(event)
             case ev.SequenceFinished():
                 name = self.sequence["name"] if self.sequence else "the sequence"
                 self.sequence = {"name": name, "status": event.status, "reason": event.reason}

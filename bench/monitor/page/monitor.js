@@ -84,10 +84,11 @@ function showAnalyses(analyses) {
     const head = document.createElement("h3");
     head.textContent = `${a.run_id}: ${a.analysis}, ${a.status}${a.why ? " (" + a.why + ")" : ""}`;
     const list = document.createElement("ul");
+    const flagged = new Set(a.flags.map((f) => f.flag));
     for (const line of a.summary) {
       const item = document.createElement("li");
       item.textContent = line;
-      if (a.flags.includes(line)) item.className = "flag";
+      if (flagged.has(line)) item.className = "flag";
       list.append(item);
     }
     part.append(head, list);
