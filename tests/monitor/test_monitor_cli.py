@@ -72,8 +72,8 @@ def test_monitor_of_a_campaign_file(smoke_campaign) -> None:
         analysed = {a["run_id"]: a for a in state["analyses"]}
         assert set(analysed) == {"smoke-s003-free_run", "smoke-s009-dwell_grid", "smoke-s010-sweep"}
         for analysis in analysed.values():  # each flag with its code, as the analysis JSON lists them
-            lines = [line for line in analysis["summary"] if line.startswith("FLAG")]
-            assert [f["flag"] for f in analysis["flags"]] == lines
+            flagged = [line for line in analysis["summary"] if line.startswith("FLAG")]
+            assert [f["flag"] for f in analysis["flags"]] == flagged
             assert all(f["code"] for f in analysis["flags"])
         assert state["counters"]["frames_missing"] == 0 and state["live"] is None
         assert request(port, "POST", "/api/state")[0] == 405
