@@ -15,7 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from bench.app.bench_status import bench_description
 from bench.app.live_trace import LiveTrace
@@ -122,11 +122,22 @@ class MonitorFeed:
             self._publish(state)
 
 
+class StateServer(Protocol):
+    """What serves the states (:class:`~bench.monitor.server_process.ServerProcess`)."""
+
+    @property
+    def url(self) -> str: ...
+
+    def publish(self, state: dict[str, Any]) -> object: ...
+
+    def close(self) -> None: ...
+
+
 class BenchMonitor:
     """The web monitor of a bench: its server and its feed. ``with`` closes both."""
 
-    def __init__(self, server: Any) -> None:
-        """``server``: a started :class:`~bench.monitor.server.MonitorServer`."""
+    def __init__(self, server: StateServer) -> None:
+        """``server``: started, listening."""
         self.server = server
         self.feed = MonitorFeed(server.publish)
 

@@ -20,7 +20,9 @@ import asyncio
 import contextlib
 import json
 import logging
+import os
 import threading
+import time
 from collections.abc import Awaitable, Callable
 from importlib import resources
 from typing import Any
@@ -94,7 +96,7 @@ class Updates:
             backlog.put_nowait((seq, text))
 
     def join(self) -> asyncio.Queue[tuple[int, str] | None]:
-        backlog: asyncio.Queue[tuple[int, str] | None] = asyncio.Queue(VIEWER_BACKLOG + 1)
+        backlog: asyncio.Queue[tuple[int, str] | None] = asyncio.Queue(VIEWER_BACKLOG)
         self.viewers.add(backlog)
         return backlog
 
@@ -123,6 +125,8 @@ class MonitorServer:
         self.port = listen.port
         self._seq = 0
         self._seq_lock = threading.Lock()
+        #: this server's own id in every state: a viewer that sees another knows the numbers restarted
+        self.instance = f"{os.getpid()}-{time.time_ns()}"
         self._updates = Updates()
         self._loop = asyncio.new_event_loop()
         self._ready = threading.Event()
@@ -150,7 +154,9 @@ class MonitorServer:
         with self._seq_lock:
             self._seq += 1
             seq = self._seq
-        text = json.dumps({"seq": seq, **state}, allow_nan=False, separators=(",", ":"))
+        text = json.dumps(
+            {"seq": seq, "server": self.instance, **state}, allow_nan=False, separators=(",", ":")
+        )
         with contextlib.suppress(RuntimeError):  # a closed loop: nobody is left to tell
             self._loop.call_soon_threadsafe(self._updates.publish, seq, text)
         return seq
@@ -234,7 +240,9 @@ class MonitorServer:
         await response.prepare(request)
         backlog = updates.join()
         try:
+            latest_seq = updates.latest[0] if updates.latest is not None else 0
             seen = _last_seen(request)
+            seen = 0 if seen > latest_seq else seen  # seen from another server (a restarted bench)
             await response.write(b"retry: 1000\n\n")
             if updates.latest is not None and updates.latest[0] > seen:  # catch up at once
                 seen = updates.latest[0]

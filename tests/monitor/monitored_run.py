@@ -1,9 +1,15 @@
 """``wfsbench run --realtime --monitor`` of the smoke sequence in a process of its own (the monitor
-is served by the run's process: it is under test), and what its campaign file says of the run."""
+is served by the run's process: it is under test), and what its campaign file says of the run.
+
+The run keeps real time above the machine's other work where the test may raise it (niceness
+:data:`~tests.campaign_lab.REAL_TIME_NICE` as root, its threads and children inheriting it), as a
+lab runs a real-time bench on a PC it cannot keep idle (``tests/campaign_lab.py``); the monitor's
+server lowers itself below the bench from there (``bench/monitor/server_process.py``)."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -11,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.store import open_campaign
+from tests.campaign_lab import REAL_TIME_NICE
 from tests.waiting import LineReader
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,8 +39,9 @@ def monitored_run(out: Path, *options: str) -> Iterator[MonitoredRun]:
     """The paced smoke run into ``out`` with ``--monitor 127.0.0.1:0`` (a free port), once its
     monitor listens; ended (SIGTERM, then kill) if still running when the block ends."""
     command = [sys.executable, "-m", "bench.cli", "run", str(SMOKE), "--realtime", "--out", str(out)]
+    raised = ["nice", "-n", str(REAL_TIME_NICE)] if os.geteuid() == 0 else []
     process = subprocess.Popen(
-        [*command, "--monitor", "127.0.0.1:0", *options],
+        [*raised, *command, "--monitor", "127.0.0.1:0", *options],
         cwd=ROOT,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,

@@ -29,7 +29,8 @@ def test_page_and_state_served(server) -> None:
     assert get_json(server.port) == {"seq": 0, "state": "starting"}
     server.publish({"state": "running", "points_done": 3})
     wait_until(lambda: get_json(server.port).get("seq") == 1, 5, "the state published")
-    assert get_json(server.port) == {"seq": 1, "state": "running", "points_done": 3}
+    state = get_json(server.port)
+    assert state == {"seq": 1, "server": server.instance, "state": "running", "points_done": 3}
     status, page = request(server.port, "GET", "/")
     assert status == 200 and b'<script src="/monitor.js"' in page and b"http" not in page.split(b"<body>")[0]
     for path in ("/monitor.js", "/monitor.css"):
@@ -105,6 +106,9 @@ def test_a_reconnecting_viewer_catches_up(server) -> None:
     server.publish({"state": "finished", "points_done": 8})
     assert again.read_until(lambda u: u["seq"] == 9, 5, "the next state")["state"] == "finished"
     again.close()
+    elsewhere = StreamViewer(server.port, {"Last-Event-ID": "999"})  # seen from a server before this one
+    assert elsewhere.read_until(lambda u: True, 5, "the latest state at once")["seq"] == 9
+    elsewhere.close()
 
 
 def test_a_viewer_that_never_reads_loses_only_its_own_updates(server) -> None:

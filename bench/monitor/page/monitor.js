@@ -6,6 +6,7 @@
 const byId = (id) => document.getElementById(id);
 let shownEvents = 0; // the number of the last event line shown
 let lastSeq = 0;
+let server = null; // the server's id: another one (a restarted bench) numbers its states anew
 
 function text(id, value) {
   byId(id).textContent = value;
@@ -114,14 +115,17 @@ function showEvents(events, total) {
     shownEvents = fresh[fresh.length - 1].n;
     list.scrollTop = list.scrollHeight;
   }
-  if (total < shownEvents) { // another bench or a restarted one: start again
-    shownEvents = 0;
-    list.replaceChildren();
-  }
 }
 
 function show(state) {
-  if (typeof state.seq !== "number" || state.seq <= lastSeq) return;
+  if (typeof state.seq !== "number") return;
+  if (state.server !== server) { // a restarted bench: start again
+    server = state.server;
+    lastSeq = 0;
+    shownEvents = 0;
+    byId("events").replaceChildren();
+  }
+  if (state.seq <= lastSeq) return;
   lastSeq = state.seq;
   text("seq", String(state.seq));
   text("bench", state.bench || "");
