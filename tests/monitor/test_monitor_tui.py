@@ -11,9 +11,8 @@ from bench.app.bench_status import point_text
 from bench.engine import events as ev
 from bench.monitor.feed import MonitorFeed
 from bench.tui.app import WfsBenchApp
-from tests.tui.conftest import FILES
 from tests.tui.keys import press
-from tests.tui.test_tui import finished, start_long_dwell, text_of, until
+from tests.tui.test_tui import FILES, finished, start_long_dwell, text_of, until
 
 
 class Published:
