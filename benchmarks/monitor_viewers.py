@@ -59,6 +59,7 @@ class Case:
     """One paced run's figures."""
 
     status: str
+    reason: str
     backlog_bytes: int
     unread_s: float
     frames_lost: int
@@ -99,7 +100,8 @@ def one_run(out: Path, watched: tuple[int, int] | None) -> Case:
         lost = sum(int(r.link_counters["frames_missing"]) for r in campaign.runs)
         stalls = sum(1 for r in campaign.runs for e in r.events if e.kind == "host stall")
     updates = [r.get("updates", 0) for r in seen["readers"]]
-    return Case(outcome.status, reader.largest_backlog_bytes, reader.longest_unread_s, lost, stalls, updates)
+    backlog, unread_s = reader.largest_backlog_bytes, reader.longest_unread_s
+    return Case(outcome.status, outcome.reason, backlog, unread_s, lost, stalls, updates)
 
 
 def main() -> None:
@@ -128,6 +130,9 @@ def main() -> None:
             f" host stalls {sum(c.host_stalls for c in cases)}{seen}",
             flush=True,
         )
+        for case in cases:
+            if case.reason:
+                print(f"  {case.status}: {case.reason}")
     print(f"load average after: {os.getloadavg()[0]:.1f}")
 
 
