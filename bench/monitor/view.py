@@ -113,6 +113,7 @@ class BenchView:
         self.runs: dict[str, dict[str, str]] = {}  # run id -> kind, status, reason
         self.analyses: dict[str, dict[str, Any]] = {}
         self.lines = EventLines()
+        self._newest: ev.SamplesRecorded | None = None  # the newest block not yet in the trace
 
     def launched(self, done_before: DoneBefore) -> None:
         """The next sequence resumes a file holding ``done_before`` (its points count as done)."""
@@ -121,8 +122,7 @@ class BenchView:
     def apply(self, event: ev.Event) -> None:  # noqa: PLR0912 - one branch an event kind
         """Take one event of the engine's bus."""
         if isinstance(event, ev.SamplesRecorded):  # the most frequent: first, and nothing else
-            if self.trace is not None:
-                self.trace.append(dict(event.columns), event.run_id)
+            self._newest = event  # only the newest block is shown: copied once per state, not per block
             self.pace(event)
             return
         if isinstance(event, ev.SequenceStarted):
@@ -200,7 +200,10 @@ class BenchView:
 
     def _live(self) -> dict[str, Any] | None:
         """The newest live values (standard names, SI units), their age and run; None before any."""
-        trace = self.trace
+        trace, newest = self.trace, self._newest
+        if trace is not None and newest is not None:
+            trace.append(dict(newest.columns), newest.run_id)
+            self._newest = None
         values = trace.latest() if trace is not None else {}
         if not values:
             return None
