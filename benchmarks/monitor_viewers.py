@@ -15,7 +15,9 @@ steps below the bench; the viewers are a process of their own (``tests/monitor/v
 niceness 10 (in a lab they sit at other computers). Per case: the largest backlog one read of the
 port took (how full its 4095-byte receive buffer got: ``WfsReader.largest_backlog_bytes``), the
 longest the port went unread, the frames lost (the runs' ``frames_missing``), the host stalls
-recorded, and the updates the reading viewers received; each against the baseline.
+recorded, the updates the reading viewers received, and the processor time of the bench's process
+(its threads: engine, reader, recorder, the monitor's feed; not its children) per second of the run,
+with the feed thread's own share: that figure the machine's load leaves as it is.
 
     PYTHONPATH=. .venv/bin/python benchmarks/monitor_viewers.py [--repeats 1]
 """
@@ -29,6 +31,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,6 +68,9 @@ class Case:
     frames_lost: int
     host_stalls: int
     updates: list[int]
+    wall_s: float
+    bench_cpu_s: float  # this process's processor time in the run (its children's not counted)
+    feed_cpu_s: float  # the monitor's feed thread's
 
 
 def viewers(port: int, reading: int, silent: int) -> subprocess.Popen:
@@ -89,11 +95,14 @@ def one_run(out: Path, watched: tuple[int, int] | None) -> Case:
         if monitor is not None:
             monitor.feed.attach(engine, plan.config)
 
+    start_wall_s, start_cpu_s = time.perf_counter(), time.process_time()
     try:
         outcome = run_campaign(plan, out, on_engine=on_engine)
     finally:
+        wall_s, cpu_s = time.perf_counter() - start_wall_s, time.process_time() - start_cpu_s
         if monitor is not None:
             monitor.close()
+    feed_cpu_s = monitor.feed.cpu_s if monitor is not None else 0.0
     seen = json.loads(crowd.communicate(timeout=120)[0]) if crowd is not None else {"readers": []}
     reader = engines[0].acquisition
     with open_campaign(out) as campaign:
@@ -101,7 +110,9 @@ def one_run(out: Path, watched: tuple[int, int] | None) -> Case:
         stalls = sum(1 for r in campaign.runs for e in r.events if e.kind == "host stall")
     updates = [r.get("updates", 0) for r in seen["readers"]]
     backlog, unread_s = reader.largest_backlog_bytes, reader.longest_unread_s
-    return Case(outcome.status, outcome.reason, backlog, unread_s, lost, stalls, updates)
+    return Case(
+        outcome.status, outcome.reason, backlog, unread_s, lost, stalls, updates, wall_s, cpu_s, feed_cpu_s
+    )
 
 
 def main() -> None:
@@ -117,7 +128,9 @@ def main() -> None:
         for repeat in range(args.repeats):
             for i, (name, watched) in enumerate(CASES):
                 results[name].append(one_run(Path(folder) / f"run-{repeat}-{i}.h5", watched))
-    base = max(c.backlog_bytes for c in results[CASES[0][0]])
+    baseline = results[CASES[0][0]]
+    base = max(c.backlog_bytes for c in baseline)
+    base_cpu = sum(c.bench_cpu_s for c in baseline) / sum(c.wall_s for c in baseline)
     for name, cases in results.items():
         backlog = max(c.backlog_bytes for c in cases)
         unread_ms = max(c.unread_s for c in cases) * 1e3
@@ -129,6 +142,13 @@ def main() -> None:
             f" longest unread {unread_ms:.1f} ms, frames lost {sum(c.frames_lost for c in cases)},"
             f" host stalls {sum(c.host_stalls for c in cases)}{seen}",
             flush=True,
+        )
+        wall_s, cpu_s = sum(c.wall_s for c in cases), sum(c.bench_cpu_s for c in cases)
+        feed_s = sum(c.feed_cpu_s for c in cases)
+        print(
+            f"  the bench process's processor time {cpu_s / wall_s * 100:.1f} % of a core"
+            f" ({cpu_s / wall_s / base_cpu:.2f}x the baseline's), of which the monitor's feed"
+            f" {feed_s / wall_s * 100:.2f} %"
         )
         for case in cases:
             if case.reason:

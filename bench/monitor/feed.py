@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -47,6 +48,7 @@ class MonitorFeed:
         self._publish = publish
         self._queue: queue.Queue[ev.Event | _Do] = queue.Queue(QUEUE_EVENTS)
         self.dropped = 0
+        self.cpu_s = 0.0  # the feed thread's processor time, once it has stopped
         self.view = BenchView("opening the bench", RunState.IDLE, (), None, dict)
         self.view.state = "opening"
         self._engine: Engine | None = None
@@ -111,6 +113,7 @@ class MonitorFeed:
                 if isinstance(item, _Do):
                     if item.action is None:
                         self._send()
+                        self.cpu_s = time.thread_time()
                         return
                     item.action()
                 else:
