@@ -10,8 +10,8 @@ this process as ``wfsbench run --realtime`` runs it, per case:
 - 20 viewers, 19 reading the stream and 1 that never reads a byte.
 
 The bench runs above the machine's other work where the benchmark may raise it (niceness -10 as
-root, as the tests' paced labs do and as a lab runs a real-time bench); the monitor's server five
-steps below the bench; the viewers are a process of their own (``tests/monitor/viewers.py``) at
+root, as the tests' paced labs do and as a lab runs a real-time bench); the monitor's server 19
+steps below the bench (at most 19); the viewers are a process of their own (``tests/monitor/viewers.py``) at
 niceness 10 (in a lab they sit at other computers). Per case: the largest backlog one read of the
 port took (how full its 4095-byte receive buffer got: ``WfsReader.largest_backlog_bytes``), the
 longest the port went unread, the frames lost (the runs' ``frames_missing``), the host stalls

@@ -2,7 +2,7 @@
 
 The bench's process keeps the engine, the WFS reader and the recorder; whatever viewers do (many of
 them, a flood of requests, malformed ones, one that never reads) is handled in this child, which
-never holds the bench's interpreter lock, and runs at a lower priority than the bench's processes
+never holds the bench's interpreter lock, and runs at the lowest priority the bench can give it
 (:data:`SERVER_NICENESS`), so that a busy machine makes the viewers wait, not the bench. The bench
 hands it each state as one JSON line on its input (:class:`ServerProcess`); the child numbers it and
 serves it (:class:`MonitorServer`). The child ends when its input closes, which happens too when
@@ -24,8 +24,9 @@ from typing import IO, Any
 from bench.app.child_process import start_child
 from bench.monitor.listen import Listen, MonitorUnavailableError
 
-#: The server's niceness: on a busy bench PC the viewers wait, never the bench's processes.
-SERVER_NICENESS = 5
+#: The server's niceness above the bench's (the most the system allows: 19 steps, capped at 19):
+#: on a busy bench PC the viewers wait, never the bench's processes.
+SERVER_NICENESS = 19
 #: How long the child may take to import its server and listen (s).
 START_TIMEOUT_S = 30.0
 #: How long the child may take to end once its input closed: its streams send their last states.
