@@ -1,0 +1,174 @@
+"""A drive iteration: the rig identified with a broadband drive, then drives played and corrected
+until the matched response follows the target (docs/engine.md, *Drive iteration*; the numerics:
+:mod:`bench.analysis.drive_iteration`).
+
+Each drive is a run of its own, ``<step's run id>-iNN`` (``-i00`` the identification, ``-i01`` the
+first drive from the inverse), recorded with its drive's checksum as a road replay's is: the drive
+dry-run sample by sample on the bench model against the post's limits (the plan's check), uploaded
+to the controller's drive memory (confirmed by CRC-32) once the run has begun, then played once as
+the run's one point. A drive the dry run refuses is refused before its upload, naming the iteration,
+the sample and the limit, and ends the sequence (failed): the runs before it stay complete. So does
+an abort, an e-stop, an interlock or a lost link during a run: that run ends as a road replay's
+does, and the iterations before it keep their drives and records.
+
+After each run the response is computed from its channels as the analysis computes it and compared
+with the target over the drive's hold (the part between its tapers): the iteration stops once the
+rms error in the step's band is below its limit and, for a target with a 95 % band, enough samples
+lie inside the band; else after the step's largest count of iterations.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from bench.analysis.drive_iteration import (
+    RESPONSE_CHANNELS,
+    IterationErrors,
+    corrected_drive,
+    estimate_frf,
+    inverse_drive,
+    iteration_errors,
+    regularised_inverse,
+    rig_response,
+)
+from bench.engine.contracts import PlannedIteration
+from bench.engine.points import ExcitationSpan
+from bench.engine.procedures.one_excitation import run_one_excitation
+from bench.engine.procedures.road_replay import publish_drive
+from bench.engine.recording import RunRecording
+from bench.engine.run_context import MeasurementRun, RecordedRun, RunContext
+from bench.engine.stops import RunStoppedError
+from drivers.setpoints import DriveSetpoint
+from sequences import DriveIteration
+from sequences.channels import role_of_standard_name
+
+
+def iteration_run_id(run_id: str, iteration: int) -> str:
+    """The run id of iteration ``iteration`` (0: the identification) of the step's ``run_id``."""
+    return f"{run_id}-i{iteration:02d}"
+
+
+@dataclass(frozen=True)
+class _Played:
+    """A drive as played: its samples (mm, before the tapers) and the response over them."""
+
+    drive_mm: np.ndarray
+    response: np.ndarray
+
+
+def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
+    """The identification, the first drive from the inverse, then corrected drives until a stop rule
+    holds (module docstring)."""
+    plan, step = run.drive, run.step
+    if not isinstance(plan, PlannedIteration) or not isinstance(step, DriveIteration):
+        raise RunStoppedError.fail(f"drive iteration {run.run_id}: no target was planned for it")
+    if plan.check is None:
+        raise RunStoppedError.fail(f"drive iteration {run.run_id}: its drives were not dry-run")
+    if not getattr(context.actuator, "drive_files", False):
+        raise RunStoppedError.fail(
+            f"drive iteration {run.run_id}: the controller plays no drive file"
+            " (docs/protocols.md, *Drive files*)"
+        )
+    fs, band = plan.sample_rate_hz, tuple(step.band_hz)
+    identified = _play(context, run, plan, 0, plan.identification)
+    hold = _hold(plan.identification, step)
+    frf = estimate_frf(identified.drive_mm[hold], identified.response[hold], fs)
+    inverse = regularised_inverse(frf, band, step.regularisation)
+    target = plan.target - np.mean(plan.target)
+    drive_mm = inverse_drive(inverse, target, fs)
+    for iteration in range(1, step.max_iterations + 1):
+        setpoint = DriveSetpoint(drive_mm, fs, step.taper_in_s, step.taper_out_s)
+        refusals = plan.check(setpoint)
+        if refusals:
+            raise RunStoppedError.fail(
+                f"drive iteration {run.run_id}, iteration {iteration}: its drive is refused before upload:"
+                f" {refusals[0]}"
+            )
+        played = _play(context, run, plan, iteration, setpoint)
+        hold = _hold(setpoint, step)
+        errors = _errors(played.response[hold], plan, hold, step)
+        if _converged(errors, step):
+            return
+        error = np.zeros_like(target)
+        response = played.response[hold] - np.mean(played.response[hold])
+        error[hold] = target[hold] - np.mean(target[hold]) - response
+        drive_mm = corrected_drive(drive_mm, error, inverse, fs, step.gain)
+
+
+def _hold(setpoint: DriveSetpoint, step: DriveIteration) -> slice:
+    """The drive's samples between its tapers."""
+    fs = setpoint.sample_rate_hz
+    return slice(round(step.taper_in_s * fs), setpoint.n_samples - round(step.taper_out_s * fs))
+
+
+def _errors(
+    response: np.ndarray, plan: PlannedIteration, hold: slice, step: DriveIteration
+) -> IterationErrors:
+    u95 = plan.u95[hold] if plan.u95 is not None else None
+    return iteration_errors(
+        response,
+        plan.target[hold],
+        plan.sample_rate_hz,
+        tuple(step.band_hz),
+        sn_exponent=step.sn_exponent,
+        u95=u95,
+    )
+
+
+def _converged(errors: IterationErrors, step: DriveIteration) -> bool:
+    """The step's stop rules: the rms error below its limit and, where the target has a band, at
+    least ``in_band_pct`` of the samples inside it."""
+    inside = errors.in_band_fraction is None or 100 * errors.in_band_fraction >= step.in_band_pct
+    return errors.rms_error_pct < step.rms_error_pct and inside
+
+
+def _play(
+    context: RunContext, run: MeasurementRun, plan: PlannedIteration, iteration: int, setpoint: DriveSetpoint
+) -> _Played:
+    """Play ``setpoint`` as the run of ``iteration``: uploaded once the run has begun, played once,
+    its response computed over the drive's samples from the run's channels."""
+    step = run.step
+    setpoint = replace(setpoint, mean_mm=context.mean_mm(step.mean_mm))
+    names = {
+        standard: context.channels.recorded.name_of(role_of_standard_name(standard))
+        for standard in RESPONSE_CHANNELS[step.response]
+    }
+    record = {
+        **plan.record,
+        "source": "identification" if iteration == 0 else f"iteration {iteration}",
+        "iteration": iteration,
+        "samples": setpoint.n_samples,
+        "sample_rate_hz": setpoint.sample_rate_hz,
+        "crc32": f"{setpoint.crc32:08x}",
+        "sha256": hashlib.sha256(np.asarray(setpoint.samples_mm, dtype="<f4").tobytes()).hexdigest(),
+    }
+    this = MeasurementRun(iteration_run_id(run.run_id, iteration), step, RecordedRun(), None)
+    upload = RunRecording(
+        context,
+        this,
+        drive=record,
+        before_stream=lambda: context.actuator.load_drive(setpoint),
+        keep=tuple(names.values()),
+    )
+    spans: list[ExcitationSpan] = []
+    with upload as recording:
+
+        def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
+            spans.append(span)
+            publish_drive(context, recording, setpoint, span, status=status, attempt=attempt)
+
+        run_one_excitation(context, recording, setpoint, setpoint.duration_s, publish)
+        start = spans[-1].start
+        stop = start + setpoint.n_samples
+        lost = recording.frames_lost_between(start, stop)
+        if lost:
+            raise RunStoppedError.fail(
+                f"drive iteration {run.run_id}, iteration {iteration}: the link lost {lost} frames of its"
+                " response: it cannot be compared with the target"
+            )
+        channels = {standard: recording.kept_between(name, start, stop) for standard, name in names.items()}
+    response = rig_response(step.response, channels, plan.sample_rate_hz, plan.plate_mass_kg)
+    return _Played(setpoint.samples_mm.astype(float), response)
