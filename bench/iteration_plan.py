@@ -87,11 +87,12 @@ def planned_iteration(
             )
         values, u95 = values[:n], (u95[:n] if u95 is not None else None)
     length_s = (values.size - 1) / sample_rate_hz
-    if not length_s > step.taper_in_s + step.taper_out_s + 2.0:
+    edges_s = step.taper_in_s + step.taper_out_s + 2 * step.settle_s
+    if not length_s > edges_s + 2.0:
         raise _RefusedError(
             "duration_s" if step.duration_s else "target",
-            f"the target lasts {length_s:g} s: at least 2 s must lie between the drive's tapers"
-            f" ({step.taper_in_s:g} + {step.taper_out_s:g} s)",
+            f"the target lasts {length_s:g} s: at least 2 s must be compared, between the drive's tapers"
+            f" and settling times ({step.taper_in_s:g} + {step.taper_out_s:g} + 2 x {step.settle_s:g} s)",
         )
     identification_mm = broadband_drive(
         step.identification,

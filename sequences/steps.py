@@ -438,17 +438,19 @@ class DriveIteration:
     channel of a CSV, MDF4 or RPC III file (``target_channel``, in ``target_unit``: by default the
     unit the file states; a CSV file's time column ``time_column``, by default its first), cut to
     its first ``duration_s`` (0: whole). **The response** matched: ``contact_force`` (default),
-    ``wfs_force``, ``hub_acceleration`` or ``post_force``, in ``band_hz``.
+    ``wfs_force``, ``hub_acceleration`` or ``post_force``.
 
-    **The method**: the rig identified with a broadband drive (``identification``: ``pink`` or
-    ``shaped``, ``identification_rms_mm`` for ``identification_s``, seeded by
+    **The method**: the rig identified in ``band_hz`` with a broadband drive (``identification``:
+    ``pink`` or ``shaped``, ``identification_rms_mm`` for ``identification_s``, seeded by
     ``identification_seed``), its coherence-weighted inverse regularised by ``regularisation``
     (relative to the FRF's peak power), the first drive from the inverse, then corrections with
     ``gain`` (0 < gain < 1). Every drive is dry-run against the post's limits and ``max_drive_mm``
-    (0: the stroke) before upload. **Stops** when the rms error is below ``rms_error_pct`` % of the
-    target's rms and (a target with a band) at least ``in_band_pct`` % of the samples are inside its
-    95 % band, or after ``max_iterations``. Damage ratios use the S-N exponent ``sn_exponent``.
-    Drives are tapered by ``taper_in_s`` / ``taper_out_s`` and played on ``mean_mm``.
+    (0: the stroke) before upload. **Judged** in ``error_band_hz`` (inside ``band_hz``: the error's
+    edge is not the inverse's) over the drive's hold less ``settle_s`` at each end (the tapers'
+    transients). **Stops** when the rms error is below ``rms_error_pct`` % of the target's rms and
+    (a target with a band) at least ``in_band_pct`` % of the samples are inside its 95 % band, or
+    after ``max_iterations``. Damage ratios use the S-N exponent ``sn_exponent``. Drives are tapered
+    by ``taper_in_s`` / ``taper_out_s`` and played on ``mean_mm``.
     """
 
     kind: ClassVar[str] = "drive_iteration"
@@ -460,13 +462,15 @@ class DriveIteration:
     time_column: str = ""
     response: str = "contact_force"
     duration_s: float = 0.0
-    band_hz: tuple[float, float] = (0.5, 30.0)
+    band_hz: tuple[float, float] = (0.3, 45.0)
+    error_band_hz: tuple[float, float] = (0.5, 30.0)
+    settle_s: float = 0.5
     identification: str = "pink"
     identification_rms_mm: float = 0.5
     identification_s: float = 20.0
     identification_seed: int = 1
-    regularisation: float = 1e-3
-    gain: float = 0.8
+    regularisation: float = 1e-5
+    gain: float = 0.9
     max_iterations: int = 6
     rms_error_pct: float = 5.0
     in_band_pct: float = 90.0

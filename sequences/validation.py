@@ -565,14 +565,15 @@ class _Checker:
                 f"{_fmt(duration)} s leaves nothing between the tapers "
                 f"(allowed duration_s > taper_in_s + taper_out_s = {_fmt(taper_in + taper_out)} s)",
             )
-        band = step.band_hz
-        if not isinstance(band, tuple | list) or len(band) != 2:
-            self.add("band_hz", f"expected two numbers [lowest, highest], got {band!r}")
-        else:
-            low = self.number("band_hz[0]", band[0], 0.0, lim.max_freq_hz, unit="Hz", hi_why="the bench's")
-            high = self.number("band_hz[1]", band[1], 0.0, lim.max_freq_hz, unit="Hz", hi_why="the bench's")
-            if None not in (low, high) and low >= high:
-                self.add("band_hz", f"[{_fmt(low)}, {_fmt(high)}]: the lowest must lie below the highest")
+        band = self.band("band_hz", step.band_hz, lim.max_freq_hz)
+        judged = self.band("error_band_hz", step.error_band_hz, lim.max_freq_hz)
+        if band is not None and judged is not None and not band[0] <= judged[0] < judged[1] <= band[1]:
+            self.add(
+                "error_band_hz",
+                f"[{_fmt(judged[0])}, {_fmt(judged[1])}] must lie inside band_hz"
+                f" [{_fmt(band[0])}, {_fmt(band[1])}] (the error is judged where the drive is corrected)",
+            )
+        self.number("settle_s", step.settle_s, 0.0, 10.0, unit="s")
         stroke = "the bench's stroke"
         self.number(
             "identification_rms_mm",
@@ -602,6 +603,21 @@ class _Checker:
         self.number("in_band_pct", step.in_band_pct, 0.0, 100.0, unit="%")
         self.number("sn_exponent", step.sn_exponent, 1.0, 20.0, unit="")
         self.number("max_drive_mm", step.max_drive_mm, 0.0, lim.stroke_mm, unit="mm", hi_why=stroke)
+
+    def band(self, key: str, band: object, top_hz: float) -> tuple[float, float] | None:
+        """A band ``[lowest, highest]`` in Hz within 0..``top_hz`` (the bench's), lowest below
+        highest; None (problem added) otherwise."""
+        if not isinstance(band, tuple | list) or len(band) != 2:
+            self.add(key, f"expected two numbers [lowest, highest], got {band!r}")
+            return None
+        low = self.number(f"{key}[0]", band[0], 0.0, top_hz, unit="Hz", hi_why="the bench's")
+        high = self.number(f"{key}[1]", band[1], 0.0, top_hz, unit="Hz", hi_why="the bench's")
+        if low is None or high is None:
+            return None
+        if low >= high:
+            self.add(key, f"[{_fmt(low)}, {_fmt(high)}]: the lowest must lie below the highest")
+            return None
+        return low, high
 
     def hammer(self, step: HammerTest) -> None:
         lim = self.limits

@@ -102,6 +102,14 @@ def broadband_drive(
     return x * (rms_mm / np.sqrt(np.mean(x**2)))
 
 
+def compared_span(
+    n_samples: int, fs_hz: float, taper_in_s: float, taper_out_s: float, settle_s: float
+) -> slice:
+    """The samples of a drive of ``n_samples`` where its response is compared with the target and
+    corrected: between its tapers, less ``settle_s`` at each end (the tapers' transients)."""
+    return slice(round((taper_in_s + settle_s) * fs_hz), n_samples - round((taper_out_s + settle_s) * fs_hz))
+
+
 def rig_response(
     response: str, channels: Mapping[str, np.ndarray], fs_hz: float, plate_mass_kg: float
 ) -> np.ndarray:

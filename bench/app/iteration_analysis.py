@@ -4,8 +4,8 @@ step and its drive's record (docs/analysis.md, *Drive iteration*).
 The target is read again from the file the run recorded (``target_file``), checked against the
 SHA-256 the run recorded (a target changed since is refused, naming both), cut as the step cuts it;
 the response is computed from the run's channels with the plate mass the run's drives were
-computed with, over the drive's hold, as the engine computed it to decide whether to stop
-(:func:`bench.analysis.drive_iteration.analyse_iteration`).
+computed with, over the drive's hold less its settling time, as the engine computed it to decide
+whether to stop (:func:`bench.analysis.drive_iteration.analyse_iteration`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.drive_iteration import RESPONSE_UNITS, IterationResult, analyse_iteration
+from bench.analysis.drive_iteration import (
+    RESPONSE_UNITS,
+    IterationResult,
+    analyse_iteration,
+    compared_span,
+)
 from bench.analysis.records import DISPLACEMENT, WHEEL_CHANNELS, RoadReplayRecord, record_channels
 from bench.store.iteration_target import TargetError, read_target
 
@@ -30,10 +35,9 @@ def analyse_iteration_run(
     response = str(step.get("response", "contact_force"))
     fs = float(record.sample_rate_hz)
     channels = record_channels(record, WHEEL_CHANNELS, min_samples=64)
-    band = (float(step["band_hz"][0]), float(step["band_hz"][1]))
-    hold = slice(
-        round(float(step["taper_in_s"]) * fs), int(drive["samples"]) - round(float(step["taper_out_s"]) * fs)
-    )
+    band = (float(step["error_band_hz"][0]), float(step["error_band_hz"][1]))
+    tapers = (float(step["taper_in_s"]), float(step["taper_out_s"]))
+    hold = compared_span(int(drive["samples"]), fs, *tapers, float(step["settle_s"]))
     if iteration == 0:
         z = channels[DISPLACEMENT][hold]
         lines = [

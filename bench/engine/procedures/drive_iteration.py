@@ -14,7 +14,8 @@ does, and the iterations before it keep their drives and records.
 After each run the response is computed from its channels as the analysis computes it and compared
 with the target over the drive's hold (the part between its tapers): the iteration stops once the
 rms error in the step's band is below its limit and, for a target with a 95 % band, enough samples
-lie inside the band; else after the step's largest count of iterations.
+lie inside the band; else after the step's largest count of iterations. The response is compared
+over the drive's hold less the step's settling time at each end, the span the corrections act on.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 from bench.analysis.drive_iteration import (
     RESPONSE_CHANNELS,
     IterationErrors,
+    compared_span,
     corrected_drive,
     estimate_frf,
     inverse_drive,
@@ -74,8 +76,8 @@ def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
         )
     fs, band = plan.sample_rate_hz, tuple(step.band_hz)
     identified = _play(context, run, plan, 0, plan.identification)
-    hold = _hold(plan.identification, step)
-    frf = estimate_frf(identified.drive_mm[hold], identified.response[hold], fs)
+    span = _span(plan.identification, step)
+    frf = estimate_frf(identified.drive_mm[span], identified.response[span], fs)
     inverse = regularised_inverse(frf, band, step.regularisation)
     target = plan.target - np.mean(plan.target)
     drive_mm = inverse_drive(inverse, target, fs)
@@ -88,33 +90,30 @@ def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
                 f" {refusals[0]}"
             )
         played = _play(context, run, plan, iteration, setpoint)
-        hold = _hold(setpoint, step)
-        errors = _errors(played.response[hold], plan, hold, step)
+        span = _span(setpoint, step)
+        errors = _errors(played.response[span], plan, span, step)
         if _converged(errors, step):
             return
         error = np.zeros_like(target)
-        response = played.response[hold] - np.mean(played.response[hold])
-        error[hold] = target[hold] - np.mean(target[hold]) - response
+        response = played.response[span] - np.mean(played.response[span])
+        error[span] = target[span] - np.mean(target[span]) - response
         drive_mm = corrected_drive(drive_mm, error, inverse, fs, step.gain)
 
 
-def _hold(setpoint: DriveSetpoint, step: DriveIteration) -> slice:
-    """The drive's samples between its tapers."""
+def _span(setpoint: DriveSetpoint, step: DriveIteration) -> slice:
+    """The drive's samples compared and corrected: between its tapers, less the settling time."""
     fs = setpoint.sample_rate_hz
-    return slice(round(step.taper_in_s * fs), setpoint.n_samples - round(step.taper_out_s * fs))
+    return compared_span(setpoint.n_samples, fs, step.taper_in_s, step.taper_out_s, step.settle_s)
 
 
 def _errors(
-    response: np.ndarray, plan: PlannedIteration, hold: slice, step: DriveIteration
+    response: np.ndarray, plan: PlannedIteration, span: slice, step: DriveIteration
 ) -> IterationErrors:
-    u95 = plan.u95[hold] if plan.u95 is not None else None
+    u95 = plan.u95[span] if plan.u95 is not None else None
+    band = (float(step.error_band_hz[0]), float(step.error_band_hz[1]))
+    target = plan.target[span]
     return iteration_errors(
-        response,
-        plan.target[hold],
-        plan.sample_rate_hz,
-        tuple(step.band_hz),
-        sn_exponent=step.sn_exponent,
-        u95=u95,
+        response, target, plan.sample_rate_hz, band, sn_exponent=step.sn_exponent, u95=u95
     )
 
 
