@@ -1,0 +1,258 @@
+"""Drive iteration on the four-post bench (docs/sequences.md, *Drive iteration*): the numerics
+against closed forms (an FRF of a known filter, its inverse, a pink drive's octaves, the damage of a
+scaled signal); the step's refusals (a typo'd key, a missing target, a wrong channel or unit); and
+the iteration on the simulated four-post bench over Modbus TCP and the WFS pty: each drive a run
+with its checksum, analysed; a drive beyond a limit refused before its upload naming iteration,
+sample and limit. (The convergence on a compensated class C road and the comparison with an
+iteration on the raw WFS force: the validation tier's test at the end.)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from bench.analysis.drive_iteration import (
+    Frf,
+    broadband_drive,
+    damage,
+    damage_ratio,
+    estimate_frf,
+    regularised_inverse,
+)
+from bench.app.plan import plan_campaign
+from bench.app.run import run_campaign
+from bench.cli.exit_codes import ExitCode
+from bench.cli.main import main
+from bench.config import load_bench_config
+from bench.models.benches import TyreModel
+from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinearity, tyre_at_pressure
+from bench.models.road import road_drive
+from bench.models.setup import BenchKind, BenchSetup
+from bench.simulated_road import simulate_road
+from bench.store import open_campaign
+from sequences import SequenceError, load_sequence
+from simulators.world import POST_RIG
+
+ROOT = Path(__file__).resolve().parents[1]
+FOUR_POST = ROOT / "configs" / "simulated_four_post.toml"
+RATE_HZ = 1000.0
+#: The car on the simulated four-post bench (configs/simulated_four_post.toml): the paper's tyre at
+#: 2.5 bar, non-linear, and the digressive damper; the road's car is the rig's car.
+CAR = BenchSetup(
+    BenchKind.QUARTER_CAR,
+    TyreModel.WHEEL_TREAD,
+    tyre_at_pressure(2.5),
+    suspension=Suspension(damper=DamperNonlinearity()),
+    rig=POST_RIG,
+    nonlinearity=TyreNonlinearity(),
+)
+HEADER = """[sequence]
+name = "iterate"
+description = "a road's load iterated on the post"
+
+[[steps]]
+type = "hydraulics"
+level = "low"
+
+[[steps]]
+type = "hydraulics"
+level = "high"
+
+[[steps]]
+type = "drive_iteration"
+"""
+
+
+def sequence_file(folder: Path, lines: str) -> Path:
+    """A sequence whose drive iteration (its step index 2) has the TOML ``lines``."""
+    path = folder / "iterate.toml"
+    path.write_text(HEADER + lines)
+    return path
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray]) -> Path:
+    """A CSV file with a time column ``t [s]`` at :data:`RATE_HZ` and ``columns`` (name with unit)."""
+    n = next(iter(columns.values())).size
+    names = ["t [s]", *columns]
+    rows = np.column_stack([np.arange(n) / RATE_HZ, *columns.values()])
+    np.savetxt(path, rows, delimiter=",", header=",".join(names), comments="", fmt="%.17g")
+    return path
+
+
+# ------------------------------------------------------------------------------------ the numerics
+
+
+def test_the_frf_of_a_known_filter_is_estimated_and_its_inverse_undoes_it():
+    """A second-order low-pass (a resonance at 10 Hz, damping 0.2) driven by pink noise: Welch's H1
+    is its response within 2 % where the coherence is high (noise-free: 1; the Hann window's bias
+    where |H| curves within a bin, 0.25 Hz beside the resonance's 4 Hz half-power width: 1.5 %
+    measured), and H^-1 H is 1 within 1 % wherever |H|^2 is far above the regularisation's floor
+    (lambda 1e-5 of its peak)."""
+    fs, f0, zeta = RATE_HZ, 10.0, 0.2
+    w0 = 2 * np.pi * f0
+    # the bilinear transform of w0^2 / (s^2 + 2 zeta w0 s + w0^2), prewarped at f0
+    k = w0 / np.tan(w0 / (2 * fs))
+    a = np.array([k**2 + 2 * zeta * w0 * k + w0**2, 2 * (w0**2 - k**2), k**2 - 2 * zeta * w0 * k + w0**2])
+    b = w0**2 * np.array([1.0, 2.0, 1.0])
+    x = broadband_drive("pink", rms_mm=1.0, duration_s=64, sample_rate_hz=fs, band_hz=(0.3, 45), seed=3)
+    y = lfilter(b / a[0], a / a[0], x)
+    frf = estimate_frf(x, y, fs)
+    z = np.exp(2j * np.pi * frf.freq_hz / fs)
+    exact = np.polyval(b[::-1], 1 / z) / np.polyval(a[::-1], 1 / z)
+    inside = (frf.freq_hz >= 1.0) & (frf.freq_hz <= 40.0)
+    assert np.all(frf.coherence[inside] > 0.99)
+    assert np.max(np.abs(frf.h[inside] / exact[inside] - 1)) < 0.02
+    inverse = regularised_inverse(frf, (0.3, 45.0), 1e-5)
+    strong = inside & (np.abs(frf.h) ** 2 > 1e-2 * np.max(np.abs(frf.h) ** 2))
+    assert np.max(np.abs(inverse.h[strong] * frf.h[strong] - 1)) < 0.01
+    assert np.all(inverse.h[frf.freq_hz > 45.0] == 0)
+
+
+def test_a_regularised_inverse_drives_nothing_where_the_coherence_is_nil():
+    frf = Frf(np.array([1.0, 2.0, 3.0]), np.array([2.0, 2.0, 2.0]), np.array([1.0, 0.0, 0.25]))
+    inverse = regularised_inverse(frf, (0.0, 10.0), 1e-6)
+    assert inverse.h[0] == pytest.approx(0.5, rel=1e-5)
+    assert inverse.h[1] == 0
+    assert inverse.h[2] == pytest.approx(0.5, rel=1e-4)  # coherence weights: gamma^2 H / (gamma^2 |H|^2)
+
+
+def test_a_pink_drive_has_its_rms_and_equal_power_per_octave():
+    """Pink noise's density falls as 1/f: each octave holds the same power (within the 5 % a 64 s
+    record's spectrum scatters by)."""
+    x = broadband_drive("pink", rms_mm=0.5, duration_s=64, sample_rate_hz=RATE_HZ, band_hz=(0.3, 45), seed=4)
+    assert np.sqrt(np.mean(x**2)) == pytest.approx(0.5, rel=1e-12)
+    spectrum = np.abs(np.fft.rfft(x)) ** 2
+    f = np.fft.rfftfreq(x.size, 1 / RATE_HZ)
+    powers = [spectrum[(f >= lo) & (f < 2 * lo)].sum() for lo in (1.0, 2.0, 4.0, 8.0, 16.0)]
+    assert np.max(powers) / np.min(powers) < 1.1
+    assert np.all(spectrum[f > 45.0] < 1e-20 * spectrum.max())
+
+
+def test_the_damage_of_a_scaled_signal_scales_as_its_ranges_to_the_s_n_exponent():
+    """Rainflow ranges scale with the signal: the damage ratio of ``a x`` over ``x`` is ``a^m``."""
+    x = broadband_drive("pink", rms_mm=1.0, duration_s=8, sample_rate_hz=RATE_HZ, band_hz=(0.5, 30), seed=5)
+    assert damage_ratio(1.1 * x, x, 5.0) == pytest.approx(1.1**5, rel=1e-9)
+    assert damage_ratio(x, x, 3.0) == 1.0
+    # one full cycle of range 2 and the half cycles at the ends: ASTM E1049-85's count
+    assert damage(np.array([0.0, 1.0, -1.0, 1.0, 0.0]), 1.0) == pytest.approx(2 * 1.0 + 0.5 * 1 + 0.5 * 1)
+
+
+# ------------------------------------------------------------------------------------ the refusals
+
+
+@pytest.fixture(scope="module")
+def road(tmp_path_factory) -> dict[str, np.ndarray]:
+    """A class C road at 60 km/h, 8 s at 1 kHz, driven by the rig's car: what its WFS read and its
+    true contact force."""
+    record = simulate_road(
+        CAR, road_drive("C", speed_km_h=60, duration_s=8, sample_rate_hz=RATE_HZ, seed=5), seed=7
+    )
+    return record.channels
+
+
+@pytest.mark.parametrize(
+    ("lines", "key", "message"),
+    [
+        ('target = "road.csv"\nrespons = "wfs_force"\n', "steps[2]", "respons"),
+        ('target = "road.csv"\nresponse = "wheel_force"\n', "steps[2].response", "wheel_force"),
+        ('target = "none.csv"\n', "steps[2].target", "none.csv: no such file"),
+        ('target = "road.csv"\ntarget_channel = "Fx [N]"\n', "steps[2].target", "Fx [N]"),
+        (
+            'target = "road.csv"\ntarget_channel = "F [N]"\ntarget_unit = "mm"\n',
+            "steps[2].target",
+            "not a unit of N",
+        ),
+        ('target = "road.csv"\nerror_band_hz = [0.5, 48]\n', "steps[2].error_band_hz", "inside band_hz"),
+        ('target = "road.csv"\ngain = 1.2\n', "steps[2].gain", "gain"),
+    ],
+    ids=["typo", "response", "missing file", "channel", "unit", "band", "gain"],
+)
+def test_a_wrong_drive_iteration_is_refused_naming_the_key(tmp_path, road, lines, key, message):
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, lines)
+    with pytest.raises(SequenceError) as refused:
+        plan_campaign(seq, FOUR_POST)
+    text = str(refused.value)
+    assert key in text and message in text, text
+
+
+def test_a_drive_iteration_on_the_shaker_is_refused_by_check(tmp_path, road, capsys):
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\n')
+    assert main(["check", str(seq)]) == ExitCode.REFUSED
+    assert "a drive iteration" in capsys.readouterr().out
+
+
+def test_the_step_reads_as_the_format_document_says(tmp_path, road):
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\nmax_iterations = 4\n')
+    (step,) = [
+        s
+        for s in load_sequence(seq, load_bench_config(FOUR_POST).limits).steps
+        if s.kind == "drive_iteration"
+    ]
+    assert (step.response, step.max_iterations, step.band_hz, step.error_band_hz) == (
+        "contact_force",
+        4,
+        (0.3, 45.0),
+        (0.5, 30.0),
+    )
+
+
+# --------------------------------------------------------------------------------------- the runs
+
+
+def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_error(tmp_path, road):
+    """The road's true contact force as a CSV target: the identification, then drives until the
+    contact force on the rig is within 5 % rms of it. One inverse from the 0.5 mm identification
+    misses (the digressive damper opens on the road's strokes: more than 5 %); the next drive is
+    within it. Each run complete, its drive's CRC-32 recorded, each drive's run analysed."""
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\n')
+    plan = plan_campaign(seq, FOUR_POST)
+    path = tmp_path / "iterate.h5"
+    outcome = run_campaign(plan, path)
+    assert (outcome.status, outcome.reason) == ("complete", "")
+    with open_campaign(path) as campaign:
+        runs = campaign.runs
+        assert [r.run_id for r in runs] == [
+            f"iterate-s002-drive_iteration-i{k:02d}" for k in range(len(runs))
+        ]
+        assert all((r.kind, r.status) == ("drive_iteration", "complete") for r in runs)
+        assert [r.drive["iteration"] for r in runs] == list(range(len(runs)))
+        assert len({r.drive["crc32"] for r in runs}) == len(runs)
+        assert all(r.drive["samples"] == road["f_contact_n"].size for r in runs[1:])
+        assert runs[0].drive["samples"] == 16001
+    errors = [a.results["rms_error_pct"] for a in outcome.analyses if a.name == "drive_iteration"]
+    assert len(errors) == len(runs) - 1 >= 2
+    assert errors[0] > 5.0 > errors[-1]
+    assert all(e >= 5.0 for e in errors[:-1])
+
+
+def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sample_and_limit(
+    tmp_path, road
+):
+    """The first drive from the inverse needs about 24 mm; the step allows 10 mm about the mean: it
+    is refused before its upload, the identification's run stays complete and readable."""
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nmax_drive_mm = 10\n')
+    path = tmp_path / "refused.h5"
+    outcome = run_campaign(plan_campaign(seq, FOUR_POST), path)
+    assert outcome.status == "failed"
+    found = (
+        "drive iteration iterate-s002-drive_iteration, iteration 1: its drive is refused before upload:"
+        " sample "
+    )
+    assert found in outcome.reason, outcome.reason
+    assert "is beyond the limit max_drive_mm = 10 mm" in outcome.reason
+    with open_campaign(path) as campaign:
+        (identification,) = campaign.runs
+        assert (identification.run_id, identification.status) == (
+            "iterate-s002-drive_iteration-i00",
+            "complete",
+        )
+        assert identification.road_replay_record().channels["z_base_m"].size == 16000  # 16 s of the drive
