@@ -101,7 +101,8 @@ def write_targets(
 class IterationFigures:
     """Per iteration: the rms error against the target (% of its rms), the share inside its band (%
     or None), the damage ratio, and the rms error of the rig's contact force against the road's true
-    contact force (% of its rms), all in 0.5-30 Hz over the compared span; how the sequence ended
+    contact force (% of its rms), all in the step's error band over the compared span; how the
+    sequence ended
     (``status``, ``reason``)."""
 
     rms_error_pct: tuple[float, ...]
@@ -146,9 +147,8 @@ def iterate(
             span = compared_span(n, fs, step_.taper_in_s, step_.taper_out_s, step_.settle_s)
             truth = targets.truth_n[offset : offset + n][span]
             error = force[span] - np.mean(force[span]) - (truth - np.mean(truth))
-            contact.append(
-                100 * band_rms(error, fs, (0.5, 30.0)) / band_rms(truth - truth.mean(), fs, (0.5, 30.0))
-            )
+            band = (float(step_.error_band_hz[0]), float(step_.error_band_hz[1]))
+            contact.append(100 * band_rms(error, fs, band) / band_rms(truth - truth.mean(), fs, band))
     return IterationFigures(
         tuple(r["rms_error_pct"] for r in results),
         tuple(r["in_band_pct"] for r in results),

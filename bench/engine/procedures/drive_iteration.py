@@ -3,7 +3,9 @@ until the matched response follows the target (docs/engine.md, *Drive iteration*
 :mod:`bench.analysis.drive_iteration`).
 
 Each drive is a run of its own, ``<step's run id>-iNN`` (``-i00`` the identification, ``-i01`` the
-first drive from the inverse), recorded with its drive's checksum as a road replay's is: the drive
+first drive from the inverse), recorded with its drive as a road replay's is, its samples too (the
+drive attribute's ``samples_mm``: every drive stays readable, and the last one can be exported as a
+drive file that a road replay plays, ``wfsbench export --format drive``): the drive
 dry-run sample by sample on the bench model against the post's limits (the plan's check), uploaded
 to the controller's drive memory (confirmed by CRC-32) once the run has begun, then played once as
 the run's one point. A drive the dry run refuses is refused before its upload, naming the iteration,
@@ -142,6 +144,7 @@ def _play(
         "samples": setpoint.n_samples,
         "sample_rate_hz": setpoint.sample_rate_hz,
         "crc32": f"{setpoint.crc32:08x}",
+        "samples_mm": setpoint.samples_mm,
         "sha256": hashlib.sha256(np.asarray(setpoint.samples_mm, dtype="<f4").tobytes()).hexdigest(),
     }
     this = MeasurementRun(iteration_run_id(run.run_id, iteration), step, RecordedRun(), None)
