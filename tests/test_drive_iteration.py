@@ -23,6 +23,7 @@ from bench.analysis.drive_iteration import (
     estimate_frf,
     regularised_inverse,
 )
+from bench.app.analyze import analyze_campaign
 from bench.app.plan import plan_campaign
 from bench.app.run import run_campaign
 from bench.cli.exit_codes import ExitCode
@@ -32,6 +33,7 @@ from bench.models.benches import TyreModel
 from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinearity, tyre_at_pressure
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
+from bench.report.json_out import analysis_json
 from bench.simulated_road import simulate_road
 from bench.store import open_campaign
 from sequences import SequenceError, load_sequence
@@ -231,6 +233,31 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     assert len(errors) == len(runs) - 1 >= 2
     assert errors[0] > 5.0 > errors[-1]
     assert all(e >= 5.0 for e in errors[:-1])
+
+    # in analyze --json: the errors per iteration, as the post-run analysis gave them
+    (entry,) = analysis_json(analyze_campaign(path))["drive_iterations"]
+    assert entry["step_run_id"] == "iterate-s002-drive_iteration"
+    assert entry["rms_error_pct"] == pytest.approx(errors, rel=1e-12)
+    assert [i["drive_crc32"] for i in entry["iterations"]] == [r.drive["crc32"] for r in runs[1:]]
+
+    # the final drive exported as drive files, each of which a road replay plays: the CSV file's
+    # samples exactly (the same CRC-32), the RPC III file's within its 16-bit quantisation
+    assert main(["export", str(path), "--format", "drive", "--out", str(tmp_path / "final")]) == 0
+    final = runs[-1]
+    played = np.asarray(final.drive["samples_mm"], dtype="<f4")
+    for suffix in (".csv", ".drv"):
+        replay = tmp_path / f"replay{suffix}.toml"
+        file = f"final/{final.run_id}{suffix}"
+        replay.write_text(
+            HEADER.replace("drive_iteration", "road_replay")
+            + f'file = "{file}"\ntaper_in_s = 0.5\ntaper_out_s = 0.5\n'
+        )
+        drive = plan_campaign(replay, FOUR_POST).drives[2].setpoint
+        if suffix == ".csv":
+            assert drive.crc32 == int(final.drive["crc32"], 16)
+        else:
+            step_mm = np.max(np.abs(played)) / 32767
+            assert np.max(np.abs(drive.samples_mm[: played.size] - played)) <= step_mm
 
 
 def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sample_and_limit(

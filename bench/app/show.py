@@ -212,7 +212,8 @@ def _run(run: RunView) -> dict[str, Any]:
         "gaps": sum(e.kind == "gap" for e in run.events),
         "resumes": run.resumes,
         "resumed_by": run.resumed_by,
-        "drive": dict(run.drive) or None,
+        # a drive iteration's drive samples stay in the file (wfsbench export --format drive)
+        "drive": {k: v for k, v in run.drive.items() if k != "samples_mm"} or None,
         "analyses": [{"name": name, "stored": run.result_stored(name) or None} for name in run.result_names],
     }
 

@@ -126,6 +126,16 @@ def _converged(errors: IterationErrors, step: DriveIteration) -> bool:
     return errors.rms_error_pct < step.rms_error_pct and inside
 
 
+def _source(plan: PlannedIteration, step: DriveIteration, iteration: int) -> str:
+    """What a drive is, as its run records it (``show`` states it)."""
+    if iteration == 0:
+        return (
+            f"identification: {step.identification} drive, {step.identification_rms_mm:g} mm rms,"
+            f" {step.identification_s:g} s, {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz"
+        )
+    return f"iteration {iteration}: {step.response.replace('_', ' ')} against {plan.record['target']}"
+
+
 def _play(
     context: RunContext, run: MeasurementRun, plan: PlannedIteration, iteration: int, setpoint: DriveSetpoint
 ) -> _Played:
@@ -139,7 +149,7 @@ def _play(
     }
     record = {
         **plan.record,
-        "source": "identification" if iteration == 0 else f"iteration {iteration}",
+        "source": _source(plan, step, iteration),
         "iteration": iteration,
         "samples": setpoint.n_samples,
         "sample_rate_hz": setpoint.sample_rate_hz,
