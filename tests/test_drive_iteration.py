@@ -9,6 +9,7 @@ iteration on the raw WFS force: the validation tier's test at the end.)
 
 from __future__ import annotations
 
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from bench.app.run import run_campaign
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
 from bench.config import load_bench_config
+from bench.engine import events as ev
 from bench.models.benches import TyreModel
 from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinearity, tyre_at_pressure
 from bench.models.road import road_drive
@@ -283,6 +285,44 @@ def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sa
             "complete",
         )
         assert identification.road_replay_record().channels["z_base_m"].size == 16000  # 16 s of the drive
+
+
+def test_an_aborted_iteration_leaves_the_runs_before_it_readable_and_the_step_resumable(tmp_path, road):
+    """Aborted while its second drive plays: the identification and the first drive stay complete
+    with their drives (samples and CRC-32) and analyses; the second run ends aborted. Resumed, the
+    step computes its drives again from the runs the file holds (the first drive's CRC-32 must be
+    the recorded one), plays the second drive again in its run and goes on to its stop rule."""
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nrms_error_pct = 1.0\n')
+    plan = plan_campaign(seq, FOUR_POST)
+    path = tmp_path / "resumed.h5"
+    engines = []
+
+    def abort_the_second_drive(event: object) -> None:
+        if isinstance(event, ev.RunStarted) and event.run_id.endswith("-i02"):
+            engines[0].request_abort()
+
+    outcome = run_campaign(plan, path, subscribers=(abort_the_second_drive,), on_engine=engines.append)
+    assert outcome.status == "aborted"
+    with open_campaign(path) as campaign:
+        runs = {r.run_id: r for r in campaign.runs}
+        first = runs["iterate-s002-drive_iteration-i01"]
+        statuses = [(run_id[-3:], r.status) for run_id, r in runs.items()]
+        assert statuses == [("i00", "complete"), ("i01", "complete"), ("i02", "aborted")]
+        played = np.asarray(first.drive["samples_mm"], dtype="<f4")
+        assert f"{zlib.crc32(played.tobytes()):08x}" == first.drive["crc32"]
+        assert first.road_replay_record().channels["f_plate_n"].size == played.size - 1
+        first_crc = first.drive["crc32"]
+
+    resumed = run_campaign(plan_campaign(seq, FOUR_POST), path, resume=True)
+    assert (resumed.status, resumed.reason) == ("complete", "")
+    with open_campaign(path) as campaign:
+        runs = {r.run_id: r for r in campaign.runs}
+        assert runs["iterate-s002-drive_iteration-i01"].drive["crc32"] == first_crc
+        assert all(r.status == "complete" for r in runs.values())
+        assert len(runs) >= 4
+    errors = [a.results["rms_error_pct"] for a in resumed.analyses if a.name == "drive_iteration"]
+    assert errors[-1] < 1.0
 
 
 # ------------------------------------------------------------------ the validation tier: convergence

@@ -22,6 +22,7 @@ from bench.analysis.drive_iteration import (
     compared_span,
 )
 from bench.analysis.records import DISPLACEMENT, WHEEL_CHANNELS, RoadReplayRecord, record_channels
+from bench.engine.run_ids import step_run_id
 from bench.store.iteration_target import TargetError, read_target
 
 
@@ -31,7 +32,7 @@ def analyse_iteration_run(
     """Iteration 1 on: its :class:`IterationResult`; the identification (iteration 0): its text
     lines and scalars (the drive's and the response's rms)."""
     iteration = int(drive.get("iteration", -1))
-    step_run_id = run_id.rsplit("-i", 1)[0]
+    step_id = step_run_id(run_id)
     response = str(step.get("response", "contact_force"))
     fs = float(record.sample_rate_hz)
     channels = record_channels(record, WHEEL_CHANNELS, min_samples=64)
@@ -41,7 +42,7 @@ def analyse_iteration_run(
     if iteration == 0:
         z = channels[DISPLACEMENT][hold]
         lines = [
-            f"drive iteration {step_run_id}: the rig's identification, {step.get('identification')} drive"
+            f"drive iteration {step_id}: the rig's identification, {step.get('identification')} drive"
             f" of {drive['samples']} samples (CRC-32 {drive['crc32']}), post displacement"
             f" {1e3 * float(np.std(z)):.3g} mm rms over its hold",
         ]
@@ -59,7 +60,7 @@ def analyse_iteration_run(
         sn_exponent=float(step["sn_exponent"]),
     )
     return IterationResult(
-        step_run_id=step_run_id,
+        step_run_id=step_id,
         iteration=iteration,
         response=response,
         unit=RESPONSE_UNITS[response],

@@ -262,6 +262,15 @@ class Operator(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class RecordedDrive:
+    """A complete run of a drive (a drive iteration's) as the campaign file holds it: its ``drive``
+    attribute and its ``channels`` over the drive (standard names, sample 0 the drive's first)."""
+
+    drive: Mapping[str, Any]
+    channels: Mapping[str, np.ndarray]
+
+
 class ResumePlan(Protocol):
     """What an interrupted campaign already holds, so that a resumed run skips it."""
 
@@ -271,6 +280,11 @@ class ResumePlan(Protocol):
 
     def recorded_samples(self, run_id: str) -> int:
         """The samples the run holds already (0 if it has none): its new samples follow them."""
+        ...
+
+    def recorded_drive(self, run_id: str) -> RecordedDrive | None:
+        """A complete run's drive and its channels over it (None: no such complete run): a resumed
+        drive iteration computes its next drive from the runs before."""
         ...
 
 

@@ -360,7 +360,7 @@ class Engine:
             held = RecordedRun()
             if resume is not None:
                 held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
-            self._measure(MeasurementRun(run_id, step, held, self._drives.get(index)))
+            self._measure(MeasurementRun(run_id, step, held, self._drives.get(index), resume))
         else:
             raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
 

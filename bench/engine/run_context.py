@@ -19,7 +19,14 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, FramesPresent
 from bench.engine.amplitude_hold import AmplitudeHold
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Notching, PlannedDrive, PlannedIteration
+from bench.engine.contracts import (
+    Acquisition,
+    Actuator,
+    Notching,
+    PlannedDrive,
+    PlannedIteration,
+    ResumePlan,
+)
 from bench.engine.interlocks import Interlock
 from bench.engine.points import SyncBits
 from bench.engine.states import RunState
@@ -55,13 +62,15 @@ class RecordedRun:
 @dataclass(frozen=True)
 class MeasurementRun:
     """One measurement step to run: its run id, its step, what the campaign file holds of it already,
-    and what the plan loaded for it (a road replay's drive, a drive iteration's target; None for any
-    other)."""
+    what the plan loaded for it (a road replay's drive, a drive iteration's target; None for any
+    other), and the resumed campaign's plan (None: not a resume; a drive iteration's runs are its
+    own, ``<run id>-iNN``, which it looks up there)."""
 
     run_id: str
     step: MeasurementStep
     held: RecordedRun = RecordedRun()
     drive: PlannedDrive | PlannedIteration | None = None
+    resume: ResumePlan | None = None
 
 
 class StreamingRun(Protocol):

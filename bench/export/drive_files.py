@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.engine.run_ids import step_run_id
 from bench.export.common import ExportError, output_folder
 from bench.store import RunView
 from bench.store.rpc3 import Rpc3Channel, time_history_bytes
@@ -40,7 +41,7 @@ def final_runs(runs: tuple[RunView, ...]) -> tuple[RunView, ...]:
     last: dict[str, RunView] = {}
     for run in runs:
         if run.kind == "drive_iteration" and int(run.drive.get("iteration", 0)) > 0:
-            last[run.run_id.rsplit("-i", 1)[0]] = run
+            last[step_run_id(run.run_id)] = run
     return tuple(last.values())
 
 

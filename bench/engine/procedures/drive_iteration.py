@@ -44,15 +44,11 @@ from bench.engine.procedures.one_excitation import run_one_excitation
 from bench.engine.procedures.road_replay import publish_drive
 from bench.engine.recording import RunRecording
 from bench.engine.run_context import MeasurementRun, RecordedRun, RunContext
+from bench.engine.run_ids import iteration_run_id
 from bench.engine.stops import RunStoppedError
 from drivers.setpoints import DriveSetpoint
 from sequences import DriveIteration
 from sequences.channels import role_of_standard_name
-
-
-def iteration_run_id(run_id: str, iteration: int) -> str:
-    """The run id of iteration ``iteration`` (0: the identification) of the step's ``run_id``."""
-    return f"{run_id}-i{iteration:02d}"
 
 
 @dataclass(frozen=True)
@@ -77,7 +73,7 @@ def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
             " (docs/protocols.md, *Drive files*)"
         )
     fs, band = plan.sample_rate_hz, tuple(step.band_hz)
-    identified = _play(context, run, plan, 0, plan.identification)
+    identified = _drive_run(context, run, plan, 0, plan.identification)
     span = _span(plan.identification, step)
     frf = estimate_frf(identified.drive_mm[span], identified.response[span], fs)
     inverse = regularised_inverse(frf, band, step.regularisation)
@@ -91,7 +87,7 @@ def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
                 f"drive iteration {run.run_id}, iteration {iteration}: its drive is refused before upload:"
                 f" {refusals[0]}"
             )
-        played = _play(context, run, plan, iteration, setpoint)
+        played = _drive_run(context, run, plan, iteration, setpoint)
         span = _span(setpoint, step)
         errors = _errors(played.response[span], plan, span, step)
         if _converged(errors, step):
@@ -136,11 +132,44 @@ def _source(plan: PlannedIteration, step: DriveIteration, iteration: int) -> str
     return f"iteration {iteration}: {step.response.replace('_', ' ')} against {plan.record['target']}"
 
 
-def _play(
+def _drive_run(
     context: RunContext, run: MeasurementRun, plan: PlannedIteration, iteration: int, setpoint: DriveSetpoint
 ) -> _Played:
-    """Play ``setpoint`` as the run of ``iteration``: uploaded once the run has begun, played once,
-    its response computed over the drive's samples from the run's channels."""
+    """The run of ``iteration``: read from the resumed campaign file where it is complete there (its
+    drive, computed again from the runs before it, must be the one it played: the same CRC-32),
+    else played (an interrupted run of it goes on after what it recorded)."""
+    run_id = iteration_run_id(run.run_id, iteration)
+    resume = run.resume
+    recorded = resume.recorded_drive(run_id) if resume is not None else None
+    if recorded is None:
+        held = RecordedRun()
+        if resume is not None:
+            held = RecordedRun(frozenset(resume.completed_points(run_id)), resume.recorded_samples(run_id))
+        return _play(context, run, plan, iteration, setpoint, held=held)
+    crc32 = f"{setpoint.crc32:08x}"
+    if recorded.drive.get("crc32") != crc32:
+        raise RunStoppedError.fail(
+            f"drive iteration {run.run_id}, iteration {iteration}: its drive computed again from the runs"
+            f" before it is not the one run {run_id} played (CRC-32 {crc32} now,"
+            f" {recorded.drive.get('crc32')} in the file): the target, the bench configuration or the"
+            " software changed since"
+        )
+    response = rig_response(run.step.response, recorded.channels, plan.sample_rate_hz, plan.plate_mass_kg)
+    return _Played(setpoint.samples_mm.astype(float), response)
+
+
+def _play(
+    context: RunContext,
+    run: MeasurementRun,
+    plan: PlannedIteration,
+    iteration: int,
+    setpoint: DriveSetpoint,
+    *,
+    held: RecordedRun,
+) -> _Played:
+    """Play ``setpoint`` as the run of ``iteration`` (after what ``held`` says it recorded already):
+    uploaded once the run has begun, played once, its response computed from the run's channels
+    over the drive's point (as the analysis reads it)."""
     step = run.step
     setpoint = replace(setpoint, mean_mm=context.mean_mm(step.mean_mm))
     names = {
@@ -157,7 +186,7 @@ def _play(
         "samples_mm": setpoint.samples_mm,
         "sha256": hashlib.sha256(np.asarray(setpoint.samples_mm, dtype="<f4").tobytes()).hexdigest(),
     }
-    this = MeasurementRun(iteration_run_id(run.run_id, iteration), step, RecordedRun(), None)
+    this = MeasurementRun(iteration_run_id(run.run_id, iteration), step, held, None)
     upload = RunRecording(
         context,
         this,
@@ -173,8 +202,7 @@ def _play(
             publish_drive(context, recording, setpoint, span, status=status, attempt=attempt)
 
         run_one_excitation(context, recording, setpoint, setpoint.duration_s, publish)
-        start = spans[-1].start
-        stop = start + setpoint.n_samples
+        start, stop = spans[-1].start, spans[-1].end
         lost = recording.frames_lost_between(start, stop)
         if lost:
             raise RunStoppedError.fail(
