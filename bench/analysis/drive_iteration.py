@@ -322,3 +322,12 @@ def analyse_iteration(
         "response": band_limited(y - y.mean(), fs_hz, band_hz)[::step],
     }
     return errors, traces
+
+
+def by_step(results: Mapping[str, IterationResult]) -> dict[str, list[tuple[str, IterationResult]]]:
+    """Drive iterations' results (by run id) grouped by their step's run id, each step's runs in
+    iteration order: what the JSON and the report show per step."""
+    steps: dict[str, list[tuple[str, IterationResult]]] = {}
+    for run_id, result in results.items():
+        steps.setdefault(result.step_run_id, []).append((run_id, result))
+    return {step: sorted(runs, key=lambda item: item[1].iteration) for step, runs in steps.items()}

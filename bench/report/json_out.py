@@ -14,7 +14,7 @@ import numpy as np
 
 from bench.analysis.campaign import CampaignAnalysis, SensorSource
 from bench.analysis.drive_iteration import OCTAVE_CENTRES_HZ as ITERATION_OCTAVES_HZ
-from bench.analysis.drive_iteration import IterationResult
+from bench.analysis.drive_iteration import IterationResult, by_step
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.lsq import Z95
@@ -270,12 +270,8 @@ def road_replay_json(run_id: str, result: RoadReplayResult) -> dict[str, Any]:
 def drive_iterations_json(results: dict[str, IterationResult]) -> list[dict[str, Any]]:
     """Each drive iteration (by its step's run id), its iterations in order: per iteration its run,
     drive checksum and errors; ``rms_error_pct`` again as one list over the iterations."""
-    steps: dict[str, list[tuple[str, IterationResult]]] = {}
-    for run_id, result in results.items():
-        steps.setdefault(result.step_run_id, []).append((run_id, result))
     out = []
-    for step_run_id, runs in steps.items():
-        runs.sort(key=lambda item: item[1].iteration)
+    for step_run_id, runs in by_step(results).items():
         first = runs[0][1]
         iterations = [
             {
