@@ -35,6 +35,7 @@ from bench.models.benches import TyreModel
 from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinearity, tyre_at_pressure
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
+from bench.report.figures import write_figures
 from bench.report.json_out import analysis_json
 from bench.simulated_road import simulate_road
 from bench.store import open_campaign
@@ -210,7 +211,7 @@ def test_the_step_reads_as_the_format_document_says(tmp_path, road):
 # --------------------------------------------------------------------------------------- the runs
 
 
-def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_error(tmp_path, road):
+def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_error(tmp_path, road, capsys):
     """The road's true contact force as a CSV target: the identification, then drives until the
     contact force on the rig is within 5 % rms of it. One inverse from the 0.5 mm identification
     misses (the digressive damper opens on the road's strokes: more than 5 %); the next drive is
@@ -236,8 +237,22 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     assert errors[0] > 5.0 > errors[-1]
     assert all(e >= 5.0 for e in errors[:-1])
 
-    # in analyze --json: the errors per iteration, as the post-run analysis gave them
-    (entry,) = analysis_json(analyze_campaign(path))["drive_iterations"]
+    # in analyze --json: the errors per iteration, as the post-run analysis gave them; in the report
+    # a figure of them; in show each drive with its checksum
+    shown = analyze_campaign(path)
+    (figure,) = [
+        f for f in write_figures(shown, tmp_path / "report") if f.name.startswith("drive_iteration_")
+    ]
+    assert figure.name == "drive_iteration_iterate-s002-drive_iteration"
+    assert figure.path.stat().st_size > 10_000
+    assert main(["show", str(path)]) == 0
+    listed = capsys.readouterr().out
+    sha = runs[1].drive["sha256"]
+    assert (
+        f"drive: iteration 1: contact force against {tmp_path / 'road.csv'} column 'F [N]'; sha256 {sha}"
+        in listed
+    )
+    (entry,) = analysis_json(shown)["drive_iterations"]
     assert entry["step_run_id"] == "iterate-s002-drive_iteration"
     assert entry["rms_error_pct"] == pytest.approx(errors, rel=1e-12)
     assert [i["drive_crc32"] for i in entry["iterations"]] == [r.drive["crc32"] for r in runs[1:]]
