@@ -208,6 +208,48 @@ def test_the_step_reads_as_the_format_document_says(tmp_path, road):
     )
 
 
+def test_a_target_reads_alike_from_csv_rpc3_and_mdf4_in_their_units(tmp_path):
+    """One force, in kN in a CSV column, in N in an RPC III channel and an MDF4 channel: each read
+    in N at its rate (the RPC III file's 16-bit quantisation within half a step)."""
+    from asammdf import MDF, Signal
+
+    from bench.store.iteration_target import read_target
+    from bench.store.rpc3 import Rpc3Channel, time_history_bytes
+
+    force_n = 1000.0 * np.sin(2 * np.pi * 3.0 * np.arange(2001) / RATE_HZ)
+    write_csv(tmp_path / "t.csv", {"F [kN]": force_n / 1000})
+    (tmp_path / "t.rsp").write_bytes(time_history_bytes([Rpc3Channel("F", "N", force_n)], RATE_HZ))
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(force_n, np.arange(force_n.size) / RATE_HZ, name="Fz", unit="N")])
+    mdf.save(tmp_path / "t.mf4")
+    for name, step_n in (("t.csv", 1e-9), ("t.rsp", 1000.0 / 32767), ("t.mf4", 1e-9)):
+        target = read_target(tmp_path / name, si_unit="N")
+        assert target.sample_rate_hz == pytest.approx(RATE_HZ, rel=1e-9)
+        assert target.u95 is None
+        assert np.max(np.abs(target.values[: force_n.size] - force_n)) <= step_n, name
+
+
+def test_a_shaped_identification_drive_follows_the_targets_spectrum():
+    """Shaped like a target whose density is 100 times higher in 8-16 Hz than below 8 Hz: the drive's
+    mean power in 9-15 Hz over the one in 0.5-4 Hz has the same ratio, within 25 %: about 3 standard
+    deviations of the two random spectra's scatter (the drive's periodogram averaged over 224 and 384
+    bins, 7 and 5 %; the target's Welch density over 14 and 24 bins of 31 segments, about 6 %)."""
+    rng = np.random.default_rng(8)
+    n = 64_001
+    spectrum = np.fft.rfft(rng.standard_normal(n))
+    f = np.fft.rfftfreq(n, 1 / RATE_HZ)
+    spectrum *= np.where((f >= 8) & (f < 16), 10.0, 1.0)
+    target = np.fft.irfft(spectrum, n)
+    x = broadband_drive(
+        "shaped", rms_mm=1.0, duration_s=64, sample_rate_hz=RATE_HZ, band_hz=(0.5, 30), seed=9, target=target
+    )
+    power = np.abs(np.fft.rfft(x)) ** 2
+    g = np.fft.rfftfreq(x.size, 1 / RATE_HZ)
+    high = power[(g >= 9) & (g < 15)].mean()
+    low = power[(g >= 0.5) & (g < 4)].mean()
+    assert high / low == pytest.approx(100.0, rel=0.25)
+
+
 # --------------------------------------------------------------------------------------- the runs
 
 
