@@ -85,12 +85,13 @@ def _road_replay_text(step: RoadReplay) -> str:
 def _drive_iteration_text(step: DriveIteration) -> str:
     channel = f" ({step.target_channel})" if step.target_channel else ""
     cut = f", its first {step.duration_s:g} s" if step.duration_s else ""
+    judged, corrected = step.error_band_hz, step.band_hz
     return (
         f"iterate a drive until the {step.response.replace('_', ' ')} matches {step.target}{channel}{cut}"
-        f" in {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz: {step.identification} identification at"
-        f" {step.identification_rms_mm:g} mm rms for {step.identification_s:g} s, then at most"
-        f" {step.max_iterations} iterations (gain {step.gain:g}) to below {step.rms_error_pct:g} % rms error,"
-        f" on {step.mean_mm:g} mm"
+        f" in {judged[0]:g}-{judged[1]:g} Hz (corrected in {corrected[0]:g}-{corrected[1]:g} Hz):"
+        f" {step.identification} identification at {step.identification_rms_mm:g} mm rms for"
+        f" {step.identification_s:g} s, then at most {step.max_iterations} iterations (gain {step.gain:g})"
+        f" to below {step.rms_error_pct:g} % rms error, on {step.mean_mm:g} mm"
     )
 
 
