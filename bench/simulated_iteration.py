@@ -21,7 +21,7 @@ import numpy as np
 
 from bench.analysis.campaign import CampaignAnalysis
 from bench.analysis.drive_iteration import compared_span, rig_response
-from bench.analysis.records import WHEEL_CHANNELS, record_channels
+from bench.analysis.records import WFS_FORCE, WHEEL_CHANNELS, record_channels
 from bench.analysis.road_validation import band_rms
 from bench.app.compensate import prepare_compensation, write_output
 from bench.app.plan import plan_campaign
@@ -58,12 +58,11 @@ def rig_car(config: BenchConfig) -> BenchSetup:
 @dataclass(frozen=True)
 class RoadTargets:
     """A simulated road's targets: the compensated measurement (``compensated``, HDF5) and the CSV
-    file (``csv``) of the raw WFS force and the true contact force, at ``sample_rate_hz``."""
+    file (``csv``) of the raw WFS force and the true contact force (``truth_n``, N)."""
 
     compensated: Path
     csv: Path
     truth_n: np.ndarray
-    sample_rate_hz: float
 
 
 def write_targets(
@@ -90,11 +89,10 @@ def write_targets(
     compensated = write_output(compensation, folder / f"{stem}_compensated.h5", campaign=analysis.path).out
     truth = record.channels[TRUTH_CHANNEL]
     csv = folder / f"{stem}.csv"
-    rows = np.column_stack([np.arange(truth.size) / rate, record.channels["fz_wfs_n"], truth])
+    rows = np.column_stack([np.arange(truth.size) / rate, record.channels[WFS_FORCE], truth])
     header = f"t [s],{RAW_COLUMN},{TRUTH_COLUMN}"
     np.savetxt(csv, rows, delimiter=",", header=header, comments="", fmt="%.17g")
-    # the compensated target starts where its filters are defined: the truth from the same sample
-    return RoadTargets(compensated, csv, truth, rate)
+    return RoadTargets(compensated, csv, truth)
 
 
 @dataclass(frozen=True)

@@ -39,10 +39,9 @@ from scipy.signal import csd, welch
 
 from bench.analysis.plate_mass import base_acceleration_signal
 from bench.analysis.records import DISPLACEMENT, HUB_ACCELERATION, PLATE_FORCE, WFS_FORCE
-from bench.analysis.road_validation import band_limited, band_rms, octave_band
+from bench.analysis.road_validation import OCTAVE_CENTRES_HZ, band_limited, band_rms, octave_band
 from sequences.steps import IDENTIFICATION_SHAPES
 
-BROADBAND_SHAPES = IDENTIFICATION_SHAPES
 #: The channels (standard names) each response is computed from, and the SI unit it is in.
 RESPONSE_CHANNELS = {
     "contact_force": (PLATE_FORCE, DISPLACEMENT),
@@ -55,8 +54,6 @@ RESPONSE_UNITS = {"contact_force": "N", "wfs_force": "N", "hub_acceleration": "m
 FRF_SEGMENT_S = 4.0
 #: Rest appended to a drive's DFT (s) so that the rig's response to it does not wrap round.
 PADDING_S = 2.0
-#: ISO 266 octave centres (Hz) the error is given in.
-OCTAVE_CENTRES_HZ = (1.0, 2.0, 4.0, 8.0, 16.0, 31.5)
 
 
 @dataclass(frozen=True)
@@ -82,8 +79,8 @@ def broadband_drive(
     """A Gaussian drive (mm) of ``rms_mm`` over ``band_hz``: ``pink`` (density ~ 1/f) or ``shaped``
     like ``target``'s Welch density; nothing outside the band. Seeded: the same arguments give the
     same samples."""
-    if shape not in BROADBAND_SHAPES:
-        raise ValueError(f"broadband shape {shape!r}: one of {', '.join(BROADBAND_SHAPES)}")
+    if shape not in IDENTIFICATION_SHAPES:
+        raise ValueError(f"broadband shape {shape!r}: one of {', '.join(IDENTIFICATION_SHAPES)}")
     n = round(duration_s * sample_rate_hz) + 1
     rng = np.random.default_rng(seed)
     spectrum = np.fft.rfft(rng.standard_normal(n))

@@ -13,7 +13,6 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.campaign import CampaignAnalysis, SensorSource
-from bench.analysis.drive_iteration import OCTAVE_CENTRES_HZ as ITERATION_OCTAVES_HZ
 from bench.analysis.drive_iteration import IterationResult, by_step
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
@@ -294,7 +293,7 @@ def drive_iterations_json(results: dict[str, IterationResult]) -> list[dict[str,
                 "unit": first.unit,
                 "target": first.target_source,
                 "error_band_hz": list(first.band_hz),
-                "octave_centres_hz": list(ITERATION_OCTAVES_HZ),
+                "octave_centres_hz": list(OCTAVE_CENTRES_HZ),
                 "sn_exponent": first.sn_exponent,
                 "rms_error_pct": [i["rms_error_pct"] for i in iterations],
                 "iterations": iterations,
