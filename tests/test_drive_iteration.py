@@ -345,28 +345,39 @@ def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sa
         assert identification.road_replay_record().channels["z_base_m"].size == 16000  # 16 s of the drive
 
 
-def test_an_aborted_iteration_leaves_the_runs_before_it_readable_and_the_step_resumable(tmp_path, road):
-    """Aborted while its second drive plays: the identification and the first drive stay complete
-    with their drives (samples and CRC-32) and analyses; the second run ends aborted. Resumed, the
-    step computes its drives again from the runs the file holds (the first drive's CRC-32 must be
-    the recorded one), plays the second drive again in its run and goes on to its stop rule."""
+@pytest.mark.parametrize(
+    ("stop", "status"),
+    [("abort", "aborted"), pytest.param("e-stop", "e-stopped", marks=pytest.mark.validation)],
+)
+def test_a_stopped_iteration_leaves_the_runs_before_it_readable_and_the_step_resumable(
+    tmp_path, road, stop, status
+):
+    """Aborted (or e-stopped) while its second drive plays: the identification and the first drive
+    stay complete with their drives (samples and CRC-32); the second run ends with the sequence's
+    status. Resumed, the step computes its drives again from the runs the file holds (the first
+    drive's CRC-32 must be the recorded one), plays the second drive again in its run and goes on to
+    its stop rule. (An interlock or a lost link ends a drive's run as it ends a road replay's:
+    tests/engine/test_endings.py.)"""
     write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
     seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nrms_error_pct = 1.0\n')
     plan = plan_campaign(seq, FOUR_POST)
     path = tmp_path / "resumed.h5"
     engines = []
 
-    def abort_the_second_drive(event: object) -> None:
+    def stop_the_second_drive(event: object) -> None:
         if isinstance(event, ev.RunStarted) and event.run_id.endswith("-i02"):
-            engines[0].request_abort()
+            if stop == "abort":
+                engines[0].request_abort()
+            else:
+                engines[0].request_estop()
 
-    outcome = run_campaign(plan, path, subscribers=(abort_the_second_drive,), on_engine=engines.append)
-    assert outcome.status == "aborted"
+    outcome = run_campaign(plan, path, subscribers=(stop_the_second_drive,), on_engine=engines.append)
+    assert outcome.status == status
     with open_campaign(path) as campaign:
         runs = {r.run_id: r for r in campaign.runs}
         first = runs["iterate-s002-drive_iteration-i01"]
         statuses = [(run_id[-3:], r.status) for run_id, r in runs.items()]
-        assert statuses == [("i00", "complete"), ("i01", "complete"), ("i02", "aborted")]
+        assert statuses == [("i00", "complete"), ("i01", "complete"), ("i02", status)]
         played = np.asarray(first.drive["samples_mm"], dtype="<f4")
         assert f"{zlib.crc32(played.tobytes()):08x}" == first.drive["crc32"]
         assert first.road_replay_record().channels["f_plate_n"].size == played.size - 1
