@@ -299,6 +299,7 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     assert entry["step_run_id"] == "iterate-s002-drive_iteration"
     assert entry["rms_error_pct"] == pytest.approx(errors, rel=1e-12)
     assert [i["drive_crc32"] for i in entry["iterations"]] == [r.drive["crc32"] for r in runs[1:]]
+    assert [i["stop_rules_met"] for i in entry["iterations"]] == [False] * (len(errors) - 1) + [True]
 
     # the final drive exported as drive files, each of which a road replay plays: the CSV file's
     # samples exactly (the same CRC-32), the RPC III file's within its 16-bit quantisation

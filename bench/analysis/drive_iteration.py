@@ -207,6 +207,13 @@ class IterationErrors:
     error_rms: float
 
 
+def stop_rules_met(errors: IterationErrors, rms_error_pct: float, in_band_pct: float) -> bool:
+    """A drive iteration's stop rules: the rms error below ``rms_error_pct`` and, where the target
+    has a band, at least ``in_band_pct`` % of the samples inside it."""
+    inside = errors.in_band_fraction is None or 100 * errors.in_band_fraction >= in_band_pct
+    return errors.rms_error_pct < rms_error_pct and inside
+
+
 def iteration_errors(
     response: np.ndarray,
     target: np.ndarray,
@@ -252,7 +259,8 @@ class IterationResult:
     against ``target_source``, the drive's ``drive_crc32``, the band and S-N exponent, the
     :class:`IterationErrors`' figures over the drive's hold, and ``traces``: ``t_s`` (s from the
     drive's start), ``target`` and ``response`` (their means removed, limited to the band) over the
-    hold, decimated to at most :data:`TRACE_POINTS`."""
+    hold, decimated to at most :data:`TRACE_POINTS`. ``stop_rules_met``: the step's stop rules hold
+    here; ``last``: the step's largest count of iterations was reached here."""
 
     step_run_id: str
     iteration: int
@@ -268,6 +276,8 @@ class IterationResult:
     damage_ratio: float
     target_rms: float
     error_rms: float
+    stop_rules_met: bool
+    last: bool
     traces: dict[str, np.ndarray]
 
     def summary_lines(self) -> list[str]:
@@ -286,7 +296,17 @@ class IterationResult:
             f" {self.target_rms:.4g} {self.unit} rms{band}",
             f"error per octave at {octaves} Hz: {per_octave} % of the target's rms",
             f"damage ratio rig / road (rainflow, S-N exponent {self.sn_exponent:g}): {self.damage_ratio:.3f}",
+            *self._stop_lines(),
         ]
+
+    def _stop_lines(self) -> list[str]:
+        if self.stop_rules_met:
+            return ["the step's stop rules hold: the iteration ends here"]
+        if self.last:
+            return [
+                f"FLAG the stop rules do not hold after the step's largest count, {self.iteration} iterations"
+            ]
+        return []
 
 
 def analyse_iteration(

@@ -20,6 +20,7 @@ from bench.analysis.drive_iteration import (
     IterationResult,
     analyse_iteration,
     compared_span,
+    stop_rules_met,
 )
 from bench.analysis.records import DISPLACEMENT, WHEEL_CHANNELS, RoadReplayRecord, record_channels
 from bench.engine.run_ids import step_run_id
@@ -74,6 +75,8 @@ def analyse_iteration_run(
         damage_ratio=errors.damage_ratio,
         target_rms=errors.target_rms,
         error_rms=errors.error_rms,
+        stop_rules_met=stop_rules_met(errors, float(step["rms_error_pct"]), float(step["in_band_pct"])),
+        last=iteration == int(step["max_iterations"]),
         traces=traces,
     )
 

@@ -381,6 +381,7 @@ class RunAnalyser:
                 "octave_error_pct": list(analysed.octave_error_pct),
                 "damage_ratio": analysed.damage_ratio,
                 "in_band_pct": analysed.in_band_pct,
+                "stop_rules_met": analysed.stop_rules_met,
             }
             return AnalysisKind.DRIVE_ITERATION, analysed.summary_lines(), results
         lines, results = analysed

@@ -283,6 +283,7 @@ def drive_iterations_json(results: dict[str, IterationResult]) -> list[dict[str,
                 "damage_ratio": r.damage_ratio,
                 "target_rms": r.target_rms,
                 "error_rms": r.error_rms,
+                "stop_rules_met": r.stop_rules_met,
             }
             for run_id, r in runs
         ]

@@ -37,6 +37,7 @@ from bench.analysis.drive_iteration import (
     iteration_errors,
     regularised_inverse,
     rig_response,
+    stop_rules_met,
 )
 from bench.engine.contracts import PlannedIteration
 from bench.engine.points import ExcitationSpan
@@ -90,7 +91,7 @@ def run_drive_iteration(context: RunContext, run: MeasurementRun) -> None:
         played = _drive_run(context, run, plan, iteration, setpoint)
         span = _span(setpoint, step)
         errors = _errors(played.response[span], plan, span, step)
-        if _converged(errors, step):
+        if stop_rules_met(errors, step.rms_error_pct, step.in_band_pct):
             return
         error = np.zeros_like(target)
         response = played.response[span] - np.mean(played.response[span])
@@ -113,13 +114,6 @@ def _errors(
     return iteration_errors(
         response, target, plan.sample_rate_hz, band, sn_exponent=step.sn_exponent, u95=u95
     )
-
-
-def _converged(errors: IterationErrors, step: DriveIteration) -> bool:
-    """The step's stop rules: the rms error below its limit and, where the target has a band, at
-    least ``in_band_pct`` of the samples inside it."""
-    inside = errors.in_band_fraction is None or 100 * errors.in_band_fraction >= step.in_band_pct
-    return errors.rms_error_pct < step.rms_error_pct and inside
 
 
 def _source(plan: PlannedIteration, step: DriveIteration, iteration: int) -> str:
