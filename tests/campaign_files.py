@@ -103,6 +103,17 @@ def write_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None
     return path
 
 
+
+def write_analysed_campaign(path: Path, runs: list[StoredRun], config: BenchConfig | None = None) -> Path:
+    """:func:`write_campaign`, then the runs analysed and their analysis stored beside them, as
+    ``wfsbench analyze`` stores it on a file without stored analyses: the commands that read the
+    file (``compensate``, ``report``, ``export``) read the analysis instead of fitting it again."""
+    from bench.app.analyze import analyze_campaign, store_reanalysis
+
+    write_campaign(path, runs, config)
+    store_reanalysis(analyze_campaign(path, keep_records=True))
+    return path
+
 def paper_corner_runs(car: BenchSetup, *, more_pressures_bar: tuple[float, ...] = ()) -> list[StoredRun]:
     """The paper's procedure for one corner at 2.5 bar: the shaker's free run, the 2.5 bar grids at
     1 / 2 / 5 mm, a 2 mm grid at each of ``more_pressures_bar``, the post's free run and the

@@ -10,6 +10,7 @@ clock, what the controller model does, so that a test can tell when the actuator
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -33,6 +34,8 @@ from simulators.bench_sim import BenchBlock, SimulatedBench
 
 #: Generous bound (s, wall clock) for a whole short campaign on a loaded machine: a timeout only.
 RUN_TIMEOUT_S = 60.0
+#: The niceness a paced lab's threads are given where the test may raise it (root).
+REAL_TIME_NICE = -10
 
 
 #: A paced simulated bench with its devices in the test's process (where faults are injected) and
@@ -220,11 +223,30 @@ class LabCampaign:
 
 
 @contextlib.contextmanager
+def real_time_priority(raise_it: bool = True) -> Iterator[None]:
+    """The calling thread, and every thread and process it starts meanwhile (the simulated lab's,
+    the engine's), above the machine's other work: niceness :data:`REAL_TIME_NICE` where the test
+    may raise it (as root), put back after. As a lab runs a bench that keeps real time on a PC it
+    cannot keep idle: a paced lab in the test's process otherwise starves beside the suite's own
+    load, and the stall rightly ends the run before what the test is about."""
+    before = os.getpriority(os.PRIO_PROCESS, 0)  # Linux: the calling thread's
+    if raise_it:
+        with contextlib.suppress(PermissionError):
+            os.setpriority(os.PRIO_PROCESS, 0, REAL_TIME_NICE)
+    try:
+        yield
+    finally:
+        os.setpriority(os.PRIO_PROCESS, 0, before)
+
+
+@contextlib.contextmanager
 def lab_campaign(config: BenchConfig, sequence: Sequence, path: Path) -> Iterator[LabCampaign]:
     """Open the simulated lab of ``config``, build its engine as the application does
     (:func:`bench.app.engine_build.build_engine`) with the recorder writing ``path``; the caller adds
-    its hooks and starts the run. The engine's thread is joined before the lab closes."""
+    its hooks and starts the run. The engine's thread is joined before the lab closes. A paced lab
+    runs above the machine's other work where the test may raise it (:func:`real_time_priority`)."""
     with (
+        real_time_priority(config.simulation.paced),
         open_bench(config) as devices,
         CampaignWriter.create(
             path,

@@ -3,7 +3,6 @@ smoke sequence's campaign file."""
 
 from __future__ import annotations
 
-import fcntl
 from pathlib import Path
 
 import pytest
@@ -13,6 +12,7 @@ from drivers.actuator import ActuatorClient
 from sequences.limits import BenchLimits
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
+from tests.made_once import made_once
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
@@ -63,24 +63,23 @@ async def client(controller):
 
 
 @pytest.fixture(scope="session")
-def smoke_campaign(tmp_path_factory, worker_id) -> Path:
+def shared_folder(tmp_path_factory, worker_id) -> Path:
+    """A folder every test worker of this test run shares (for files made once per run:
+    :func:`tests.made_once.made_once`)."""
+    base = tmp_path_factory.getbasetemp()
+    return base if worker_id == "master" else base.parent  # the test workers' folders share a parent
+
+
+@pytest.fixture(scope="session")
+def smoke_campaign(shared_folder) -> Path:
     """The shipped smoke sequence run on the unpaced simulated bench into a campaign file, once per
-    test run: the first test worker to ask records it (the others wait on its lock), all read it
-    (read it, do not change it)."""
+    test run (read it, do not change it)."""
     from bench.app.plan import plan_campaign
     from bench.app.run import run_campaign
 
-    shared = tmp_path_factory.getbasetemp()
-    if worker_id != "master":  # the test workers' folders share a parent
-        shared = shared.parent
-    path = shared / "smoke-campaign" / "smoke.h5"
-    path.parent.mkdir(exist_ok=True)
-    with open(shared / "smoke-campaign.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not path.exists():
-            sequence = Path(__file__).resolve().parents[1] / "sequences" / "files" / "smoke.toml"
-            recording = path.with_name("recording.h5")
-            outcome = run_campaign(plan_campaign(sequence), recording)
-            assert outcome.status == "complete", outcome.reason
-            recording.rename(path)
-    return path
+    def record(path: Path) -> None:
+        sequence = Path(__file__).resolve().parents[1] / "sequences" / "files" / "smoke.toml"
+        outcome = run_campaign(plan_campaign(sequence), path)
+        assert outcome.status == "complete", outcome.reason
+
+    return made_once(shared_folder, "smoke.h5", record)

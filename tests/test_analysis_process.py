@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from bench.analysis.campaign import CampaignKnowledge
+from bench.analysis.flags import FlagCode
 from bench.app.analysis_process import (
     SCHEDULING_POLICY,
     AnalysisProcess,
@@ -53,7 +54,9 @@ def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back
         there = [process.next_result(RESULT_TIMEOUT_S)[0] for _ in inputs]
         assert process.outstanding == 0 and process.next_result(0) is None
     assert [a.name for a in here] == ["plate_mass", "shaker", "sweep"]
-    assert [(a.run_id, a.lines, a.results) for a in here] == [(a.run_id, a.lines, a.results) for a in there]
+    assert [(a.run_id, a.lines, a.results, a.flags) for a in here] == [
+        (a.run_id, a.lines, a.results, a.flags) for a in there
+    ]
     knowledge = process.knowledge
     assert list(knowledge.analysed_runs) == list(here_knowledge.analysed_runs) == [a.run_id for a in here]
     assert [p.result.plate.mass_kg for p in knowledge.plate_masses] == [
@@ -73,6 +76,7 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
         flagged, _ = process.next_result(RESULT_TIMEOUT_S)
         analysed, _ = process.next_result(RESULT_TIMEOUT_S)
     assert flagged.error.startswith("AttributeError") and flagged.lines[0].startswith("FLAG analysis failed")
+    assert [f.code for f in flagged.flags] == [FlagCode.ANALYSIS_FAILED]  # the flag's code came along
     assert analysed.name == "plate_mass" and not analysed.error
     assert list(process.knowledge.analysed_runs) == ["broken-free_run", free_run.run_id]
 

@@ -37,16 +37,20 @@ from bench.store.measurement import (
     NotOnTheTyreError,
     read_measurement,
 )
-from tests.campaign_files import StoredRun, paper_corner_runs, write_campaign
+from tests.campaign_files import StoredRun, paper_corner_runs, write_analysed_campaign, write_campaign
+from tests.made_once import made_once
 
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory) -> Path:
-    """The paper's procedure at one pressure, written as a campaign file: the shaker's free run, the
-    2.5 bar grids at 1 / 2 / 5 mm, the post's free run and the four-post sweep of the car's corner."""
-    return write_campaign(tmp_path_factory.mktemp("compensate") / "campaign.h5", paper_corner_runs(CAR))
+def campaign(shared_folder) -> Path:
+    """The paper's procedure at one pressure, written as a campaign file with its analysis stored
+    (once per test run): the shaker's free run, the 2.5 bar grids at 1 / 2 / 5 mm, the post's free
+    run and the four-post sweep of the car's corner."""
+    return made_once(
+        shared_folder, "corner-2.5-bar.h5", lambda path: write_analysed_campaign(path, paper_corner_runs(CAR))
+    )
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ not is said (docs/compensate.md, *The measurement's chain*; docs/analysis.md, *T
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 from dataclasses import replace
@@ -25,7 +26,8 @@ from bench.models.setup import BenchSetup
 from bench.simulated_road import other_sensors, simulate_road, validate_on_road
 from bench.store.measurement import Measurement
 from bench.store.measurement_chain import MeasurementChain, Stated
-from tests.campaign_files import paper_corner_runs, write_campaign
+from tests.campaign_files import paper_corner_runs, write_analysed_campaign
+from tests.made_once import made_once
 
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
 ROAD = road_drive("C", speed_km_h=60, duration_s=20, sample_rate_hz=1000, seed=5)
@@ -41,14 +43,18 @@ MAPPING = (
 
 
 @pytest.fixture(scope="module")
-def campaigns(tmp_path_factory) -> dict[str, Path]:
+def campaigns(shared_folder) -> dict[str, Path]:
     """The paper's corner at 2.5 bar (1 / 2 / 5 mm) and 1.5 bar (2 mm) with its four-post run, and
-    the same without the four-post run (a shaker-only campaign)."""
-    runs = paper_corner_runs(CAR, more_pressures_bar=(1.5,))
-    folder = tmp_path_factory.mktemp("chain")
+    the same without the four-post run (a shaker-only campaign), each with its analysis stored
+    (once per test run)."""
+    runs = functools.cache(lambda: paper_corner_runs(CAR, more_pressures_bar=(1.5,)))
     return {
-        "full": write_campaign(folder / "campaign.h5", runs),
-        "shaker": write_campaign(folder / "shaker.h5", runs[:-2]),
+        "full": made_once(
+            shared_folder, "corner-2.5-1.5-bar.h5", lambda path: write_analysed_campaign(path, runs())
+        ),
+        "shaker": made_once(
+            shared_folder, "corner-shaker.h5", lambda path: write_analysed_campaign(path, runs()[:-2])
+        ),
     }
 
 

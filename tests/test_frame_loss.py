@@ -29,6 +29,7 @@ import pytest
 
 from bench.analysis.records import PLATE_FORCE, WFS_FORCE, WHEEL_CHANNELS, fit_dwell_record
 from bench.engine import events as ev
+from bench.engine.stops import RunOutcome
 from bench.store import open_campaign
 from sequences import AdaptiveDwell, DwellGrid, Hydraulics, Sequence, TrackedDwell
 from simulators.bench_sim import BenchBlock
@@ -116,7 +117,7 @@ KINDS = {
 
 def run(
     folder: Path, kind: str, losses: tuple[FrameLoss, ...]
-) -> tuple[Path, list[ev.Event], TruePlate, str]:
+) -> tuple[Path, list[ev.Event], TruePlate, RunOutcome]:
     config_text, sequence = KINDS[kind]
     path = folder / "campaign.h5"
     plate = TruePlate()
@@ -125,7 +126,7 @@ def run(
         campaign.lab.runner.sinks.append(plate)
         campaign.start()
         outcome = campaign.wait()
-    return path, campaign.events, plate, outcome.status
+    return path, campaign.events, plate, outcome
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +137,7 @@ def loss_free(tmp_path_factory):
     def of(kind: str):
         if kind not in runs:
             runs[kind] = run(tmp_path_factory.mktemp("reference"), kind, ())
-            assert runs[kind][3] == "complete", (kind, runs[kind][3])
+            assert runs[kind][3].status == "complete", (kind, runs[kind][3])
         return runs[kind]
 
     return of
@@ -185,8 +186,8 @@ def check_no_decision_on_lossy_windows(events: list[ev.Event]) -> None:
     ],
 )
 def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, loss_free, kind, losses):
-    path, events, plate, status = run(tmp_path, kind, LOSSES[losses])
-    assert status == "complete"
+    path, events, plate, outcome = run(tmp_path, kind, LOSSES[losses])
+    assert outcome.status == "complete", outcome
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3, plate.peak_m
     check_no_decision_on_lossy_windows(events)
     assert not [e for e in events if isinstance(e, ev.LimitReached)]
@@ -214,8 +215,8 @@ def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, los
 def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(
     tmp_path, loss_free, kind, losses
 ):
-    path, events, plate, status = run(tmp_path, kind, LOSSES[losses])
-    assert status == "complete"
+    path, events, plate, outcome = run(tmp_path, kind, LOSSES[losses])
+    assert outcome.status == "complete", outcome
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     check_no_decision_on_lossy_windows(events)
     check_frfs_equal(loss_free(kind)[0], path)
@@ -232,8 +233,8 @@ def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames
     """The search's five dwells are holds 0-4, the track's first hold is hold 5. The track's looks
     that lost frames are passed over, and the resonance it finds is the loss-free track's within 1 %."""
     losses = bursts_of(10 if holds is None else 350, hold_frames=1500, holds=holds)
-    path, events, plate, status = run(tmp_path, kind, losses)
-    assert status == "complete"
+    path, events, plate, outcome = run(tmp_path, kind, losses)
+    assert outcome.status == "complete", outcome
     assert plate.peak_m <= (1 + EXCURSION) * AMPLITUDE_MM * 1e-3
     looks = [e for e in events if isinstance(e, ev.ResonanceTracked)]
     with open_campaign(path) as campaign:  # the looks' times count the frames lost before them
@@ -257,8 +258,8 @@ def test_show_and_analyze_say_what_the_link_lost(tmp_path):
     from bench.app.analyze import analyze_campaign
     from bench.app.show import campaign_summary, summary_lines
 
-    path, _, _, status = run(tmp_path, "grid by repeats", LOSSES["350 in the first hold"])
-    assert status == "complete"
+    path, _, _, outcome = run(tmp_path, "grid by repeats", LOSSES["350 in the first hold"])
+    assert outcome.status == "complete", outcome
     summary = campaign_summary(path)
     (grid,) = summary["runs"]
     lost = grid["frames_lost"]

@@ -19,12 +19,15 @@ from bench.analysis.plate_mass import PlateMass, identify_plate_mass
 from bench.analysis.records import FREE_RUN_CHANNELS, WHEEL_CHANNELS
 from bench.analysis.runs import plate_mass_distrust, plate_mass_findings
 from bench.analysis.shaker_models import shaker_response
+from bench.app.plan import plan_campaign
+from bench.app.run import run_campaign
 from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
 from bench.store import open_campaign
 from tests.campaign_files import StoredRun, write_campaign
 from tests.commands import wfsbench
+from tests.made_once import made_once
 from tests.test_campaign_cli import SMOKE
 
 REMOVE_WHEEL = """[[steps]]
@@ -44,12 +47,6 @@ def _run(tmp_path: Path, sequence_text: str) -> tuple[Path, subprocess.Completed
     return out, wfsbench("run", str(sequence), "--out", str(out))
 
 
-def _record(tmp_path: Path, sequence_text: str) -> Path:
-    out, run = _run(tmp_path, sequence_text)
-    assert run.returncode == ExitCode.OK, run.stderr
-    return out
-
-
 @pytest.fixture(scope="module")
 def stopped(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     """The smoke sequence without its "Remove the wheel" prompt: the simulated world starts with
@@ -61,24 +58,32 @@ def stopped(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
 
 
 @pytest.fixture(scope="module")
-def wheel_on_file(stopped, tmp_path_factory) -> Path:
-    """A campaign file that goes on past such a free run, as a file from elsewhere may: the
-    wheel-on free run recorded above and the smoke sequence's grid recorded with the wheel fitted,
-    written into one file."""
-    folder = tmp_path_factory.mktemp("wheel_on_then_grid")
-    with open_campaign(stopped[0]) as campaign:
-        (free,) = [run.dwell_records() for run in campaign.runs if run.kind == "free_run"]
-    with open_campaign(_record(folder, SMOKE.read_text())) as campaign:
-        (grid,) = [run for run in campaign.runs if run.kind == "dwell_grid"]
-        grid_run = StoredRun(
-            grid.run_id,
-            "dwell_grid",
-            tuple(grid.dwell_records()),
-            dict(grid.conditions),
-            channels=WHEEL_CHANNELS,
-        )
-    free_run = StoredRun("wheel-on-free_run", "free_run", tuple(free), {}, channels=FREE_RUN_CHANNELS)
-    return write_campaign(folder / "wheel_on_then_grid.h5", [free_run, grid_run])
+def wheel_on_file(shared_folder, smoke_campaign) -> Path:
+    """A campaign file that goes on past such a free run, as a file from elsewhere may: a wheel-on
+    free run (the sequence above, recorded through the engine as ``run`` records it) and the smoke
+    sequence's grid recorded with the wheel fitted, written into one file (once per test run)."""
+
+    def write(path: Path) -> None:
+        sequence = path.with_name("wheel-on.toml")
+        sequence.write_text(SMOKE.read_text().replace(REMOVE_WHEEL, ""))
+        stopped = path.with_name("wheel-on-stopped.h5")
+        stopped.unlink(missing_ok=True)
+        run_campaign(plan_campaign(sequence), stopped)
+        with open_campaign(stopped) as campaign:
+            (free,) = [run.dwell_records() for run in campaign.runs if run.kind == "free_run"]
+        with open_campaign(smoke_campaign) as campaign:
+            (grid,) = [run for run in campaign.runs if run.kind == "dwell_grid"]
+            grid_run = StoredRun(
+                grid.run_id,
+                "dwell_grid",
+                tuple(grid.dwell_records()),
+                dict(grid.conditions),
+                channels=WHEEL_CHANNELS,
+            )
+        free_run = StoredRun("wheel-on-free_run", "free_run", tuple(free), {}, channels=FREE_RUN_CHANNELS)
+        write_campaign(path, [free_run, grid_run])
+
+    return made_once(shared_folder, "wheel-on-then-grid.h5", write)
 
 
 def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped):
@@ -95,7 +100,8 @@ def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped
 
 
 def _analysis_json(path: Path) -> dict:
-    run = wfsbench("analyze", str(path), "--json")
+    """``analyze --json`` of a file that other tests read too: printed, nothing stored in it."""
+    run = wfsbench("analyze", str(path), "--json", "--no-store")
     assert run.returncode == 0, run.stderr
     return json.loads(run.stdout)
 
@@ -146,8 +152,8 @@ def test_the_ratio_rms_error_is_each_models_against_the_measured_ratio(wheel_on_
     assert model_1.ratio_relative_rms > 0.5  # ratio ~1 against a measured resonance of 8
 
 
-def test_a_free_run_with_the_wheel_removed_is_not_flagged(tmp_path):
-    doc = _analysis_json(_record(tmp_path, SMOKE.read_text()))
+def test_a_free_run_with_the_wheel_removed_is_not_flagged(smoke_campaign):
+    doc = _analysis_json(smoke_campaign)
     free = doc["shaker"][0]["free_run"]
     assert free["flags"] == []
     assert free["residual_reduced_chi2"] < 10

@@ -12,6 +12,7 @@ from bench.app.run_analysis import ANALYSES, INPUT_READERS, RunAnalyser, RunInpu
 from bench.app.show import EXCITATIONS
 from bench.config import default_bench_config
 from bench.dry_run import PREDICTIONS
+from bench.engine.engine import STEP_ACTIONS
 from bench.engine.procedures import PROCEDURES
 from sequences.runs import RunKind
 from sequences.steps import STEP_TYPES
@@ -39,6 +40,15 @@ def test_every_run_kind_is_recorded_by_a_step():
     made = {cls.run_kind for cls in STEP_TYPES.values()} - {None}
     assert made == set(RunKind)
     assert all(isinstance(cls.run_kind, RunKind | None) for cls in STEP_TYPES.values())
+
+
+def test_every_step_type_is_an_action_of_the_engine_or_records_a_run():
+    """The engine's table of the steps that record no run (a prompt, the hydraulics, a tare, the
+    mean position) and the steps that record one (each by its run kind's procedure) are every
+    step type, once."""
+    actions = set(STEP_ACTIONS)
+    measurements = {cls for cls in STEP_TYPES.values() if cls.run_kind is not None}
+    assert actions | measurements == set(STEP_TYPES.values()) and not actions & measurements
 
 
 @pytest.mark.parametrize("kind", list(RunKind))

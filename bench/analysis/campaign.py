@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.drive_iteration import IterationResult
+from bench.analysis.flags import Flag, FlagCode, flag, flags_of
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.road_replay import RoadReplayResult
 from bench.analysis.runs import FourPostResult, FreeRunResult, HammerResult, ShakerCampaignResult
@@ -114,8 +115,9 @@ class CampaignKnowledge:
 class RunAnalysis:
     """What the analysis of one run gave: ``name`` (what was analysed, :class:`AnalysisKind`), the
     text ``lines``, the scalar ``results`` stored beside the run, ``error`` (empty
-    when the analysis succeeded) and ``omitted``: what the data did not allow, each with why
-    (empty when the analysis gave everything the run is for). The result objects go into the
+    when the analysis succeeded), ``omitted``: what the data did not allow, each with why
+    (empty when the analysis gave everything the run is for), and ``flags``: the flags among its
+    lines, typed (:func:`~bench.analysis.flags.flags_of`). The result objects go into the
     analyser's knowledge."""
 
     run_id: str
@@ -125,6 +127,7 @@ class RunAnalysis:
     results: dict[str, Any]
     error: str = ""
     omitted: tuple[str, ...] = ()
+    flags: tuple[Flag, ...] = ()
 
     @property
     def status(self) -> AnalysisStatus:
@@ -136,8 +139,8 @@ class RunAnalysis:
     @classmethod
     def failed(cls, run_id: str, kind: str, reason: str) -> RunAnalysis:
         """The analysis of a run that failed for ``reason``: a flag, the reason as its result."""
-        flag = f"FLAG analysis failed: {reason}"
-        return cls(run_id, kind, AnalysisKind.FAILED, (flag,), {"error": reason}, reason)
+        lines = (flag(FlagCode.ANALYSIS_FAILED, f"analysis failed: {reason}"),)
+        return cls(run_id, kind, AnalysisKind.FAILED, lines, {"error": reason}, reason, flags=flags_of(lines))
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ import numpy as np
 import rainflow
 from scipy.signal import csd, welch
 
+from bench.analysis.flags import FlagCode, flag
 from bench.analysis.plate_mass import base_acceleration_signal
 from bench.analysis.records import DISPLACEMENT, HUB_ACCELERATION, PLATE_FORCE, WFS_FORCE
 from bench.analysis.road_validation import OCTAVE_CENTRES_HZ, band_limited, band_rms, octave_band
@@ -303,9 +304,8 @@ class IterationResult:
         if self.stop_rules_met:
             return ["the step's stop rules hold: the iteration ends here"]
         if self.last:
-            return [
-                f"FLAG the stop rules do not hold after the step's largest count, {self.iteration} iterations"
-            ]
+            text = f"the stop rules do not hold after the step's largest count, {self.iteration} iterations"
+            return [flag(FlagCode.NOT_CONVERGED, text)]
         return []
 
 

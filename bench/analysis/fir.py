@@ -102,8 +102,10 @@ def apply_aligned(taps: np.ndarray, x: np.ndarray, latency_samples: int) -> np.n
     history is finite but wrong there), the last ``latency_samples`` input after it. Both are NaN,
     never a guess.
     """
-    from scipy.signal import lfilter
-    y = lfilter(taps, [1.0], np.asarray(x, dtype=float))
+    x = np.asarray(x, dtype=float)
+    # the FIR from zero history, as lfilter(taps, [1], x): numpy's direct convolution, so that a
+    # reader of stored results (the report's traces) needs no signal-processing library
+    y = np.convolve(x, np.asarray(taps, dtype=float))[: x.size]
     out = np.full(y.size, np.nan)
     out[: y.size - latency_samples] = y[latency_samples:]
     out[: min(np.asarray(taps).size - 1 - latency_samples, y.size)] = np.nan

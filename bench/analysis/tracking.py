@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.analysis.flags import FlagCode, flag
+
 
 @dataclass(frozen=True)
 class TrackRecord:
@@ -51,7 +53,7 @@ class TrackResult:
             f" damping ratio {self.damping_range[0]:.4f}-{self.damping_range[1]:.4f}",
         ]
         if self.reason:
-            lines.append(f"FLAG the track stopped: {self.reason}")
+            lines.append(flag(FlagCode.TRACK_STOPPED, f"the track stopped: {self.reason}"))
         return lines
 
 

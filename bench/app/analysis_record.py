@@ -36,8 +36,8 @@ from bench.store.typed import TypedFormatError, from_json_tree, to_json_tree
 
 #: The record's layout version: raised whenever a reader of the previous one would misread a record
 #: (a result type's field renamed, retyped or given another meaning). A record of another format is
-#: not read: its campaign is analysed again. 2: a shaker amplitude's band conditions.
-RECORD_FORMAT = 2
+#: not read: its campaign is analysed again. 2: a shaker amplitude's band conditions; 3: a run's flags, typed.
+RECORD_FORMAT = 3
 #: What an analysis changed in the campaign's knowledge, by field: ("set", value) for a field given
 #: a new value, ("extend", items) for items appended to a list, ("update", items) for a dict's new or
 #: replaced entries.

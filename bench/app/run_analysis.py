@@ -46,6 +46,7 @@ from bench.analysis.campaign import (
     SensorSource,
 )
 from bench.analysis.drive_iteration import IterationResult
+from bench.analysis.flags import FlagCode, flag, flags_of
 from bench.analysis.measurement_compensation import CompensationFilters
 from bench.analysis.records import (
     HUB_ACCELERATION,
@@ -122,7 +123,9 @@ def run_event_notes(run: RunView) -> tuple[str, ...]:
     """What ``run``'s events say that its analysis must say too: the frames it lost on the WFS link
     (:func:`lost_frames_note`) and each limit it reached (a ``limit`` event: an amplitude excursion,
     a response limit's alarm), flagged."""
-    limits = tuple(f"FLAG limit reached: {e.text}" for e in run.events if e.kind == "limit")
+    limits = tuple(
+        flag(FlagCode.LIMIT_REACHED, f"limit reached: {e.text}") for e in run.events if e.kind == "limit"
+    )
     lost = lost_frames_note(run)
     return ((lost,) if lost else ()) + limits
 
@@ -243,6 +246,7 @@ class RunAnalyser:
             outcome = RunAnalysis.failed(run.run_id, run.kind, str(exc))
         if run.notes:  # said after the analysis's first line, whatever it found
             outcome = dataclasses.replace(outcome, lines=(*outcome.lines[:1], *run.notes, *outcome.lines[1:]))
+        outcome = dataclasses.replace(outcome, flags=flags_of(outcome.lines))
         self.knowledge.analysed_runs[run.run_id] = outcome
         return outcome
 
@@ -429,8 +433,11 @@ class RunAnalyser:
         notes = [f"tyre at {pressure:g} bar: shaker identification at {identified_bar:g} bar"]
         if abs(identified_bar - pressure) > PRESSURE_MATCH_BAR:
             notes.append(
-                f"FLAG no shaker identification at the car's {pressure:g} bar: the nearest, at"
-                f" {identified_bar:g} bar, describes a tyre of another stiffness"
+                flag(
+                    FlagCode.NO_TYRE_AT_PRESSURE,
+                    f"no shaker identification at the car's {pressure:g} bar: the nearest, at"
+                    f" {identified_bar:g} bar, describes a tyre of another stiffness",
+                )
             )
         assert run.sweep is not None
         result = analyse_four_post(

@@ -67,7 +67,7 @@ COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("model", pa.int8(), "the tyre model (1, 2, 3) the value belongs to"),
     ("selected", pa.bool_(), "the model is the one selected (lowest BIC with every parameter determined)"),
     ("determined", pa.bool_(), "the data determines the value (false: do not use it)"),
-    ("parameter", pa.string(), "the value's name, its unit in the name (docs/index.md)"),
+    ("parameter", pa.string(), "the value's name, its unit in the name (docs/index.md); a flag's code"),
     ("value", pa.float64(), "the value, SI; null when the data does not give it"),
     ("ci95", pa.float64(), "half-width of the value's 95 % interval; null when none"),
     ("freq_hz", pa.float64(), "the frequency a repeatability value belongs to (Hz)"),

@@ -235,7 +235,8 @@ def analysis_rows(analysis: CampaignAnalysis) -> dict[str, list[Row]]:
         add(last("four_post"), four_post_values(doc["four_post"]))
     for run in analysis.runs:
         flags = (
-            {"entry": c.FLAG, "source": "analysis", "text": line} for line in run.lines if "FLAG" in line
+            {"entry": c.FLAG, "source": "analysis", "parameter": str(flag.code), "text": flag.line}
+            for flag in run.flags
         )
         add(run.run_id, flags)
     return out

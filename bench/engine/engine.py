@@ -344,15 +344,9 @@ class Engine:
         step = sequence.steps[index]
         self._checkpoint()
         self._pass_gate(sequence, index, resume)
-        if isinstance(step, Prompt):
-            self._ask(step)
-        elif isinstance(step, Hydraulics):
-            self.actuator.set_hydraulics(step.level)
-            self.conditions["hydraulics"] = step.level
-        elif isinstance(step, Tare):
-            self.acquisition.tare()
-        elif isinstance(step, MeanPosition):
-            self.conditions["mean_mm"] = step.mean_mm
+        action = STEP_ACTIONS.get(type(step))
+        if action is not None:
+            action(self, step)
         elif is_measurement(step):
             run_id = self.run_id(sequence, index)
             if resume is not None and resume.run_complete(run_id):
@@ -363,6 +357,16 @@ class Engine:
             self._measure(MeasurementRun(run_id, step, held, self._drives.get(index), resume))
         else:
             raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
+
+    def _set_hydraulics(self, step: Hydraulics) -> None:
+        self.actuator.set_hydraulics(step.level)
+        self.conditions["hydraulics"] = step.level
+
+    def _tare(self, step: Tare) -> None:
+        self.acquisition.tare()
+
+    def _set_mean_position(self, step: MeanPosition) -> None:
+        self.conditions["mean_mm"] = step.mean_mm
 
     def _pass_gate(self, sequence: Sequence, index: int, resume: ResumePlan | None) -> None:
         """Ask the run gate about the next measurement run from step ``index`` on (that step's own
@@ -561,6 +565,16 @@ class Engine:
                     self.bus.publish(ev.StateChanged(*change))
             finally:
                 self._publishing.release()
+
+
+#: What the engine does for each step that records no run (a measurement step runs its run kind's
+#: procedure, :data:`~bench.engine.procedures.PROCEDURES`): every step type is in one or the other.
+STEP_ACTIONS: dict[type, Callable[[Engine, Any], None]] = {
+    Prompt: Engine._ask,
+    Hydraulics: Engine._set_hydraulics,
+    Tare: Engine._tare,
+    MeanPosition: Engine._set_mean_position,
+}
 
 
 def is_measurement(step: object) -> bool:

@@ -422,7 +422,7 @@ def run_heading(run: RunAnalysis, pressure_bar: float | None) -> str:
 
 
 def _flags(analysis: CampaignAnalysis) -> str:
-    rows = [(run.run_id, line) for run in analysis.runs for line in run.lines if "FLAG" in line]
+    rows = [(run.run_id, flag.line) for run in analysis.runs for flag in run.flags]
     if not rows:
         return "<p>No flags.</p>"
     return table_html(("run", "flag"), rows).replace("<td>FLAG", '<td class="flag">FLAG')

@@ -14,6 +14,7 @@ import numpy as np
 
 from bench.analysis.campaign import CampaignAnalysis, SensorSource
 from bench.analysis.drive_iteration import IterationResult, by_step
+from bench.analysis.flags import flags_of
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
 from bench.analysis.lsq import Z95
@@ -99,7 +100,7 @@ def free_run_json(result: FreeRunResult) -> dict[str, Any]:
         "n_points_used": p.n_points,
         "n_dwells": len(result.fits),
         "freq_range_hz": [result.fits[0].freq_hz, result.fits[-1].freq_hz] if result.fits else None,
-        "flags": [line for line in free_run_lines(result) if line.startswith("FLAG")],
+        "flags": [flag.line for flag in flags_of(free_run_lines(result))],
         "repeats": repeats_json(result.repeats),
     }
 
@@ -347,10 +348,9 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         ],
         "not_analysed": [{"run_id": run_id, "status": status} for run_id, status in analysis.skipped],
         "flags": [
-            {"run_id": run.run_id, "flag": line}
+            {"run_id": run.run_id, "code": str(flag.code), "flag": flag.line}
             for run in analysis.runs
-            for line in run.lines
-            if "FLAG" in line
+            for flag in run.flags
         ],
     }
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.analysis.flags import FlagCode, flag
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import DAMPING_AGREEMENT, HammerResult
 from bench.analysis.lsq import Z95
@@ -75,8 +76,11 @@ def repeats_lines(prefix: str, repeats: tuple[RepeatSpread, ...]) -> list[str]:
         lines.append(f"{prefix}repeats: {r.label}: {r.n} combined; spread over the displacement: {per}")
         if r.outside_noise:
             lines.append(
-                f"FLAG {prefix}repeats of {r.label} differ far outside their noise: the specimen or the"
-                " bench changed between them (tyre pressure or temperature, a clamp)"
+                flag(
+                    FlagCode.REPEATS_DIFFER,
+                    f"{prefix}repeats of {r.label} differ far outside their noise: the specimen or the"
+                    " bench changed between them (tyre pressure or temperature, a clamp)",
+                )
             )
     return lines
 
@@ -95,8 +99,11 @@ def hammer_lines(result: HammerResult) -> list[str]:
     ]
     if result.damping_ratio_disagreement > DAMPING_AGREEMENT:
         lines.append(
-            f"FLAG: the damping ratios disagree by {100 * result.damping_ratio_disagreement:.0f} %"
-            f" (more than {100 * DAMPING_AGREEMENT:.0f} %): check the decay (noise, a second mode)"
+            flag(
+                FlagCode.DAMPING_DISAGREES,
+                f"the damping ratios disagree by {100 * result.damping_ratio_disagreement:.0f} %"
+                f" (more than {100 * DAMPING_AGREEMENT:.0f} %): check the decay (noise, a second mode)",
+            )
         )
     return lines
 
@@ -106,16 +113,21 @@ def free_run_lines(result: FreeRunResult) -> list[str]:
     it is."""
     p = result.plate
     if result.nominal:
-        return [f"FLAG m_comp {p.mass_kg:g} kg nominal ({result.nominal_source}): not measured, no free run"]
+        return [
+            flag(
+                FlagCode.NOMINAL_M_COMP,
+                f"m_comp {p.mass_kg:g} kg nominal ({result.nominal_source}): not measured, no free run",
+            )
+        ]
     lines = [
         f"m_comp {p.mass_kg:.4f} +/- {Z95 * p.sigma_kg:.1g} kg (95 %) from {p.n_points} of"
         f" {len(result.fits)} free-run dwells {result.fits[0].freq_hz:g}-{result.fits[-1].freq_hz:g} Hz"
         f" (residual {p.residual_rms_n_per_m:.3g} N/m rms)"
     ]
     lines += repeats_lines("free run ", result.repeats)
-    lines += [f"FLAG free run not settled: {u}" for u in result.unsettled]
-    lines += [f"FLAG free run rejected: {r}" for r in result.rejected]
-    lines += [f"FLAG free run: {finding}" for finding in result.findings]
+    lines += [flag(FlagCode.NOT_SETTLED, f"free run not settled: {u}") for u in result.unsettled]
+    lines += [flag(FlagCode.REJECTED, f"free run rejected: {r}") for r in result.rejected]
+    lines += [flag(FlagCode.FREE_RUN, f"free run: {finding}") for finding in result.findings]
     return lines
 
 
@@ -144,8 +156,9 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
     lines.append(f"{label} not determined: {missing or 'none'}")
     for model, fit in ident.fits.items():
         if not fit.converged:
-            lines.append(f"FLAG {label} Model {int(model)}: the fit did not converge")
-    lines += [f"FLAG {label}: {finding}" for finding in ident.findings]
+            not_converged = f"{label} Model {int(model)}: the fit did not converge"
+            lines.append(flag(FlagCode.FIT_NOT_CONVERGED, not_converged))
+    lines += [flag(FlagCode.IDENTIFICATION, f"{label}: {finding}") for finding in ident.findings]
     if result.model_peak is not None:
         p = result.model_peak
         top_hz, top = result.largest_measured_ratio
@@ -167,8 +180,8 @@ def shaker_amplitude_lines(result: ShakerAmplitudeResult) -> list[str]:
             f"{label} no hub-acceleration channel: the clamped hub is taken as not moving (the"
             " model-compensated ratio without its hub-acceleration term); whether it moved is not checked"
         )
-    lines += [f"FLAG not settled: {u}" for u in result.unsettled]
-    lines += [f"FLAG rejected: {r}" for r in result.rejected]
+    lines += [flag(FlagCode.NOT_SETTLED, f"not settled: {u}") for u in result.unsettled]
+    lines += [flag(FlagCode.REJECTED, f"rejected: {r}") for r in result.rejected]
     return lines
 
 
@@ -193,8 +206,8 @@ def shaker_ratios_lines(result: ShakerRatiosResult) -> list[str]:
     lines += repeats_lines(f"{label} ", result.repeats)
     if not result.hub_acceleration_recorded:
         lines.append(f"{label} no hub-acceleration channel (the clamped hub needs none)")
-    lines += [f"FLAG not settled: {u}" for u in result.unsettled]
-    lines += [f"FLAG rejected: {r}" for r in result.rejected]
+    lines += [flag(FlagCode.NOT_SETTLED, f"not settled: {u}") for u in result.unsettled]
+    lines += [flag(FlagCode.REJECTED, f"rejected: {r}") for r in result.rejected]
     return lines
 
 
@@ -256,15 +269,18 @@ def four_post_lines(result: FourPostResult) -> list[str]:
         flank_hz, other_hz = result.unreliable_bins_hz
         step = float(f[1] - f[0]) if f.size > 1 else None
         lines.append(
-            f"FLAG {result.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
-            f" over Z and not used by the quarter car: on the sweep's flanks"
-            f" {ranges_text(flank_hz, step)}"
-            f" (biased over Z, usable in the force ratios); low excitation or coherence"
-            f" {ranges_text(other_hz, step)}"
+            flag(
+                FlagCode.UNRELIABLE_BINS,
+                f"{result.unreliable_bins} of {f.size} bins in {f[0]:.3g}-{f[-1]:.3g} Hz unreliable"
+                f" over Z and not used by the quarter car: on the sweep's flanks"
+                f" {ranges_text(flank_hz, step)}"
+                f" (biased over Z, usable in the force ratios); low excitation or coherence"
+                f" {ranges_text(other_hz, step)}",
+            )
         )
     if not car.converged:
-        lines.append("FLAG the quarter-car fit did not converge")
-    lines += [f"FLAG {finding}" for finding in result.findings]
+        lines.append(flag(FlagCode.FIT_NOT_CONVERGED, "the quarter-car fit did not converge"))
+    lines += [flag(FlagCode.IDENTIFICATION, finding) for finding in result.findings]
     return lines
 
 

@@ -5,7 +5,7 @@ until the matched response follows the target (docs/engine.md, *Drive iteration*
 Each drive is a run of its own, ``<step's run id>-iNN`` (``-i00`` the identification, ``-i01`` the
 first drive from the inverse), recorded with its drive as a road replay's is, its samples too (the
 drive attribute's ``samples_mm``: every drive stays readable, and the last one can be exported as a
-drive file that a road replay plays, ``wfsbench export --format drive``): the drive
+drive file that a road replay plays, ``wfsbench export --format drive``): the drive is
 dry-run sample by sample on the bench model against the post's limits (the plan's check), uploaded
 to the controller's drive memory (confirmed by CRC-32) once the run has begun, then played once as
 the run's one point. A drive the dry run refuses is refused before its upload, naming the iteration,
@@ -14,10 +14,11 @@ an abort, an e-stop, an interlock or a lost link during a run: that run ends as 
 does, and the iterations before it keep their drives and records.
 
 After each run the response is computed from its channels as the analysis computes it and compared
-with the target over the drive's hold (the part between its tapers): the iteration stops once the
-rms error in the step's band is below its limit and, for a target with a 95 % band, enough samples
-lie inside the band; else after the step's largest count of iterations. The response is compared
-over the drive's hold less the step's settling time at each end, the span the corrections act on.
+with the target over the drive's hold less the step's settling time at each end (the span the
+corrections act on): the iteration stops once the rms error in the step's error band is below its
+limit and, for a target with a 95 % band, enough samples lie inside the band; else after the step's
+largest count of iterations. A resume computes the drives again from the runs the file holds and
+plays from the first run that is not complete (docs/engine.md, *Drive iteration*).
 """
 
 from __future__ import annotations
