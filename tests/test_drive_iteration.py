@@ -25,6 +25,7 @@ from bench.analysis.drive_iteration import (
     estimate_frf,
     regularised_inverse,
 )
+from bench.analysis.flags import FlagCode, flags_of
 from bench.app.analyze import analyze_campaign
 from bench.app.plan import plan_campaign
 from bench.app.run import run_campaign
@@ -319,6 +320,18 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
         else:
             step_mm = np.max(np.abs(played)) / 32767
             assert np.max(np.abs(drive.samples_mm[: played.size] - played)) <= step_mm
+
+
+def test_an_iteration_that_ends_at_its_largest_count_unmet_is_flagged(tmp_path, road):
+    """One iteration allowed: the inverse's drive misses by more than 5 % (the damper), the step ends
+    complete and its analysis flags that the stop rules do not hold."""
+    write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
+    seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nmax_iterations = 1\n')
+    outcome = run_campaign(plan_campaign(seq, FOUR_POST), tmp_path / "once.h5")
+    assert outcome.status == "complete"
+    (last,) = [a for a in outcome.analyses if a.name == "drive_iteration"]
+    assert last.results["rms_error_pct"] > 5.0 and not last.results["stop_rules_met"]
+    assert [f.code for f in flags_of(last.summary)] == [FlagCode.NOT_CONVERGED]
 
 
 def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sample_and_limit(
