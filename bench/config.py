@@ -145,12 +145,15 @@ class SensorStatement:
 @dataclass(frozen=True)
 class Specimen:
     """What stands on the bench, for the dry run's model and the simulated world: the tyre model
-    (the paper's 1, 2 or 3), whether the tyre is non-linear, the state before the first prompt
-    (pressure, wheel fitted) and the static load the WFS carries at rest on the shaker (the tyre
-    preload, N; on the four-post bench the model's weight above the sensor)."""
+    (the paper's 1, 2 or 3), whether the tyre is non-linear, whether the four-post car's damper is
+    (``damper_nonlinear``: digressive, :class:`~bench.models.parameters.DamperNonlinearity`), the
+    state before the first prompt (pressure, wheel fitted) and the static load the WFS carries at
+    rest on the shaker (the tyre preload, N; on the four-post bench the model's weight above the
+    sensor)."""
 
     tyre_model: int = 2
     nonlinear: bool = True
+    damper_nonlinear: bool = False
     tyre_pressure_bar: float = 2.5
     wheel_fitted: bool = True
     preload_n: float = 0.0
@@ -342,7 +345,8 @@ def _aux_entry(aux: AuxInput) -> dict[str, object]:
     }
 
 
-#: Per kind, the limits of the simulated benches where they differ from BenchLimits' defaults.
+#: Per kind, the limits, masses and specimen of the simulated benches where they differ from the
+#: defaults.
 KIND_DEFAULTS: dict[str, dict[str, object]] = {
     "shaker": {},
     "four_post": {
@@ -356,6 +360,8 @@ KIND_DEFAULTS: dict[str, dict[str, object]] = {
             force_interlock_n=25_000.0,
         ),
         "masses": Masses(plate_kg=15.0),
+        # the car's damper digressive, as a car's is: a drive iteration needs a level-dependent rig
+        "specimen": Specimen(damper_nonlinear=True),
     },
 }
 
@@ -511,7 +517,7 @@ class _Reader:
             masses=self.masses(data, base.masses),
             sensor=self.sensor(data),
             aux=self.aux(data),
-            specimen=self.specimen(data),
+            specimen=self.specimen(data, base.specimen),
             simulation=self.simulation(data),
             timing=self.timing(data),
             metadata=self.metadata(data),
@@ -689,13 +695,13 @@ class _Reader:
                 )
         return tuple(inputs)
 
-    def specimen(self, data: dict) -> Specimen:
-        d = Specimen()
+    def specimen(self, data: dict, d: Specimen) -> Specimen:
         t = self.table(data, "specimen", tuple(f.name for f in fields(Specimen)))
         model = self.number(t, "specimen", "tyre_model", d.tyre_model, lo=1, hi=3, integer=True)
         return Specimen(
             tyre_model=model,
             nonlinear=self.boolean(t, "specimen", "nonlinear", d.nonlinear),
+            damper_nonlinear=self.boolean(t, "specimen", "damper_nonlinear", d.damper_nonlinear),
             tyre_pressure_bar=self.number(
                 t, "specimen", "tyre_pressure_bar", d.tyre_pressure_bar, lo=0.5, hi=5.0
             ),

@@ -28,10 +28,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from bench.config import BenchConfig
-from bench.engine.contracts import PlannedDrive
+from bench.engine.contracts import DriveCheck, PlannedDrive
 from bench.models.benches import TyreModel
-from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Rig, Tyre, TyreNonlinearity
-from bench.models.setup import BenchKind, BenchSetup
+from bench.models.parameters import (
+    PAPER_TYRE_STIFFNESS_N_PER_M,
+    DamperNonlinearity,
+    Rig,
+    Suspension,
+    Tyre,
+    TyreNonlinearity,
+)
+from bench.models.setup import BenchKind, BenchSetup, drive_density
 from bench.models.taper import taper_envelope
 from drivers.errors import LimitError
 from drivers.setpoints import DriveSetpoint, equivalent_sine
@@ -41,6 +48,7 @@ from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
 from sequences.runs import RunKind
 from sequences.steps import (
     ACTION_BENCH_KIND,
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -168,11 +176,14 @@ class DriveRefusal:
     unit: str
 
     def __str__(self) -> str:
-        where = f"steps[{self.step_index}] road replay ({self.source})"
+        return f"steps[{self.step_index}] road replay ({self.source}): {self.detail()}"
+
+    def detail(self) -> str:
+        """The sample and the limit, without the step."""
         if self.limit == "setpoint":
-            return f"{where}: {self.quantity}"
+            return self.quantity
         return (
-            f"{where}: sample {self.sample} (t = {self.time_s:.4g} s): predicted {self.quantity}"
+            f"sample {self.sample} (t = {self.time_s:.4g} s): predicted {self.quantity}"
             f" {self.predicted:.5g} {self.unit} is beyond the limit {self.limit} ="
             f" {self.allowed:g} {self.unit}"
         )
@@ -196,6 +207,8 @@ class DryRun:
     source: str
     points: tuple[PointPrediction, ...]
     refusals: Refusals
+    #: each drive iteration's dry run of the drives it will compute, by its step's index
+    drive_checks: Mapping[int, DriveCheck] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -232,7 +245,7 @@ def dry_run(
             points += predicted
             impossible += refused
     refusals = tuple(r for point in points if point.kind != "drive" for r in _refusals(point, config))
-    return DryRun(sequence.source, tuple(points), (*impossible, *refusals))
+    return DryRun(sequence.source, tuple(points), (*impossible, *refusals), dict(world.drive_checks))
 
 
 def _refusals(point: PointPrediction, config: BenchConfig) -> list[Refusal]:
@@ -277,6 +290,7 @@ def bench_model(config: BenchConfig, pressure_bar: float, *, specimen: bool) -> 
         sensor=config.wfs_sensor,
         rig=rig,
         nonlinearity=TyreNonlinearity() if config.specimen.nonlinear else None,
+        suspension=Suspension(damper=DamperNonlinearity() if config.specimen.damper_nonlinear else None),
     )
 
 
@@ -305,6 +319,7 @@ class _World:
         self.pressure_bar = config.specimen.tyre_pressure_bar
         self.specimen_on = config.specimen.wheel_fitted
         self._setups: dict[tuple[bool, float], BenchSetup] = {}
+        self.drive_checks: dict[int, DriveCheck] = {}
 
     def apply(self, prompt: Prompt) -> None:
         if prompt.action == PromptAction.SET_TYRE_PRESSURE and isinstance(prompt.target, int | float):
@@ -504,7 +519,7 @@ class _World:
         by sample: its spectrum (with :data:`DRIVE_RINGDOWN_S` of rest after it, so that the response
         does not wrap round) times the model's frequency response."""
         amplitude_m, freq_hz = equivalent_sine(z_m, rate_hz)
-        network = setup.operating_network(freq_hz or 1.0, amplitude_m)
+        network = setup.operating_network(freq_hz or 1.0, amplitude_m, drive_density(z_m, rate_hz))
         outputs = ("f_plate", "f_wfs") if "f_wfs" in network.output_names else ("f_plate",)
         size = z_m.size + round(DRIVE_RINGDOWN_S * rate_hz)
         bins = np.fft.rfftfreq(size, 1 / rate_hz)
@@ -581,6 +596,51 @@ def _predict_road_replay(
     return [prediction], [replace(r, source=str(drive.record.get("source", ""))) for r in beyond]
 
 
+def _predict_drive_iteration(
+    world: _World, index: int, step: DriveIteration, drives: Mapping[int, object] | None
+) -> Predicted:
+    """The identification drive sample by sample on a four-post bench (refused on any other), and
+    the check each later drive gets before its upload (:func:`drive_check`): those drives follow
+    from the rig's response, unknown until it is measured."""
+    config = world.config
+    if config.kind != "four_post":
+        return [], [ActionRefusal(index, step.kind, "a drive iteration", "four_post", config.kind)]
+    planned = (drives or {}).get(index)
+    setup = world.setup(free_run=False)
+    world.drive_checks[index] = drive_check(world, setup, index, step)
+    if planned is None:
+        return [], []
+    identification = replace(planned.identification, mean_mm=step.mean_mm)
+    prediction, beyond = world.predict_drive(setup, index, identification)
+    return [prediction], [replace(r, source="its identification drive") for r in beyond]
+
+
+def drive_check(world: _World, setup: BenchSetup, index: int, step: DriveIteration) -> DriveCheck:
+    """The dry run of one drive of a drive iteration, on the bench model of ``setup`` against the
+    post's limits and the step's ``max_drive_mm``: each refusal's text naming its first sample
+    beyond a limit (empty: the drive may be uploaded)."""
+
+    def check(drive: DriveSetpoint) -> tuple[str, ...]:
+        drive = replace(drive, mean_mm=step.mean_mm)
+        _, beyond = world.predict_drive(setup, index, drive)
+        texts = [r.detail() for r in beyond]
+        if step.max_drive_mm:
+            rate = drive.sample_rate_hz
+            t = np.arange(drive.n_samples) / rate
+            envelope = taper_envelope(t, drive.duration_s, drive.taper_in_s, drive.taper_out_s)
+            over = np.flatnonzero(np.abs(drive.samples_mm * envelope) > step.max_drive_mm)
+            if over.size:
+                k = int(over[0])
+                excursion_mm = abs(drive.samples_mm[k] * envelope[k])
+                texts.append(
+                    f"sample {k} (t = {k / rate:.4g} s): the drive's {excursion_mm:.5g} mm"
+                    f" about its mean is beyond the limit max_drive_mm = {step.max_drive_mm:g} mm"
+                )
+        return tuple(texts)
+
+    return check
+
+
 def _predict_hammer(
     world: _World, index: int, step: HammerTest, drives: Mapping[int, PlannedDrive] | None
 ) -> Predicted:
@@ -595,5 +655,6 @@ PREDICTIONS: dict[RunKind, Callable[..., Predicted]] = {
     RunKind.SWEEP: _predict_sweep,
     RunKind.TRACKED_DWELL: _predict_tracked_dwell,
     RunKind.ROAD_REPLAY: _predict_road_replay,
+    RunKind.DRIVE_ITERATION: _predict_drive_iteration,
     RunKind.HAMMER: _predict_hammer,
 }

@@ -12,6 +12,7 @@ from sequences.limits import BenchLimits, peak_acceleration_m_s2, peak_velocity_
 from sequences.loader import dump_sequence, load_sequence, parse_sequence
 from sequences.steps import (
     AdaptiveDwell,
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -51,6 +52,7 @@ __all__ = [
     "AdaptiveDwell",
     "AnswerError",
     "BenchLimits",
+    "DriveIteration",
     "DwellGrid",
     "FreeRun",
     "HammerTest",

@@ -16,6 +16,7 @@ class RunKind(enum.StrEnum):
     SWEEP = "sweep"
     TRACKED_DWELL = "tracked_dwell"
     ROAD_REPLAY = "road_replay"
+    DRIVE_ITERATION = "drive_iteration"
     HAMMER = "hammer"
 
 

@@ -419,6 +419,75 @@ class RoadReplay:
         return float(self.duration_s)
 
 
+#: What a drive iteration matches on the rig: the compensated contact force (the post's force less
+#: its plate's inertia, as the analysis takes the contact force), the raw WFS force, the hub
+#: acceleration, the post's force.
+ITERATION_RESPONSES = ("contact_force", "wfs_force", "hub_acceleration", "post_force")
+#: The spectral shapes of a drive iteration's identification drive: pink (density ~ 1/f over the
+#: band) or shaped like the target's own density.
+IDENTIFICATION_SHAPES = ("pink", "shaped")
+
+
+@dataclass(frozen=True, slots=True)
+class DriveIteration:
+    """A drive iterated on the four-post bench until the rig's ``response`` matches a target
+    (docs/sequences.md, *Drive iteration*).
+
+    **The target** (``target``, relative to the sequence file's folder): a compensated road
+    measurement written by ``wfsbench compensate`` (HDF5: its contact force and 95 % band), or a
+    channel of a CSV, MDF4 or RPC III file (``target_channel``, in ``target_unit``: by default the
+    unit the file states; a CSV file's time column ``time_column``, by default its first), cut to
+    its first ``duration_s`` (0: whole). **The response** matched: ``contact_force`` (default),
+    ``wfs_force``, ``hub_acceleration`` or ``post_force``.
+
+    **The method**: the rig identified in ``band_hz`` with a broadband drive (``identification``:
+    ``pink`` or ``shaped``, ``identification_rms_mm`` for ``identification_s``, seeded by
+    ``identification_seed``), its coherence-weighted inverse regularised by ``regularisation``
+    (relative to the FRF's peak power), the first drive from the inverse, then corrections with
+    ``gain`` (0 < gain < 1). Every drive is dry-run against the post's limits and ``max_drive_mm``
+    (0: the stroke) before upload. **Judged** in ``error_band_hz`` (inside ``band_hz``: the error's
+    edge is not the inverse's) over the drive's hold less ``settle_s`` at each end (the tapers'
+    transients). **Stops** when the rms error is below ``rms_error_pct`` % of the target's rms and
+    (a target with a band) at least ``in_band_pct`` % of the samples are inside its 95 % band, or
+    after ``max_iterations``. Damage ratios use the S-N exponent ``sn_exponent``. Drives are tapered
+    by ``taper_in_s`` / ``taper_out_s`` and played on ``mean_mm``.
+    """
+
+    kind: ClassVar[str] = "drive_iteration"
+    run_kind: ClassVar[RunKind | None] = RunKind.DRIVE_ITERATION
+
+    target: str = ""
+    target_channel: str = ""
+    target_unit: str = ""
+    time_column: str = ""
+    response: str = "contact_force"
+    duration_s: float = 0.0
+    band_hz: tuple[float, float] = (0.3, 45.0)
+    error_band_hz: tuple[float, float] = (0.5, 30.0)
+    settle_s: float = 0.5
+    identification: str = "pink"
+    identification_rms_mm: float = 0.5
+    identification_s: float = 20.0
+    identification_seed: int = 1
+    regularisation: float = 1e-5
+    gain: float = 0.9
+    max_iterations: int = 6
+    rms_error_pct: float = 5.0
+    in_band_pct: float = 90.0
+    sn_exponent: float = 5.0
+    max_drive_mm: float = 0.0
+    taper_in_s: float = 0.5
+    taper_out_s: float = 0.5
+    mean_mm: float = 0.0
+    label: str = ""
+
+    @property
+    def estimated_duration_s(self) -> float:
+        """The identification and every iteration at the target's cut (a whole file's length is
+        known once the file is read: the iterations count 0 s here then)."""
+        return float(self.identification_s) + self.max_iterations * float(self.duration_s)
+
+
 @dataclass(frozen=True, slots=True)
 class HammerTest:
     """Hammer blows on the bare sensor, each caught by a triggered capture of the WFS acquisition.
@@ -563,6 +632,7 @@ Step = (
     | Sweep
     | TrackedDwell
     | RoadReplay
+    | DriveIteration
     | HammerTest
     | Prompt
     | Hydraulics
@@ -578,6 +648,7 @@ STEP_TYPES: dict[str, type] = {
         Sweep,
         TrackedDwell,
         RoadReplay,
+        DriveIteration,
         HammerTest,
         Prompt,
         Hydraulics,

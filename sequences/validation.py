@@ -23,10 +23,13 @@ from sequences.steps import (
     ANSWER_TYPES,
     GRID_ORDERS,
     HYDRAULIC_LEVELS,
+    IDENTIFICATION_SHAPES,
+    ITERATION_RESPONSES,
     PROMPT_ACTIONS,
     ROAD_CLASSES,
     SWEEP_LAWS,
     AdaptiveDwell,
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -79,6 +82,7 @@ def validate(sequence: Sequence, limits: BenchLimits, channels: ChannelSet | Non
 _ANALYSIS_ROLES = {
     Sweep: (Role.HUB_ACCELERATION,),
     RoadReplay: (Role.HUB_ACCELERATION,),
+    DriveIteration: (Role.PLATE_FORCE,),
 }
 #: Speeds of a generated road (km/h).
 ROAD_SPEED_RANGE_KM_H = (1.0, 250.0)
@@ -537,6 +541,84 @@ class _Checker:
                 "band_cycles_per_m", f"[{_fmt(low)}, {_fmt(high)}]: the lowest must lie below the highest"
             )
 
+    def iteration(self, step: DriveIteration) -> None:
+        """A drive iteration: its target named (its file's contents are the plan's to read), the
+        response one of :data:`ITERATION_RESPONSES`, the band within the bench's frequencies, the
+        identification's shape, level and length, the regularisation and the gain (below 1: a
+        correction of a whole error overshoots wherever the rig responds more than identified), the
+        stop rules and the S-N exponent in their ranges, the tapers and the cut within the
+        controller's limits. The drives' values against the bench's limits are the dry run's, drive
+        by drive."""
+        lim = self.limits
+        self.mean(step.mean_mm)
+        taper_in, taper_out = self.tapers(step.taper_in_s, step.taper_out_s)
+        self.text("target", step.target)
+        for key in ("target_channel", "target_unit", "time_column", "label"):
+            self.text(key, getattr(step, key), required=False)
+        self.one_of("response", step.response, ITERATION_RESPONSES)
+        self.one_of("identification", step.identification, IDENTIFICATION_SHAPES)
+        longest = "the controller's longest setpoint"
+        duration = self.number("duration_s", step.duration_s, 0.0, lim.max_step_s, unit="s", hi_why=longest)
+        if None not in (duration, taper_in, taper_out) and duration and taper_in + taper_out >= duration:
+            self.add(
+                "duration_s",
+                f"{_fmt(duration)} s leaves nothing between the tapers "
+                f"(allowed duration_s > taper_in_s + taper_out_s = {_fmt(taper_in + taper_out)} s)",
+            )
+        band = self.band("band_hz", step.band_hz, lim.max_freq_hz)
+        judged = self.band("error_band_hz", step.error_band_hz, lim.max_freq_hz)
+        if band is not None and judged is not None and not band[0] <= judged[0] < judged[1] <= band[1]:
+            self.add(
+                "error_band_hz",
+                f"[{_fmt(judged[0])}, {_fmt(judged[1])}] must lie inside band_hz"
+                f" [{_fmt(band[0])}, {_fmt(band[1])}] (the error is judged where the drive is corrected)",
+            )
+        self.number("settle_s", step.settle_s, 0.0, 10.0, unit="s")
+        stroke = "the bench's stroke"
+        self.number(
+            "identification_rms_mm",
+            step.identification_rms_mm,
+            0.0,
+            lim.stroke_mm,
+            lo_open=True,
+            unit="mm",
+            hi_why=stroke,
+        )
+        self.number(
+            "identification_s",
+            step.identification_s,
+            8.0,
+            lim.max_step_s,
+            unit="s",
+            lo_why="two FRF segments of 4 s",
+            hi_why=longest,
+        )
+        self.number("identification_seed", step.identification_seed, 0, 2**63 - 1, integer=True)
+        self.number("regularisation", step.regularisation, 0.0, 1.0, lo_open=True)
+        self.number(
+            "gain", step.gain, 0.0, 1.0, lo_open=True, unit="", hi_why="a correction below the whole error"
+        )
+        self.number("max_iterations", step.max_iterations, 1, 99, integer=True, unit="iterations")
+        self.number("rms_error_pct", step.rms_error_pct, 0.0, 100.0, lo_open=True, unit="%")
+        self.number("in_band_pct", step.in_band_pct, 0.0, 100.0, unit="%")
+        self.number("sn_exponent", step.sn_exponent, 1.0, 20.0, unit="")
+        self.number("max_drive_mm", step.max_drive_mm, 0.0, lim.stroke_mm, unit="mm", hi_why=stroke)
+
+    def band(self, key: str, band: object, top_hz: float) -> tuple[float, float] | None:
+        """A band ``[lowest, highest]`` in Hz within 0..``top_hz`` (the bench's), lowest below
+        highest; None (problem added) otherwise."""
+        if not isinstance(band, tuple | list) or len(band) != 2:
+            self.add(key, f"expected two numbers [lowest, highest], got {band!r}")
+            return None
+        low = self.number(f"{key}[0]", band[0], 0.0, top_hz, unit="Hz", hi_why="the bench's")
+        high = self.number(f"{key}[1]", band[1], 0.0, top_hz, unit="Hz", hi_why="the bench's")
+        if low is None or high is None:
+            return None
+        if low >= high:
+            self.add(key, f"[{_fmt(low)}, {_fmt(high)}]: the lowest must lie below the highest")
+            return None
+        return low, high
+
     def hammer(self, step: HammerTest) -> None:
         lim = self.limits
         self.number(
@@ -631,6 +713,7 @@ _STEP_CHECKS = {
     Sweep: _Checker.sweep,
     TrackedDwell: _Checker.tracked,
     RoadReplay: _Checker.replay,
+    DriveIteration: _Checker.iteration,
     HammerTest: _Checker.hammer,
     MeanPosition: lambda check, step: check.mean(step.mean_mm),
 }

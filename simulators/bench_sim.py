@@ -197,7 +197,7 @@ class SimulatedBench:
                     setup = setup_at((self._internal_samples - since) / plant.internal_rate_hz)
                     if setup is not plant.setup:
                         plant.retune(setup)
-                plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m)
+                plant.set_operating_point(ctrl.current_frequency_hz(), ctrl.amplitude_m, ctrl.drive_density())
                 channels = plant.advance(command)
             ctrl.observe(channels["z_base_m"], channels["f_plate_n"], plant.output_rate_hz)
             ctrl.measure_amplitude(self.transducer.read(plant.converter_z_base_m))

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.models.setup import DriveDensity
 from drivers.register_map import (
     ALL_POSTS,
     MOVING_STATES,
@@ -344,6 +345,12 @@ class ControllerModel:
         if waveform is None or self.state not in MOVING_STATES:
             return 0.0
         return float(waveform.frequency_hz(self.generator.elapsed_s))
+
+    def drive_density(self) -> DriveDensity | None:
+        """The running drive file's density (None: no drive runs), for the plant's linearisation."""
+        if self.state not in MOVING_STATES:
+            return None
+        return getattr(self.generator.waveform, "density", None)
 
     @property
     def amplitude_m(self) -> float:

@@ -21,6 +21,7 @@ from scipy.optimize import minimize_scalar
 from bench.models.benches import TyreModel
 from bench.models.parameters import (
     TYRE_PRESSURE_RANGE_BAR,
+    DamperNonlinearity,
     Rig,
     Suspension,
     TyreNonlinearity,
@@ -129,11 +130,13 @@ class SimulatedWorld:
         damper: str = "medium",
         model: TyreModel | None = None,
         nonlinear: bool = True,
+        damper_nonlinear: bool = False,
     ) -> None:
         self.bench = bench
         self.kind = WorldBench(kind)
         self.model = TyreModel(model) if model is not None else self._default_model(self.kind)
         self.nonlinearity = TyreNonlinearity() if nonlinear else None
+        self.damper_law = DamperNonlinearity() if damper_nonlinear else None
         self.pressure_bar = float(pressure_bar)
         self.specimen_mounted = specimen_mounted
         self.damper = damper
@@ -162,7 +165,8 @@ class SimulatedWorld:
             )
         if not self.specimen_mounted:
             return BenchSetup(BenchKind.FREE_RUN, rig=POST_RIG)
-        suspension = replace(Suspension(), damping_ns_per_m=DAMPER_SETTINGS_NS_PER_M[self.damper])
+        damping_ns_per_m = DAMPER_SETTINGS_NS_PER_M[self.damper]
+        suspension = Suspension(damping_ns_per_m=damping_ns_per_m, damper=self.damper_law)
         return BenchSetup(
             BenchKind.QUARTER_CAR,
             self.model,

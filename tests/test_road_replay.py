@@ -12,6 +12,7 @@ import hashlib
 import math
 import re
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -159,8 +160,10 @@ def test_the_dry_runs_forces_of_a_sine_drive_are_the_bench_models_steady_state_r
     """A drive that is a 8 Hz sine of 3 mm: past its taper and the wheel hop's decay (damping ratio
     about 0.35: 1 % left after 0.3 s) the predicted plate and WFS forces are the model's frequency
     response at 8 Hz, which the dwells' prediction gives in closed form; within 1 % (the spectrum's
-    interpolated response and the sampled peak)."""
+    interpolated response and the sampled peak). The car's damper is taken linear here: a digressive
+    one is linearised at the drive's equivalent sine, whose tapers lower it below the dwell's 3 mm."""
     config = load_bench_config(FOUR_POST)
+    config = replace(config, specimen=replace(config.specimen, damper_nonlinear=False))
     world = _World(config)
     setup = world.setup(free_run=False)
     t = np.arange(6001) / RATE_HZ

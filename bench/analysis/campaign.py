@@ -11,6 +11,7 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
+from bench.analysis.drive_iteration import IterationResult
 from bench.analysis.flags import Flag, FlagCode, flag, flags_of
 from bench.analysis.records import DwellRecord, HammerRecord, SweepRecord
 from bench.analysis.road_replay import RoadReplayResult
@@ -56,8 +57,9 @@ class AnalysisKind(StrEnum):
     """What the analysis of a run gave, the name its results are stored under beside the run:
     ``hammer`` (the sensor), ``plate_mass`` (a free run's m_comp), ``track`` (a tracked resonance),
     ``shaker`` (a pressure's tyre identification), ``four_post`` (the quarter car), ``sweep`` (a
-    sweep on the shaker: recorded, not analysed), ``road_replay`` (the compensated road), or
-    ``analysis`` when it failed."""
+    sweep on the shaker: recorded, not analysed), ``road_replay`` (the compensated road),
+    ``drive_iteration`` (one drive against its target), ``rig_identification`` (a drive iteration's
+    broadband identification), or ``analysis`` when it failed."""
 
     HAMMER = "hammer"
     PLATE_MASS = "plate_mass"
@@ -66,6 +68,8 @@ class AnalysisKind(StrEnum):
     FOUR_POST = "four_post"
     SWEEP = "sweep"
     ROAD_REPLAY = "road_replay"
+    DRIVE_ITERATION = "drive_iteration"
+    IDENTIFICATION = "rig_identification"
     FAILED = "analysis"
 
 
@@ -84,7 +88,8 @@ class CampaignKnowledge:
     """What the campaign has established so far, for the analyses that follow; ``sensor`` and
     ``sensor_source``: the sensor model and where it comes from (the hammer test replaces what the
     configuration stated or the default assumed); ``road_replays``: each road replay analysed, by
-    run id; ``plate_mass_kg``: the shaker plate's mass as the
+    run id; ``drive_iterations``: each drive of a drive iteration analysed, by its run's id;
+    ``plate_mass_kg``: the shaker plate's mass as the
     configuration states it (nominal: the shaker analysis takes it when the campaign has no free
     run); ``plate_masses``:
     every free run analysed, in order (whether or not a later run used it); ``analysed_runs``:
@@ -102,6 +107,7 @@ class CampaignKnowledge:
     hammer: HammerResult | None = None
     four_post: FourPostResult | None = None
     road_replays: dict[str, RoadReplayResult] = field(default_factory=dict)
+    drive_iterations: dict[str, IterationResult] = field(default_factory=dict)
     analysed_runs: dict[str, RunAnalysis] = field(default_factory=dict)
 
 

@@ -30,6 +30,7 @@ class FlagCode(StrEnum):
     UNRELIABLE_BINS = "unreliable_bins"  # sweep bins whose FRF is not to be trusted
     NO_TYRE_AT_PRESSURE = "no_tyre_at_pressure"  # no shaker identification at the car's pressure
     TRACK_STOPPED = "track_stopped"  # a tracked dwell stopped before its end
+    NOT_CONVERGED = "not_converged"  # a drive iteration ended at its largest count, its stop rules unmet
 
 
 @dataclass(frozen=True)

@@ -96,7 +96,7 @@ class _Walk:
 
     def needs_nothing(self, index: int, step: object) -> None:
         """A run whose analysis needs nothing from the runs before it (a hammer test, a tracked
-        dwell's resonance)."""
+        dwell's resonance, a drive iteration's errors against its target)."""
 
     def replay(self, index: int, step: RoadReplay) -> None:
         key = f"steps[{index}] {step.kind}"
@@ -147,6 +147,7 @@ ANALYSIS_NEEDS: dict[RunKind, Callable[[_Walk, int, Any], None]] = {
     RunKind.DWELL_GRID: _Walk.grid,
     RunKind.SWEEP: _Walk.sweep,
     RunKind.ROAD_REPLAY: _Walk.replay,
+    RunKind.DRIVE_ITERATION: _Walk.needs_nothing,
     RunKind.TRACKED_DWELL: _Walk.needs_nothing,
     RunKind.HAMMER: _Walk.needs_nothing,
 }

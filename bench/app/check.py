@@ -16,6 +16,7 @@ from bench.app.durations import sequence_estimate_text
 from bench.config import BenchConfig
 from bench.dry_run import DryRun
 from sequences import (
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -81,6 +82,19 @@ def _road_replay_text(step: RoadReplay) -> str:
     return f"drive file {step.file}{column}{cut}, on {step.mean_mm:g} mm"
 
 
+def _drive_iteration_text(step: DriveIteration) -> str:
+    channel = f" ({step.target_channel})" if step.target_channel else ""
+    cut = f", its first {step.duration_s:g} s" if step.duration_s else ""
+    judged, corrected = step.error_band_hz, step.band_hz
+    return (
+        f"iterate a drive until the {step.response.replace('_', ' ')} matches {step.target}{channel}{cut}"
+        f" in {judged[0]:g}-{judged[1]:g} Hz (corrected in {corrected[0]:g}-{corrected[1]:g} Hz):"
+        f" {step.identification} identification at {step.identification_rms_mm:g} mm rms for"
+        f" {step.identification_s:g} s, then at most {step.max_iterations} iterations (gain {step.gain:g})"
+        f" to below {step.rms_error_pct:g} % rms error, on {step.mean_mm:g} mm"
+    )
+
+
 def _hammer_text(step: HammerTest) -> str:
     return f"{step.blows} blows, trigger {step.trigger_level_n:g} N, {step.capture_s:g} s captures"
 
@@ -92,6 +106,7 @@ RUN_DESCRIPTIONS: dict[RunKind, Callable[[Any], str]] = {
     RunKind.SWEEP: _sweep_text,
     RunKind.TRACKED_DWELL: _tracked_dwell_text,
     RunKind.ROAD_REPLAY: _road_replay_text,
+    RunKind.DRIVE_ITERATION: _drive_iteration_text,
     RunKind.HAMMER: _hammer_text,
 }
 

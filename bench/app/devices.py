@@ -82,6 +82,7 @@ def open_bench(
                 specimen_mounted=config.specimen.wheel_fitted,
                 tyre_model=config.specimen.tyre_model,
                 nonlinear=config.specimen.nonlinear,
+                damper_nonlinear=config.specimen.damper_nonlinear,
                 aux_roles=tuple(a.channel.role for a in config.aux),
                 register_map=config.actuator.register_map,
             )

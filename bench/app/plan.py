@@ -16,7 +16,8 @@ from pathlib import Path
 
 from bench.config import BenchConfig, load_bench_config
 from bench.dry_run import dry_run
-from bench.engine.contracts import PlannedDrive
+from bench.engine.contracts import PlannedDrive, PlannedIteration
+from bench.iteration_plan import load_iterations, with_checks
 from bench.replay_drive import load_drives
 from sequences import Sequence, dump_sequence, load_sequence, validate
 from sequences.metadata import merged
@@ -31,14 +32,15 @@ class CampaignPlan:
     """A validated sequence on a configured bench, with the texts that produced them and the test
     metadata its campaign is recorded with (every field: the configuration's, the sequence's and
     the command line's merged, each key from the last that gives it); ``drives``: each road
-    replay's drive as it was loaded and dry-run, by its step's index (what the engine plays)."""
+    replay's drive as it was loaded and dry-run, and each drive iteration's target with its drives'
+    check, by its step's index (what the engine plays)."""
 
     config: BenchConfig
     config_text: str
     sequence: Sequence
     sequence_text: str
     metadata: Mapping[str, str] = field(default_factory=merged)
-    drives: Mapping[int, PlannedDrive] = field(default_factory=dict)
+    drives: Mapping[int, PlannedDrive | PlannedIteration] = field(default_factory=dict)
 
     def with_metadata(self, given: Mapping[str, str]) -> CampaignPlan:
         """This plan with the fields of ``given`` replacing its own (a front end's operator and
@@ -71,13 +73,16 @@ def plan_sequence(
 ) -> CampaignPlan:
     """Check a sequence built in Python (or loaded) against ``config``: the same validation as a
     sequence file gets, then the dry run. The texts recorded with the campaign default to the
-    sequence and configuration written out as TOML. Road replays' drives are loaded here, once
-    (SequenceError when one cannot be had): the drive dry-run is the drive played."""
+    sequence and configuration written out as TOML. Road replays' drives and drive iterations'
+    targets are loaded here, once (SequenceError when one cannot be had): the drive dry-run is the
+    drive played, and each drive an iteration computes is dry-run by the check the dry run gives."""
     validate(sequence, config.limits, config.channels)
-    drives = load_drives(sequence)
-    refusals = dry_run(sequence, config, drives).refusals
-    if refusals:
-        raise PlanRefusedError("\n".join(str(r) for r in refusals))
+    targets = load_iterations(sequence, config.wfs.rate_hz, config.masses.plate_kg)
+    drives = {**load_drives(sequence), **targets}
+    checked = dry_run(sequence, config, drives)
+    if checked.refusals:
+        raise PlanRefusedError("\n".join(str(r) for r in checked.refusals))
+    drives = with_checks(drives, checked.drive_checks)
     return CampaignPlan(
         config,
         config_text if config_text is not None else config.to_toml(),

@@ -14,10 +14,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bench.analysis.records import WHEEL_CHANNELS, record_channels
 from bench.app.pace import DoneBefore
 from bench.app.plan import CampaignPlan
 from bench.app.resume_check import check_resume
+from bench.engine.contracts import RecordedDrive
 from bench.engine.engine import Engine, is_measurement
+from bench.engine.run_ids import step_run_id
 from bench.store import open_campaign
 from bench.store.writer import check_specimen
 from sequences.runs import RunKind
@@ -27,11 +30,22 @@ class ResumeFromFile:
     """The engine's resume plan, read from the campaign file being resumed."""
 
     def __init__(self, path: Path) -> None:
+        self.path = path
         with open_campaign(path) as campaign:
             self._runs = {
                 run.run_id: (run.status, run.completed_point_indices(), run.n_samples)
                 for run in campaign.runs
             }
+
+    def recorded_drive(self, run_id: str) -> RecordedDrive | None:
+        if not self.run_complete(run_id):
+            return None
+        with open_campaign(self.path) as campaign:
+            (run,) = [r for r in campaign.runs if r.run_id == run_id]
+            if run.kind != RunKind.DRIVE_ITERATION:
+                return None
+            record = run.road_replay_record()
+            return RecordedDrive(dict(run.drive), record_channels(record, WHEEL_CHANNELS, min_samples=64))
 
     def run_complete(self, run_id: str) -> bool:
         return run_id in self._runs and self._runs[run_id][0] == "complete"
@@ -59,7 +73,7 @@ def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFrom
     if existing is not None:
         with open_campaign(out_path) as campaign:
             check_specimen(out_path, campaign.metadata, plan.metadata)
-    if existing and not resume and existing & _planned_runs(plan):
+    if existing and not resume and {step_run_id(r) for r in existing} & _planned_runs(plan):
         raise ValueError(
             f"{out_path} holds runs of sequence {plan.sequence.name!r} already: resume it (--resume)"
             " or write to another file"
@@ -78,7 +92,9 @@ def check_target(plan: CampaignPlan, out_path: Path, resume: bool) -> ResumeFrom
 
 def sequence_complete(plan: CampaignPlan, statuses: dict[str, str]) -> bool:
     """Whether every run of ``plan``'s sequence is among ``statuses`` (run id -> status of the runs
-    a campaign file holds) and complete."""
+    a campaign file holds) and complete. A drive iteration's step has no run of its own id (its
+    runs are its iterations'): it is never complete here, and a resume lets it find from its runs
+    whether it had stopped."""
     return all(statuses.get(run_id) == "complete" for run_id in _planned_runs(plan))
 
 
@@ -86,7 +102,7 @@ def held_runs(plan: CampaignPlan, out_path: Path) -> set[str]:
     """The runs of ``plan``'s sequence that the campaign file ``out_path`` holds already (none when
     there is no file; StoreError when the file is no campaign file): a new start into it must
     resume them."""
-    return (_run_ids(Path(out_path)) or set()) & _planned_runs(plan)
+    return {step_run_id(r) for r in _run_ids(Path(out_path)) or set()} & _planned_runs(plan)
 
 
 def _planned_runs(plan: CampaignPlan) -> set[str]:

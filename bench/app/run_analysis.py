@@ -45,6 +45,7 @@ from bench.analysis.campaign import (
     RunAnalysis,
     SensorSource,
 )
+from bench.analysis.drive_iteration import IterationResult
 from bench.analysis.flags import FlagCode, flag, flags_of
 from bench.analysis.measurement_compensation import CompensationFilters
 from bench.analysis.records import (
@@ -67,6 +68,7 @@ from bench.analysis.runs import (
 )
 from bench.analysis.tracking import TrackRecord, analyse_track
 from bench.analysis.validation import AnalysisInputError
+from bench.app.iteration_analysis import analyse_iteration_run
 from bench.config import BenchConfig
 from bench.models.parameters import WfsSensor
 from bench.report.text import summary_lines
@@ -98,7 +100,8 @@ class RunInputs:
     is not open (a process of its own): the run's ``run_id``, ``kind`` and ``conditions``, and its
     records: a hammer run's blow (``hammer``); a free run's dwells, or for a dwell grid the dwells
     of every complete grid of the campaign at its tyre pressure (``dwells``); a four-post sweep
-    (``sweep``); a tracked dwell's looks (``track``); a road replay (``replay``). ``read_error``: why
+    (``sweep``); a tracked dwell's looks (``track``); a road replay (``replay``; a drive
+    iteration's run too, with its ``step`` and ``drive`` as recorded). ``read_error``: why
     the records could not be read (the analysis is then flagged). ``notes``: what the run's events
     say that its analysis must say too (the frames it lost on the WFS link, the limits it reached)."""
 
@@ -110,6 +113,8 @@ class RunInputs:
     sweep: SweepRecord | None = None
     track: TrackRecord | None = None
     replay: RoadReplayRecord | None = None
+    step: dict[str, Any] = dataclasses.field(default_factory=dict)
+    drive: dict[str, Any] = dataclasses.field(default_factory=dict)
     read_error: str = ""
     notes: tuple[str, ...] = ()
 
@@ -195,6 +200,12 @@ def _read_road_replay(run: RunView, campaign: CampaignFile, inputs: RunInputs) -
     return dataclasses.replace(inputs, replay=run.road_replay_record())
 
 
+def _read_drive_iteration(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
+    return dataclasses.replace(
+        inputs, replay=run.road_replay_record(), step=dict(run.step), drive=dict(run.drive)
+    )
+
+
 #: What the analysis of each kind of run reads from its campaign file (one entry per kind:
 #: tests/test_run_kind_tables.py).
 INPUT_READERS: dict[RunKind, Callable[[RunView, CampaignFile, RunInputs], RunInputs]] = {
@@ -204,6 +215,7 @@ INPUT_READERS: dict[RunKind, Callable[[RunView, CampaignFile, RunInputs], RunInp
     RunKind.SWEEP: _read_sweep,
     RunKind.TRACKED_DWELL: _read_track,
     RunKind.ROAD_REPLAY: _read_road_replay,
+    RunKind.DRIVE_ITERATION: _read_drive_iteration,
 }
 
 
@@ -359,6 +371,26 @@ class RunAnalyser:
             results[f"octave_rms_error_{name}_n"] = list(errors.octave_rms_n)
         return AnalysisKind.ROAD_REPLAY, result.summary_lines(), results
 
+    def _drive_iteration(self, run: RunInputs) -> Analysed:
+        """One run of a drive iteration: the identification's drive and response, or a drive's
+        response against the target (:func:`bench.app.iteration_analysis.analyse_iteration_run`)."""
+        if run.replay is None:
+            raise ValueError("no drive iteration record was read for this run")
+        analysed = analyse_iteration_run(run.run_id, run.replay, run.step, run.drive)
+        if isinstance(analysed, IterationResult):
+            self.knowledge.drive_iterations[run.run_id] = analysed
+            results = {
+                "iteration": analysed.iteration,
+                "rms_error_pct": analysed.rms_error_pct,
+                "octave_error_pct": list(analysed.octave_error_pct),
+                "damage_ratio": analysed.damage_ratio,
+                "in_band_pct": analysed.in_band_pct,
+                "stop_rules_met": analysed.stop_rules_met,
+            }
+            return AnalysisKind.DRIVE_ITERATION, analysed.summary_lines(), results
+        lines, results = analysed
+        return AnalysisKind.IDENTIFICATION, lines, results
+
     def _replay_compensation(self, run: RunInputs) -> tuple[CompensationFilters | None, str]:
         """The model compensation of a road replay at its rate, as ``wfsbench compensate`` builds it
         from the campaign, or None and why there is none."""
@@ -437,6 +469,7 @@ ANALYSES: dict[RunKind, Callable[[RunAnalyser, RunInputs], Analysed]] = {
     RunKind.SWEEP: RunAnalyser._four_post,
     RunKind.TRACKED_DWELL: RunAnalyser._track,
     RunKind.ROAD_REPLAY: RunAnalyser._road_replay,
+    RunKind.DRIVE_ITERATION: RunAnalyser._drive_iteration,
 }
 
 

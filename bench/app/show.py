@@ -28,6 +28,7 @@ from bench.report.metadata import metadata_lines
 from bench.store import CampaignFile, RunView, StoreError, open_campaign
 from bench.store.schema import CampaignInUseError, campaign_key
 from sequences import (
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -147,6 +148,11 @@ def _no_excitation(step: HammerTest | RoadReplay) -> Excitation:
     return [], None
 
 
+def _iteration_excitation(step: DriveIteration) -> Excitation:
+    """A drive computed from the rig's response: no amplitude stated, the band it is matched in."""
+    return [], [float(step.band_hz[0]), float(step.band_hz[1])]
+
+
 #: The excitation each kind of run's step states (tests/test_run_kind_tables.py: every kind is here).
 EXCITATIONS: dict[RunKind, Callable[[Any], Excitation]] = {
     RunKind.DWELL_GRID: _dwells_excitation,
@@ -154,6 +160,7 @@ EXCITATIONS: dict[RunKind, Callable[[Any], Excitation]] = {
     RunKind.SWEEP: _sweep_excitation,
     RunKind.TRACKED_DWELL: _tracked_dwell_excitation,
     RunKind.ROAD_REPLAY: _no_excitation,
+    RunKind.DRIVE_ITERATION: _iteration_excitation,
     RunKind.HAMMER: _no_excitation,
 }
 
@@ -205,7 +212,8 @@ def _run(run: RunView) -> dict[str, Any]:
         "gaps": sum(e.kind == "gap" for e in run.events),
         "resumes": run.resumes,
         "resumed_by": run.resumed_by,
-        "drive": dict(run.drive) or None,
+        # a drive iteration's drive samples stay in the file (wfsbench export --format drive)
+        "drive": {k: v for k, v in run.drive.items() if k != "samples_mm"} or None,
         "analyses": [{"name": name, "stored": run.result_stored(name) or None} for name in run.result_names],
     }
 

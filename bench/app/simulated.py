@@ -67,6 +67,7 @@ class SimulatedLabSettings:
     specimen_mounted: bool = True
     tyre_model: int | None = None
     nonlinear: bool = True
+    damper_nonlinear: bool = False
     wheel_speed_rad_s: float = 0.0
     aux_roles: tuple[Role, ...] = tuple(a.channel.role for a in DEFAULT_AUX_INPUTS)
     register_map: Path | None = None
@@ -93,6 +94,7 @@ class SimulatedLab:
             specimen_mounted=s.specimen_mounted,
             model=TyreModel(s.tyre_model) if s.tyre_model is not None else None,
             nonlinear=s.nonlinear,
+            damper_nonlinear=s.damper_nonlinear,
         )
         self.operator = SimulatedOperator(self.world)
         # paced, the link stands in for real hardware: a host that stops reading overruns the

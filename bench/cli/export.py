@@ -16,7 +16,7 @@ from pathlib import Path
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode, unreadable_file_code
 
-FORMATS = ("mdf4", "uff58", "csv", "rpc3")
+FORMATS = ("mdf4", "uff58", "csv", "rpc3", "drive")
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -61,6 +61,13 @@ def export(path: Path, fmt: str, out: Path, run_id: str | None, *, reanalyse: bo
             from bench.export.rpc3 import write_rpc3
 
             return [f"rpc3 {p}" for p in write_rpc3(runs, out)]
+        if fmt == "drive":
+            from bench.export.drive_files import final_runs, write_drive_files
+
+            chosen = runs if run_id else final_runs(runs)
+            if not chosen:
+                raise ExportError(f"{path}: no drive iteration's drive to write")
+            return [f"drive {p}" for p in write_drive_files(chosen, out)]
         ids, created = {run.run_id for run in runs}, campaign.created
     return _export_uff58(path, out, run_id, ids, created, reanalyse=reanalyse)
 
@@ -90,12 +97,15 @@ def add_export_command(sub: argparse._SubParsersAction) -> None:
     """Add ``export`` to the ``wfsbench`` subcommands."""
     parser = sub.add_parser(
         "export",
-        help="write a campaign file's channels or FRFs as MDF4, UFF 58, CSV or RPC III (docs/export.md)",
+        help="write a campaign file's channels, FRFs or drives as MDF4, UFF 58, CSV or RPC III"
+        " (docs/export.md)",
         description="Export a campaign file: mdf4 (every channel of the runs with units, roles,"
         " conditions and the campaign's metadata; one file), uff58 (the dwell and sweep FRFs of the"
         " analysis, raw and compensated, with uncertainty or coherence; one file), csv (one file per"
         " run with a units row and the mapping import-csv reads them with; a folder), rpc3 (one MTS"
-        " RPC III time history per run; a folder). An existing --out is never replaced.",
+        " RPC III time history per run; a folder), drive (a drive iteration's drive as drive files a"
+        " road replay plays, RPC III .drv and CSV: of --run, else each iteration's final drive; a"
+        " folder). An existing --out is never replaced.",
     )
     parser.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
     parser.add_argument("--format", required=True, choices=FORMATS, help="the format to write")

@@ -8,7 +8,7 @@ them may take longer than the link's documented timeouts.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -53,6 +53,29 @@ class PlannedDrive:
 
     setpoint: DriveSetpoint
     record: Mapping[str, Any]
+
+
+#: The dry run of one drive on the bench model against the post's limits: the refusals' texts, each
+#: naming the drive's sample and the limit (empty: the drive may be uploaded).
+DriveCheck = Callable[[DriveSetpoint], tuple[str, ...]]
+
+
+@dataclass(frozen=True)
+class PlannedIteration:
+    """A drive iteration as the plan loaded it: the ``target`` of the matched response (its SI
+    unit) at ``sample_rate_hz``, its 95 % half-width ``u95`` (None: the target states none), the
+    broadband ``identification`` drive, the nominal ``plate_mass_kg`` the contact force is computed
+    with on the rig, ``record``: what each of its runs records of it (the target's source and
+    checksum, JSON-able), and ``check``: each drive's dry run (None until the plan has dry-run the
+    sequence; a drive iteration without it is not run)."""
+
+    target: np.ndarray
+    u95: np.ndarray | None
+    sample_rate_hz: float
+    identification: DriveSetpoint
+    plate_mass_kg: float
+    record: Mapping[str, Any]
+    check: DriveCheck | None = None
 
 
 class ControllerStatus(Protocol):
@@ -239,6 +262,15 @@ class Operator(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class RecordedDrive:
+    """A complete run of a drive (a drive iteration's) as the campaign file holds it: its ``drive``
+    attribute and its ``channels`` over the drive (standard names, sample 0 the drive's first)."""
+
+    drive: Mapping[str, Any]
+    channels: Mapping[str, np.ndarray]
+
+
 class ResumePlan(Protocol):
     """What an interrupted campaign already holds, so that a resumed run skips it."""
 
@@ -248,6 +280,11 @@ class ResumePlan(Protocol):
 
     def recorded_samples(self, run_id: str) -> int:
         """The samples the run holds already (0 if it has none): its new samples follow them."""
+        ...
+
+    def recorded_drive(self, run_id: str) -> RecordedDrive | None:
+        """A complete run's drive and its channels over it (None: no such complete run): a resumed
+        drive iteration computes its next drive from the runs before."""
         ...
 
 

@@ -35,6 +35,7 @@ from bench.engine.contracts import (
     Notching,
     Operator,
     PlannedDrive,
+    PlannedIteration,
     ResumePlan,
     RunGate,
 )
@@ -169,7 +170,7 @@ class Engine:
         self._gate: RunGate | None = None  # the sequence under way's run gate
         self._gate_asks = False  # whether a gate's reason is put to the operator instead of stopping
         self._gate_accepted: set[str] = set()  # the gate's reasons the operator chose to go on despite
-        self._drives: Mapping[int, PlannedDrive] = {}  # the sequence under way's road replays' drives
+        self._drives: Mapping[int, PlannedDrive | PlannedIteration] = {}  # what the plan loaded per step
         self.conditions: dict[str, Any] = {}
 
     # -- requests (any thread) ----------------------------------------------------------------
@@ -258,7 +259,7 @@ class Engine:
         resume: ResumePlan | None = None,
         gate: RunGate | None = None,
         gate_asks: bool = False,
-        drives: Mapping[int, PlannedDrive] | None = None,
+        drives: Mapping[int, PlannedDrive | PlannedIteration] | None = None,
     ) -> RunOutcome:
         """Run ``sequence`` to its end or until stopped (refused unless the engine is ready: at rest,
         aborted or finished). Nothing a device raises escapes: it ends the sequence, and the outcome
@@ -353,7 +354,7 @@ class Engine:
             held = RecordedRun()
             if resume is not None:
                 held = RecordedRun(resume.completed_points(run_id), resume.recorded_samples(run_id))
-            self._measure(MeasurementRun(run_id, step, held, self._drives.get(index)))
+            self._measure(MeasurementRun(run_id, step, held, self._drives.get(index), resume))
         else:
             raise RunStoppedError.fail(f"step {index}: {type(step).__name__} is not supported")
 

@@ -53,10 +53,12 @@ class RunRecording:
         *,
         drive: Mapping[str, Any] | None = None,
         before_stream: Callable[[], None] | None = None,
+        keep: tuple[str, ...] = (),
     ) -> None:
         """The recording of ``run``, which goes on after the samples the campaign file holds of it
         already (resume); ``drive``: a road replay's drive as the run records it; ``before_stream``:
-        called once the run has begun, before its stream starts (a road replay's upload)."""
+        called once the run has begun, before its stream starts (a road replay's upload); ``keep``:
+        the recorded channels kept whole beside the displacement (a drive iteration's response)."""
         self.context = context
         self.run_id = run.run_id
         self.step = run.step
@@ -69,6 +71,7 @@ class RunRecording:
         self.elapsed_samples = 0
         self.displacement: list[np.ndarray] = []
         self.seq: list[np.ndarray] = []  # each block's frame counters, beside its displacement
+        self.kept: dict[str, list[np.ndarray]] = {name: [] for name in keep}
         self._gaps: list[tuple[int, int]] = []  # (run sample a gap came before, frames missing)
         self._subscription = None
         self._last_status_s = -np.inf
@@ -161,6 +164,8 @@ class RunRecording:
         self.context.publish(ev.SamplesRecorded(self.run_id, self.samples, columns, gaps))
         self.displacement.append(np.asarray(columns[self.context.channels.displacement], dtype=float))
         self.seq.append(np.asarray(columns["seq"]))
+        for name, blocks in self.kept.items():
+            blocks.append(np.asarray(columns[name], dtype=float))
         self._gaps.extend((self.samples + index, missing) for index, missing in gaps)
         self.samples += len(block.frames)
         self.elapsed_samples += len(block.frames) + sum(missing for _, missing in gaps)
@@ -185,6 +190,14 @@ class RunRecording:
     def displacement_between(self, start: int, stop: int) -> np.ndarray:
         """The recorded displacement from run sample ``start`` to ``stop``."""
         return self._between(self.displacement, start, stop, float)
+
+    def kept_between(self, name: str, start: int, stop: int) -> np.ndarray:
+        """The kept channel ``name`` from run sample ``start`` to ``stop``."""
+        return self._between(self.kept[name], start, stop, float)
+
+    def frames_lost_between(self, start: int, stop: int) -> int:
+        """The frames the link lost between run samples ``start`` and ``stop``."""
+        return sum(missing for sample, missing in self._gaps if start < sample <= stop)
 
     def seq_between(self, start: int, stop: int) -> np.ndarray:
         """The frame counters of run samples ``start`` to ``stop``."""

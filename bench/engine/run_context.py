@@ -19,16 +19,35 @@ from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl, FramesPresent
 from bench.engine.amplitude_hold import AmplitudeHold
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import Acquisition, Actuator, Notching, PlannedDrive
+from bench.engine.contracts import (
+    Acquisition,
+    Actuator,
+    Notching,
+    PlannedDrive,
+    PlannedIteration,
+    ResumePlan,
+)
 from bench.engine.interlocks import Interlock
 from bench.engine.points import SyncBits
 from bench.engine.states import RunState
 from bench.engine.stops import RunOutcome
 from bench.engine.timing import EngineTiming
-from sequences import DwellGrid, FreeRun, HammerTest, Prompt, RoadReplay, SineDwell, Sweep, TrackedDwell
+from sequences import (
+    DriveIteration,
+    DwellGrid,
+    FreeRun,
+    HammerTest,
+    Prompt,
+    RoadReplay,
+    SineDwell,
+    Sweep,
+    TrackedDwell,
+)
 
 #: A step that records a run.
-MeasurementStep = SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | RoadReplay | HammerTest
+MeasurementStep = (
+    SineDwell | DwellGrid | FreeRun | Sweep | TrackedDwell | RoadReplay | DriveIteration | HammerTest
+)
 
 
 @dataclass(frozen=True)
@@ -43,12 +62,15 @@ class RecordedRun:
 @dataclass(frozen=True)
 class MeasurementRun:
     """One measurement step to run: its run id, its step, what the campaign file holds of it already,
-    and the drive the plan loaded for it (a road replay's; None for any other)."""
+    what the plan loaded for it (a road replay's drive, a drive iteration's target; None for any
+    other), and the resumed campaign's plan (None: not a resume; a drive iteration's runs are its
+    own, ``<run id>-iNN``, which it looks up there)."""
 
     run_id: str
     step: MeasurementStep
     held: RecordedRun = RecordedRun()
-    drive: PlannedDrive | None = None
+    drive: PlannedDrive | PlannedIteration | None = None
+    resume: ResumePlan | None = None
 
 
 class StreamingRun(Protocol):

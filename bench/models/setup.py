@@ -17,6 +17,31 @@ from bench.models.network import MechanicalNetwork
 from bench.models.parameters import Rig, Suspension, Tyre, TyreNonlinearity, WfsSensor, paper_tyre
 
 
+@dataclass(frozen=True, eq=False)
+class DriveDensity:
+    """A broadband drive's one-sided power spectral density ``psd_m2_per_hz`` at ``freq_hz`` (evenly
+    spaced by ``bin_hz``): what a non-linear element is statistically linearised for."""
+
+    freq_hz: np.ndarray
+    psd_m2_per_hz: np.ndarray
+    bin_hz: float
+
+
+#: Welch segment of a drive's density (s): 0.25 Hz bins, fine beside the suspension's resonances.
+DENSITY_SEGMENT_S = 4.0
+
+
+def drive_density(displacement_m: np.ndarray, sample_rate_hz: float) -> DriveDensity:
+    """The Welch density of a drive (its mean removed; Hann segments of :data:`DENSITY_SEGMENT_S`, or
+    a quarter of a shorter drive)."""
+    from scipy.signal import welch
+
+    z = np.asarray(displacement_m, dtype=float)
+    segment = int(min(round(DENSITY_SEGMENT_S * sample_rate_hz), max(z.size // 4, 8)))
+    f, psd = welch(z - np.mean(z), fs=sample_rate_hz, nperseg=segment)
+    return DriveDensity(f, psd, float(f[1] - f[0]))
+
+
 class BenchKind(StrEnum):
     SHAKER = "shaker"  # wheel centre clamped, tyre excited at the contact patch
     QUARTER_CAR = "quarter_car"  # one corner of a vehicle on a four-post bench post
@@ -164,9 +189,57 @@ class BenchSetup:
         balance = brentq(assumed_minus_solved, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
         return law.linearised(self.tyre, freq_eq_hz, balance)
 
-    def operating_network(self, freq_hz: float, amplitude_m: float) -> MechanicalNetwork:
-        """The linear equivalent network at an operating point (the nominal one for linear tyres)."""
-        return self.network(self.linear_tyre(freq_hz, amplitude_m))
+    @property
+    def nonlinear(self) -> bool:
+        """Whether the setup's response depends on its level: a non-linear tyre, or a quarter car's
+        non-linear damper."""
+        damper = self.kind is BenchKind.QUARTER_CAR and self.suspension.damper is not None
+        return self.has_tyre and (self.nonlinearity is not None or damper)
+
+    def operating_network(
+        self, freq_hz: float, amplitude_m: float, density: DriveDensity | None = None
+    ) -> MechanicalNetwork:
+        """The linear equivalent network at an operating point: the tyre linearised there, then a
+        quarter car's damper, for the sine or (``density``) the broadband drive (the nominal network
+        when both are linear)."""
+        tyre = self.linear_tyre(freq_hz, amplitude_m)
+        return self.linear_damper(tyre, freq_hz, amplitude_m, density).network(tyre)
+
+    def linear_damper(
+        self, tyre: Tyre, freq_hz: float, amplitude_m: float, density: DriveDensity | None = None
+    ) -> BenchSetup:
+        """This setup with its quarter car's damper replaced by the equivalent viscous one (with the
+        linear ``tyre``), the balance of the stroke's velocity solved by Brent's method
+        (:class:`~bench.models.parameters.DamperNonlinearity`): for a base sine ``amplitude_m`` at
+        ``freq_hz``, its amplitude ``V = w |z_body - z_hub| amplitude``; for a broadband base drive
+        of ``density``, its rms ``sigma^2 = sum w^2 |z_body - z_hub|^2 G df``. Unchanged without a
+        non-linear damper."""
+        from scipy.optimize import brentq
+
+        suspension = self.suspension
+        if self.kind is not BenchKind.QUARTER_CAR or suspension.damper is None or amplitude_m <= 0:
+            return self
+        gaussian = density is not None
+        if density is not None:
+            f = np.maximum(density.freq_hz, 1e-3)
+            weight = density.psd_m2_per_hz * density.bin_hz
+        else:
+            f, weight = np.array([max(freq_hz, 1e-3)]), np.array([amplitude_m**2])
+
+        def velocity_m_s(assumed_m_s: float) -> float:
+            linear = replace(self, suspension=suspension.linearised(assumed_m_s, gaussian=gaussian))
+            response = linear.network(tyre).frequency_response(f, outputs=("z_body", "z_hub"))
+            stroke = (2 * np.pi * f) ** 2 * np.abs(response["z_body"] - response["z_hub"]) ** 2
+            return float(np.sqrt(np.sum(stroke * weight)))
+
+        knee = suspension.damper.knee_velocity_m_s
+        low = 1e-3 * knee if gaussian else knee  # a Gaussian velocity passes the knee at any rms
+        if velocity_m_s(low) <= low:
+            return replace(self, suspension=suspension.linearised(low, gaussian=gaussian))
+        # the least damping (the high-speed branch) lets the stroke move fastest: an upper bound
+        high = 2.0 * velocity_m_s(1e6 * knee)
+        balance = brentq(lambda v: velocity_m_s(v) - v, low, max(high, 2 * low), rtol=_BALANCE_TOLERANCE)
+        return replace(self, suspension=suspension.linearised(balance, gaussian=gaussian))
 
     def with_tyre(self, tyre: Tyre) -> BenchSetup:
         return replace(self, tyre=tyre)

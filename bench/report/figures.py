@@ -29,6 +29,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.drive_iteration import by_step
 from bench.analysis.frf import Frf, ValidBand
 from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
 from bench.analysis.runs import (
@@ -41,6 +42,7 @@ from bench.analysis.runs import (
 from bench.analysis.shaker_models import shaker_response
 from bench.models.parameters import WfsSensor
 from bench.report.axes import DPI, frequency_axes, new_figure
+from bench.report.iteration_figures import drive_iteration_figure
 from bench.report.replay_figures import road_replay_figure
 
 #: Points of a model curve over the measured band.
@@ -550,7 +552,20 @@ def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[
                 lambda r=run_id, x=replay: road_replay_figure(r, x),
             )
         )
+    for step_run_id, runs in by_step(k.drive_iterations).items():
+        results = [result for _, result in runs]
+        out.append(
+            (
+                f"drive_iteration_{step_run_id}",
+                f"Drive iteration {step_run_id}",
+                "The rms error of the matched response against the target per iteration (and the share"
+                " of samples inside the target's 95 % band), the damage ratio rig / road per iteration"
+                " (the band 0.9-1.1 shaded), and the target and the last response overlaid.",
+                lambda r=step_run_id, x=results: drive_iteration_figure(r, x),
+            )
+        )
     return out
+
 
 
 def write_figures(analysis: CampaignAnalysis, out_dir: Path) -> list[FigureFile]:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.campaign import CampaignAnalysis, SensorSource
+from bench.analysis.drive_iteration import IterationResult, by_step
 from bench.analysis.flags import flags_of
 from bench.analysis.frf import ValidBand
 from bench.analysis.hammer import HammerResult
@@ -266,6 +267,43 @@ def road_replay_json(run_id: str, result: RoadReplayResult) -> dict[str, Any]:
     }
 
 
+def drive_iterations_json(results: dict[str, IterationResult]) -> list[dict[str, Any]]:
+    """Each drive iteration (by its step's run id), its iterations in order: per iteration its run,
+    drive checksum and errors; ``rms_error_pct`` again as one list over the iterations."""
+    out = []
+    for step_run_id, runs in by_step(results).items():
+        first = runs[0][1]
+        iterations = [
+            {
+                "run_id": run_id,
+                "iteration": r.iteration,
+                "drive_crc32": r.drive_crc32,
+                "rms_error_pct": r.rms_error_pct,
+                "octave_error_pct": list(r.octave_error_pct),
+                "in_band_pct": r.in_band_pct,
+                "damage_ratio": r.damage_ratio,
+                "target_rms": r.target_rms,
+                "error_rms": r.error_rms,
+                "stop_rules_met": r.stop_rules_met,
+            }
+            for run_id, r in runs
+        ]
+        out.append(
+            {
+                "step_run_id": step_run_id,
+                "response": first.response,
+                "unit": first.unit,
+                "target": first.target_source,
+                "error_band_hz": list(first.band_hz),
+                "octave_centres_hz": list(OCTAVE_CENTRES_HZ),
+                "sn_exponent": first.sn_exponent,
+                "rms_error_pct": [i["rms_error_pct"] for i in iterations],
+                "iterations": iterations,
+            }
+        )
+    return out
+
+
 def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | None = None) -> dict[str, Any]:
     """The whole analysis as a JSON-ready mapping; ``results_names``: run id -> the name its
     results were stored under (from :func:`~bench.app.analyze.store_reanalysis`)."""
@@ -294,6 +332,7 @@ def analysis_json(analysis: CampaignAnalysis, results_names: dict[str, str] | No
         "shaker": [shaker_json(p, r) for p, r in sorted(k.shaker.items())],
         "four_post": None if k.four_post is None else four_post_json(k.four_post),
         "road_replays": [road_replay_json(run_id, r) for run_id, r in k.road_replays.items()],
+        "drive_iterations": drive_iterations_json(k.drive_iterations),
         "runs": [
             {
                 "run_id": run.run_id,

@@ -30,8 +30,9 @@ from sequences.toml_text import load_toml, toml_error_where
 
 #: The kinds of run a CSV export can hold: a tracked dwell's track is the engine's looks at its
 #: resonance, which no acquisition system's CSV carries; a road replay's drive (its source and
-#: checksum) neither.
-IMPORTED_KINDS = tuple(kind for kind in RUN_KINDS if kind not in (RunKind.TRACKED_DWELL, RunKind.ROAD_REPLAY))
+#: checksum) neither, nor a drive iteration's drives and target.
+_NOT_IMPORTED = (RunKind.TRACKED_DWELL, RunKind.ROAD_REPLAY, RunKind.DRIVE_ITERATION)
+IMPORTED_KINDS = tuple(kind for kind in RUN_KINDS if kind not in _NOT_IMPORTED)
 
 SWEEP_LAWS = ("linear", "log")
 #: A run's own keys, by kind: the point-wise kinds list their points, a sweep is one file.

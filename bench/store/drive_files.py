@@ -65,7 +65,7 @@ def read_drive_file(path: str | Path, *, channel: str = "", time_column: str = "
 
 
 def _csv(path: Path, channel: str, time_column: str) -> DriveSamples:
-    header, units_row = _csv_header(path)
+    header, units_row = csv_header(path)
     time_column = time_column or header[0]
     if time_column not in header:
         raise DriveFileError(
@@ -95,7 +95,7 @@ def _the_only(names: list[str], where: str, what: str) -> str:
     return names[0]
 
 
-def _csv_header(path: Path) -> tuple[list[str], bool]:
+def csv_header(path: Path) -> tuple[list[str], bool]:
     """The CSV file's column names and whether the line under them is a units row."""
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:

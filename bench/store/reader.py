@@ -54,6 +54,7 @@ REQUIRED_CHANNELS = {
     "hammer": (WFS_FORCE,),
     "tracked_dwell": FREE_RUN_CHANNELS,
     "road_replay": WHEEL_CHANNELS,
+    "drive_iteration": WHEEL_CHANNELS,
 }
 _ROOT_TEXT_ATTRS = (
     "software_version",
@@ -559,9 +560,9 @@ class RunView:
         )
 
     def road_replay_record(self) -> RoadReplayRecord:
-        """The road replay (point 0): the run's channels over the drive, its hold (the part between
-        its tapers) and the drive's source."""
-        self._require(("road_replay",), "road replay record")
+        """The road replay (point 0; a drive iteration's run's drive too): the run's channels over
+        the drive, its hold (the part between its tapers) and the drive's source."""
+        self._require(("road_replay", "drive_iteration"), "road replay record")
         run, p = self._single_point(0)
         fs = run.sample_rate_hz
         hold_s = ((p.hold_start_sample - p.start_sample) / fs, (p.hold_end_sample - p.start_sample) / fs)

@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 from scipy import signal
 
+from bench.models.setup import DriveDensity, drive_density
 from bench.models.taper import taper_envelope
 from drivers.setpoints import equivalent_sine
 
@@ -256,7 +257,8 @@ class SampledDrive:
     has no single frequency): the equivalent sine of the drive, the frequency ``sigma_v / (2 pi
     sigma_z)`` and amplitude ``sqrt(2) sigma_z`` of the sine with the drive's rms displacement and
     rms velocity (:func:`drivers.setpoints.equivalent_sine`), is what :meth:`frequency_hz` and
-    :attr:`amplitude` report.
+    :attr:`amplitude` report. A non-linear damper is linearised statistically for the drive's
+    :attr:`density` (:func:`bench.models.setup.drive_density`).
     """
 
     displacement_m: np.ndarray
@@ -265,6 +267,7 @@ class SampledDrive:
     taper_out_s: float = 1.0
     amplitude: float = field(init=False)
     equivalent_frequency_hz: float = field(init=False)
+    density: DriveDensity = field(init=False)
 
     def __post_init__(self) -> None:
         z = np.asarray(self.displacement_m, dtype=float)
@@ -275,6 +278,7 @@ class SampledDrive:
         amplitude, frequency_hz = equivalent_sine(z, self.sample_rate_hz)
         object.__setattr__(self, "amplitude", amplitude)
         object.__setattr__(self, "equivalent_frequency_hz", frequency_hz)
+        object.__setattr__(self, "density", drive_density(z, self.sample_rate_hz))
 
     @property
     def duration_s(self) -> float:

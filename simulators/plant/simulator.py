@@ -20,7 +20,7 @@ from scipy.signal import lfilter
 
 from bench.models.linear_system import DiscreteSystem, LinearSystem
 from bench.models.network import MechanicalNetwork
-from bench.models.setup import BenchKind, BenchSetup
+from bench.models.setup import BenchKind, BenchSetup, DriveDensity
 from simulators.plant.actuator import LOAD_OUTPUT, Actuator, ServoActuator
 from simulators.plant.excitation import Waveform
 from simulators.plant.sensors import Decimator, SensorRealism, accelerometer_system
@@ -186,7 +186,7 @@ class PlantSimulator:
         return complex(network.frequency_response(freq_hz, outputs=(LOAD_OUTPUT,))[LOAD_OUTPUT][0])
 
     def _operating_solution(
-        self, freq_hz: float, amplitude_m: float
+        self, freq_hz: float, amplitude_m: float, density: DriveDensity | None = None
     ) -> tuple[MechanicalNetwork, float, complex]:
         """Network, valve flow factor and base gain for a sine command at an operating point.
 
@@ -198,17 +198,20 @@ class PlantSimulator:
         same operating point always gives the same solution.
         """
         network = self._nominal_network
-        if self.setup.nonlinearity is not None and self.setup.has_tyre:
+        if self.setup.nonlinear:
             nominal_load = self._load_n_per_m(network, freq_hz)
             nominal_flow = self.actuator.flow_factor(freq_hz, amplitude_m, nominal_load)
             nominal_gain = self.actuator.gain(freq_hz, nominal_load, nominal_flow)
-            network = self.setup.operating_network(freq_hz, abs(nominal_gain) * amplitude_m)
+            network = self.setup.operating_network(freq_hz, abs(nominal_gain) * amplitude_m, density)
         load = self._load_n_per_m(network, freq_hz)
         flow = self.actuator.flow_factor(freq_hz, amplitude_m, load)
         return network, flow, self.actuator.gain(freq_hz, load, flow)
 
-    def set_operating_point(self, freq_hz: float, amplitude_m: float) -> None:
-        """Tell the plant the excitation's frequency and commanded amplitude.
+    def set_operating_point(
+        self, freq_hz: float, amplitude_m: float, density: DriveDensity | None = None
+    ) -> None:
+        """Tell the plant the excitation's frequency and commanded amplitude, and a broadband drive's
+        ``density`` (None: a sine's), for which a non-linear damper is linearised statistically.
 
         A non-linear tyre is linearised for the base amplitude the actuator achieves at that
         frequency, and the servo valve's flow limit becomes its equivalent gain there. A point
@@ -220,13 +223,13 @@ class PlantSimulator:
         if self._hammer or freq_hz <= 0 or amplitude_m <= 0:
             return
         if self._operating_point is not None:
-            current_hz, current_amplitude_m = self._operating_point
+            current_hz, current_amplitude_m, current_density = self._operating_point
             if abs(freq_hz - current_hz) <= _RESCHEDULE_FRACTION * current_hz and (
-                amplitude_m == current_amplitude_m
+                amplitude_m == current_amplitude_m and density is current_density
             ):
                 return
-        self._operating_point = (float(freq_hz), float(amplitude_m))
-        network, flow_factor, _ = self._operating_solution(freq_hz, amplitude_m)
+        self._operating_point = (float(freq_hz), float(amplitude_m), density)
+        network, flow_factor, _ = self._operating_solution(freq_hz, amplitude_m, density)
         if network is not self._network or flow_factor != self._flow_factor:
             self._stepper = self._build_stepper(network, flow_factor)
 
@@ -336,7 +339,7 @@ class PlantSimulator:
         point needs another, as it would after a :meth:`mount`."""
         self._decimator = Decimator(self.oversampling, len(self.channels), filtered=self.realism.decimation)
         self.latency_samples = self._decimator.latency_samples
-        self._operating_point: tuple[float, float] | None = None
+        self._operating_point: tuple[float, float, DriveDensity | None] | None = None
         self._x = np.zeros(len(self._system.states))
         self._u_prev = 0.0
         self.converter_fz_n = np.zeros(0)
@@ -380,7 +383,7 @@ class PlantSimulator:
         moved = np.flatnonzero(np.diff(freqs_hz) != 0) + 1
         blocks: list[dict[str, np.ndarray]] = []
         for first, stop in zip(np.r_[0, moved], np.r_[moved, starts.size], strict=True):
-            self.set_operating_point(freqs_hz[first], waveform.amplitude)
+            self.set_operating_point(freqs_hz[first], waveform.amplitude, getattr(waveform, "density", None))
             blocks.append(self.advance(command[starts[first] : min(starts[stop - 1] + chunk, command.size)]))
         record = {c: np.concatenate([b[c] for b in blocks])[self.latency_samples :] for c in self.channels}
         record["t_s"] = np.arange(n_out) / self.output_rate_hz

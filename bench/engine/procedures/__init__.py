@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from bench.engine.procedures.drive_iteration import run_drive_iteration
 from bench.engine.procedures.dwells import run_dwell_grid, run_dwells
 from bench.engine.procedures.hammer import run_hammer
 from bench.engine.procedures.road_replay import run_road_replay
@@ -31,5 +32,6 @@ PROCEDURES: dict[RunKind, Procedure] = {
     RunKind.SWEEP: run_sweep,
     RunKind.TRACKED_DWELL: run_tracked_dwell,
     RunKind.ROAD_REPLAY: run_road_replay,
+    RunKind.DRIVE_ITERATION: run_drive_iteration,
     RunKind.HAMMER: run_hammer,
 }

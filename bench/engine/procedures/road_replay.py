@@ -35,12 +35,12 @@ def run_road_replay(context: RunContext, run: MeasurementRun) -> None:
     with upload as recording:
 
         def publish(status: str, attempt: int, span: ExcitationSpan) -> None:
-            _publish_drive(context, recording, setpoint, span, status=status, attempt=attempt)
+            publish_drive(context, recording, setpoint, span, status=status, attempt=attempt)
 
         run_one_excitation(context, recording, setpoint, setpoint.duration_s, publish)
 
 
-def _publish_drive(
+def publish_drive(
     context: RunContext,
     recording: RunRecording,
     setpoint: DriveSetpoint,
@@ -49,9 +49,9 @@ def _publish_drive(
     status: str,
     attempt: int,
 ) -> None:
-    """The road replay's one point: its amplitude is the drive's largest sample about the mean,
-    the achieved one the displacement's over the part between the tapers (a drive has no
-    frequency: 0)."""
+    """A drive's one point (a road replay's, a drive iteration's run's): its amplitude is the
+    drive's largest sample about the mean, the achieved one the displacement's over the part between
+    the tapers (a drive has no frequency: 0)."""
     z = recording.displacement_between(span.hold_start, span.hold_end)
     achieved_mm = 1e3 * float(np.max(np.abs(z - np.mean(z)))) if z.size else float("nan")
     achieved = {"achieved_amplitude_mm": achieved_mm}
