@@ -1,10 +1,13 @@
 """The monitor's command line: ``--monitor`` of ``run`` and ``tui`` refused with a clear error
 before anything opens (an address other than loopback without a token, a token without a monitor,
-an address taken), and ``wfsbench monitor FILE`` serving a finished campaign file read-only."""
+an address taken), and ``wfsbench monitor FILE`` serving a campaign file read-only, finished or being
+recorded."""
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -13,9 +16,10 @@ from urllib.parse import urlsplit
 
 import pytest
 
+from bench.store import CampaignWriter
 from tests.commands import ROOT, wfsbench
 from tests.monitor.http import get_json, request
-from tests.waiting import LineReader
+from tests.waiting import LineReader, wait_until
 
 SMOKE = str(ROOT / "sequences" / "files" / "smoke.toml")
 TOKEN = "a-token-of-the-lab-0123456"
@@ -83,6 +87,42 @@ def test_monitor_of_a_campaign_file(smoke_campaign) -> None:
         assert process.wait(30) == 0
         assert "monitor ended" in lines.rest(10)
     finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_monitor_of_a_file_being_recorded_names_its_recorder_and_follows_it_to_the_end(
+    smoke_campaign, tmp_path
+) -> None:
+    """A campaign file a writer holds (as ``run`` holds it while it records: here this process,
+    appending to a copy of the smoke campaign) is shown recording, with the writer's process; once
+    the writer closes, finished."""
+    path = tmp_path / "recording.h5"
+    shutil.copyfile(smoke_campaign, path)
+    writer = CampaignWriter.open_append(path)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "monitor", str(path), "--listen", "127.0.0.1:0"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        lines = LineReader(process.stdout)
+        first = lines.next(60, "the monitor's address")
+        assert first.startswith("monitor: http://127.0.0.1:"), first
+        port = urlsplit(first.split()[1]).port
+        recording = get_json(port)
+        assert recording["state"] == "recording" and f"process {os.getpid()}" in recording["recorder"]
+        assert recording["points_done"] == 8
+        writer.close()
+        wait_until(lambda: get_json(port)["state"] == "finished", 30, "the monitor to see the writer close")
+        assert get_json(port)["recorder"] is None
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(30) == 0
+    finally:
+        writer.close()
         if process.poll() is None:
             process.kill()
             process.wait()

@@ -4,8 +4,9 @@ refused methods, records what the bench records alone: every point done at its f
 frame the link delivered recorded, none missing, no host stall. The viewers run as a process of
 their own (at another computer in a lab; here at a lower priority, as another computer's would not
 take the bench's time) and every reading viewer sees the run's final status. Meanwhile
-``wfsbench monitor`` of the campaign file being recorded says so, with the recording process, and
-then shows it finished with every point."""
+``wfsbench monitor`` watches the campaign file being recorded and then shows it finished with every
+point (its "recording" state, which a run on a busy machine may end before the monitor starts, is
+tested on a file held open: tests/monitor/test_monitor_cli.py)."""
 
 from __future__ import annotations
 
@@ -51,8 +52,7 @@ def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> Non
     out = tmp_path / "smoke.h5"
     with monitored_run(out) as run:
         wait_until(out.exists, 60, "the campaign file created")
-        watcher, watcher_port = file_monitor(out)
-        recording = get_json(watcher_port)
+        watcher, watcher_port = file_monitor(out)  # its "recording" state: test_monitor_cli.py
         viewers = subprocess.run(
             [
                 "nice",
@@ -82,7 +82,6 @@ def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> Non
     finally:
         watcher.terminate()
         watcher.wait(30)
-    assert recording["state"] == "recording" and f"process {run.process.pid}" in recording["recorder"]
     assert (finished["points_done"], finished["points_planned"], finished["recorder"]) == (8, 8, None)
     assert [r["status"] for r in finished["runs"]] == ["complete", "complete", "complete"]
     assert viewers.returncode == 0, viewers.stderr
