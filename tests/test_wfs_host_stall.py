@@ -75,9 +75,6 @@ def test_a_host_stall_overruns_the_paced_link_and_the_lost_frames_are_counted():
     assert runner.error is None
     seq = np.concatenate([b.frames["seq"] for b in blocks]).astype(np.int64)
     missing = sum(b.frames_missing for b in blocks)
-    # the stall lost most of the frames sent meanwhile: all but what the subscription and the port held
-    assert sent_during > STALL_S * 1000 / 4
-    assert missing >= sent_during - QUEUE_FRAMES - TTY_RX_BUFFER_BYTES / FRAME_SIZE - 400
     # counters exact: every frame between the first and the last delivered is delivered or missing
     assert np.all(np.diff(seq) > 0)
     assert len(seq) + missing == seq[-1] - seq[0] + 1
@@ -90,7 +87,11 @@ def test_a_host_stall_overruns_the_paced_link_and_the_lost_frames_are_counted():
     # are what the receive buffer held, and the gap comes with the first frame after the overrun,
     # in that read or the next ones
     (after,) = [i for i, b in enumerate(blocks) if b.unread_s > STALL_S / 2]
-    assert sum(b.frames_missing for b in blocks[after : after + 3]) == missing
+    stall_missing = sum(b.frames_missing for b in blocks[after : after + 3])
+    # the stall lost most of the frames sent meanwhile: all but what the subscription and the port
+    # held (a busy machine's own stalls of more than the port's 64 ms may lose a few more elsewhere)
+    assert sent_during > STALL_S * 1000 / 4
+    assert stall_missing >= sent_during - QUEUE_FRAMES - TTY_RX_BUFFER_BYTES / FRAME_SIZE - 400
     assert blocks[after].arrived_s >= blocks[0].arrived_s + STALL_S / 2
     assert reader.longest_unread_s >= blocks[after].unread_s
     assert reader.last_arrival_s >= blocks[after].arrived_s

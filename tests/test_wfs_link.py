@@ -29,6 +29,9 @@ from simulators.ports import MemoryLink, PtyLink
 from simulators.wfs_device import IDENTITY, WfsDevice
 from tests.waiting import async_wait_until, wait_until
 
+#: The bound of a wait for the controller (wall clock): generous for a loaded machine, never a
+#: measured time (the tapers and ramps are timed on the bench's own clock where they are tested).
+DEADLINE_S = 30.0
 _DWELL_REGISTERS = {
     "waveform": WaveformCode.SINE_DWELL, "amplitude_mm": 1.0, "frequency_hz": 10.0,
     "taper_in_s": 0.2, "taper_out_s": 0.2,
@@ -195,7 +198,7 @@ async def test_frames_carry_the_bench_channels_synchronously_during_a_dwell(setu
         await client.hydraulics_high()
         await client.configure(DwellSetpoint(freq_hz, amplitude_mm, taper_in_s=0.2, taper_out_s=0.2))
         await client.start()
-        await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), 2.0, "the dwell")
+        await async_wait_until(lambda: _state_is(client, ControllerState.RUNNING), DEADLINE_S, "the dwell")
         sub = reader.subscribe(lossless=True)
         await asyncio.to_thread(reader.start_stream)
         n = round((settle_s + cycles / freq_hz) * rate_hz)
