@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.blockwise import moments
 from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
@@ -115,9 +116,8 @@ def compensation_basis(
         raise CompensationRefusedError(
             f"the tyre at {identified_bar:g} bar has no fit at any amplitude (too few dwells)"
         )
-    fz = measurement.channels[WFS_FORCE]
     stiffness = next(iter(shaker.amplitudes.values())).identification.best_fit.tyre.stiffness_n_per_m
-    deflection_m = np.sqrt(2) * np.std(fz) / stiffness
+    deflection_m = np.sqrt(2) * moments(measurement.channels[WFS_FORCE]).std / stiffness
     amplitude = min(shaker.amplitudes, key=lambda a: abs(a - deflection_m))
     chosen = shaker.amplitudes[amplitude]
     fit = chosen.identification.best_fit
@@ -173,7 +173,7 @@ def prepare_compensation(
             f"{measurement.source}: {measurement.n_samples} samples, fewer than the filters'"
             f" {filters.n_taps} taps: nothing could be compensated"
         )
-    offset = float(np.mean(measurement.channels[HUB_ACCELERATION]))
+    offset = moments(measurement.channels[HUB_ACCELERATION]).mean
     return Compensation(measurement, filters, offset, assumptions)
 
 
