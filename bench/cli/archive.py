@@ -73,8 +73,9 @@ def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
 
 
 def _index(args: argparse.Namespace) -> int:
-    from bench.archive.build import InProcess, OnDask, build_index, dask_client
+    from bench.archive.build import build_index
     from bench.archive.store import IndexDirError
+    from bench.cluster import InProcess, OnDask
     from bench.locks import InUseError
 
     roots = [Path(p) for p in args.paths]
@@ -90,8 +91,8 @@ def _index(args: argparse.Namespace) -> int:
             if args.workers == 0 and not args.scheduler:
                 summary = build_index(roots, out, InProcess(), **options)
             else:
-                with dask_client(args.scheduler, args.workers or os.cpu_count() or 1) as client:
-                    summary = build_index(roots, out, OnDask(client), **options)
+                executor = OnDask(args.scheduler, args.workers or os.cpu_count() or 1)
+                summary = build_index(roots, out, executor, **options)
     except IndexDirError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID

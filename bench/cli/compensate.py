@@ -68,16 +68,10 @@ def _measurement(args: argparse.Namespace):
 def _with_stated_chain(measurement, args: argparse.Namespace):
     """The measurement with the chain the command line states beside the one its mapping states
     (both may state a value only when they agree)."""
-    from dataclasses import replace
+    from bench.app.compensate import with_stated_chain
 
-    from bench.store.measurement_chain import MeasurementChain, Stated, merged
-
-    given = MeasurementChain(
-        hub_lag_ms=None if args.hub_lag_ms is None else Stated(args.hub_lag_ms, "--hub-lag-ms"),
-        bandwidth_hz=None if args.bandwidth_hz is None else Stated(args.bandwidth_hz, "--bandwidth-hz"),
-    )
     try:
-        return replace(measurement, chain=merged(measurement.chain, given))
+        return with_stated_chain(measurement, args.hub_lag_ms, args.bandwidth_hz)
     except ValueError as exc:
         raise _StopError(ExitCode.INVALID, f"error: {exc}") from None
 

@@ -1,0 +1,121 @@
+"""Jobs over many files, in this process or on a ``dask.distributed`` cluster (``wfsbench index``,
+``wfsbench compensate`` over folders).
+
+A job cuts its files into batches of plain values (paths and what was seen of them: they pickle,
+never an open file) and hands them with its work function to an executor, which yields each
+batch's results as they are done (in any order):
+
+- :class:`InProcess`: one batch after another in this process: no cluster to start;
+- :class:`OnDask`: each batch a task on a cluster, the scheduler at an address or a local cluster
+  of one-thread processes started for the job; at most :data:`TASKS_IN_FLIGHT_PER_WORKER` tasks
+  per worker at once, each result released once taken, so the client holds the batches under way,
+  not the job. The cluster is started (or the scheduler connected) only when the first batch
+  exists: a job with nothing to do starts no worker.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
+#: Tasks in flight per worker: it always has the next one, and the client holds few results.
+TASKS_IN_FLIGHT_PER_WORKER = 2
+
+Item = TypeVar("Item")
+Result = TypeVar("Result")
+
+
+class Executor(Protocol):
+    """Runs ``work`` on each batch of ``batches``, yielding each batch's results as it is done."""
+
+    def run(
+        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+    ) -> Iterator[list[Result]]: ...
+
+
+class InProcess:
+    """Every batch in this process, one after another: no cluster to start (small jobs)."""
+
+    def run(
+        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+    ) -> Iterator[list[Result]]:
+        for batch in batches:
+            yield work(batch)
+
+
+class OnDask:
+    """Each batch a ``dask.delayed`` task on the cluster of ``scheduler`` (``tcp://host:8786``), or
+    without one on a local cluster of ``workers`` processes started for the job; or on the cluster
+    of an open ``client``. ``started``: whether a cluster was started or connected."""
+
+    def __init__(self, scheduler: str | None = None, workers: int = 1, client: Client | None = None) -> None:
+        self.scheduler, self.workers, self.client = scheduler, workers, client
+        self.started = False
+
+    def run(
+        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+    ) -> Iterator[list[Result]]:
+        first = next(batches, None)
+        if first is None:
+            return  # nothing to do: no cluster
+        self.started = True
+        with self._client() as client:
+            yield from _on(client, work, first, batches)
+
+    def _client(self) -> contextlib.AbstractContextManager[Client]:
+        if self.client is not None:
+            return contextlib.nullcontext(self.client)
+        return dask_client(self.scheduler, self.workers)
+
+
+def _on(
+    client: Client, work: Callable[[list[Item]], list[Result]], first: list[Item], rest: Iterator[list[Item]]
+) -> Iterator[list[Result]]:
+    from dask import delayed
+    from dask.distributed import as_completed
+
+    workers = max(1, len(client.scheduler_info(n_workers=-1)["workers"]))
+    limit = TASKS_IN_FLIGHT_PER_WORKER * workers
+    running = as_completed()
+    for batch in itertools.chain([first], rest):
+        running.add(client.compute(delayed(work, pure=False)(batch)))
+        while running.count() >= limit:
+            yield _take(next(running))
+    for future in running:
+        yield _take(future)
+
+
+def _take(future: Any) -> list[Any]:
+    outcomes = future.result()
+    future.release()
+    return outcomes
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
+    """A client of the ``dask.distributed`` scheduler at ``scheduler`` (``tcp://host:8786``), or,
+    without one, of a local cluster of ``workers`` processes of one thread each on this machine
+    (started here, stopped on leaving)."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        with Client(scheduler) as client:
+            yield client
+        return
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
