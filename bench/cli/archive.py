@@ -21,43 +21,11 @@ from typing import TYPE_CHECKING
 
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode
+from bench.cli.file_progress import FileBar
 
 if TYPE_CHECKING:
-    from bench.archive.build import FileOutcome, IndexSummary
+    from bench.archive.build import IndexSummary
 
-
-
-class _Bar:
-    """A progress bar on standard error while the index runs (files done of those to read so far:
-    the directories are walked as the files are read, so the total grows until the walk ends)."""
-
-    def __init__(self) -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, TimeElapsedColumn
-
-        from bench.app.live_display import progress_display
-
-        self.progress = progress_display(
-            sys.stderr,
-            "indexing",
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            text="{task.fields[problems]}",
-        )
-        self.task = self.progress.add_task("index", total=0, problems="")
-        self.to_read = self.problems = 0
-
-    def listed(self, path: str, *, to_read: bool) -> None:
-        if to_read:
-            self.to_read += 1
-            self.progress.update(self.task, total=self.to_read)
-
-    def done(self, outcome: FileOutcome) -> None:
-        if outcome.error is not None:
-            self.problems += 1
-        self.progress.update(
-            self.task, advance=1, problems=f"{self.problems} not indexed" if self.problems else ""
-        )
 
 
 def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
@@ -84,7 +52,7 @@ def _index(args: argparse.Namespace) -> int:
         print(f"error: no such file or directory: {', '.join(missing)}", file=sys.stderr)
         return ExitCode.INVALID
     out = Path(args.out)
-    bar = _Bar()
+    bar = FileBar("indexing", "not indexed")
     try:
         options = {"verify": args.verify, "reanalyse": args.reanalyse, "progress": bar}
         with bar.progress:

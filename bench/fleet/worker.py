@@ -144,7 +144,7 @@ def _compensated(task: MeasurementTask) -> Row:
     settings = task.settings
     try:
         if FileStat.of(task.path) != task.listed:
-            raise _NotCompensatedError(Status.CHANGING, "changed since it was listed: being written or copied")
+            raise _NotCompensatedError(Status.CHANGING, "changed since it was listed: being written")
         mapping = load_channel_mapping(settings.mapping) if settings.mapping else None
         measurement = read_measurement(task.path, mapping=mapping)
         try:
