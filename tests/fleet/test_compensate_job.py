@@ -21,6 +21,7 @@ import pytest
 
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
+from tests.documented import assert_documented
 from tests.fleet.roads import road_channels, write_csv, write_mdf4
 from tests.waiting import wait_until
 
@@ -222,6 +223,11 @@ def test_a_measurement_larger_than_the_memory_allowed_is_compensated(campaign, r
     )
     whole_mb = n_samples * 8 * 4 / 2**20  # two channels' samples and time stamps, float64
     assert whole_mb > 2 * limit_mb
+    assert_documented(
+        "docs/compensate.md",
+        f"a measurement of {n_samples // 10**6} million samples in a process whose data segment may grow by"
+        f" {limit_mb} MB only (`RLIMIT_DATA`), where reading the record whole needs {whole_mb:.0f} MB",
+    )
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
     def child(mode: str) -> subprocess.CompletedProcess:
