@@ -97,11 +97,23 @@ def _take(future: Any) -> list[Any]:
     return outcomes
 
 
+#: What the local cluster changes of Dask's defaults for its workers (docs/index.md, *Why two workers
+#: gave 0.98x*, measured by ``benchmarks/dask_overhead.py``): no statistical profiler (a thread that
+#: walks the running task's stack every 10 ms, for a dashboard the local cluster does not serve), and
+#: no ``MALLOC_TRIM_THRESHOLD_`` in the workers' environment (setting it also fixes glibc's mmap
+#: threshold, so that every large array is mapped, faulted in and unmapped anew).
+LOCAL_WORKER_SETTINGS = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+}
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
     """A client of the ``dask.distributed`` scheduler at ``scheduler`` (``tcp://host:8786``), or,
     without one, of a local cluster of ``workers`` processes of one thread each on this machine
-    (started here, stopped on leaving)."""
+    (started here with :data:`LOCAL_WORKER_SETTINGS`, stopped on leaving)."""
+    import dask
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
@@ -109,6 +121,7 @@ def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
             yield client
         return
     with (
+        dask.config.set(LOCAL_WORKER_SETTINGS),
         LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
