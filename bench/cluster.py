@@ -7,10 +7,10 @@ batch's results as they are done (in any order):
 
 - :class:`InProcess`: one batch after another in this process: no cluster to start;
 - :class:`OnDask`: each batch a task on a cluster, the scheduler at an address or a local cluster
-  of one-thread processes started for the job; at most :data:`TASKS_IN_FLIGHT_PER_WORKER` tasks
-  per worker at once, each result released once taken, so the client holds the batches under way,
-  not the job. The cluster is started (or the scheduler connected) only when the first batch
-  exists: a job with nothing to do starts no worker.
+  of one-thread processes started for the job (batches are done in this process while it starts);
+  at most :data:`TASKS_IN_FLIGHT_PER_WORKER` tasks per worker at once, each result released once
+  taken, so the client holds the batches under way, not the job. The cluster is started (or the
+  scheduler connected) only when the first batch exists: a job with nothing to do starts no worker.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import contextlib
 import itertools
 import logging
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 if TYPE_CHECKING:
@@ -52,11 +53,25 @@ class InProcess:
 class OnDask:
     """Each batch a ``dask.delayed`` task on the cluster of ``scheduler`` (``tcp://host:8786``), or
     without one on a local cluster of ``workers`` processes started for the job; or on the cluster
-    of an open ``client``. ``started``: whether a cluster was started or connected."""
+    of an open ``client``. ``started``: whether a cluster was started or connected.
 
-    def __init__(self, scheduler: str | None = None, workers: int = 1, client: Client | None = None) -> None:
+    A local cluster takes seconds to start (its processes import Python's numerical stack, then
+    the job's modules): while it starts, the batches are done in this process, and the cluster
+    takes the rest once its workers are up (a job done before that never waits for it).
+    ``before_close``: called with the client once the last batch is done, before a cluster started
+    here stops (a benchmark's look at its workers)."""
+
+    def __init__(
+        self,
+        scheduler: str | None = None,
+        workers: int = 1,
+        client: Client | None = None,
+        before_close: Callable[[Client], None] | None = None,
+    ) -> None:
         self.scheduler, self.workers, self.client = scheduler, workers, client
+        self.before_close = before_close
         self.started = False
+        self.done_here = 0  # batches done in this process while the local cluster started
 
     def run(
         self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
@@ -65,13 +80,34 @@ class OnDask:
         if first is None:
             return  # nothing to do: no cluster
         self.started = True
-        with self._client() as client:
-            yield from _on(client, work, first, batches)
-
-    def _client(self) -> contextlib.AbstractContextManager[Client]:
         if self.client is not None:
-            return contextlib.nullcontext(self.client)
-        return dask_client(self.scheduler, self.workers)
+            yield from _on(self.client, work, first, batches)
+        elif self.scheduler:
+            with dask_client(self.scheduler, self.workers) as client:
+                yield from _on(client, work, first, batches)
+                self._before_close(client)
+        else:
+            yield from self._local(work, first, batches)
+
+    def _local(
+        self, work: Callable[[list[Item]], list[Result]], first: list[Item], rest: Iterator[list[Item]]
+    ) -> Iterator[list[Result]]:
+        """Batches done here while the local cluster starts on a thread, the rest on it."""
+        with contextlib.ExitStack() as stack, ThreadPoolExecutor(1) as starter:
+            starting = starter.submit(lambda: stack.enter_context(dask_client(None, self.workers)))
+            batch: list[Item] | None = first
+            while batch is not None and not starting.done():
+                yield work(batch)
+                self.done_here += 1
+                batch = next(rest, None)
+            client = starting.result()  # a job done meanwhile still closes what started
+            if batch is not None:
+                yield from _on(client, work, batch, rest)
+            self._before_close(client)
+
+    def _before_close(self, client: Client) -> None:
+        if self.before_close is not None:
+            self.before_close(client)
 
 
 def _on(
