@@ -23,7 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 if TYPE_CHECKING:
-    from dask.distributed import Client
+    from dask.distributed import Client, LocalCluster
 
 #: Tasks in flight per worker: it always has the next one, and the client holds few results.
 TASKS_IN_FLIGHT_PER_WORKER = 2
@@ -93,14 +93,18 @@ class OnDask:
         self, work: Callable[[list[Item]], list[Result]], first: list[Item], rest: Iterator[list[Item]]
     ) -> Iterator[list[Result]]:
         """Batches done here while the local cluster starts on a thread, the rest on it."""
+        from dask.distributed import Client
+
         with contextlib.ExitStack() as stack, ThreadPoolExecutor(1) as starter:
-            starting = starter.submit(lambda: stack.enter_context(dask_client(None, self.workers)))
+            starting = starter.submit(lambda: stack.enter_context(local_cluster(self.workers)))
             batch: list[Item] | None = first
             while batch is not None and not starting.done():
                 yield work(batch)
                 self.done_here += 1
                 batch = next(rest, None)
-            client = starting.result()  # a job done meanwhile still closes what started
+            # the client in this thread (it is this thread's current client); a job done meanwhile
+            # still closes what started
+            client = stack.enter_context(Client(starting.result()))
             if batch is not None:
                 yield from _on(client, work, batch, rest)
             self._before_close(client)
@@ -148,14 +152,24 @@ LOCAL_WORKER_SETTINGS = {
 def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
     """A client of the ``dask.distributed`` scheduler at ``scheduler`` (``tcp://host:8786``), or,
     without one, of a local cluster of ``workers`` processes of one thread each on this machine
-    (started here with :data:`LOCAL_WORKER_SETTINGS`, stopped on leaving)."""
-    import dask
-    from dask.distributed import Client, LocalCluster
+    (:func:`local_cluster`, started here, stopped on leaving)."""
+    from dask.distributed import Client
 
     if scheduler:
         with Client(scheduler) as client:
             yield client
         return
+    with local_cluster(workers) as cluster, Client(cluster) as client:
+        yield client
+
+
+@contextlib.contextmanager
+def local_cluster(workers: int) -> Iterator[LocalCluster]:
+    """A local cluster of ``workers`` processes of one thread each on this machine, with
+    :data:`LOCAL_WORKER_SETTINGS` (started here, stopped on leaving)."""
+    import dask
+    from dask.distributed import LocalCluster
+
     with (
         dask.config.set(LOCAL_WORKER_SETTINGS),
         LocalCluster(
@@ -165,6 +179,5 @@ def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
             dashboard_address=None,
             silence_logs=logging.ERROR,
         ) as cluster,
-        Client(cluster) as client,
     ):
-        yield client
+        yield cluster
