@@ -164,7 +164,7 @@ def _processes_started(command: list[str]) -> tuple[int, set[int]]:
     return process.returncode, seen
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_a_rerun_over_unchanged_files_starts_no_worker_of_its_local_cluster(campaign, roads, tmp_path):
     folder, out = tmp_path / "roads", tmp_path / "out"
     folder.mkdir()
@@ -213,7 +213,7 @@ MEMORY_CHILD = textwrap.dedent(
 )
 
 
-@pytest.mark.slow
+@pytest.mark.validation
 def test_a_measurement_larger_than_the_memory_allowed_is_compensated(campaign, roads, tmp_path):
     n_samples, limit_mb = 8_000_000, 120
     minute = road_channels(21, duration_s=60.0)

@@ -23,6 +23,9 @@ from bench.cli.main import main
 from tests.archive.conftest import COPIES, SIMULATED
 from tests.archive_files import copy_campaign, write_archive_campaign
 
+#: Processes of their own, started with Dask's commands, and both jobs twice: the validation tier.
+pytestmark = pytest.mark.validation
+
 #: The summary's columns that do not depend on where and when a file was compensated.
 SUMMARY = (
     "path, size_bytes, mtime_ns, status, error, identification, identified_as, out_hdf5, out_mdf4,"
