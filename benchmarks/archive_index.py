@@ -48,7 +48,8 @@ def _rchar() -> int:
 def measure(mode: str, archive: Path, files: int, out: Path, workers: int, *, first: int = 0) -> dict:
     """One measurement in this (fresh) process: index ``files`` files of ``archive`` from the
     ``first``."""
-    from bench.archive.build import InProcess, OnDask, build_index, dask_client
+    from bench.archive.build import build_index
+    from bench.cluster import InProcess, OnDask, dask_client
 
     roots = sorted(archive.glob("campaign-*.h5"))[first : first + files]
     start, cpu, rchar = time.perf_counter(), time.process_time(), _rchar()
@@ -56,7 +57,7 @@ def measure(mode: str, archive: Path, files: int, out: Path, workers: int, *, fi
     if mode == "dask":
         with dask_client(None, workers) as client:
             started = time.perf_counter()
-            summary = build_index(roots, out, OnDask(client))
+            summary = build_index(roots, out, OnDask(client=client))
             figures["index_s"] = time.perf_counter() - started
             figures["workers_max_rss_mb"] = [
                 rss / 1024

@@ -39,6 +39,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from bench.analysis.blockwise import Record
 from bench.analysis.compensation import ModelCompensator, design_model_compensator
 from bench.analysis.lsq import Z95
 from bench.analysis.shaker_models import RubberTerms
@@ -238,24 +239,23 @@ class CompensationStream:
         self._n_parameters = filters.sensitivity_wfs.shape[1]
 
     def blocks(
-        self, f_wfs: np.ndarray, a_hub: np.ndarray, accelerometer_offset_m_s2: float = 0.0
+        self, f_wfs: Record, a_hub: Record, accelerometer_offset_m_s2: float = 0.0
     ) -> Iterator[CompensatedBlock]:
         """The compensated force of the record ``f_wfs`` (N), ``a_hub`` (m/s^2; less
         ``accelerometer_offset_m_s2``, block by block), in blocks of at most :attr:`hop` samples, in
-        order."""
-        f_wfs, a_hub = np.asarray(f_wfs, dtype=float), np.asarray(a_hub, dtype=float)
-        if f_wfs.shape != a_hub.shape or f_wfs.ndim != 1:
+        order. The records are arrays or records on disk: only each block's window is read."""
+        if f_wfs.shape != a_hub.shape or len(f_wfs.shape) != 1:
             raise AnalysisInputError(f"Fz and hub acceleration differ in shape: {f_wfs.shape}, {a_hub.shape}")
-        if not (np.all(np.isfinite(f_wfs)) and np.all(np.isfinite(a_hub))):
-            raise AnalysisInputError("the measurement holds NaN or infinite samples")
         n, n_taps, latency = f_wfs.size, self.filters.n_taps, self.filters.latency_samples
         first_valid = n_taps - 1 - latency
         for start in range(0, n, self.hop):
             stop = min(start + self.hop, n)
             # stream outputs start + latency ... stop + latency describe instants start ... stop
             lo, hi = start + latency - (n_taps - 1), stop + latency
-            x_a = _window(a_hub, lo, hi, accelerometer_offset_m_s2)
-            force, variance = self._convolve(_window(f_wfs, lo, hi), x_a, hi - lo)
+            x_f, x_a = _window(f_wfs, lo, hi), _window(a_hub, lo, hi, accelerometer_offset_m_s2)
+            if not (np.all(np.isfinite(x_f)) and np.all(np.isfinite(x_a))):
+                raise AnalysisInputError("the measurement holds NaN or infinite samples")
+            force, variance = self._convolve(x_f, x_a, hi - lo)
             index = np.arange(start, stop)
             bad = (index < first_valid) | (index >= n - latency)
             force[bad], variance[bad] = np.nan, np.nan
@@ -275,11 +275,11 @@ class CompensationStream:
         return y[:, 0].copy(), variance + self.filters.noise_variance_n2
 
 
-def _window(x: np.ndarray, lo: int, hi: int, offset: float = 0.0) -> np.ndarray:
+def _window(x: Record, lo: int, hi: int, offset: float = 0.0) -> np.ndarray:
     """``x[lo:hi] - offset`` with zeros where the range leaves ``x`` (before its start, after its
     end: no signal there, offset or not)."""
     out = np.zeros(hi - lo)
     a, b = max(lo, 0), min(hi, x.size)
     if b > a:
-        out[a - lo : b - lo] = x[a:b] - offset
+        out[a - lo : b - lo] = np.asarray(x[a:b], dtype=float) - offset
     return out

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import welch
 
+from bench.analysis.blockwise import Record
 from bench.analysis.fir import STOP_BAND_FACTOR
 from bench.analysis.validation import AnalysisInputError
 
@@ -51,14 +52,14 @@ def estimable(band_hz: tuple[float, float]) -> bool:
     return band_hz[1] - band_hz[0] >= MIN_NOISE_BAND_HZ
 
 
-def white_noise_rms(x: np.ndarray, fs_hz: float, band_hz: tuple[float, float]) -> float:
+def white_noise_rms(x: Record, fs_hz: float, band_hz: tuple[float, float]) -> float:
     """The rms per sample of the white noise whose density ``x`` shows in ``band_hz``: its Welch
     density averaged over the band's bins, ``S``, as ``sqrt(S fs / 2)`` (a white noise of rms
     ``sigma`` has the one-sided density ``2 sigma^2 / fs``). The mean, not the median, of the bins:
     unbiased for noise, and a spectral line only widens the band. The density is averaged over
     blocks of :data:`NOISE_BLOCK` samples, at most :data:`NOISE_MAX_BLOCKS` spread evenly over the
-    record (a last block shorter than a segment is left out), weighted by their length."""
-    x = np.asarray(x, dtype=float)
+    record (a last block shorter than a segment is left out), weighted by their length; only
+    those blocks are read (``x``: an array, or a record on disk read by slice)."""
     lo, hi = band_hz
     if not 0 <= lo < hi <= fs_hz / 2:
         raise AnalysisInputError(f"noise band {lo:g}-{hi:g} Hz does not lie within 0-{fs_hz / 2:g} Hz")
@@ -69,7 +70,7 @@ def white_noise_rms(x: np.ndarray, fs_hz: float, band_hz: tuple[float, float]) -
         np.linspace(0, len(starts) - 1, min(len(starts), NOISE_MAX_BLOCKS)).round().astype(int)
     )
     for start in (starts[i] for i in chosen):
-        block = x[start : start + NOISE_BLOCK]
+        block = np.asarray(x[start : start + NOISE_BLOCK], dtype=float)
         if block.size < n_segment:
             continue
         f, density = welch(block, fs=fs_hz, nperseg=n_segment)

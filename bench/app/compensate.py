@@ -28,13 +28,14 @@ cover is refused, naming it (:class:`CompensationRefusedError`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench.analysis.blockwise import Moments, moments
 from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
@@ -54,7 +55,9 @@ from bench.app.compensation_assumptions import (
     shaker_at,
     valid_band,
 )
+from bench.store.compensated import OutputExistsError
 from bench.store.measurement import Measurement
+from bench.store.measurement_chain import MeasurementChain, Stated, merged
 
 #: Schema and version of ``wfsbench compensate --json`` (docs/compensate.md).
 JSON_SCHEMA = "wfs-bench-compensate"
@@ -115,9 +118,8 @@ def compensation_basis(
         raise CompensationRefusedError(
             f"the tyre at {identified_bar:g} bar has no fit at any amplitude (too few dwells)"
         )
-    fz = measurement.channels[WFS_FORCE]
     stiffness = next(iter(shaker.amplitudes.values())).identification.best_fit.tyre.stiffness_n_per_m
-    deflection_m = np.sqrt(2) * np.std(fz) / stiffness
+    deflection_m = np.sqrt(2) * moments(measurement.channels[WFS_FORCE]).std / stiffness
     amplitude = min(shaker.amplitudes, key=lambda a: abs(a - deflection_m))
     chosen = shaker.amplitudes[amplitude]
     fit = chosen.identification.best_fit
@@ -157,6 +159,19 @@ def compensation_basis(
     return basis, (pressure, lag, bandwidth, noise_wfs, noise_accel, band)
 
 
+def with_stated_chain(
+    measurement: Measurement, hub_lag_ms: float | str | None, bandwidth_hz: float | None
+) -> Measurement:
+    """The measurement with the chain the command line states (``--hub-lag-ms``, ``--bandwidth-hz``;
+    None: not stated) beside the one its mapping states: both may state a value only when they
+    agree (ValueError naming both)."""
+    given = MeasurementChain(
+        hub_lag_ms=None if hub_lag_ms is None else Stated(hub_lag_ms, "--hub-lag-ms"),
+        bandwidth_hz=None if bandwidth_hz is None else Stated(bandwidth_hz, "--bandwidth-hz"),
+    )
+    return replace(measurement, chain=merged(measurement.chain, given))
+
+
 def prepare_compensation(
     analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
 ) -> Compensation:
@@ -173,7 +188,7 @@ def prepare_compensation(
             f"{measurement.source}: {measurement.n_samples} samples, fewer than the filters'"
             f" {filters.n_taps} taps: nothing could be compensated"
         )
-    offset = float(np.mean(measurement.channels[HUB_ACCELERATION]))
+    offset = moments(measurement.channels[HUB_ACCELERATION]).mean
     return Compensation(measurement, filters, offset, assumptions)
 
 
@@ -198,13 +213,18 @@ def _assumption_attributes(assumptions: tuple[Assumption, ...]) -> dict[str, Any
 class CompensationOutput:
     """What ``wfsbench compensate`` did: the ``compensation`` written to ``out`` with the campaign
     file ``campaign`` (its analysis from ``campaign_analysis``), the band's median half-width
-    ``median_u95_n``; as lines of text (:meth:`lines`) or JSON (:meth:`to_json`)."""
+    ``median_u95_n`` and largest ``max_u95_n``, the compensated force's ``force`` moments (mean,
+    spread, peaks), and its MDF 4 copy ``out_mdf4``; as lines of text (:meth:`lines`) or JSON
+    (:meth:`to_json`)."""
 
     compensation: Compensation
     campaign: Path
     campaign_analysis: str
     out: Path
     median_u95_n: float
+    force: Moments = field(default_factory=Moments)
+    max_u95_n: float = math.nan
+    out_mdf4: Path | None = None
 
     def lines(self) -> list[str]:
         filters, basis = self.compensation.filters, self.compensation.filters.basis
@@ -249,12 +269,22 @@ def _finite_or_none(value: float) -> float | None:
 
 
 def write_output(
-    compensation: Compensation, out: Path, *, campaign: Path, campaign_analysis: str = ""
+    compensation: Compensation,
+    out: Path,
+    *,
+    campaign: Path,
+    campaign_analysis: str = "",
+    mdf4: Path | None = None,
+    replace: bool = False,
 ) -> CompensationOutput:
     """Compensate the whole measurement block by block into the HDF5 file ``out``
-    (:func:`bench.store.compensated.write_compensated`); what was done (:class:`CompensationOutput`).
-    ``campaign_analysis``: where the campaign's analysis came from (its stored records, or a refit)."""
+    (:func:`bench.store.compensated.write_compensated`) and, given ``mdf4``, the same series into
+    that MDF 4 file (:mod:`bench.export.compensated_mdf4`) in the same pass; what was done
+    (:class:`CompensationOutput`). ``campaign_analysis``: where the campaign's analysis came from
+    (its stored records, or a refit); ``replace``: older outputs at those paths are replaced (a job's
+    own outputs of an input that changed), else an existing file is refused."""
     from bench.app.version import software_version
+    from bench.export.compensated_mdf4 import CompensatedMdf4
     from bench.store.compensated import write_compensated
 
     filters, basis = compensation.filters, compensation.filters.basis
@@ -282,20 +312,51 @@ def write_output(
         "parameters/values": np.array([basis.value(name) for name in basis.parameters]),
         "parameters/covariance": basis.covariance,
     }
-    u95 = []
+    if mdf4 is not None and mdf4.exists() and not replace:
+        raise OutputExistsError(f"{mdf4}: exists; the output is never replaced (choose another --out)")
+    copy = (
+        None
+        if mdf4 is None
+        else CompensatedMdf4(
+            mdf4,
+            sample_rate_hz=filters.fs_hz,
+            start_s=measurement.start_s,
+            comment=f"wfs-bench {software_version()}: {measurement.source} compensated with {campaign}"
+            f" ({basis.label})",
+        )
+    )
+    u95, force, band = [], Moments(), Moments()
 
     def blocks():
         for block in compensation.blocks():
             u95.append(np.nanmedian(block.u95_n) if np.isfinite(block.u95_n).any() else np.nan)
+            force.add(block.force_n)
+            band.add(block.u95_n)
+            if copy is not None:
+                copy.add(block.start, block.force_n, block.u95_n)
             yield block
 
-    write_compensated(
-        out,
-        n_samples=measurement.n_samples,
-        sample_rate_hz=filters.fs_hz,
-        start_s=measurement.start_s,
-        blocks=blocks(),
-        attributes=attributes,
-        arrays=arrays,
+    try:
+        write_compensated(
+            out,
+            n_samples=measurement.n_samples,
+            sample_rate_hz=filters.fs_hz,
+            start_s=measurement.start_s,
+            blocks=blocks(),
+            attributes=attributes,
+            arrays=arrays,
+            replace=replace,
+        )
+    except BaseException:
+        if copy is not None:
+            copy.discard()
+        raise
+    if copy is not None:
+        try:
+            copy.save(replace=replace)
+        except BaseException:
+            out.unlink(missing_ok=True)  # the outputs come as a pair, or not at all
+            raise
+    return CompensationOutput(
+        compensation, campaign, campaign_analysis, out, float(np.nanmedian(u95)), force, band.maximum, mdf4
     )
-    return CompensationOutput(compensation, campaign, campaign_analysis, out, float(np.nanmedian(u95)))

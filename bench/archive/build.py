@@ -5,11 +5,9 @@ campaign file with what the index holds: a file of the same path, size and modif
 reading was final is not read again (``verify``: every file is hashed, and only one with the same
 SHA-256 is kept); a file that was locked or changing is tried again. The others go, as
 :class:`FileTask` values (a path and what was seen of it: plain data that pickles, never an open
-h5py object), to :func:`index_files` in batches of ``files_per_task``: a ``dask.delayed`` task per
-batch on a ``dask.distributed`` cluster (:class:`OnDask`; :func:`local_cluster` makes one of
-processes on this machine), or one after another in this process (:class:`InProcess`). Only a few
-batches per worker are in flight at once, and each batch's rows are written as it comes back, so
-the client's memory holds the batches under way, not the archive.
+h5py object), to :func:`index_files` in batches of ``files_per_task``, on an executor of
+:mod:`bench.cluster` (a ``dask.distributed`` cluster, or this process); each batch's rows are
+written as it comes back, so the client's memory holds the batches under way, not the archive.
 
 :func:`index_file` is what a worker does with one file, and the only place the file is opened:
 read only, never written. A file whose writer lock is held (a bench records into it,
@@ -19,14 +17,12 @@ is not a campaign or is damaged is listed with its error; nothing stops the run.
 
 from __future__ import annotations
 
-import contextlib
 import enum
-import logging
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from itertools import islice
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Protocol
 
 import h5py
 import pyarrow as pa
@@ -36,14 +32,10 @@ from bench.archive import columns as c
 from bench.archive import store
 from bench.archive.files import FileStat, find_files, sha256_of, within, writer_of
 from bench.archive.rows import Row, campaign_columns, campaign_rows
-
-if TYPE_CHECKING:
-    from dask.distributed import Client
+from bench.cluster import Executor
 
 #: Files a worker indexes per task: enough to make a task's overhead small against its files.
 FILES_PER_TASK = 4
-#: Tasks in flight per worker: it always has the next one, and the client holds few results.
-TASKS_IN_FLIGHT_PER_WORKER = 2
 
 
 class FileStatus(enum.StrEnum):
@@ -189,73 +181,6 @@ def _error(path: str, err: Exception) -> str:
     return text.removeprefix(f"{path}: ")
 
 
-class Executor(Protocol):
-    """Runs :func:`index_files` on batches of tasks, yielding each batch's outcomes as it is done
-    (in any order)."""
-
-    def run(self, batches: Iterator[list[FileTask]]) -> Iterator[list[FileOutcome]]: ...
-
-
-class InProcess:
-    """Every batch in this process, one after another: no cluster to start (small archives)."""
-
-    def run(self, batches: Iterator[list[FileTask]]) -> Iterator[list[FileOutcome]]:
-        for batch in batches:
-            yield index_files(batch)
-
-
-class OnDask:
-    """Each batch a ``dask.delayed`` task on the cluster of ``client``, at most
-    :data:`TASKS_IN_FLIGHT_PER_WORKER` per worker at once; each result released once taken."""
-
-    def __init__(self, client: Client) -> None:
-        self.client = client
-
-    def run(self, batches: Iterator[list[FileTask]]) -> Iterator[list[FileOutcome]]:
-        from dask import delayed
-        from dask.distributed import as_completed
-
-        workers = max(1, len(self.client.scheduler_info(n_workers=-1)["workers"]))
-        limit = TASKS_IN_FLIGHT_PER_WORKER * workers
-        running = as_completed()
-        for batch in batches:
-            running.add(self.client.compute(delayed(index_files, pure=False)(batch)))
-            while running.count() >= limit:
-                yield _take(next(running))
-        for future in running:
-            yield _take(future)
-
-
-def _take(future: Any) -> list[FileOutcome]:
-    outcomes = future.result()
-    future.release()
-    return outcomes
-
-
-@contextlib.contextmanager
-def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
-    """A client of the ``dask.distributed`` scheduler at ``scheduler`` (``tcp://host:8786``), or,
-    without one, of a local cluster of ``workers`` processes of one thread each on this machine
-    (started here, stopped on leaving)."""
-    from dask.distributed import Client, LocalCluster
-
-    if scheduler:
-        with Client(scheduler) as client:
-            yield client
-        return
-    with (
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield client
-
-
 class Progress(Protocol):
     """Told of each file as the index run lists it and as it is done."""
 
@@ -327,7 +252,7 @@ class _Run:
         writer = store.PartWriter(self.out_dir, store.next_generation(self.out_dir))
         tasks = self._tasks()
         batches = iter(lambda: list(islice(tasks, files_per_task)), [])
-        for outcomes in executor.run(batches):
+        for outcomes in executor.run(index_files, batches):
             for outcome in outcomes:
                 self._take(outcome, writer)
         for path, held in self.held.items():

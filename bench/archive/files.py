@@ -38,18 +38,19 @@ class FileStat:
         return cls(st.st_size, st.st_mtime_ns)
 
 
-def find_files(roots: Iterable[Path]) -> Iterator[str]:
+def find_files(roots: Iterable[Path], suffixes: tuple[str, ...] = CAMPAIGN_SUFFIXES) -> Iterator[str]:
     """The absolute paths of the candidates under ``roots`` (directories or files), each once, in
-    the order of a sorted walk of each root in turn."""
+    the order of a sorted walk of each root in turn: under a directory the files named with one of
+    ``suffixes`` (any case), a file given by name whatever its name."""
     seen: set[str] = set()
     for root in roots:
-        for path in _walk(root):
+        for path in _walk(root, suffixes):
             if path not in seen:
                 seen.add(path)
                 yield path
 
 
-def _walk(root: Path) -> Iterator[str]:
+def _walk(root: Path, suffixes: tuple[str, ...]) -> Iterator[str]:
     top = os.path.abspath(root)
     if not os.path.isdir(top):
         yield top
@@ -57,7 +58,7 @@ def _walk(root: Path) -> Iterator[str]:
     for directory, subdirs, names in os.walk(top):
         subdirs.sort()
         for name in sorted(names):
-            if name.lower().endswith(CAMPAIGN_SUFFIXES):
+            if name.lower().endswith(suffixes):
                 yield os.path.join(directory, name)
 
 

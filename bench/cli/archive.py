@@ -21,43 +21,11 @@ from typing import TYPE_CHECKING
 
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode
+from bench.cli.file_progress import FileBar
 
 if TYPE_CHECKING:
-    from bench.archive.build import FileOutcome, IndexSummary
+    from bench.archive.build import IndexSummary
 
-
-
-class _Bar:
-    """A progress bar on standard error while the index runs (files done of those to read so far:
-    the directories are walked as the files are read, so the total grows until the walk ends)."""
-
-    def __init__(self) -> None:
-        from rich.progress import BarColumn, MofNCompleteColumn, TimeElapsedColumn
-
-        from bench.app.live_display import progress_display
-
-        self.progress = progress_display(
-            sys.stderr,
-            "indexing",
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            text="{task.fields[problems]}",
-        )
-        self.task = self.progress.add_task("index", total=0, problems="")
-        self.to_read = self.problems = 0
-
-    def listed(self, path: str, *, to_read: bool) -> None:
-        if to_read:
-            self.to_read += 1
-            self.progress.update(self.task, total=self.to_read)
-
-    def done(self, outcome: FileOutcome) -> None:
-        if outcome.error is not None:
-            self.problems += 1
-        self.progress.update(
-            self.task, advance=1, problems=f"{self.problems} not indexed" if self.problems else ""
-        )
 
 
 def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
@@ -73,8 +41,9 @@ def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
 
 
 def _index(args: argparse.Namespace) -> int:
-    from bench.archive.build import InProcess, OnDask, build_index, dask_client
+    from bench.archive.build import build_index
     from bench.archive.store import IndexDirError
+    from bench.cluster import InProcess, OnDask
     from bench.locks import InUseError
 
     roots = [Path(p) for p in args.paths]
@@ -83,15 +52,15 @@ def _index(args: argparse.Namespace) -> int:
         print(f"error: no such file or directory: {', '.join(missing)}", file=sys.stderr)
         return ExitCode.INVALID
     out = Path(args.out)
-    bar = _Bar()
+    bar = FileBar("indexing", "not indexed")
     try:
         options = {"verify": args.verify, "reanalyse": args.reanalyse, "progress": bar}
         with bar.progress:
             if args.workers == 0 and not args.scheduler:
                 summary = build_index(roots, out, InProcess(), **options)
             else:
-                with dask_client(args.scheduler, args.workers or os.cpu_count() or 1) as client:
-                    summary = build_index(roots, out, OnDask(client), **options)
+                executor = OnDask(args.scheduler, args.workers or os.cpu_count() or 1)
+                summary = build_index(roots, out, executor, **options)
     except IndexDirError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID

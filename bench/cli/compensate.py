@@ -1,7 +1,8 @@
 """``wfsbench compensate``: a measurement's WFS force compensated to the contact force with what a
-campaign identified (docs/compensate.md).
+campaign identified (docs/compensate.md); or many measurements, folders of them, as one job into an
+output folder (docs/compensate.md, *Many measurements*).
 
-Exit codes (:mod:`bench.cli.exit_codes`):
+Exit codes of one measurement (:mod:`bench.cli.exit_codes`):
 
 - OK: compensated, the output (and the filters) written;
 - UNAVAILABLE: a process is writing the campaign file (or a campaign-file measurement);
@@ -11,6 +12,12 @@ Exit codes (:mod:`bench.cli.exit_codes`):
 - REFUSED: the campaign does not cover the measurement (no identification at its tyre pressure,
   a sample rate the filters cannot serve, a channel the measurement lacks); the message names what
   is missing; nothing was written.
+
+Exit codes of a job (several measurements, a folder, or ``--scheduler`` / ``--workers``): OK, the
+summary is written (every file not compensated listed in it with its error, and printed);
+UNAVAILABLE, the scheduler could not be reached or another job writes into the output folder;
+INVALID, a path that does not exist, a campaign file that is no campaign, an output folder that
+cannot be used, or options of one measurement only.
 """
 
 from __future__ import annotations
@@ -47,7 +54,7 @@ def _measurement(args: argparse.Namespace):
 
     try:
         mapping = load_channel_mapping(args.mapping) if args.mapping else None
-        measurement = read_measurement(args.measurement, run_id=args.run_id, mapping=mapping)
+        measurement = read_measurement(args.measurement[0], run_id=args.run_id, mapping=mapping)
     except (MissingChannelError, NotOnTheTyreError) as exc:
         raise _StopError(ExitCode.REFUSED, f"refused: {exc}") from None
     except (MappingError, MeasurementError, StoreError) as exc:
@@ -68,16 +75,10 @@ def _measurement(args: argparse.Namespace):
 def _with_stated_chain(measurement, args: argparse.Namespace):
     """The measurement with the chain the command line states beside the one its mapping states
     (both may state a value only when they agree)."""
-    from dataclasses import replace
+    from bench.app.compensate import with_stated_chain
 
-    from bench.store.measurement_chain import MeasurementChain, Stated, merged
-
-    given = MeasurementChain(
-        hub_lag_ms=None if args.hub_lag_ms is None else Stated(args.hub_lag_ms, "--hub-lag-ms"),
-        bandwidth_hz=None if args.bandwidth_hz is None else Stated(args.bandwidth_hz, "--bandwidth-hz"),
-    )
     try:
-        return replace(measurement, chain=merged(measurement.chain, given))
+        return with_stated_chain(measurement, args.hub_lag_ms, args.bandwidth_hz)
     except ValueError as exc:
         raise _StopError(ExitCode.INVALID, f"error: {exc}") from None
 
@@ -122,7 +123,27 @@ def _check_filters_path(filters: Path) -> None:
         raise _StopError(ExitCode.INVALID, f"error: --filters {filters}: no folder {filters.parent}")
 
 
+def _is_job(args: argparse.Namespace) -> bool:
+    """Whether the command line asks for a job over many measurements: several, a folder, a cluster,
+    or an output that is a folder."""
+    return (
+        len(args.measurement) > 1
+        or any(Path(m).is_dir() for m in args.measurement)
+        or args.scheduler is not None
+        or args.workers is not None
+        or Path(args.out).is_dir()
+    )
+
+
 def _compensate(args: argparse.Namespace) -> int:
+    if _is_job(args):
+        from bench.cli.compensate_job import run_job
+
+        return run_job(args)
+    return _compensate_one(args)
+
+
+def _compensate_one(args: argparse.Namespace) -> int:
     from bench.app.compensate import write_output
     from bench.report.filters import write_filters
     from bench.store.compensated import OutputExistsError
@@ -196,14 +217,35 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         " contact force with the tyre, wheel mass and sensor a campaign identified, with a 95 % band per"
         " sample; write it to an HDF5 file. A measurement the campaign does not cover (its tyre pressure,"
         " its sample rate, a channel) is refused, naming what is missing. Exit codes: 0 done, 3 an input"
-        " cannot be used, 4 refused.",
+        " cannot be used, 4 refused. Given several measurements or folders of them (MDF4 and CSV), or"
+        " --scheduler / --workers, compensate them as one job into the folder --out: one output per"
+        " measurement (HDF5 and MDF4), a Parquet summary of every file, unchanged files not read again,"
+        " on a local Dask cluster or the cluster of --scheduler (exit codes: 0 done, 2 the scheduler or"
+        " the folder is unavailable, 3 an input cannot be used).",
     )
     cmd.add_argument("campaign", help="campaign file (HDF5) whose analysis gives the compensation")
     cmd.add_argument(
         "measurement",
-        help="the measurement: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign file (.h5) with --run",
+        nargs="+",
+        metavar="MEASUREMENT",
+        help="the measurement: MDF4 (.mf4, .mdf), CSV (.csv) or a campaign file (.h5) with --run; or"
+        " several, or folders of MDF4 and CSV measurements (searched recursively): a job",
     )
-    cmd.add_argument("--out", required=True, help="output file (HDF5, docs/compensate.md); never replaced")
+    cmd.add_argument(
+        "--out",
+        required=True,
+        help="output file (HDF5, docs/compensate.md), never replaced; of a job: its output folder",
+    )
+    cmd.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a job on this dask.distributed scheduler (tcp://host:8786)"
+    )
+    cmd.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="a job on a local cluster of N processes (default: the machine's cores); 0: in this process",
+    )
     cmd.add_argument("--run", dest="run_id", metavar="ID", help="the run of a campaign-file measurement")
     cmd.add_argument(
         "--pressure",

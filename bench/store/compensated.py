@@ -49,13 +49,16 @@ def write_compensated(
     blocks: Iterable[CompensatedBlock],
     attributes: Mapping[str, Any],
     arrays: Mapping[str, np.ndarray],
+    replace: bool = False,
 ) -> Path:
     """Write the ``blocks`` of a compensated record of ``n_samples`` at ``sample_rate_hz``, its first
     at ``start_s`` in the measurement's time, to a new
     file at ``path`` with the root ``attributes`` (numbers, strings, pairs of numbers) and the
-    ``arrays`` (``group/name`` -> array: the filters, the parameters and their covariance)."""
+    ``arrays`` (``group/name`` -> array: the filters, the parameters and their covariance).
+    ``replace``: an older output at ``path`` is replaced (a job's own output of an input that
+    changed); else an existing file is refused."""
     path = Path(path)
-    if path.exists():
+    if path.exists() and not replace:
         raise OutputExistsError(f"{path}: exists; the output is never replaced (choose another --out)")
     temporary = temporary_beside(path)
     try:
@@ -88,12 +91,15 @@ def write_compensated(
                 written = stop
             if written != n_samples:
                 raise RuntimeError(f"{written} of {n_samples} samples compensated")
-        try:
-            os.link(temporary, path)  # never over a file that appeared meanwhile
-        except FileExistsError:
-            raise OutputExistsError(
-                f"{path}: exists; the output is never replaced (choose another --out)"
-            ) from None
+        if replace:
+            os.replace(temporary, path)
+        else:
+            try:
+                os.link(temporary, path)  # never over a file that appeared meanwhile
+            except FileExistsError:
+                raise OutputExistsError(
+                    f"{path}: exists; the output is never replaced (choose another --out)"
+                ) from None
     finally:
         temporary.unlink(missing_ok=True)
     return path

@@ -18,9 +18,10 @@ import csv
 import itertools
 import math
 import re
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 import numpy as np
 
@@ -42,6 +43,8 @@ BLOCK_ROWS = 4096
 #: sensor's range, far below where float32 storage and the compensation's sums overflow. A value
 #: beyond is a damaged cell or a wrong unit or scale, never a measurement.
 LARGEST_SI_VALUE = 1e15
+#: Time values checked at a time for an even step (a column kept on disk is read in such blocks).
+TIME_BLOCK = 1 << 18
 
 
 class CsvError(ValueError):
@@ -58,13 +61,14 @@ class CsvError(ValueError):
 @dataclass(frozen=True)
 class CsvTable:
     """One CSV file read: its mapped ``columns`` that it has, by channel name, in SI units
-    (float64), its ``header`` (the columns' names, on line ``header_line``), ``sample_rate_hz``,
+    (float64 arrays, or what the reader's sink keeps: :class:`ColumnSink`), its ``header`` (the
+    columns' names, on line ``header_line``), ``sample_rate_hz``,
     ``start_s``: the time of its first row (its time column's first value; 0 without one)."""
 
     path: Path
     header: tuple[str, ...]
     header_line: int
-    columns: dict[str, np.ndarray]
+    columns: dict[str, Column]
     sample_rate_hz: float
     n_rows: int
     start_s: float = 0.0
@@ -79,14 +83,51 @@ class CsvTable:
         return CsvError(self.path, self.header_line, channel.column, f"missing{why} (the header has: {has})")
 
 
-def read_csv(path: Path, dialect: Dialect, timing: Timing, channels: tuple[ChannelColumn, ...]) -> CsvTable:
+class Column(Protocol):
+    """A column read: sliced like a 1-D array, with a ``size`` (an array, or one kept on disk)."""
+
+    @property
+    def size(self) -> int: ...
+
+    def __getitem__(self, index: slice) -> np.ndarray: ...
+
+
+class ColumnSink(Protocol):
+    """Where the reader puts each column's converted blocks, in order, and what it makes of them."""
+
+    def add(self, channel: str, values: np.ndarray) -> None: ...
+
+    def column(self, channel: str) -> Column: ...
+
+
+class InMemory:
+    """Each column's blocks joined into one array (a file that fits in memory: the import)."""
+
+    def __init__(self) -> None:
+        self._parts: dict[str, list[np.ndarray]] = {}
+
+    def add(self, channel: str, values: np.ndarray) -> None:
+        self._parts.setdefault(channel, []).append(values)
+
+    def column(self, channel: str) -> np.ndarray:
+        return np.concatenate(self._parts.get(channel, [np.empty(0)]))
+
+
+def read_csv(
+    path: Path,
+    dialect: Dialect,
+    timing: Timing,
+    channels: tuple[ChannelColumn, ...],
+    sink: Callable[[], ColumnSink] = InMemory,
+) -> CsvTable:
     """The columns of ``channels`` that the CSV file at ``path`` has, in SI units, with its sample
-    rate (``timing``: a rate, or a time column the file must have)."""
+    rate (``timing``: a rate, or a time column the file must have); each column's blocks go to a
+    new ``sink`` (default: joined in memory)."""
     # a UTF-8 file may start with a byte-order mark (spreadsheet programs write one): not a header
     utf8 = codecs.lookup(dialect.encoding).name == "utf-8"
     try:
         with path.open(newline="", encoding="utf-8-sig" if utf8 else dialect.encoding) as f:
-            return _read(path, f, dialect, timing, channels)
+            return _read(path, f, dialect, timing, channels, sink=sink())
     except OSError as exc:
         raise CsvError(path, None, None, f"cannot be read: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:
@@ -105,7 +146,13 @@ class _Wanted:
 
 
 def _read(
-    path: Path, f: TextIO, dialect: Dialect, timing: Timing, channels: tuple[ChannelColumn, ...]
+    path: Path,
+    f: TextIO,
+    dialect: Dialect,
+    timing: Timing,
+    channels: tuple[ChannelColumn, ...],
+    *,
+    sink: ColumnSink,
 ) -> CsvTable:
     """:func:`read_csv` on the open file ``f``, its data rows read and converted a block at a time."""
     for _ in range(dialect.skip_lines):
@@ -124,7 +171,6 @@ def _read(
         path, header, units, header_line=header_line, units_line=units_line, timing=timing, channels=channels
     )
     data_line = header_line + 1 + dialect.units_row
-    parts: dict[str, list[np.ndarray]] = {w.channel: [] for w in wanted}
     n_rows, blank_line = 0, None
     while rows := list(itertools.islice(reader, BLOCK_ROWS)):
         first_line = data_line + n_rows
@@ -132,40 +178,51 @@ def _read(
             raise CsvError(path, blank_line, None, "a blank line amid the data rows")  # not the file's end
         rows, blank = _rows(path, rows, first_line, len(header))
         blank_line = blank_line or blank
-        problems = []
-        for w in wanted:
-            values = _column(path, [row[w.index] for row in rows], first_line, w.column, dialect.decimal)
-            if isinstance(values, CsvError):
-                problems.append(values)
-                continue
-            converted = values * w.factor
-            beyond = np.flatnonzero(~(np.abs(converted) <= LARGEST_SI_VALUE))
-            if beyond.size:
-                k = beyond[0]
-                problems.append(
-                    CsvError(
-                        path,
-                        first_line + k,
-                        w.column,
-                        f"{rows[k][w.index].strip()!r} is {converted[k]:.3g} in SI units (its unit and scale"
-                        f" applied): beyond +/-{LARGEST_SI_VALUE:g}, no measured value (a damaged cell, or"
-                        " a wrong unit or scale in the mapping)",
-                    )
-                )
-                continue
-            parts[w.channel].append(converted)
-        if problems:
-            raise min(problems, key=lambda e: e.line)
+        converted_columns = _converted(path, rows, first_line, wanted, dialect.decimal)
+        for channel, converted in converted_columns.items():
+            sink.add(channel, converted)
         n_rows += len(rows)
     if not n_rows:
         raise CsvError(path, data_line, None, "no data rows after the header")
-    values = {channel: np.concatenate(arrays) for channel, arrays in parts.items()}
+    values = {w.channel: sink.column(w.channel) for w in wanted}
     if timing.column is None:
         rate, start_s = timing.sample_rate_hz, 0.0
     else:
         time_s = values.pop(_TIME)
-        rate, start_s = _rate_from_time(path, data_line, timing.column, time_s), float(time_s[0])
+        rate, start_s = _rate_from_time(path, data_line, timing.column, time_s), float(time_s[0:1][0])
     return CsvTable(path, tuple(header), header_line, values, rate, n_rows, start_s)
+
+
+def _converted(
+    path: Path, rows: list[list[str]], first_line: int, wanted: list[_Wanted], decimal: str
+) -> dict[str, np.ndarray]:
+    """A block's wanted columns in SI units, or the error of its first bad field (by line)."""
+    problems = []
+    converted_columns: dict[str, np.ndarray] = {}
+    for w in wanted:
+        values = _column(path, [row[w.index] for row in rows], first_line, w.column, decimal)
+        if isinstance(values, CsvError):
+            problems.append(values)
+            continue
+        converted = values * w.factor
+        beyond = np.flatnonzero(~(np.abs(converted) <= LARGEST_SI_VALUE))
+        if beyond.size:
+            k = beyond[0]
+            problems.append(
+                CsvError(
+                    path,
+                    first_line + k,
+                    w.column,
+                    f"{rows[k][w.index].strip()!r} is {converted[k]:.3g} in SI units (its unit and scale"
+                    f" applied): beyond +/-{LARGEST_SI_VALUE:g}, no measured value (a damaged cell, or"
+                    " a wrong unit or scale in the mapping)",
+                )
+            )
+            continue
+        converted_columns[w.channel] = converted
+    if problems:
+        raise min(problems, key=lambda e: e.line)
+    return converted_columns
 
 
 def _without_end_delimiter(fields: list[str], n: int | None) -> list[str]:
@@ -300,20 +357,33 @@ def _column(
     return np.array(parsed)
 
 
-def _rate_from_time(path: Path, first_line: int, column: str, t: np.ndarray) -> float:
+def _rate_from_time(path: Path, first_line: int, column: str, t: Column) -> float:
     """The sample rate of a time column (s), which must step evenly forward: a time that does not
-    come after the one before it, or a step off the mean step, is refused naming its line."""
-    if len(t) < 2:
+    come after the one before it, or a step off the mean step, is refused naming its line. The
+    column is read :data:`TIME_BLOCK` values at a time (with the value before each block)."""
+    n = t.size
+    if n < 2:
         raise CsvError(path, first_line, column, "a time column needs at least two rows")
-    back = np.flatnonzero(np.diff(t) <= 0)
-    if len(back):  # a time that stands or goes back: the line where it does
-        n = int(back[0]) + 1
-        raise CsvError(path, first_line + n, column, f"time {t[n]:g} s does not come after {t[n - 1]:g} s")
-    step = (t[-1] - t[0]) / (len(t) - 1)
-    off = np.flatnonzero(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * abs(step))
-    if step <= 0 or len(off):
-        n = int(off[0]) + 1 if len(off) else 1
-        raise CsvError(
-            path, first_line + n, column, f"time steps unevenly (mean step {step:g} s): not one sample rate"
-        )
+    step = (float(t[n - 1 : n][0]) - float(t[0:1][0])) / (n - 1)
+    for start, steps in _steps(t):
+        back = np.flatnonzero(steps <= 0)
+        if len(back):  # a time that stands or goes back: the line where it does
+            k = int(back[0])
+            before, after = t[start + k : start + k + 2]
+            raise CsvError(
+                path, first_line + start + k + 1, column, f"time {after:g} s does not come after {before:g} s"
+            )
+    for start, steps in _steps(t):
+        off = np.flatnonzero(np.abs(steps - step) > TIME_STEP_TOLERANCE * abs(step))
+        if len(off):
+            k = start + int(off[0]) + 1
+            why = f"time steps unevenly (mean step {step:g} s): not one sample rate"
+            raise CsvError(path, first_line + k, column, why)
     return 1.0 / step
+
+
+def _steps(t: Column) -> Iterator[tuple[int, np.ndarray]]:
+    """The steps of the time column ``t`` from each block's ``start``: ``t[start + k + 1] -
+    t[start + k]``, :data:`TIME_BLOCK` at a time."""
+    for start in range(0, t.size - 1, TIME_BLOCK):
+        yield start, np.diff(np.asarray(t[start : start + TIME_BLOCK + 1], dtype=float))

@@ -15,6 +15,10 @@ What the measurement states of its own chain (its hub accelerometer's lag, its l
 comes with it: the mapping's ``measurement`` table (:mod:`bench.store.measurement_chain`).
 
 A file that lacks a channel is refused naming the channel and what the file has.
+
+An MDF4 or CSV file is read front to back once, block by block, into channels kept on disk
+(:mod:`bench.store.spool`); what follows reads them by slice, so the memory a measurement takes
+does not grow with its length (a campaign file's run, a bench run, is read whole).
 """
 
 from __future__ import annotations
@@ -24,13 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.analysis.blockwise import Record, blocks
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.store.csv_mapping import ChannelColumn, ChannelMapping, Dialect, Timing
 from bench.store.csv_read import LARGEST_SI_VALUE, TIME_STEP_TOLERANCE, CsvError, read_csv
 from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_named
 from bench.store.measurement_chain import MeasurementChain
 from bench.store.reader import open_campaign
+from bench.store.spool import SpooledChannel
 
+#: Bytes of an MDF file asammdf reads at a time (its fragments): a few blocks of samples.
+MDF_FRAGMENT_BYTES = 4 << 20
 #: The channels a compensation reads.
 MEASUREMENT_CHANNELS = (WFS_FORCE, HUB_ACCELERATION)
 #: The time column of a CSV measurement read without a mapping.
@@ -62,7 +70,8 @@ class NotOnTheTyreError(MeasurementError):
 @dataclass(frozen=True)
 class Measurement:
     """``channels`` (``fz_wfs_n`` in N, ``a_hub_m_s2`` in m/s^2) at ``sample_rate_hz`` from
-    ``source`` (the file, and the run); ``tyre_pressure_bar`` when the source records it;
+    ``source`` (the file, and the run): arrays, or channels kept on disk read by slice
+    (:class:`~bench.analysis.blockwise.Record`); ``tyre_pressure_bar`` when the source records it;
     ``start_s``: the time of the first sample in the source's own time (a CSV's time column, an MDF
     file's time stamps; 0 where the source has none), so that a part cut from a longer record keeps
     its place in it; ``chain``: what the source states of its hub accelerometer and logger;
@@ -70,7 +79,7 @@ class Measurement:
 
     source: str
     sample_rate_hz: float
-    channels: dict[str, np.ndarray]
+    channels: dict[str, Record]
     tyre_pressure_bar: float | None = None
     start_s: float = 0.0
     chain: MeasurementChain = field(default_factory=MeasurementChain)
@@ -133,17 +142,24 @@ def read_measurement(
 def _checked(measurement: Measurement) -> Measurement:
     """``measurement``, refused when a channel holds a sample that is not a finite number (a gap,
     an overload marked NaN) or one beyond any measured value (:data:`LARGEST_SI_VALUE`: a damaged
-    value, a wrong unit or scale): naming the channel, how many, and the first."""
+    value, a wrong unit or scale): naming the channel, how many, and the first (read block by
+    block)."""
     for name, x in measurement.channels.items():
-        for bad, what in (
-            (np.flatnonzero(~np.isfinite(x)), "that are not finite numbers"),
-            (np.flatnonzero(np.abs(x) > LARGEST_SI_VALUE), f"beyond +/-{LARGEST_SI_VALUE:g} (SI units)"),
+        for test, what in (
+            (lambda b: ~np.isfinite(b), "that are not finite numbers"),
+            (lambda b: np.abs(b) > LARGEST_SI_VALUE, f"beyond +/-{LARGEST_SI_VALUE:g} (SI units)"),
         ):
-            if bad.size:
-                t_s = measurement.start_s + bad[0] / measurement.sample_rate_hz
+            count, first = 0, None
+            for start, block in blocks(x):
+                bad = np.flatnonzero(test(block))
+                if bad.size and first is None:
+                    first = start + int(bad[0])
+                count += bad.size
+            if first is not None:
+                t_s = measurement.start_s + first / measurement.sample_rate_hz
                 raise MeasurementError(
-                    f"{measurement.source}: {name} has {bad.size} samples {what}, the first at sample"
-                    f" {bad[0]} (t = {t_s:g} s): cut the measurement around them"
+                    f"{measurement.source}: {name} has {count} samples {what}, the first at sample"
+                    f" {first} (t = {t_s:g} s): cut the measurement around them"
                 )
     return measurement
 
@@ -187,7 +203,7 @@ def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
             raise MeasurementError(f"{mapping.path}: time: missing (a CSV measurement needs its sample rate)")
     hint = "" if mapping is not None else _WITHOUT_MAPPING
     try:
-        table = read_csv(path, dialect, timing, columns)
+        table = read_csv(path, dialect, timing, columns, sink=_Spool)
     except CsvError as exc:
         raise MeasurementError(f"{exc}{hint}") from None
     for column in columns:
@@ -199,7 +215,22 @@ def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
     return Measurement(str(path), table.sample_rate_hz, channels, start_s=table.start_s)
 
 
+class _Spool:
+    """The CSV reader's columns kept on disk (:class:`SpooledChannel`)."""
+
+    def __init__(self) -> None:
+        self._columns: dict[str, SpooledChannel] = {}
+
+    def add(self, channel: str, values: np.ndarray) -> None:
+        self._columns.setdefault(channel, SpooledChannel()).append(values)
+
+    def column(self, channel: str) -> SpooledChannel:
+        return self._columns[channel]
+
+
 def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
+    """The MDF file's channels, read fragment by fragment (:data:`MDF_FRAGMENT_BYTES`) into
+    spooled channels in SI units, their time stamps checked to be one time base of one rate."""
     from asammdf import MDF  # only here: it takes a second to import
 
     try:
@@ -207,8 +238,8 @@ def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
     except Exception as exc:  # asammdf raises many kinds for a file it cannot read
         raise MeasurementError(f"{path}: not a readable MDF file: {exc}") from None
     with mdf:
+        mdf.configure(read_fragment_size=MDF_FRAGMENT_BYTES)
         names = sorted(name for name in mdf.channels_db if not name.startswith("$"))
-        signals = {}
         for column in columns:
             if column.column not in mdf.channels_db:
                 raise MissingChannelError(
@@ -221,26 +252,48 @@ def _mdf(path: Path, columns: tuple[ChannelColumn, ...]) -> Measurement:
                     " groups: which one is the measurement's is ambiguous (a file of one measurement"
                     " is needed; of a campaign's MDF4 export: `wfsbench export --run ID` writes one run)"
                 )
-            signals[column.channel] = (column, mdf.get(column.column))
-    times = [signal.timestamps for _, signal in signals.values()]
-    if times[0].size != times[1].size or not np.allclose(times[0], times[1], rtol=0, atol=1e-9):
-        raise MeasurementError(
-            f"{path}: {' and '.join(c.column for c, _ in signals.values())} are not on one time base"
-            " (resample them to one rate first)"
-        )
-    rate = _rate(path, times[0])
-    channels = {
-        name: np.asarray(signal.samples, dtype=float) * _factor(path, column, signal.unit) * column.scale
-        for name, (column, signal) in signals.items()
-    }
-    return Measurement(str(path), rate, channels, start_s=float(times[0][0]))
+        try:
+            return _mdf_spooled(path, mdf, columns)
+        except MeasurementError:
+            raise
+        except Exception as exc:  # a data block asammdf cannot decode: a damaged file
+            raise MeasurementError(f"{path}: its samples cannot be read: {exc}") from None
 
 
-def _rate(path: Path, t: np.ndarray) -> float:
+def _mdf_spooled(path: Path, mdf, columns: tuple[ChannelColumn, ...]) -> Measurement:
+    """The channels of ``columns`` of the open ``mdf``, fragment by fragment, spooled in SI units."""
+    time_s, spooled, factors = SpooledChannel(), {c.channel: SpooledChannel() for c in columns}, {}
+    fragments = zip(*(mdf.iter_get(c.column) for c in columns), strict=True)
+    for signals in fragments:
+        stamps = signals[0].timestamps
+        for column, signal in zip(columns, signals, strict=True):
+            if signal.timestamps.size != stamps.size or not np.allclose(
+                signal.timestamps, stamps, rtol=0, atol=1e-9
+            ):
+                raise MeasurementError(
+                    f"{path}: {' and '.join(c.column for c in columns)} are not on one time base"
+                    " (resample them to one rate first)"
+                )
+            if column.channel not in factors:
+                factors[column.channel] = _factor(path, column, signal.unit) * column.scale
+            spooled[column.channel].append(np.asarray(signal.samples, dtype=float) * factors[column.channel])
+        time_s.append(stamps)
+    rate = _rate(path, time_s)
+    start_s = float(time_s[0:1][0])
+    time_s.close()
+    return Measurement(str(path), rate, dict(spooled), start_s=start_s)
+
+
+def _rate(path: Path, t: SpooledChannel) -> float:
+    """The sample rate of the time stamps ``t``, which must step evenly (read block by block)."""
     if t.size < 2:
         raise MeasurementError(f"{path}: fewer than two samples")
-    step = (t[-1] - t[0]) / (t.size - 1)
-    if step <= 0 or np.any(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * step):
+    step = (t[t.size - 1 : t.size][0] - t[0:1][0]) / (t.size - 1)
+    uneven = step <= 0
+    for start, block in blocks(t):
+        steps = np.diff(np.concatenate([t[start - 1 : start], block]))
+        uneven = uneven or bool(np.any(np.abs(steps - step) > TIME_STEP_TOLERANCE * step))
+    if uneven:
         raise MeasurementError(
             f"{path}: the time stamps step unevenly (mean step {step:g} s): not one sample rate"
         )

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.archive.build import InProcess, build_index
+from bench.archive.build import build_index
+from bench.cluster import InProcess
 from tests.archive_files import ArchiveCampaign, archive_campaign, copy_campaign, write_archive_campaign
 
 #: The simulated campaign: sensor 0001, tyre T1 at 2 bar, on bench 2, with an interlocked grid.

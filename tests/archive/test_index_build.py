@@ -20,10 +20,11 @@ import pyarrow.compute as pc
 import pytest
 
 from bench.archive import store
-from bench.archive.build import FileOutcome, FileStatus, FileTask, InProcess, build_index, index_file
+from bench.archive.build import FileOutcome, FileStatus, FileTask, build_index, index_file
 from bench.archive.files import FileStat
 from bench.archive.store import part_paths, read_index
 from bench.cli.main import main
+from bench.cluster import InProcess
 from tests.archive.conftest import SIMULATED
 from tests.archive_files import archive_campaign, copy_campaign
 

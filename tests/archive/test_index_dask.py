@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import os
 
-from bench.archive.build import dask_client
 from bench.archive.store import read_index
 from bench.cli.main import main
+from bench.cluster import dask_client
 
 
 def test_index_on_a_local_cluster_of_processes_equals_the_one_process_index(

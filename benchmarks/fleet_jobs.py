@@ -1,0 +1,214 @@
+"""Both jobs over many files, in one process against a local Dask cluster, in the same run:
+``wfsbench compensate`` of ``--hours`` distinct one-hour road measurements (MDF4, 1 kHz) and
+``wfsbench index`` of ``--campaigns`` distinct small campaign files; and each job again over its
+unchanged folder, as a user runs it (the command in a fresh interpreter, ``--workers 2``).
+
+The data is made once into ``--dir`` and kept: the paper's campaign at 2.5 bar
+(:mod:`tests.campaign_files`), an hour of class C road at 60 km/h on the paper's quarter car
+(simulated once) made into distinct hours (each its own circular shift of the road and its own
+seeded sensor noise, :func:`distinct_hour`), and the archive's campaigns (:mod:`tests.archive_files`).
+Each measurement runs in a fresh process into a new output folder, so that every figure includes
+the imports and none profits from another's warm caches:
+
+- ``one process``: the baseline, every file read in the job's own process (``--workers 0``);
+- ``dask``: the job as the command runs it with ``--workers``: a local ``dask.distributed`` cluster
+  of that many processes of one thread each (:class:`bench.cluster.OnDask`: started while the job's
+  first files are done in its own process, stopped at its end; all of it in the wall time); the
+  peak memory (resident) of each worker, the processor time of the workers and of the client
+  (scheduler and nannies live in the client's process), the files done in the client meanwhile;
+- ``again``: the command over the folder just done: nothing changed, nothing read, no cluster.
+
+Per file: processor time, wall time, bytes of input; docs/compensate.md and docs/index.md turn
+them into the cost model. The machine is shared: each ratio is against the baseline measured in the
+same run, and the 1-minute load average is printed before and after.
+
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fleet_jobs.py [--hours 40] [--campaigns 200]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+_ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+HOUR_S = 3600.0
+#: The sensor noise each distinct hour adds on its shifted road (rms per sample): the campaign's level.
+NOISE_N, NOISE_M_S2 = 1.0, 0.05
+
+
+def _load() -> float:
+    return float(Path("/proc/loadavg").read_text().split()[0])
+
+
+def distinct_hour(base: dict[str, np.ndarray], i: int) -> dict[str, np.ndarray]:
+    """The ``i``-th distinct hour: the base hour shifted circularly by a seeded offset, with seeded
+    white sensor noise of its own on each channel."""
+    rng = np.random.default_rng(1000 + i)
+    shift = int(rng.integers(base["fz_wfs_n"].size))
+    return {
+        "fz_wfs_n": np.roll(base["fz_wfs_n"], shift) + rng.normal(0, NOISE_N, base["fz_wfs_n"].size),
+        "a_hub_m_s2": np.roll(base["a_hub_m_s2"], shift) + rng.normal(0, NOISE_M_S2, base["a_hub_m_s2"].size),
+    }
+
+
+def prepare(directory: Path, hours: int, campaigns: int) -> None:
+    """The campaign, the hours and the archive in ``directory`` (what exists is kept)."""
+    from tests.archive_files import write_archive
+    from tests.campaign_files import paper_corner_runs, write_campaign
+    from tests.fleet.roads import CAR, road_channels, write_mdf4
+
+    directory.mkdir(parents=True, exist_ok=True)
+    if not (directory / "campaign.h5").exists():
+        partial = write_campaign(directory / "campaign.h5.partial", paper_corner_runs(CAR))
+        partial.rename(directory / "campaign.h5")
+    roads = directory / "roads"
+    roads.mkdir(exist_ok=True)
+    todo = [i for i in range(hours) if not (roads / f"hour-{i:03d}.mf4").exists()]
+    if todo:
+        base_file = directory / "base-hour.npz"
+        if not base_file.exists():
+            np.savez(directory / "base-hour.partial.npz", **road_channels(99, duration_s=HOUR_S))
+            (directory / "base-hour.partial.npz").rename(base_file)
+        base = dict(np.load(base_file))
+        for i in todo:
+            partial = roads / f".hour-{i:03d}.partial.mf4"
+            write_mdf4(partial, distinct_hour(base, i)).rename(roads / f"hour-{i:03d}.mf4")
+    write_archive(directory / "archive", campaigns)
+
+
+def _job(job: str, directory: Path, out: Path, executor):
+    if job == "compensate":
+        from bench.fleet.job import compensate_many, identification
+        from bench.fleet.worker import Settings
+
+        settings = Settings(str(directory / "campaign.h5"), "", pressure_bar=2.5)
+        summary = compensate_many(
+            [directory / "roads"], out, replace(settings, identification=identification(settings)), executor
+        )
+        return summary.statuses
+    from bench.archive.build import build_index
+
+    return build_index([directory / "archive"], out, executor).statuses
+
+
+def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> dict:
+    """One measurement in this (fresh) process."""
+    from bench.cluster import InProcess, OnDask
+
+    start, cpu = time.perf_counter(), time.process_time()
+    figures: dict = {}
+    if mode == "dask":
+
+        def look(client) -> None:
+            """The workers' peak memory and processor time, before the cluster stops."""
+            figures["workers_max_rss_mb"] = sorted(
+                rss / 1024
+                for rss in client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).values()
+            )
+            figures["workers_cpu_s"] = sum(client.run(time.process_time).values())
+
+        executor = OnDask(None, workers, before_close=look)
+        figures["statuses"] = _job(job, directory, out, executor)
+        figures["done_here"] = executor.done_here
+    else:
+        figures["statuses"] = _job(job, directory, out, InProcess())
+    return {
+        **figures,
+        "wall_s": time.perf_counter() - start,
+        "cpu_s": time.process_time() - cpu,
+        "max_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+def run_fresh(job: str, mode: str, directory: Path, out: Path, workers: int) -> dict:
+    command = [sys.executable, __file__, "--measure", job, mode, "--dir", str(directory), "--out", str(out)]
+    done = subprocess.run(
+        [*command, "--workers", str(workers)], capture_output=True, text=True, check=True, env=_ENV
+    )
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def run_again(job: str, directory: Path, out: Path, workers: int) -> float:
+    """The command over the folder it has done, in a fresh interpreter, as a user runs it: wall s."""
+    if job == "compensate":
+        arguments = ["compensate", str(directory / "campaign.h5"), str(directory / "roads")]
+        arguments += ["--pressure", "2.5"]
+    else:
+        arguments = ["index", str(directory / "archive")]
+    start = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-m", "bench.cli", *arguments, "--out", str(out), "--workers", str(workers)],
+        capture_output=True,
+        check=True,
+        env=_ENV,
+    )
+    return time.perf_counter() - start
+
+
+def report(job: str, files: list[Path], runs: dict, workers: int) -> None:
+    """Print a job's figures, each against the one-process baseline measured in the same run."""
+    one, dask, again_s = runs["one"], runs["dask"], runs["again_s"]
+    n, size_bytes = len(files), sum(f.stat().st_size for f in files)
+    what = f"{n} one-hour measurements" if job == "compensate" else f"{n} campaign files"
+    print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {one['statuses']}")
+    print(
+        f"  one process (baseline): {one['wall_s']:.1f} s wall, {one['cpu_s']:.1f} s processor;"
+        f" {one['cpu_s'] / n:.3f} s processor per file; peak memory {one['max_rss_mb']:.0f} MB"
+    )
+    print(
+        f"  local Dask cluster, {workers} processes: {dask['wall_s']:.1f} s wall, its start and stop"
+        f" included: {one['wall_s'] / dask['wall_s']:.2f}x the baseline's speed; processor: workers"
+        f" {dask['workers_cpu_s']:.1f} s, client {dask['cpu_s']:.1f} s ({dask['done_here']} tasks done in"
+        f" it while the cluster started)"
+    )
+    print(f"  peak memory per worker: {', '.join(f'{m:.0f}' for m in dask['workers_max_rss_mb'])} MB")
+    print(f"  again over the unchanged folder (the command, --workers {workers}): {again_s:.2f} s wall")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=int, default=40)
+    parser.add_argument("--campaigns", type=int, default=200)
+    parser.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()) / "wfsbench-fleet")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--jobs", nargs="+", default=["compensate", "index"], choices=["compensate", "index"])
+    parser.add_argument("--measure", nargs=2, help=argparse.SUPPRESS)
+    parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.measure:
+        print(json.dumps(measure(*args.measure, args.dir, args.out, args.workers)))
+        return
+    made = time.perf_counter()
+    prepare(args.dir, args.hours, args.campaigns)
+    print(f"data in {args.dir} (made or found in {time.perf_counter() - made:.0f} s)")
+    print(f"load (1 min) before: {_load():.2f}")
+    work = Path(tempfile.mkdtemp(prefix="fleet-jobs-"))
+    try:
+        for job in args.jobs:
+            files = sorted((args.dir / ("roads" if job == "compensate" else "archive")).iterdir())
+            files = [f for f in files if f.suffix in (".mf4", ".h5") and not f.name.startswith(".")]
+            runs = {
+                "one": run_fresh(job, "one", args.dir, work / f"{job}-one", args.workers),
+                "dask": run_fresh(job, "dask", args.dir, work / f"{job}-dask", args.workers),
+                "again_s": run_again(job, args.dir, work / f"{job}-one", args.workers),
+            }
+            report(job, files, runs, args.workers)
+    finally:
+        shutil.rmtree(work)
+    print(f"\nload (1 min) after: {_load():.2f}")
+
+
+if __name__ == "__main__":
+    main()
