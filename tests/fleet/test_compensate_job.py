@@ -185,8 +185,11 @@ def test_a_rerun_over_unchanged_files_starts_no_worker_of_its_local_cluster(camp
     ]
     code, started = _processes_started(command)
     assert code == 0 and len(started) >= 2  # the first run: its cluster's worker processes, seen
+    first = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
+    assert [status for _, status, _ in first] == ["compensated"], first  # nothing left to try again
     code, started = _processes_started(command)
-    assert code == 0 and started == set()
+    after = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
+    assert code == 0 and started == set(), (first, after)
 
 
 MEMORY_CHILD = textwrap.dedent(

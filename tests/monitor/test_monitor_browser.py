@@ -20,7 +20,7 @@ from tests.monitor.monitored_run import SMOKE_POINTS, monitored_run, recorded
 
 BUSY_HOST = Path(__file__).with_name("files") / "paced_busy_host.toml"
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.validation]
 
 #: The longest the paced smoke run may take here (about 30 s of bench time, busy machine).
 RUN_DEADLINE_S = 180.0

@@ -23,7 +23,7 @@ from tests.monitor.http import get_json
 from tests.monitor.monitored_run import ROOT, assert_untouched, monitored_run, recorded
 from tests.waiting import LineReader, wait_until
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.validation]
 
 VIEWERS_NICENESS = 10
 READERS, SILENT, FLOOD = 19, 1, 400
