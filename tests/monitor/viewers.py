@@ -52,13 +52,18 @@ def read_to_the_end(port: int, results: list) -> None:
 
 
 def flood(port: int, count: int) -> Counter:
-    """``count`` GET requests, :data:`FLOOD_CONCURRENCY` at a time, within :data:`FLOOD_LIMIT_S`."""
+    """``count`` GET requests, :data:`FLOOD_CONCURRENCY` at a time, within :data:`FLOOD_LIMIT_S`: the
+    count of each answer's status (-1: not sent, the time being up; 0: no answer, the connection
+    refused, reset or timed out)."""
     deadline = time.monotonic() + FLOOD_LIMIT_S
 
     def one(i: int) -> int:
         if time.monotonic() > deadline:
             return -1
-        return request(port, "GET", FLOOD_PATHS[i % len(FLOOD_PATHS)])[0]
+        try:
+            return request(port, "GET", FLOOD_PATHS[i % len(FLOOD_PATHS)])[0]
+        except OSError:  # not answered in time, or the connection refused or reset: the flood's own loss
+            return 0
 
     with ThreadPoolExecutor(FLOOD_CONCURRENCY) as pool:
         return Counter(pool.map(one, range(count)))
