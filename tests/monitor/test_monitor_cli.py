@@ -12,6 +12,7 @@ import signal
 import socket
 import subprocess
 import sys
+from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
@@ -56,19 +57,28 @@ def test_an_address_in_use_is_unavailable(tmp_path) -> None:
     assert not (tmp_path / "c.h5").exists()  # nothing was opened or written
 
 
-def test_monitor_of_a_campaign_file(smoke_campaign) -> None:
+def file_monitor(path: Path) -> tuple[subprocess.Popen, LineReader, int]:
+    """``wfsbench monitor PATH`` on a free port of 127.0.0.1: the process, its output's lines after
+    the first (which gives the address, naming the file) and the port."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "bench.cli", "monitor", str(smoke_campaign), "--listen", "127.0.0.1:0"],
+        [sys.executable, "-m", "bench.cli", "monitor", str(path), "--listen", "127.0.0.1:0"],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
+    lines = LineReader(process.stdout)
+    first = lines.next(60, "the monitor's address")
+    if not (first.startswith("monitor: http://127.0.0.1:") and str(path) in first):
+        process.kill()
+        process.wait()
+        raise AssertionError(first)
+    return process, lines, int(urlsplit(first.split()[1]).port or 0)
+
+
+def test_monitor_of_a_campaign_file(smoke_campaign) -> None:
+    process, lines, port = file_monitor(smoke_campaign)
     try:
-        lines = LineReader(process.stdout)
-        first = lines.next(60, "the monitor's address")
-        assert first.startswith("monitor: http://127.0.0.1:") and str(smoke_campaign) in first, first
-        port = urlsplit(first.split()[1]).port
         state = get_json(port)
         assert (state["source"], state["state"], state["recorder"]) == ("file", "finished", None)
         assert (state["points_done"], state["points_planned"]) == (8, 8)
@@ -101,18 +111,8 @@ def test_monitor_of_a_file_being_recorded_names_its_recorder_and_follows_it_to_t
     path = tmp_path / "recording.h5"
     shutil.copyfile(smoke_campaign, path)
     writer = CampaignWriter.open_append(path)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "bench.cli", "monitor", str(path), "--listen", "127.0.0.1:0"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    process, _, port = file_monitor(path)
     try:
-        lines = LineReader(process.stdout)
-        first = lines.next(60, "the monitor's address")
-        assert first.startswith("monitor: http://127.0.0.1:"), first
-        port = urlsplit(first.split()[1]).port
         recording = get_json(port)
         assert recording["state"] == "recording" and f"process {os.getpid()}" in recording["recorder"]
         assert recording["points_done"] == 8
