@@ -114,6 +114,7 @@ def write_analysed_campaign(path: Path, runs: list[StoredRun], config: BenchConf
     store_reanalysis(analyze_campaign(path, keep_records=True))
     return path
 
+
 def paper_corner_runs(car: BenchSetup, *, more_pressures_bar: tuple[float, ...] = ()) -> list[StoredRun]:
     """The paper's procedure for one corner at 2.5 bar: the shaker's free run, the 2.5 bar grids at
     1 / 2 / 5 mm, a 2 mm grid at each of ``more_pressures_bar``, the post's free run and the

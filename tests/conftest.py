@@ -3,6 +3,7 @@ smoke sequence's campaign file."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,12 @@ from sequences.limits import BenchLimits
 from simulators.bench_sim import BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from tests.made_once import made_once
+
+#: The test modules' code as rewritten for pytest's assertions is kept beside them (in __pycache__)
+#: where PYTHONDONTWRITEBYTECODE is set too: each test worker would otherwise rewrite every module
+#: again, 9.5 s of processor time per worker on a 2-core machine (the modules themselves are compiled
+#: by .ci/setup, which also writes this cache once before the suite's first run).
+sys.dont_write_bytecode = False
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

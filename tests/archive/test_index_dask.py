@@ -5,9 +5,14 @@ from __future__ import annotations
 
 import os
 
+import pytest
+
 from bench.archive.store import read_index
 from bench.cli.main import main
 from bench.cluster import dask_client
+
+#: A cluster of processes of its own: with the fleet's jobs on a cluster, in the validation tier.
+pytestmark = pytest.mark.validation
 
 
 def test_index_on_a_local_cluster_of_processes_equals_the_one_process_index(

@@ -11,17 +11,22 @@ from pathlib import Path
 
 import pytest
 
-from tests.campaign_files import paper_corner_runs, write_campaign
+from tests.campaign_files import paper_corner_runs, write_analysed_campaign
 from tests.fleet.roads import CAR, road_channels, write_csv, write_mdf4
+from tests.made_once import made_once
 from tests.waiting import wait_until
 
 DASK = str(Path(sys.executable).with_name("dask"))
 
 
 @pytest.fixture(scope="session")
-def campaign(tmp_path_factory) -> Path:
-    """The paper's procedure at 2.5 bar: free run, grids at 1 / 2 / 5 mm, the four-post sweep."""
-    return write_campaign(tmp_path_factory.mktemp("fleet") / "campaign.h5", paper_corner_runs(CAR))
+def campaign(shared_folder) -> Path:
+    """The paper's procedure at 2.5 bar: free run, grids at 1 / 2 / 5 mm, the four-post sweep, with
+    its analysis stored as the bench stores it after each run (once per test run: read it, do not
+    change it)."""
+    return made_once(
+        shared_folder, "fleet-campaign.h5", lambda path: write_analysed_campaign(path, paper_corner_runs(CAR))
+    )
 
 
 @pytest.fixture(scope="session")
