@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+from collections import Counter
 from pathlib import Path
 
 import duckdb
@@ -150,22 +151,33 @@ def test_a_job_refuses_the_options_of_one_measurement_and_paths_that_do_not_exis
     assert not (tmp_path / "out").exists()
 
 
-def _processes_started(command: list[str]) -> tuple[int, dict[int, str]]:
-    """Run ``command`` and watch it to its end; its exit code and every process it started (its
-    command line, where it could still be read)."""
+def _pythons_started(command: list[str]) -> tuple[int, dict[int, str]]:
+    """Run ``command`` and watch it to its end; its exit code and the Python processes it started
+    (a cluster's workers and nannies, by their command lines where they could still be read). A
+    command's other children are not counted (importing h5py asks ``uname -p`` for the processor),
+    nor a child seen as Python at one look only: one forked to run another program is, until it
+    does, and a worker lives for seconds, looked at every 5 ms."""
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    watched, seen = psutil.Process(process.pid), {}
+    watched, looks, lines = psutil.Process(process.pid), Counter(), {}
 
     def ended() -> bool:
         with contextlib.suppress(psutil.NoSuchProcess):
             for child in watched.children(recursive=True):
                 with contextlib.suppress(psutil.Error):
-                    seen.setdefault(child.pid, " ".join(child.cmdline()))
-                seen.setdefault(child.pid, "?")
+                    if child.name().startswith("python"):  # the name is read from a zombie too
+                        looks[child.pid] += 1
+                        lines[child.pid] = lines.get(child.pid) or _command_line(child)
         return process.poll() is not None
 
     wait_until(ended, 300, "the command's end")
-    return process.returncode, seen
+    return process.returncode, {pid: lines[pid] for pid, n in looks.items() if n >= 2}
+
+
+def _command_line(process: psutil.Process) -> str:
+    try:
+        return " ".join(process.cmdline())
+    except psutil.Error:
+        return "?"
 
 
 @pytest.mark.validation
@@ -187,11 +199,11 @@ def test_a_rerun_over_unchanged_files_starts_no_worker_of_its_local_cluster(camp
         "--pressure",
         "2.5",
     ]
-    code, started = _processes_started(command)
+    code, started = _pythons_started(command)
     assert code == 0 and len(started) >= 2  # the first run: its cluster's worker processes, seen
     first = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
     assert [status for _, status, _ in first] == ["compensated"], first  # nothing left to try again
-    code, started = _processes_started(command)
+    code, started = _pythons_started(command)
     after = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
     assert code == 0 and started == {}, (started, first, after)
 
