@@ -14,7 +14,6 @@ Exit codes (both commands, :mod:`bench.cli.exit_codes`):
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +21,7 @@ from typing import TYPE_CHECKING
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode
 from bench.cli.file_progress import FileBar
+from bench.cli.job_options import add_job_options, job_executor
 
 if TYPE_CHECKING:
     from bench.archive.build import IndexSummary
@@ -43,7 +43,6 @@ def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
 def _index(args: argparse.Namespace) -> int:
     from bench.archive.build import build_index
     from bench.archive.store import IndexDirError
-    from bench.cluster import InProcess, OnDask
     from bench.locks import InUseError
 
     roots = [Path(p) for p in args.paths]
@@ -56,11 +55,7 @@ def _index(args: argparse.Namespace) -> int:
     try:
         options = {"verify": args.verify, "reanalyse": args.reanalyse, "progress": bar}
         with bar.progress:
-            if args.workers == 0 and not args.scheduler:
-                summary = build_index(roots, out, InProcess(), **options)
-            else:
-                executor = OnDask(args.scheduler, args.workers or os.cpu_count() or 1)
-                summary = build_index(roots, out, executor, **options)
+            summary = build_index(roots, out, job_executor(args), **options)
     except IndexDirError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return ExitCode.INVALID
@@ -107,15 +102,11 @@ def add_archive_commands(sub: argparse._SubParsersAction) -> None:
     index.add_argument(
         "--out", required=True, metavar="RESULTS", help="index directory (created, or brought up to date)"
     )
-    index.add_argument(
-        "--scheduler", metavar="ADDRESS", help="a dask.distributed scheduler (tcp://host:8786)"
-    )
-    index.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="processes of the local cluster (default: the machine's cores); 0: in this process, no cluster",
+    add_job_options(
+        index,
+        scheduler_help="a dask.distributed scheduler (tcp://host:8786)",
+        workers_help="processes of the local cluster (default: the machine's cores); 0: in this process,"
+        " no cluster",
     )
     index.add_argument(
         "--verify", action="store_true", help="hash every file, not only those whose size or time changed"

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode, unreadable_file_code
+from bench.cli.job_options import add_job_options
 
 
 class _StopError(Exception):
@@ -236,15 +237,11 @@ def add_compensate_command(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="output file (HDF5, docs/compensate.md), never replaced; of a job: its output folder",
     )
-    cmd.add_argument(
-        "--scheduler", metavar="ADDRESS", help="a job on this dask.distributed scheduler (tcp://host:8786)"
-    )
-    cmd.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="a job on a local cluster of N processes (default: the machine's cores); 0: in this process",
+    add_job_options(
+        cmd,
+        scheduler_help="a job on this dask.distributed scheduler (tcp://host:8786)",
+        workers_help="a job on a local cluster of N processes (default: the machine's cores); 0: in this"
+        " process",
     )
     cmd.add_argument("--run", dest="run_id", metavar="ID", help="the run of a campaign-file measurement")
     cmd.add_argument(

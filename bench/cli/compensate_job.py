@@ -11,6 +11,7 @@ from pathlib import Path
 
 from bench.cli.exit_codes import ExitCode
 from bench.cli.file_progress import FileBar
+from bench.cli.job_options import job_executor
 
 #: Options of one measurement only, and why a job refuses them.
 _ONE_MEASUREMENT_ONLY = {
@@ -59,7 +60,6 @@ def _campaign_error(campaign: Path) -> str | None:
 
 
 def run_job(args: argparse.Namespace) -> int:
-    from bench.cluster import InProcess, OnDask
     from bench.fleet.job import compensate_many, identification
     from bench.fleet.summary import SummaryError
     from bench.fleet.worker import Settings
@@ -82,10 +82,7 @@ def run_job(args: argparse.Namespace) -> int:
     roots = [Path(m) for m in args.measurement]
     out = Path(args.out)
     bar = FileBar("compensating", "not compensated")
-    if args.workers == 0 and not args.scheduler:
-        executor = InProcess()
-    else:
-        executor = OnDask(args.scheduler, args.workers or os.cpu_count() or 1)
+    executor = job_executor(args)
     try:
         with bar.progress:
             summary = compensate_many(roots, out, settings, executor, progress=bar)
