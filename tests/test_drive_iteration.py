@@ -171,7 +171,7 @@ def road(tmp_path_factory) -> dict[str, np.ndarray]:
         (
             'target = "road.csv"\ntarget_channel = "F [N]"\ntarget_unit = "mm"\n',
             "steps[2].target",
-            "not a unit of N",
+            "not a unit of force (N)",
         ),
         ('target = "road.csv"\nerror_band_hz = [0.5, 48]\n', "steps[2].error_band_hz", "inside band_hz"),
         ('target = "road.csv"\ngain = 1.2\n', "steps[2].gain", "gain"),
