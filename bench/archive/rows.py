@@ -1,13 +1,11 @@
 """One campaign file as the index's rows (:mod:`bench.archive.columns`): what it is, its runs, the
 results stored in it and the identification of the campaign's analysis.
 
-The analysis is made here, in memory, by the same :func:`~bench.app.analyze.analyze_campaign` that
-``wfsbench analyze`` runs, and nothing is written to the file: the results a file stores hold only
-each run's text summary and a few scalars (m_comp, the hammer's eigenfrequency), not the fitted
-models with their intervals, the valid bands or the repeatability, and the stored ones were made
-by whichever software recorded the file. The index's own analysis is the same software for every
-file of the archive, so its values can be compared across files (``source`` ``analysis``); what
-the file stores is listed beside it as it is (``source`` ``stored``).
+The analysis is :func:`~bench.app.analyze.analyze_campaign`'s, as ``wfsbench analyze`` gives it: the
+record the post-run analysis stored beside each run, read back (``source`` ``analysis``), or the
+runs fitted again in memory where a run stores none this version reads or ``--reanalyse`` asks;
+nothing is written to the file. The few scalars a run's results store by themselves (m_comp, the
+hammer's eigenfrequency) are listed beside it as they are (``source`` ``stored``).
 
 Parameter names are the keys of the analysis JSON (docs/analysis-json.md), their units in the
 names; docs/index.md lists which each analysis gives.
