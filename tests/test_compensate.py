@@ -406,3 +406,36 @@ def test_a_temporary_a_killed_process_left_is_removed_by_the_next_output(campaig
     code = main(["compensate", str(campaign), str(path), "--pressure", "2.5", "--out", str(out)])
     assert code == ExitCode.OK
     assert sorted(p.name for p in tmp_path.iterdir()) == [running.name, "out.h5"]
+
+
+def test_a_run_exported_as_csv_compensates_without_a_mapping_as_the_run_itself(campaign, tmp_path, capsys):
+    """``wfsbench export --format csv`` of the four-post sweep (a ``time_s`` column and a units
+    row): read without a mapping, with the campaign's hub lag stated, it gives the force its run
+    gives read from the campaign file, sample for sample."""
+    folder, from_csv, from_run = tmp_path / "csv", tmp_path / "csv.h5", tmp_path / "run.h5"
+    assert main(["export", str(campaign), "--format", "csv", "--run", "sweep", "--out", str(folder)]) == 0
+    exported = folder / "sweep.csv"
+    header, units = exported.read_text().splitlines()[:2]
+    assert (header, units) == ("time_s,z_base_m,f_plate_n,fz_wfs_n,a_hub_m_s2", "s,m,N,N,m/s^2")
+    stated = ["--hub-lag-ms", "campaign", "--pressure", "2.5"]  # what the run's file records itself
+    assert main(["compensate", str(campaign), str(exported), *stated, "--out", str(from_csv)]) == 0
+    assert main(["compensate", str(campaign), str(campaign), "--run", "sweep", "--out", str(from_run)]) == 0
+    capsys.readouterr()
+    with h5py.File(from_csv, "r") as csv_out, h5py.File(from_run, "r") as run_out:
+        for name in ("t_s", "f_contact_n", "u95_n"):
+            a, b = csv_out[name][()], run_out[name][()]
+            # the file's samples read in blocks, the run's whole: sums in another order, the same
+            # float32 output to a few of its steps at the largest value
+            ulps = 4 * np.spacing(np.nanmax(np.abs(b)).astype(b.dtype))
+            assert np.array_equal(np.isnan(a), np.isnan(b)), name
+            assert np.nanmax(np.abs(a - b)) <= ulps, name
+
+
+def test_a_units_row_of_units_no_compensation_reads_is_still_a_units_row(tmp_path):
+    """As a recorded run's export has it: the speed in rad/s and an auxiliary channel in V."""
+    path = tmp_path / "m.csv"
+    rows = "\n".join(f"{k / 1000},0,{100 + k},0.5,1.2" for k in range(5))
+    path.write_text(f"time_s,speed_rad_s,fz_wfs_n,a_hub_m_s2,aux3\ns,rad/s,N,m/s^2,V\n{rows}\n")
+    measurement = read_measurement(path)
+    assert measurement.sample_rate_hz == pytest.approx(1000.0)
+    assert np.array_equal(np.asarray(measurement.channels["fz_wfs_n"][:]), 100.0 + np.arange(5))

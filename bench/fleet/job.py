@@ -28,7 +28,7 @@ from bench.archive.files import FileStat, find_files, within
 from bench.cluster import Executor
 from bench.fleet.summary import TRIED_AGAIN, Row, Status, read_summary, write_summary
 from bench.fleet.worker import MeasurementOutcome, MeasurementTask, Settings, compensate_files
-from bench.store.measurement import MDF_SUFFIXES
+from bench.store.channel_file import MDF_SUFFIXES
 
 #: The measurement files a folder is searched for (any case).
 MEASUREMENT_SUFFIXES = (*MDF_SUFFIXES, ".csv")

@@ -6,7 +6,7 @@ force or an acceleration, :mod:`bench.store.iteration_target`) are read alike.
   ``,`` between fields, ``.`` as the decimal mark, a header line naming the columns; each column's
   unit in brackets at the end of its name (``t [s]``, ``z [mm]``) or in a units row under the
   header (as ``wfsbench export --format csv`` writes it: the line under the header is a units row
-  when every field of it is a known unit or blank). The time column (by default the first) must
+  when none of its fields is a number). The time column (by default the first) must
   step evenly forward in a unit of time; the channel's column (by default the only other one) must
   be in a unit of the channel's quantity. A cell that is no number, a time that goes back or steps
   unevenly, a unit of another quantity: refused naming the file, the line and the column.
@@ -32,11 +32,11 @@ import numpy as np
 from bench.store.csv_mapping import ChannelColumn, Dialect, Timing
 from bench.store.csv_read import CsvError, read_csv
 from bench.store.csv_units import UNITS, known_units, unit_named
-from bench.store.measurement import MDF_SUFFIXES
 from bench.store.rpc3 import Rpc3Error, read_rpc3
 
 CSV_SUFFIXES = (".csv",)
 RPC3_SUFFIXES = (".rsp", ".drv", ".tim", ".rpc")
+MDF_SUFFIXES = (".mf4", ".mdf", ".mdf4")
 #: The quantity an SI unit measures, as an error names it.
 QUANTITY_OF = {"m": "length", "N": "force", "m/s^2": "acceleration"}
 #: The channel's name while it is read.
@@ -208,7 +208,9 @@ def _mdf(asked: _Asked) -> ChannelSamples:
 
 
 def csv_header(path: Path) -> tuple[list[str], bool]:
-    """The CSV file's column names and whether the line under them is a units row."""
+    """The CSV file's column names and whether the line under them is a units row: none of its
+    fields a number, one at least not blank (the units of columns not read need not be known ones:
+    an export's ``rad/s`` and ``V``)."""
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
@@ -223,5 +225,12 @@ def csv_header(path: Path) -> tuple[list[str], bool]:
     if not any(header):
         raise ChannelFileError(f"{path}: line 1: empty file: no header line")
     fields = [field.strip() for field in second]
-    units_row = bool(fields) and all(not f or unit_named(f.strip("[]()")) for f in fields) and any(fields)
-    return header, units_row
+    return header, any(fields) and not any(map(_is_number, fields))
+
+
+def _is_number(field: str) -> bool:
+    try:
+        float(field)
+    except ValueError:
+        return False
+    return True

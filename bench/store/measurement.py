@@ -7,7 +7,8 @@ Fz and the hub acceleration in SI units at one sample rate (docs/compensate.md).
   must be one of the quantity's (docs/import.md's units); both channels on one time base.
 - **CSV**: the import's conventions (docs/import.md): the mapping's ``csv``, ``time`` and
   ``channels`` tables; without a mapping, a comma-separated file whose header names the channels
-  and a time column ``t_s`` in seconds.
+  and a time column ``t_s`` (or ``time_s``) in seconds, with a units row under it or none: a CSV
+  file ``wfsbench export --format csv`` wrote is read as it is.
 - **A campaign file's run** (``.h5``, with ``run_id``): the run's Fz and hub acceleration by their
   roles, and the tyre pressure its conditions record.
 
@@ -30,6 +31,7 @@ import numpy as np
 
 from bench.analysis.blockwise import Record, blocks
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
+from bench.store.channel_file import MDF_SUFFIXES, ChannelFileError, csv_header
 from bench.store.csv_mapping import ChannelColumn, ChannelMapping, Dialect, Timing
 from bench.store.csv_read import LARGEST_SI_VALUE, TIME_STEP_TOLERANCE, CsvError, read_csv
 from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_named
@@ -41,15 +43,16 @@ from bench.store.spool import SpooledChannel
 MDF_FRAGMENT_BYTES = 4 << 20
 #: The channels a compensation reads.
 MEASUREMENT_CHANNELS = (WFS_FORCE, HUB_ACCELERATION)
-#: The time column of a CSV measurement read without a mapping.
-DEFAULT_TIME_COLUMN = "t_s"
+#: The time columns a CSV measurement read without a mapping may have, in s: the first the header
+#: names is the time (``time_s``: as ``wfsbench export --format csv`` writes it).
+DEFAULT_TIME_COLUMNS = ("t_s", "time_s")
 #: What an error on a CSV read without a mapping adds: what such a file must be, and the way out.
 _WITHOUT_MAPPING = (
     f" (read without --mapping: a comma-separated file whose header names a time column"
-    f" {DEFAULT_TIME_COLUMN!r} in s and the columns {', '.join(map(repr, MEASUREMENT_CHANNELS))};"
+    f" {' or '.join(map(repr, DEFAULT_TIME_COLUMNS))} in s and the columns"
+    f" {', '.join(map(repr, MEASUREMENT_CHANNELS))}, a units row under it or none;"
     " --mapping names the file's own columns, units and layout: docs/import.md)"
 )
-MDF_SUFFIXES = (".mf4", ".mdf", ".mdf4")
 CAMPAIGN_SUFFIXES = (".h5", ".hdf5")
 
 
@@ -196,7 +199,12 @@ def _campaign_run(path: Path, run_id: str | None) -> Measurement:
 def _csv(path: Path, mapping: ChannelMapping | None) -> Measurement:
     columns = _wanted(mapping, path)
     if mapping is None:
-        dialect, timing = Dialect(), Timing(column=DEFAULT_TIME_COLUMN, unit="s")
+        try:
+            header, units_row = csv_header(path)
+        except ChannelFileError as exc:
+            raise MeasurementError(str(exc)) from None
+        time_column = next((name for name in DEFAULT_TIME_COLUMNS if name in header), DEFAULT_TIME_COLUMNS[0])
+        dialect, timing = Dialect(units_row=units_row), Timing(column=time_column, unit="s")
     else:
         dialect, timing = mapping.dialect, mapping.timing
         if timing is None:
