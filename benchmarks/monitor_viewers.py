@@ -89,6 +89,8 @@ def one_run(out: Path, watched: tuple[int, int] | None) -> Case:
     engines = []
     monitor = start_bench_monitor(Listen("127.0.0.1", 0)) if watched is not None else None
     crowd = viewers(monitor.server.port, *watched) if monitor is not None and sum(watched) else None
+    if crowd is not None:  # every viewer connected before the run starts
+        assert [crowd.stdout.readline(), crowd.stdout.readline()] == ["ready\n", "watching\n"]
 
     def on_engine(engine) -> None:
         engines.append(engine)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -35,13 +36,13 @@ class MonitoredRun:
 
 
 @contextlib.contextmanager
-def monitored_run(out: Path, *options: str) -> Iterator[MonitoredRun]:
-    """The paced smoke run into ``out`` with ``--monitor 127.0.0.1:0`` (a free port), once its
+def monitored_run(out: Path, *options: str, port: int = 0) -> Iterator[MonitoredRun]:
+    """The paced smoke run into ``out`` with ``--monitor 127.0.0.1:PORT`` (0: a free port), once its
     monitor listens; ended (SIGTERM, then kill) if still running when the block ends."""
     command = [sys.executable, "-m", "bench.cli", "run", str(SMOKE), "--realtime", "--out", str(out)]
     raised = ["nice", "-n", str(REAL_TIME_NICE)] if os.geteuid() == 0 else []
     process = subprocess.Popen(
-        [*raised, *command, "--monitor", "127.0.0.1:0", *options],
+        [*raised, *command, "--monitor", f"127.0.0.1:{port}", *options],
         cwd=ROOT,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
@@ -62,6 +63,13 @@ def monitored_run(out: Path, *options: str) -> Iterator[MonitoredRun]:
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+
+
+def free_port() -> int:
+    """A port of 127.0.0.1 free at this moment: for a monitor whose viewers wait for it to listen."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 @dataclass(frozen=True)

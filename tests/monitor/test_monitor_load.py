@@ -20,7 +20,7 @@ from urllib.parse import urlsplit
 import pytest
 
 from tests.monitor.http import get_json
-from tests.monitor.monitored_run import ROOT, assert_untouched, monitored_run, recorded
+from tests.monitor.monitored_run import ROOT, assert_untouched, free_port, monitored_run, recorded
 from tests.waiting import LineReader, wait_until
 
 pytestmark = [pytest.mark.slow, pytest.mark.validation]
@@ -49,31 +49,40 @@ def file_monitor(out: Path) -> tuple[subprocess.Popen, int]:
 
 
 def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> None:
-    out = tmp_path / "smoke.h5"
-    with monitored_run(out) as run:
-        wait_until(out.exists, 60, "the campaign file created")
-        watcher, watcher_port = file_monitor(out)  # its "recording" state: test_monitor_cli.py
-        viewers = subprocess.run(
-            [
-                "nice",
-                f"-n{VIEWERS_NICENESS}",
-                sys.executable,
-                "-m",
-                "tests.monitor.viewers",
-                str(urlsplit(run.url).port),
-                f"--readers={READERS}",
-                f"--silent={SILENT}",
-                f"--flood={FLOOD}",
-                "--bad",
-            ],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=400,
-            check=False,
-        )
-        said = run.lines.rest(60)
-        assert run.process.wait(60) == 0, said
+    out, port = tmp_path / "smoke.h5", free_port()
+    viewers = subprocess.Popen(
+        [
+            "nice",
+            f"-n{VIEWERS_NICENESS}",
+            sys.executable,
+            "-m",
+            "tests.monitor.viewers",
+            str(port),
+            f"--readers={READERS}",
+            f"--silent={SILENT}",
+            f"--flood={FLOOD}",
+            "--bad",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        seen_lines = LineReader(viewers.stdout)
+        assert seen_lines.next(120, "the viewers loaded") == "ready\n"  # then they wait for the monitor
+        with monitored_run(out, port=port) as run:
+            assert seen_lines.next(120, "the viewers connected") == "watching\n"
+            wait_until(out.exists, 60, "the campaign file created")
+            watcher, watcher_port = file_monitor(out)  # its "recording" state: test_monitor_cli.py
+            said = run.lines.rest(60)
+            assert run.process.wait(60) == 0, said
+        seen_text = seen_lines.rest(400)
+        assert viewers.wait(60) == 0, viewers.stderr.read()
+    finally:
+        if viewers.poll() is None:
+            viewers.kill()
+            viewers.wait()
     try:
         wait_until(
             lambda: get_json(watcher_port)["state"] == "finished", 30, "the file monitor to see the end"
@@ -84,8 +93,7 @@ def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> Non
         watcher.wait(30)
     assert (finished["points_done"], finished["points_planned"], finished["recorder"]) == (8, 8, None)
     assert [r["status"] for r in finished["runs"]] == ["complete", "complete", "complete"]
-    assert viewers.returncode == 0, viewers.stderr
-    seen = json.loads(viewers.stdout)
+    seen = json.loads(seen_text)
     assert "smoke: complete" in said
     assert len(seen["readers"]) == READERS
     for reader in seen["readers"]:

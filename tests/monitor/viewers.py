@@ -1,7 +1,9 @@
 """Viewers of a monitor, as a process of their own (they sit at other computers in a lab): reading
 viewers of the stream, viewers that never read, a bounded flood of requests, malformed requests and
-refused methods, all to 127.0.0.1. It ends when every reading viewer has seen the sequence end, and
-prints what it saw as one JSON line.
+refused methods, all to 127.0.0.1. Started before the monitor listens, it says ``ready`` once it
+has loaded and waits for the port to accept a connection (a run that ends quickly is then watched
+from its start, whatever the machine's load), then ``watching`` once every viewer is connected. It
+ends when every reading viewer has seen the sequence end, and prints what it saw as one JSON line.
 
     python -m tests.monitor.viewers PORT [--readers N] [--silent N] [--flood N] [--bad]
 
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import socket
 import threading
 import time
 from collections import Counter
@@ -19,8 +22,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 from tests.monitor.http import SilentViewer, StreamViewer, exchange, request
 
-#: The longest a run may take to end, as the viewers wait for it (s).
+#: The longest a run may take to end, as the viewers wait for it (s); and for its monitor to listen.
 RUN_DEADLINE_S = 300.0
+LISTEN_DEADLINE_S = 120.0
 #: The flood's requests in flight at once, and the longest it may go on (s).
 FLOOD_CONCURRENCY, FLOOD_LIMIT_S = 8, 30.0
 FLOOD_PATHS = ("/api/state", "/", "/monitor.js", "/no/such/path")
@@ -39,8 +43,7 @@ def ended(update: dict) -> bool:
     return sequence is not None and sequence.get("status") not in (None, "running")
 
 
-def read_to_the_end(port: int, results: list) -> None:
-    viewer = StreamViewer(port)
+def read_to_the_end(viewer: StreamViewer, results: list) -> None:
     try:
         last = viewer.read_until(ended, RUN_DEADLINE_S, "the sequence's end")
         status = last["sequence"]["status"]
@@ -78,6 +81,20 @@ def answer_to(port: int, bad: bytes) -> str:
         return ""
 
 
+def wait_until_listening(port: int) -> None:
+    """Until 127.0.0.1:``port`` accepts a connection (the monitor started), or
+    :data:`LISTEN_DEADLINE_S`."""
+    deadline = time.monotonic() + LISTEN_DEADLINE_S
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=5.0).close()
+            return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("port", type=int)
@@ -86,14 +103,17 @@ def main() -> None:
     parser.add_argument("--flood", type=int, default=0)
     parser.add_argument("--bad", action="store_true", help="malformed requests and refused methods")
     args = parser.parse_args()
+    print("ready", flush=True)
+    wait_until_listening(args.port)
     silent = [SilentViewer(args.port) for _ in range(args.silent)]
     results: list = []
     readers = [
-        threading.Thread(target=read_to_the_end, args=(args.port, results), daemon=True)
+        threading.Thread(target=read_to_the_end, args=(StreamViewer(args.port), results), daemon=True)
         for _ in range(args.readers)
     ]
     for thread in readers:
         thread.start()
+    print("watching", flush=True)
     said: dict = {"readers": results}
     if args.flood:
         said["flood"] = {str(k): v for k, v in flood(args.port, args.flood).items()}
