@@ -23,12 +23,13 @@ def _export(args: argparse.Namespace) -> int:
     from bench.app.analyze import CampaignFileError
     from bench.export.common import ExportError
     from bench.store import StoreError
+    from bench.store.compensated import CompensatedFileError
 
     try:
         lines = export(Path(args.file), args.format, Path(args.out), args.run_id, reanalyse=args.reanalyse)
         for line in lines:
             print(line)
-    except (ExportError, StoreError, CampaignFileError) as exc:
+    except (ExportError, StoreError, CampaignFileError, CompensatedFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return unreadable_file_code(exc)
     return ExitCode.OK
@@ -41,10 +42,13 @@ def export(path: Path, fmt: str, out: Path, run_id: str | None, *, reanalyse: bo
     :class:`~bench.store.StoreError`, before anything is written."""
     from bench.export.common import ExportError, check_output_free, selected_runs
     from bench.store import open_campaign
+    from bench.store.compensated import is_compensated
 
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r} (formats: {', '.join(FORMATS)})")
     check_output_free(out)
+    if is_compensated(path):
+        return _export_compensated(path, fmt, out, run_id)
     with open_campaign(path) as campaign:
         runs = selected_runs(campaign, run_id)
         if fmt == "mdf4":
@@ -70,6 +74,29 @@ def export(path: Path, fmt: str, out: Path, run_id: str | None, *, reanalyse: bo
             return [f"drive {p}" for p in write_drive_files(chosen, out)]
         ids, created = {run.run_id for run in runs}, campaign.created
     return _export_uff58(path, out, run_id, ids, created, reanalyse=reanalyse)
+
+
+def _export_compensated(path: Path, fmt: str, out: Path, run_id: str | None) -> list[str]:
+    """A compensated force (``wfsbench compensate``'s output) as CSV or MDF4, as a run is."""
+    from bench.export.common import ExportError
+    from bench.export.compensated import (
+        COMPENSATED_FORMATS,
+        write_compensated_csv,
+        write_compensated_mdf4,
+    )
+    from bench.store.compensated import open_compensated
+
+    if fmt not in COMPENSATED_FORMATS:
+        raise ExportError(
+            f"{path}: a compensated force exports as {' or '.join(COMPENSATED_FORMATS)}, not {fmt}"
+        )
+    if run_id is not None:
+        raise ExportError(f"{path}: a compensated force has no runs: --run {run_id} names none")
+    with open_compensated(path) as compensated:
+        if fmt == "csv":
+            return [f"csv {write_compensated_csv(compensated, out)}"]
+        write_compensated_mdf4(compensated, out)
+        return [f"mdf4 {out}: the compensated force, {compensated.n_samples} samples"]
 
 
 def _export_uff58(
@@ -105,9 +132,12 @@ def add_export_command(sub: argparse._SubParsersAction) -> None:
         " run with a units row and the mapping import-csv reads them with; a folder), rpc3 (one MTS"
         " RPC III time history per run; a folder), drive (a drive iteration's drive as drive files a"
         " road replay plays, RPC III .drv and CSV: of --run, else each iteration's final drive; a"
-        " folder). An existing --out is never replaced.",
+        " folder). A compensated force (wfsbench compensate's output) exports as csv or mdf4. An"
+        " existing --out is never replaced.",
     )
-    parser.add_argument("file", help="campaign file (HDF5, docs/hdf5.md)")
+    parser.add_argument(
+        "file", help="campaign file (HDF5, docs/hdf5.md) or compensated force (docs/compensate.md)"
+    )
     parser.add_argument("--format", required=True, choices=FORMATS, help="the format to write")
     parser.add_argument(
         "--run", dest="run_id", metavar="ID", help="only this run (default: every run of the file)"

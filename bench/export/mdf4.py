@@ -27,7 +27,7 @@ MDF_VERSION = "4.10"
 MDF_SUFFIX = ".mf4"
 
 
-def _comment(tag: str, text: str, properties: dict[str, str], names: tuple[str, ...] = ()) -> str:
+def comment_block(tag: str, text: str, properties: dict[str, str], names: tuple[str, ...] = ()) -> str:
     """An MDF 4 comment block (escaped as XML): ``<tag><TX>text</TX>``, the block's ``names`` (a
     channel group's) and ``<common_properties>`` with one ``<e name=...>`` per property."""
     root = Element(tag)
@@ -51,7 +51,7 @@ def header_comment(campaign: CampaignFile) -> str:
         "config_name": campaign.config_name,
         **campaign.metadata,
     }
-    return _comment("HDcomment", f"wfs-bench campaign {campaign.path.name}", properties)
+    return comment_block("HDcomment", f"wfs-bench campaign {campaign.path.name}", properties)
 
 
 def group_comment(run: RunView) -> str:
@@ -66,7 +66,7 @@ def group_comment(run: RunView) -> str:
         f" hold {p.hold_start_sample}-{p.hold_end_sample}"
         for p in done_points(run)
     ]
-    return _comment("CGcomment", "\n".join(lines), description, names=(run.run_id,))
+    return comment_block("CGcomment", "\n".join(lines), description, names=(run.run_id,))
 
 
 def _channel_comment(description: str, role: str | None) -> str:
@@ -79,7 +79,7 @@ def write_mdf4(campaign: CampaignFile, runs: tuple[RunView, ...], out: Path) -> 
 
     mdf = MDF(version=MDF_VERSION)
     try:
-        mdf.header.start_time = _created(campaign.created)
+        mdf.header.start_time = created_time(campaign.created)
         mdf.header.comment = header_comment(campaign)
         for run in runs:
             time_s = np.arange(run.n_samples, dtype=np.float64) / run.sample_rate_hz
@@ -100,7 +100,7 @@ def write_mdf4(campaign: CampaignFile, runs: tuple[RunView, ...], out: Path) -> 
         mdf.close()
 
 
-def _created(text: str) -> datetime:
+def created_time(text: str) -> datetime:
     """The campaign's creation instant (ISO 8601; the Unix epoch if it cannot be read)."""
     try:
         created = datetime.fromisoformat(text)

@@ -9,7 +9,8 @@ no file, and an existing file is never replaced.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -103,3 +104,87 @@ def write_compensated(
     finally:
         temporary.unlink(missing_ok=True)
     return path
+
+
+#: Samples read at a time from a compensated file's datasets (bounded memory on an hours-long record).
+READ_BLOCK_SAMPLES = 16 * CHUNK_SAMPLES
+
+
+class CompensatedFileError(ValueError):
+    """A file that is no readable compensated force: the message names it and what is wrong."""
+
+
+def is_compensated(path: Path) -> bool:
+    """Whether ``path`` is a regular file that says it is a compensated force (its ``/@schema``); a
+    FIFO or a device is never opened (it could block the reader)."""
+    if not path.is_file():
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("schema") == SCHEMA_NAME
+    except OSError:
+        return False
+
+
+def _plain(value: Any) -> Any:
+    """An HDF5 attribute as a plain Python value: text, number or list of numbers."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+class CompensatedFile:
+    """A compensated force file opened to be read (:func:`open_compensated`): its root
+    ``attributes`` as plain values, its ``n_samples`` and ``sample_rate_hz``, and its per-sample
+    datasets (:data:`SERIES`) read block by block."""
+
+    def __init__(self, path: Path, file: h5py.File) -> None:
+        self.path = path
+        self._file = file
+        self.attributes: dict[str, Any] = {key: _plain(value) for key, value in file.attrs.items()}
+        try:
+            self.n_samples = int(file["f_contact_n"].shape[0])
+            self.sample_rate_hz = float(self.attributes["sample_rate_hz"])
+            for name in SERIES:
+                if file[name].shape != (self.n_samples,):
+                    count, n = file[name].shape[0], self.n_samples
+                    raise CompensatedFileError(f"{path}: /{name} has {count} samples, /f_contact_n {n}")
+        except KeyError as exc:
+            raise CompensatedFileError(f"{path}: damaged: {exc}") from None
+
+    def unit(self, name: str) -> str:
+        return SERIES[name][1]
+
+    def blocks(self) -> Iterator[dict[str, np.ndarray]]:
+        """The per-sample datasets, :data:`SERIES` in order, :data:`READ_BLOCK_SAMPLES` at a time."""
+        size = READ_BLOCK_SAMPLES
+        for start in range(0, self.n_samples, size):
+            stop = min(start + size, self.n_samples)
+            yield {name: self._file[name][start:stop] for name in SERIES}
+
+
+@contextmanager
+def open_compensated(path: str | Path) -> Iterator[CompensatedFile]:
+    """The compensated force file at ``path``, read-only; :class:`CompensatedFileError` naming the
+    file when it is none (not HDF5, another schema, a newer version, damaged)."""
+    path = Path(path)
+    if not path.is_file():
+        what = "no such file" if not path.exists() else "not a regular file"
+        raise CompensatedFileError(f"{path}: {what}")
+    try:
+        file = h5py.File(path, "r")
+    except OSError as exc:
+        raise CompensatedFileError(f"{path}: not a readable HDF5 file: {exc}") from None
+    with file:
+        schema, version = _plain(file.attrs.get("schema")), _plain(file.attrs.get("schema_version"))
+        if schema != SCHEMA_NAME:
+            raise CompensatedFileError(f"{path}: not a compensated force (schema {schema!r})")
+        if version != SCHEMA_VERSION:
+            raise CompensatedFileError(
+                f"{path}: compensated force schema version {version!r}: this version reads {SCHEMA_VERSION}"
+            )
+        yield CompensatedFile(path, file)
