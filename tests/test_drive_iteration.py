@@ -296,6 +296,14 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
         f"drive: iteration 1: contact force against {tmp_path / 'road.csv'} column 'F [N]'; sha256 {sha}"
         in listed
     )
+    # and each drive's errors as its analysis stored them, the last one's stop rules met
+    last = f"iteration {len(errors)}: rms error {errors[-1]:.3g} % of the target's rms, no band (a raw"
+    assert last in listed and listed.count("; the stop rules not met") == len(errors) - 1
+    assert main(["show", str(path), "--json"]) == 0
+    iterations = [r["iteration"] for r in json.loads(capsys.readouterr().out)["runs"]]
+    assert iterations[0] is None  # the identification's run
+    assert [i["rms_error_pct"] for i in iterations[1:]] == pytest.approx(errors, rel=1e-12)
+    assert [i["stop_rules_met"] for i in iterations[1:]] == [False] * (len(errors) - 1) + [True]
     (entry,) = analysis_json(shown)["drive_iterations"]
     assert entry["step_run_id"] == "iterate-s002-drive_iteration"
     assert entry["rms_error_pct"] == pytest.approx(errors, rel=1e-12)

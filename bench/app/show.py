@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import locks
+from bench.analysis.campaign import AnalysisKind
 from bench.app.analyze import CampaignFileError, sequences_run, stored_config
 from bench.config import BenchConfig
 from bench.report.metadata import metadata_lines
@@ -215,7 +216,32 @@ def _run(run: RunView) -> dict[str, Any]:
         # a drive iteration's drive samples stay in the file (wfsbench export --format drive)
         "drive": {k: v for k, v in run.drive.items() if k != "samples_mm"} or None,
         "analyses": [{"name": name, "stored": run.result_stored(name) or None} for name in run.result_names],
+        "iteration": _iteration(run),
     }
+
+
+#: What ``show`` gives of a drive iteration's stored result (docs/analysis-json.md, ``iterations[]``).
+ITERATION_KEYS = ("iteration", "rms_error_pct", "in_band_pct", "damage_ratio", "stop_rules_met")
+
+
+def _iteration(run: RunView) -> dict[str, Any] | None:
+    """A drive iteration's errors as the post-run analysis stored them, None for another run or
+    one not analysed."""
+    if AnalysisKind.DRIVE_ITERATION not in run.result_names:
+        return None
+    stored = run.results(AnalysisKind.DRIVE_ITERATION)
+    return {key: _finite(stored.get(key)) for key in ITERATION_KEYS}
+
+
+def _iteration_line(done: dict[str, Any]) -> str:
+    """A drive iteration's errors in words (a value not stored: said so)."""
+    band = done["in_band_pct"]
+    inside = "no band (a raw target)" if band is None else f"{band:.1f} % inside the target's band"
+    stopped = "the step's stop rules met" if done["stop_rules_met"] else "the stop rules not met"
+    return (
+        f"iteration {done['iteration']}: rms error {done['rms_error_pct']:.3g} % of the target's rms,"
+        f" {inside}, damage ratio {done['damage_ratio']:.3g}; {stopped}"
+    )
 
 
 def _finite(value: Any) -> Any:
@@ -304,6 +330,8 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         if run["drive"]:
             drive = run["drive"]
             lines.append(f"    drive: {drive.get('source', '?')}; sha256 {drive.get('sha256', '?')}")
+        if (done := run["iteration"]) is not None:
+            lines.append(f"    {_iteration_line(done)}")
         for key, word in (("resumes", "resumes"), ("resumed_by", "resumed by")):
             if run[key]:
                 lines.append(f"    {word} {run[key]}")
