@@ -28,6 +28,7 @@ from bench.analysis.drive_iteration import (
 from bench.analysis.flags import FlagCode, flags_of
 from bench.app.analyze import analyze_campaign
 from bench.app.plan import plan_campaign
+from bench.app.resume_check import ResumeMismatchError, check_resume
 from bench.app.run import run_campaign
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
@@ -404,6 +405,18 @@ def test_a_stopped_iteration_leaves_the_runs_before_it_readable_and_the_step_res
         assert f"{zlib.crc32(played.tobytes()):08x}" == first.drive["crc32"]
         assert first.road_replay_record().channels["f_plate_n"].size == played.size - 1
         first_crc = first.drive["crc32"]
+        recorded_sha = first.drive["target_sha256"]
+
+    # a target changed since is refused before anything runs, naming the step and both checksums
+    original = (tmp_path / "road.csv").read_bytes()
+    write_csv(tmp_path / "road.csv", {"F [N]": 1.01 * road["f_contact_n"]})
+    changed = plan_campaign(seq, FOUR_POST)
+    with open_campaign(path) as campaign, pytest.raises(ResumeMismatchError) as refused:
+        check_resume(campaign, changed.sequence, changed.config, changed.drives)
+    said = str(refused.value)
+    assert f"steps[2]: the target ({tmp_path / 'road.csv'} column 'F [N]') is not the one run" in said
+    assert f"{changed.drives[2].record['target_sha256']} now, {recorded_sha} in the file" in said
+    (tmp_path / "road.csv").write_bytes(original)
 
     resumed = run_campaign(plan_campaign(seq, FOUR_POST), path, resume=True)
     assert (resumed.status, resumed.reason) == ("complete", "")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from bench.app.analyze import sequences_run
 from bench.config import BenchConfig, ConfigError, measured_bench, parse_bench_config
-from bench.engine.contracts import PlannedDrive
+from bench.engine.contracts import PlannedDrive, PlannedIteration
 from bench.engine.engine import Engine, is_measurement
 from bench.store import CampaignFile
 from sequences import Sequence, SequenceError, parse_sequence, step_fields
@@ -31,13 +31,13 @@ def check_resume(
     campaign: CampaignFile,
     sequence: Sequence,
     config: BenchConfig,
-    drives: Mapping[int, PlannedDrive] | None = None,
+    drives: Mapping[int, PlannedDrive | PlannedIteration] | None = None,
 ) -> None:
     """Refuse (:class:`ResumeMismatchError`) to resume ``campaign`` with ``sequence`` on ``config``
     when either differs from what the file recorded (relative paths of the stored configuration are
     taken from the directory of ``config``'s file, as they were when it was recorded), or when a
-    road replay's drive (``drives``, as planned) is not the one its run recorded (its SHA-256: a
-    drive file changed since).
+    road replay's drive or a drive iteration's target (``drives``, as planned) is not the one its
+    runs recorded (its SHA-256: the file changed since).
 
     The file records the configuration and the sequence text of the campaign's first sequence; a
     sequence added to it later (the four-post's after the shaker's) is compared run by run with the
@@ -80,17 +80,28 @@ def check_resume(
         )
 
 
-def _drives_difference(campaign: CampaignFile, sequence: Sequence, drives: Mapping[int, PlannedDrive]) -> str:
-    """The first road replay whose planned drive differs from the one its run recorded."""
-    recorded = {run.run_id: run.drive for run in campaign.runs}
-    for index, drive in drives.items():
+#: What a planned drive's record names its checksum by: a road replay's drive, a drive iteration's
+#: target (each of whose runs, ``<step run id>-iNN``, records it).
+CHECKSUMS = (("sha256", "drive", "played"), ("target_sha256", "target", "iterated on"))
+
+
+def _drives_difference(
+    campaign: CampaignFile, sequence: Sequence, drives: Mapping[int, PlannedDrive | PlannedIteration]
+) -> str:
+    """The first road replay whose planned drive, or drive iteration whose target, differs from the
+    one its runs recorded (a file changed since)."""
+    for index, planned in drives.items():
         run_id = Engine.run_id(sequence, index)
-        old = recorded.get(run_id, {}).get("sha256")
-        if old is not None and old != drive.record.get("sha256"):
-            return (
-                f"steps[{index}]: the drive ({drive.record.get('source')}) is not the one run {run_id}"
-                f" played: SHA-256 {drive.record.get('sha256')} now, {old} in the file"
-            )
+        runs = [run for run in campaign.runs if run.run_id == run_id or run.run_id.startswith(f"{run_id}-i")]
+        for key, what, done in CHECKSUMS:
+            now = planned.record.get(key)
+            old = next((run.drive[key] for run in runs if key in run.drive), None)
+            if now is not None and old is not None and old != now:
+                source = planned.record.get("source" if what == "drive" else "target")
+                return (
+                    f"steps[{index}]: the {what} ({source}) is not the one run {run_id} {done}: SHA-256"
+                    f" {now} now, {old} in the file"
+                )
     return ""
 
 
