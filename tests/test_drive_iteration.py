@@ -379,8 +379,8 @@ def test_a_stopped_iteration_leaves_the_runs_before_it_readable_and_the_step_res
     stay complete with their drives (samples and CRC-32); the second run ends with the sequence's
     status. Resumed, the step computes its drives again from the runs the file holds (the first
     drive's CRC-32 must be the recorded one), plays the second drive again in its run and goes on to
-    its stop rule. (An interlock or a lost link ends a drive's run as it ends a road replay's:
-    tests/engine/test_endings.py.)"""
+    its stop rule; a target changed meanwhile is refused. (Every other ending, interlocks and lost
+    links among them, ends a drive iteration's run as any step's: tests/engine/test_endings.py.)"""
     write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
     seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nrms_error_pct = 1.0\n')
     plan = plan_campaign(seq, FOUR_POST)

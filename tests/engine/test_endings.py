@@ -33,7 +33,7 @@ import pytest
 from bench.engine import events as ev
 from bench.engine.amplitude import AmplitudeControl
 from bench.engine.channels import FrameChannels
-from bench.engine.contracts import PlannedDrive
+from bench.engine.contracts import PlannedDrive, PlannedIteration
 from bench.engine.engine import Engine
 from bench.engine.interlocks import standard_interlocks
 from bench.engine.points import SyncBits
@@ -43,6 +43,7 @@ from drivers.errors import CommandRejectedError, LimitError, LinkError, LinkTime
 from drivers.setpoints import DriveSetpoint
 from sequences import (
     AdaptiveDwell,
+    DriveIteration,
     DwellGrid,
     FreeRun,
     HammerTest,
@@ -106,6 +107,7 @@ class Kind:
     excites: bool = False  # the step runs excitations: interlocks and soft limits apply
     failing: dict[str, Failure] = field(default_factory=dict)
     plate_n_per_m: float = 0.0  # the fake's plate force per metre of displacement
+    runs_complete: int = 1  # the runs the step records when it completes (a drive iteration's: several)
 
 
 def excitation_failures(start_call: int) -> dict[str, Failure]:
@@ -119,11 +121,13 @@ def excitation_failures(start_call: int) -> dict[str, Failure]:
     }
 
 
-def excitation(name: str, step: object, *, points: int, plate_n_per_m: float = 0.0) -> Kind:
+def excitation(
+    name: str, step: object, *, points: int, plate_n_per_m: float = 0.0, runs_complete: int = 1
+) -> Kind:
     """An excitation step, its endings brought about 3 blocks into its first excitation; the
     actuator's failure comes at the second point's START of a step of several points."""
     failures = excitation_failures(2 if points > 1 else 1)
-    return Kind(name, step, "block", 3, excites=True, failing=failures, plate_n_per_m=plate_n_per_m)
+    return Kind(name, step, "block", 3, True, failures, plate_n_per_m, runs_complete)
 
 
 ADAPTIVE = AdaptiveDwell(min_hold_cycles=2, min_hold_s=0.3, max_hold_s=2.0, max_added_points=2)
@@ -134,6 +138,13 @@ KINDS = (
     excitation("free_run", FreeRun(dwell_grid()), points=4),
     excitation("sweep", Sweep(1.0, 10.0, 3.0, 3.0, taper_in_s=0.5, taper_out_s=0.5), points=1),
     excitation("road_replay", RoadReplay(file="drive.csv", taper_in_s=0.5, taper_out_s=0.5), points=1),
+    excitation(
+        "drive_iteration",
+        DriveIteration(target="target.csv", identification_s=3.0, max_iterations=1, response="post_force"),
+        points=1,
+        plate_n_per_m=PLATE_N_PER_M,
+        runs_complete=2,  # the identification's run and its one iteration's
+    ),
     Kind(
         "hammer",
         HammerTest(200.0, blows=2),
@@ -241,9 +252,17 @@ def make_case(kind: Kind) -> Case:
 DRIVE = DriveSetpoint(3.0 * np.sin(2 * np.pi * 5.0 * np.arange(3001) / RATE_HZ), RATE_HZ, 0.5, 0.5)
 
 
-def drives_of(kind: Kind) -> dict[int, PlannedDrive]:
-    """The planned drive of a road replay under test (at its index in :func:`sequence_of`)."""
-    return {1: PlannedDrive(DRIVE, {"source": "a 5 Hz sine"})} if isinstance(kind.step, RoadReplay) else {}
+def drives_of(kind: Kind) -> dict[int, PlannedDrive | PlannedIteration]:
+    """The planned drive of a road replay under test, or a drive iteration's target (the post's
+    force of the fake's plate on the drive) with the drive as its identification (at its index in
+    :func:`sequence_of`)."""
+    if isinstance(kind.step, RoadReplay):
+        return {1: PlannedDrive(DRIVE, {"source": "a 5 Hz sine"})}
+    if isinstance(kind.step, DriveIteration):
+        target_n = PLATE_N_PER_M * 1e-3 * DRIVE.samples_mm
+        record = {"target": "a 5 Hz sine's plate force", "target_sha256": "0" * 64}
+        return {1: PlannedIteration(target_n, None, RATE_HZ, DRIVE, 0.0, record, check=lambda drive: ())}
+    return {}
 
 
 def sequence_of(kind: Kind) -> Sequence:
@@ -413,8 +432,8 @@ def test_every_ending_is_marked_and_leaves_the_engine_ready_to_run_again(kind: K
     assert case.engine.state is ending.state
     started, runs = case.of(ev.RunStarted), case.of(ev.RunFinished)
     assert [r.run_id for r in runs] == [r.run_id for r in started]  # every run begun is marked ended
-    if kind.excites:
-        assert len(runs) == 1
+    if kind.excites:  # ended in its first excitation, or complete
+        assert len(runs) == (kind.runs_complete if outcome.status == "complete" else 1)
     for run in runs:
         assert (run.status, run.reason) == (outcome.status, outcome.reason)
     changes = case.of(ev.StateChanged)
