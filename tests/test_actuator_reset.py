@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from drivers.register_map import ControllerState, InterlockFlag
 from sequences import Hydraulics, Sequence, dump_sequence
 from tests.served_lab import served_lab
@@ -28,6 +30,7 @@ def wfsbench(*args: str, answer: str = "") -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_a_run_names_the_interlock_and_the_reset_brings_the_controller_back(tmp_path):
     with served_lab() as (server, link, _device):
         with server.bench.lock:  # the watchdog tripped under a run that was killed

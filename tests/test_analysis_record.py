@@ -109,6 +109,7 @@ def test_the_stored_analysis_is_the_fit_to_the_last_digit_without_fitting(record
     assert_same(stored.runs, again.runs, "runs")
 
 
+@pytest.mark.slow
 def test_the_commands_read_the_record_and_give_what_a_refit_gives(recorded, tmp_path, fits):
     """analyze --json, report, export --format uff58, compensate and index: nothing fitted; the same
     output as with --reanalyse (which fits every run), byte for byte or value for value."""

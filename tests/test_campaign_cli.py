@@ -28,6 +28,7 @@ SMOKE = ROOT / "sequences" / "files" / "smoke.toml"
 H5DUMP = shutil.which("h5dump")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_smoke_sequence_runs_into_a_file_h5dump_reads_as_documented(tmp_path):
     out = tmp_path / "smoke.h5"

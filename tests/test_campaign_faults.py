@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from bench.engine import events as ev
 from bench.engine.stops import RunOutcome
@@ -197,6 +198,7 @@ def test_modbus_link_loss_stops_the_actuator_within_the_watchdog_and_taper(tmp_p
     assert n >= run.injection.run_sample
 
 
+@pytest.mark.slow
 def test_serial_link_loss_stops_the_actuator_and_keeps_the_data(tmp_path):
     """The WFS adapter pulled mid-point, 2.8 s before its planned end: no frame for 0.5 s trips the
     serial interlock (docs/engine.md), whose stop tapers the actuator out over the intact Modbus

@@ -223,6 +223,7 @@ def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(
     check_frfs_equal(loss_free(kind)[0], path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "holds"),
     [("tracked dwell", None), ("tracked dwell", (5,)), ("paced tracked dwell", (5,))],

@@ -72,6 +72,7 @@ def _frozen_run(tmp_path: Path, freeze_s: float) -> tuple[int, str, Path]:
             proc.wait()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 @pytest.mark.parametrize("freeze_s", [0.5, 1.0, 2.0, 5.0])
 def test_a_frozen_run_records_a_host_stall_with_its_frames_never_a_lost_link(tmp_path, freeze_s):

@@ -310,6 +310,7 @@ def _cycle_peaks_mm(z_m: np.ndarray, samples_per_cycle: int) -> np.ndarray:
     return np.abs(z_m[: n * samples_per_cycle].reshape(n, samples_per_cycle)).max(axis=1) * 1e3
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tmp_path):
     code, stderr, out = _interrupted_run(tmp_path, taper_out_s=0.5, signals=1)
@@ -345,6 +346,7 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
         assert resumed_event.fields["ended"] == "aborted"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_a_second_ctrl_c_during_the_taper_e_stops(tmp_path):
     """A 5 s taper out: the second SIGINT, sent once the first was taken, lands inside it."""
@@ -572,6 +574,7 @@ level = "off"
 """
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_path, lab_devices):  # noqa: F811
     """Real devices (served on 127.0.0.1 and a pty) and no answers file: the prompt is read from
     standard input, which stays open; Ctrl-C there is no answer, and the sequence ends aborted."""
@@ -695,6 +698,7 @@ level = "off"
 """
 
 
+@pytest.mark.slow
 def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, lab_devices):  # noqa: F811
     """Real devices and the command on a pseudo-terminal (its standard input and output): the
     question comes on a line of its own, below a status that says the bench waits for the operator,

@@ -309,6 +309,7 @@ def test_idempotent_commands_are_resent_on_timeout(memory_rig):
     assert link.device_read(4096, 0.5) == 2 * format_command("IDENT")
 
 
+@pytest.mark.slow
 def test_faults_every_loss_counted_reader_never_stops_and_reconnect_resumes():
     link = MemoryLink()
     faults = ByteFaults(seed=11, bit_error_rate=1e-3, drop_rate=1e-4, duplicate_rate=1e-4, garbage_rate=1e-4)

@@ -49,6 +49,7 @@ def test_opening_the_bench_stops_a_stream_left_running(lab, tmp_path):
     assert block.frames["sample"][0] < 50
 
 
+@pytest.mark.slow
 def test_the_run_after_a_wfs_link_loss_works(lab, tmp_path):
     """The link is pulled and plugged back while the device streams; the next run completes. (The
     served world cannot remove the wheel, so the smoke sequence's free run is left out: a free run
