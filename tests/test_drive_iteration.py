@@ -27,9 +27,11 @@ from bench.analysis.drive_iteration import (
 )
 from bench.analysis.flags import FlagCode, flags_of
 from bench.app.analyze import analyze_campaign
+from bench.app.devices import open_bench
+from bench.app.engine_build import build_engine
 from bench.app.plan import plan_campaign
 from bench.app.resume_check import ResumeMismatchError, check_resume
-from bench.app.run import run_campaign
+from bench.app.run import run_campaign, run_on_engine
 from bench.cli.exit_codes import ExitCode
 from bench.cli.main import main
 from bench.config import load_bench_config
@@ -368,34 +370,51 @@ def test_a_drive_beyond_a_limit_is_refused_before_its_upload_naming_iteration_sa
         assert identification.road_replay_record().channels["z_base_m"].size == 16000  # 16 s of the drive
 
 
+def _press_the_controllers_estop_button(engine, lab) -> None:
+    """The e-stop pressed at the controller (a button, not a Modbus write): its interlock."""
+    with lab.bench.lock:
+        assert lab.bench.controller.command(6) is None
+
+
+#: How the second drive is stopped, the status its run and the sequence end with, and a word of
+#: the reason.
+STOPS = {
+    "abort": (lambda engine, lab: engine.request_abort(), "aborted", "abort"),
+    "e-stop": (lambda engine, lab: engine.request_estop(), "e-stopped", "e-stop"),
+    "controller interlock": (_press_the_controllers_estop_button, "interlocked", "controller interlock"),
+    "WFS link lost": (lambda engine, lab: lab.link.disconnect(), "interlocked", "wfs link lost"),
+}
+
+
 @pytest.mark.parametrize(
-    ("stop", "status"),
-    [("abort", "aborted"), pytest.param("e-stop", "e-stopped", marks=pytest.mark.validation)],
+    "stop",
+    ["abort", *(pytest.param(name, marks=pytest.mark.validation) for name in list(STOPS)[1:])],
 )
-def test_a_stopped_iteration_leaves_the_runs_before_it_readable_and_the_step_resumable(
-    tmp_path, road, stop, status
-):
-    """Aborted (or e-stopped) while its second drive plays: the identification and the first drive
-    stay complete with their drives (samples and CRC-32); the second run ends with the sequence's
-    status. Resumed, the step computes its drives again from the runs the file holds (the first
-    drive's CRC-32 must be the recorded one), plays the second drive again in its run and goes on to
-    its stop rule; a target changed meanwhile is refused. (Every other ending, interlocks and lost
-    links among them, ends a drive iteration's run as any step's: tests/engine/test_endings.py.)"""
+def test_a_stopped_iteration_leaves_the_runs_before_it_readable_and_the_step_resumable(tmp_path, road, stop):
+    """Aborted, e-stopped, interlocked at the controller or its WFS link lost while its second drive
+    plays: the identification and the first drive stay complete with their drives (samples and
+    CRC-32); the second run ends with the sequence's status. Resumed, the step computes its drives
+    again from the runs the file holds (the first drive's CRC-32 must be the recorded one), plays the
+    second drive again in its run and goes on to its stop rule; a target changed meanwhile is
+    refused. (Every ending of a drive iteration's run, on the engine: tests/engine/test_endings.py.)"""
     write_csv(tmp_path / "road.csv", {"F [N]": road["f_contact_n"]})
     seq = sequence_file(tmp_path, 'target = "road.csv"\nidentification_s = 16\nrms_error_pct = 1.0\n')
     plan = plan_campaign(seq, FOUR_POST)
     path = tmp_path / "resumed.h5"
-    engines = []
+    act, status, word = STOPS[stop]
+    with open_bench(plan.config) as devices:
+        engine = build_engine(plan.config, devices)
 
-    def stop_the_second_drive(event: object) -> None:
-        if isinstance(event, ev.RunStarted) and event.run_id.endswith("-i02"):
-            if stop == "abort":
-                engines[0].request_abort()
-            else:
-                engines[0].request_estop()
+        acted = []
 
-    outcome = run_campaign(plan, path, subscribers=(stop_the_second_drive,), on_engine=engines.append)
-    assert outcome.status == status
+        def stop_the_second_drive(event: object) -> None:  # 2 s into it: past its taper-in
+            playing = isinstance(event, ev.SamplesRecorded) and event.run_id.endswith("-i02")
+            if playing and not acted and event.first_sample >= 2000:
+                acted.append(event.first_sample)
+                act(engine, devices.lab)
+
+        outcome = run_on_engine(engine, plan, path, subscribers=(stop_the_second_drive,))
+    assert outcome.status == status and word in outcome.reason.lower(), outcome.reason
     with open_campaign(path) as campaign:
         runs = {r.run_id: r for r in campaign.runs}
         first = runs["iterate-s002-drive_iteration-i01"]
