@@ -19,6 +19,7 @@ from bench.app.analyze import sequences_run
 from bench.config import BenchConfig, ConfigError, measured_bench, parse_bench_config
 from bench.engine.contracts import PlannedDrive, PlannedIteration
 from bench.engine.engine import Engine, is_measurement
+from bench.engine.run_ids import step_run_id
 from bench.store import CampaignFile
 from sequences import Sequence, SequenceError, parse_sequence, step_fields
 
@@ -92,7 +93,7 @@ def _drives_difference(
     one its runs recorded (a file changed since)."""
     for index, planned in drives.items():
         run_id = Engine.run_id(sequence, index)
-        runs = [run for run in campaign.runs if run.run_id == run_id or run.run_id.startswith(f"{run_id}-i")]
+        runs = [run for run in campaign.runs if step_run_id(run.run_id) == run_id]
         for key, what, done in CHECKSUMS:
             now = planned.record.get(key)
             old = next((run.drive[key] for run in runs if key in run.drive), None)

@@ -188,9 +188,8 @@ def _run(run: RunView) -> dict[str, Any]:
     points_planned, (amplitudes_mm, span_hz) = planned if planned else (None, _recorded_excitation(run))
     wheel = run.conditions.get("wheel_fitted")
     pressure = run.conditions.get("tyre_pressure_bar")
-    pressure = (
-        _finite(pressure) if isinstance(pressure, int | float) and not isinstance(pressure, bool) else None
-    )
+    is_number = isinstance(pressure, int | float) and not isinstance(pressure, bool)
+    pressure = finite_or_none(pressure) if is_number else None
     return {
         "run_id": run.run_id,
         "kind": run.kind,
@@ -206,7 +205,7 @@ def _run(run: RunView) -> dict[str, Any]:
         "wheel_fitted": wheel if isinstance(wheel, bool) else None,
         "amplitudes_mm": amplitudes_mm,
         "freq_span_hz": span_hz,
-        "conditions": _finite(run.conditions),
+        "conditions": finite_or_none(run.conditions),
         "samples": run.n_samples,
         "sample_rate_hz": run.sample_rate_hz,
         "frames_lost": sum(int(e.fields.get("missing", 0)) for e in run.events if e.kind == "gap"),
@@ -230,26 +229,31 @@ def _iteration(run: RunView) -> dict[str, Any] | None:
     if AnalysisKind.DRIVE_ITERATION not in run.result_names:
         return None
     stored = run.results(AnalysisKind.DRIVE_ITERATION)
-    return {key: _finite(stored.get(key)) for key in ITERATION_KEYS}
+    return {key: finite_or_none(stored.get(key)) for key in ITERATION_KEYS}
 
 
 def _iteration_line(done: dict[str, Any]) -> str:
-    """A drive iteration's errors in words (a value not stored: said so)."""
+    """A drive iteration's errors in words (a value not stored, or not a number: said so)."""
+
+    def number(key: str, unit: str = "") -> str:
+        value = done[key]
+        return "not stored" if value is None else f"{value:.3g}{unit}"
+
     band = done["in_band_pct"]
     inside = "no band (a raw target)" if band is None else f"{band:.1f} % inside the target's band"
     stopped = "the step's stop rules met" if done["stop_rules_met"] else "the stop rules not met"
     return (
-        f"iteration {done['iteration']}: rms error {done['rms_error_pct']:.3g} % of the target's rms,"
-        f" {inside}, damage ratio {done['damage_ratio']:.3g}; {stopped}"
+        f"iteration {done['iteration']}: rms error {number('rms_error_pct', ' %')} of the target's rms,"
+        f" {inside}, damage ratio {number('damage_ratio')}; {stopped}"
     )
 
 
-def _finite(value: Any) -> Any:
+def finite_or_none(value: Any) -> Any:
     """``value`` with every non-finite number as None (the JSON holds no NaN)."""
     if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
+        return {k: finite_or_none(v) for k, v in value.items()}
     if isinstance(value, list):
-        return [_finite(v) for v in value]
+        return [finite_or_none(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value

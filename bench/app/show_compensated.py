@@ -4,21 +4,21 @@ was made from and with which assumptions, and what it holds, read without changi
 :func:`compensated_summary` gathers it as one JSON-ready mapping (schema ``wfs-bench-show-compensated``,
 version :data:`VERSION`, docs/cli.md): the file's origin (the campaign, its analysis, the measurement,
 the software), the identification used, the chain stated or assumed and where each came from, the
-valid band, and the samples: how many are defined, the force's mean, rms about it, extremes and
-the band's median half-width, as ``compensate``'s job summary gives them (read block by block: the
-memory taken does not grow with the record).
+valid band, and the samples: how many are defined, the force's mean, rms about it and extremes,
+the band's mean and largest half-width (read block by block: the memory taken does not grow with
+the record).
 :func:`compensated_lines` words it for a person.
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bench.analysis.blockwise import Moments
+from bench.app.show import finite_or_none
 from bench.store.compensated import open_compensated
 
 SCHEMA = "wfs-bench-show-compensated"
@@ -45,25 +45,16 @@ SHOWN = (
 )
 
 
-def _finite_or_none(value: Any) -> Any:
-    """JSON has no NaN: a number that is none (an unstated bandwidth) is null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, list):
-        return [_finite_or_none(v) for v in value]
-    return value
-
-
 def compensated_summary(path: str | Path) -> dict[str, Any]:
     """What the compensated force file at ``path`` holds (module docstring);
     :class:`~bench.store.compensated.CompensatedFileError` naming the file when it is none."""
     with open_compensated(path) as compensated:
         attributes = compensated.attributes
-        force, halves, times = Moments(), [], []
+        force, band, times = Moments(), Moments(), []
         for block in compensated.blocks():
             defined = np.isfinite(block["f_contact_n"]) & np.isfinite(block["u95_n"])
             force.add(block["f_contact_n"][defined].astype(float))
-            halves.append(block["u95_n"][defined])
+            band.add(block["u95_n"][defined].astype(float))
             times += [float(block["t_s"][0]), float(block["t_s"][-1])]
         n, defined_n = compensated.n_samples, force.count
         return {
@@ -71,7 +62,7 @@ def compensated_summary(path: str | Path) -> dict[str, Any]:
             "version": VERSION,
             "file": str(compensated.path),
             "schema_version": attributes.get("schema_version"),
-            **{key: _finite_or_none(attributes.get(key)) for key in SHOWN},
+            **{key: finite_or_none(attributes.get(key)) for key in SHOWN},
             "sources": {
                 key.removesuffix("_source"): value
                 for key, value in attributes.items()
@@ -88,7 +79,8 @@ def compensated_summary(path: str | Path) -> dict[str, Any]:
                 "f_contact_rms_n": force.std if defined_n else None,
                 "f_contact_min_n": force.minimum if defined_n else None,
                 "f_contact_max_n": force.maximum if defined_n else None,
-                "u95_median_n": float(np.median(np.concatenate(halves))) if defined_n else None,
+                "u95_mean_n": band.mean if defined_n else None,
+                "u95_max_n": band.maximum if defined_n else None,
             },
         }
 
@@ -121,7 +113,7 @@ def compensated_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(
             f"contact force: mean {samples['f_contact_mean_n']:.4g} N, rms about it"
             f" {samples['f_contact_rms_n']:.4g} N,"
-            f" {samples['f_contact_min_n']:.4g} to {samples['f_contact_max_n']:.4g} N; 95 % band median"
-            f" half-width {samples['u95_median_n']:.3g} N"
+            f" {samples['f_contact_min_n']:.4g} to {samples['f_contact_max_n']:.4g} N; 95 % band half-width"
+            f" {samples['u95_mean_n']:.3g} N on average, {samples['u95_max_n']:.3g} N at the most"
         )
     return lines

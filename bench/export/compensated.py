@@ -4,8 +4,7 @@
 - **CSV**, a new folder holding ``<name>.csv`` (the file's name without its suffix): the columns
   ``time_s`` (the measurement's own time, as the file keeps it), ``f_contact_n`` and ``u95_n``, a
   units row under the header, the float32 values as the shortest decimals that read back the same
-  (NaN where the filters' window reaches beyond the record). ``wfsbench compensate`` and the CSV
-  import read it without a mapping of its layout.
+  (NaN where the filters' window reaches beyond the record).
 - **MDF4**, one file: one channel group named after the file, its master channel ``time`` (the
   measurement's time) and the two channels with their units and descriptions; the header comment
   holds what made the force (campaign, measurement, identification, valid band, every assumption)

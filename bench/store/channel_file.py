@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.store.csv_mapping import ChannelColumn, Dialect, Timing
-from bench.store.csv_read import CsvError, read_csv
+from bench.store.csv_read import TIME_STEP_TOLERANCE, CsvError, read_csv
 from bench.store.csv_units import UNITS, known_units, unit_named
 from bench.store.rpc3 import Rpc3Error, read_rpc3
 
@@ -39,8 +39,6 @@ RPC3_SUFFIXES = (".rsp", ".drv", ".tim", ".rpc")
 MDF_SUFFIXES = (".mf4", ".mdf", ".mdf4")
 #: The quantity an SI unit measures, as an error names it.
 QUANTITY_OF = {"m": "length", "N": "force", "m/s^2": "acceleration"}
-#: The channel's name while it is read.
-_READ = "channel"
 
 
 class ChannelFileError(ValueError):
@@ -154,14 +152,15 @@ def _csv(asked: _Asked) -> ChannelSamples:
     channel = asked.channel or asked.the_only(
         others, f"{path}: line 1", f"columns besides the time column {time_column!r}"
     )
-    column = ChannelColumn(_READ, asked.si_unit, channel, asked.unit_given() if asked.unit else None)
+    read = asked.keys.what  # the channel's name while it is read, as an error names it
+    column = ChannelColumn(read, asked.si_unit, channel, asked.unit_given() if asked.unit else None)
     try:
         table = read_csv(path, Dialect(units_row=units_row), Timing(column=time_column), (column,))
     except CsvError as exc:
         raise ChannelFileError(str(exc)) from None
-    if _READ not in table.columns:
+    if read not in table.columns:
         raise ChannelFileError(str(table.missing(column)))
-    return ChannelSamples(table.columns[_READ], table.sample_rate_hz, f"{path} column {channel!r}")
+    return ChannelSamples(table.columns[read], table.sample_rate_hz, f"{path} column {channel!r}")
 
 
 def _rpc3(asked: _Asked) -> ChannelSamples:
@@ -201,7 +200,7 @@ def _mdf(asked: _Asked) -> ChannelSamples:
     if t.size < 2 or not np.all(np.diff(t) > 0):
         raise ChannelFileError(f"{where}: its time stamps do not step forward")
     step = (t[-1] - t[0]) / (t.size - 1)
-    if np.any(np.abs(np.diff(t) - step) > 1e-3 * step):
+    if np.any(np.abs(np.diff(t) - step) > TIME_STEP_TOLERANCE * step):
         raise ChannelFileError(f"{where}: the time stamps step unevenly: not one sample rate")
     values = np.asarray(signal.samples, dtype=float) * asked.factor(channel, str(signal.unit), "its unit")
     return ChannelSamples(values, 1.0 / step, f"{path} channel {channel!r}")

@@ -153,7 +153,7 @@ class CompensatedFile:
                 if file[name].shape != (self.n_samples,):
                     count, n = file[name].shape[0], self.n_samples
                     raise CompensatedFileError(f"{path}: /{name} has {count} samples, /f_contact_n {n}")
-        except KeyError as exc:
+        except (KeyError, OSError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise CompensatedFileError(f"{path}: damaged: {exc}") from None
 
     def unit(self, name: str) -> str:
@@ -164,7 +164,11 @@ class CompensatedFile:
         size = READ_BLOCK_SAMPLES
         for start in range(0, self.n_samples, size):
             stop = min(start + size, self.n_samples)
-            yield {name: self._file[name][start:stop] for name in SERIES}
+            try:
+                block = {name: self._file[name][start:stop] for name in SERIES}
+            except (OSError, RuntimeError, ValueError) as exc:  # a damaged chunk
+                raise CompensatedFileError(f"{self.path}: damaged at samples {start}-{stop}: {exc}") from None
+            yield block
 
 
 @contextmanager

@@ -22,7 +22,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from bench.store.channel_file import ChannelFileError, ChannelKeys, read_channel
+from bench.store.channel_file import (
+    CSV_SUFFIXES,
+    MDF_SUFFIXES,
+    RPC3_SUFFIXES,
+    ChannelFileError,
+    ChannelKeys,
+    read_channel,
+)
 from bench.store.compensated import SCHEMA_NAME
 
 COMPENSATED_SUFFIXES = (".h5", ".hdf5")
@@ -55,7 +62,11 @@ def read_target(
     path = Path(path)
     if not path.is_file():
         raise TargetError(f"{path}: no such file")
-    if path.suffix.lower() in COMPENSATED_SUFFIXES:
+    suffix = path.suffix.lower()
+    known = (*COMPENSATED_SUFFIXES, *CSV_SUFFIXES, *MDF_SUFFIXES, *RPC3_SUFFIXES)
+    if suffix not in known:
+        raise TargetError(f"{path}: unknown target file format {suffix!r} (known: {', '.join(known)})")
+    if suffix in COMPENSATED_SUFFIXES:
         if channel or unit or time_column:
             raise TargetError(
                 f"{path}: a compensated measurement is its contact force in N: it takes no"

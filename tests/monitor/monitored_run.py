@@ -56,13 +56,18 @@ def monitored_run(out: Path, *options: str, port: int = 0) -> Iterator[Monitored
         assert first[-1].startswith("monitor: http://127.0.0.1:"), first
         yield MonitoredRun(process, first[-1].split()[1], lines, out)
     finally:
-        if process.poll() is None:
-            process.terminate()
-            try:
-                process.wait(30)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
+        ended(process)
+
+
+def ended(process: subprocess.Popen) -> None:
+    """``process`` ended: asked to (SIGTERM) if still running, killed if it does not within 30 s."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
 
 
 def free_port() -> int:

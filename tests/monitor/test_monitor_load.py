@@ -10,6 +10,7 @@ tested on a file held open: tests/monitor/test_monitor_cli.py)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -20,7 +21,7 @@ from urllib.parse import urlsplit
 import pytest
 
 from tests.monitor.http import get_json
-from tests.monitor.monitored_run import ROOT, assert_untouched, free_port, monitored_run, recorded
+from tests.monitor.monitored_run import ROOT, assert_untouched, ended, free_port, monitored_run, recorded
 from tests.waiting import LineReader, wait_until
 
 pytestmark = [pytest.mark.slow, pytest.mark.validation]
@@ -49,48 +50,42 @@ def file_monitor(out: Path) -> tuple[subprocess.Popen, int]:
 
 
 def test_twenty_viewers_a_flood_and_bad_requests_change_nothing(tmp_path) -> None:
-    out, port = tmp_path / "smoke.h5", free_port()
-    viewers = subprocess.Popen(
-        [
-            "nice",
-            f"-n{VIEWERS_NICENESS}",
-            sys.executable,
-            "-m",
-            "tests.monitor.viewers",
-            str(port),
-            f"--readers={READERS}",
-            f"--silent={SILENT}",
-            f"--flood={FLOOD}",
-            "--bad",
-        ],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    out, port, errors = tmp_path / "smoke.h5", free_port(), tmp_path / "viewers.err"
+    with contextlib.ExitStack() as stack:
+        viewers = subprocess.Popen(
+            [
+                "nice",
+                f"-n{VIEWERS_NICENESS}",
+                sys.executable,
+                "-m",
+                "tests.monitor.viewers",
+                str(port),
+                f"--readers={READERS}",
+                f"--silent={SILENT}",
+                f"--flood={FLOOD}",
+                "--bad",
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=stack.enter_context(errors.open("w")),
+            text=True,
+        )
+        stack.callback(ended, viewers)
         seen_lines = LineReader(viewers.stdout)
         assert seen_lines.next(120, "the viewers loaded") == "ready\n"  # then they wait for the monitor
         with monitored_run(out, port=port) as run:
             assert seen_lines.next(120, "the viewers connected") == "watching\n"
             wait_until(out.exists, 60, "the campaign file created")
             watcher, watcher_port = file_monitor(out)  # its "recording" state: test_monitor_cli.py
+            stack.callback(ended, watcher)
             said = run.lines.rest(60)
             assert run.process.wait(60) == 0, said
         seen_text = seen_lines.rest(400)
-        assert viewers.wait(60) == 0, viewers.stderr.read()
-    finally:
-        if viewers.poll() is None:
-            viewers.kill()
-            viewers.wait()
-    try:
+        assert viewers.wait(60) == 0, errors.read_text()
         wait_until(
             lambda: get_json(watcher_port)["state"] == "finished", 30, "the file monitor to see the end"
         )
         finished = get_json(watcher_port)
-    finally:
-        watcher.terminate()
-        watcher.wait(30)
     assert (finished["points_done"], finished["points_planned"], finished["recorder"]) == (8, 8, None)
     assert [r["status"] for r in finished["runs"]] == ["complete", "complete", "complete"]
     seen = json.loads(seen_text)
