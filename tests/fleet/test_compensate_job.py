@@ -11,7 +11,6 @@ import shutil
 import subprocess
 import sys
 import textwrap
-from collections import Counter
 from pathlib import Path
 
 import duckdb
@@ -152,25 +151,22 @@ def test_a_job_refuses_the_options_of_one_measurement_and_paths_that_do_not_exis
 
 
 def _pythons_started(command: list[str]) -> tuple[int, dict[int, str]]:
-    """Run ``command`` and watch it to its end; its exit code and the Python processes it started
-    (a cluster's workers and nannies, by their command lines where they could still be read). A
-    command's other children are not counted (importing h5py asks ``uname -p`` for the processor),
-    nor a child seen as Python at one look only: one forked to run another program is, until it
-    does, and a worker lives for seconds, looked at every 5 ms."""
+    """Run ``command`` and watch it to its end; its exit code and the processes of a local cluster it
+    started, by their command lines: Python started by ``multiprocessing`` (the cluster's workers and
+    their resource tracker). A command's other children are not counted: importing h5py runs
+    ``uname -p``, which until it runs that program is a fork of the command itself."""
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    watched, looks, lines = psutil.Process(process.pid), Counter(), {}
+    watched, lines = psutil.Process(process.pid), {}
 
     def ended() -> bool:
         with contextlib.suppress(psutil.NoSuchProcess):
             for child in watched.children(recursive=True):
-                with contextlib.suppress(psutil.Error):
-                    if child.name().startswith("python"):  # the name is read from a zombie too
-                        looks[child.pid] += 1
-                        lines[child.pid] = lines.get(child.pid) or _command_line(child)
+                if lines.get(child.pid, "?") == "?":
+                    lines[child.pid] = _command_line(child)
         return process.poll() is not None
 
     wait_until(ended, 300, "the command's end")
-    return process.returncode, {pid: lines[pid] for pid, n in looks.items() if n >= 2}
+    return process.returncode, {pid: line for pid, line in lines.items() if "multiprocessing" in line}
 
 
 def _command_line(process: psutil.Process) -> str:
