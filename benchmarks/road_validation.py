@@ -7,7 +7,9 @@ against the true contact force in 0-30 Hz and per octave; the share of samples w
 inside the 95 % band (both forces limited to the valid band, and unfiltered); the median half-width.
 The same road is also read by sensors other than the bench's (``other_sensors``: a hub accelerometer
 of twice the lag, a WFS three times as noisy), compensated with that lag stated (the noise estimated
-from the measurement) and without (0 assumed): the share inside the band in the valid band.
+from the measurement) and without (0 assumed): the share inside the band in the valid band. And the
+same road driven by the car with a linear tyre (the campaign's tyre without its stiffness rise and
+friction, as an independent quarter car would model it): the share inside the band in the valid band.
 The figures (like the paper's Figure 1) go to ``--figures`` (docs/figures by default).
 
     PYTHONPATH=. .venv/bin/python benchmarks/road_validation.py [--campaign FILE]
@@ -37,6 +39,9 @@ CASES = (("B", 30.0), ("B", 60.0), ("B", 100.0), ("C", 30.0), ("C", 60.0), ("C",
 FIGURE_CASES = (("C", 60.0), ("B", 100.0))
 PRESSURE_BAR = 2.5
 CAR = BenchSetup.paper_quarter_car(PRESSURE_BAR, model=TyreModel.WHEEL_TREAD)
+#: The same car with a linear tyre: a road tyre without the rate and amplitude dependence the
+#: campaign's tyre has.
+LINEAR_CAR = BenchSetup.paper_quarter_car(PRESSURE_BAR, model=TyreModel.WHEEL_TREAD, nonlinear=False)
 
 
 def _campaign(given: str | None, folder: Path) -> Path:
@@ -61,14 +66,16 @@ def main(argv: list[str] | None = None) -> int:
         analysis = analyze_campaign(_campaign(args.campaign, Path(tmp)))
     figures = Path(args.figures)
     figures.mkdir(parents=True, exist_ok=True)
-    results, others = [], []
+    results, others, linear = [], [], []
     for road_class, speed in CASES:
         drive = road_drive(
             road_class, speed_km_h=speed, duration_s=args.duration, sample_rate_hz=1000.0, seed=args.seed
         )
-        result = validate_on_road(analysis, CAR, drive, pressure_bar=PRESSURE_BAR, seed=args.seed + 2)
+        same = {"pressure_bar": PRESSURE_BAR, "seed": args.seed + 2}
+        result = validate_on_road(analysis, CAR, drive, **same)
         results.append(result)
         others.append(_other_sensors(analysis, drive, args.seed + 4))
+        linear.append(validate_on_road(analysis, LINEAR_CAR, drive, **same))
         if (road_class, speed) in FIGURE_CASES:
             path = figures / f"road-compensation-{road_class.lower()}-{speed:.0f}kmh.png"
             road_compensation_figure(result).savefig(path)
@@ -79,16 +86,16 @@ def main(argv: list[str] | None = None) -> int:
     print(
         "\n| road | true force rms | raw | hub-acceleration | model-compensated | model / raw"
         " | inside the 95 % band, in the valid band | unfiltered | median half-width"
-        " | other sensors, stated: inside, in the valid band |"
+        " | other sensors, stated: inside, in the valid band | a linear tyre: inside, in the valid band |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for r, (stated, _) in zip(results, others, strict=True):
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for r, (stated, _), lin in zip(results, others, linear, strict=True):
         print(
             f"| {r.road_class} {r.speed_km_h:.0f} km/h | {r.truth_rms_n:.0f} N | {r.raw.rms_n:.1f} N"
             f" | {r.hub_compensated.rms_n:.1f} N | {r.model_compensated.rms_n:.2f} N"
             f" | {r.model_compensated.rms_n / r.raw.rms_n:.4f} | {100 * r.coverage_valid_band:.1f} %"
             f" | {100 * r.coverage_whole:.1f} % | {r.median_u95_n:.2f} N"
-            f" | {100 * stated.coverage_valid_band:.1f} % |"
+            f" | {100 * stated.coverage_valid_band:.1f} % | {100 * lin.coverage_valid_band:.1f} % |"
         )
     print(
         "\nthe same roads read by other sensors (a hub accelerometer of twice the bench's lag, a WFS three"

@@ -14,11 +14,13 @@ each propagated through the filters sample by sample:
   is that filter applied to the inputs. The variance is ``s[n]^T C s[n]``. PyDynamic's
   ``FIRuncFilter`` propagates a covariance of FIR taps the same way; here the taps' covariance
   follows from the parameters';
-- **the tyre's amplitude dependence**: the campaign identified the tyre at several amplitudes
-  (1 / 2 / 5 mm), which differ where the rubber's friction damping matters (near the tread
-  resonance), and a road's tyre deflection is none of them. The compensator of each other
-  amplitude gives a force too; the largest deviation from the chosen one is taken as the half-width
-  of a rectangular distribution (variance ``max_j d_j[n]^2 / 3``);
+- **the tyre's amplitude and rate dependence**: the campaign identified the tyre at several
+  amplitudes (1 / 2 / 5 mm), which differ where the rubber's friction damping matters (near the
+  tread resonance), and a road's tyre deflection is none of them; nor need a road's tyre follow
+  the rubber terms the bench measured. The compensator of each alternative (each other amplitude,
+  and the chosen tyre without its rubber terms) gives a force too; the largest deviation from the
+  chosen one is taken as the half-width of a rectangular distribution (variance
+  ``max_j d_j[n]^2 / 3``);
 - **the sensors' noise**, white at the levels the campaign's dwells show (the residual rms of
   ``fz_wfs_n`` and ``a_hub_m_s2`` on the shaker), through the filters: ``sigma_F^2 sum h_F^2 +
   sigma_a^2 sum h_A^2``, the same for every sample.
@@ -67,9 +69,10 @@ class CompensationBasis:
     ``model``, ``tyre``, ``rubber``, ``sensor``: the identification chosen (``label`` says which:
     pressure and amplitude); ``parameters`` and ``covariance``: the uncertain parameters (names of
     :class:`Tyre` or :class:`RubberTerms` fields, ``wheel_mass_kg``, or :data:`SENSOR_PARAMETERS`)
-    and their covariance in their units; ``alternatives``: the other amplitudes' identifications
-    (label, model, tyre, rubber) whose spread is the amplitude dependence; ``accelerometer_delay_s``:
-    the hub acceleration's lag the filters undo; ``noise_wfs_n`` and ``noise_accel_m_s2``: the
+    and their covariance in their units; ``alternatives``: the identifications (label, model, tyre,
+    rubber) whose spread is the tyre's amplitude and rate dependence (the other amplitudes', the
+    chosen one without its rubber terms); ``accelerometer_delay_s``: the hub acceleration's lag the
+    filters undo; ``noise_wfs_n`` and ``noise_accel_m_s2``: the
     sensors' white noise (rms per sample); ``band_hz``: the filters' design band;
     ``filter_s`` and ``latency_s``: their length and latency in time; ``valid_band_hz``: where the
     campaign verified the compensation (lowest, upper frequency)."""

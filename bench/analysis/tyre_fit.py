@@ -29,8 +29,9 @@ the noise with every parameter determined, else with all but Model 3's sidewall 
 sidewall mode just above the band: the data fix combinations of the sidewall's parameters, not
 each, and Model 2 misses them by far), else the same two kinds outside the noise (BIC alone
 preferred a Model 3 with four undetermined parameters, the air spring among them, whenever the
-given sensor was off); a chosen fit far outside the noise
-(:func:`~bench.analysis.lsq.far_outside_noise`) is a finding for the user.
+given sensor was off); a chosen fit outside the noise (noise alone gives its chi^2 in fewer than
+:data:`~bench.analysis.lsq.MISFIT_FLAG_EXCEEDANCE` of fits) is a finding for the user: its
+parameters may be biased beyond their intervals.
 """
 
 from __future__ import annotations
@@ -44,9 +45,11 @@ import numpy as np
 from bench.analysis.dwell import NOISE_ESTIMATE_DOF
 from bench.analysis.frf import Frf
 from bench.analysis.lsq import (
+    MISFIT_FLAG_EXCEEDANCE,
     Z95,
     FitStatistics,
     LsqResult,
+    chi2_exceedance,
     far_outside_noise,
     relative_resolution,
     weighted_fit,
@@ -133,6 +136,12 @@ class TyreFit(FitStatistics):
     def outside_noise(self) -> bool:
         """The fit misses the data by far more than its noise (see :func:`far_outside_noise`)."""
         return far_outside_noise(self.lsq, NOISE_ESTIMATE_DOF)
+
+    @property
+    def misfit_exceedance(self) -> float:
+        """How often noise alone gives the fit's chi^2 or more (:func:`chi2_exceedance`)."""
+        lsq = self.lsq
+        return chi2_exceedance(lsq.chi2, lsq.n_residuals - lsq.n_parameters, NOISE_ESTIMATE_DOF)
 
 
 @dataclass(frozen=True)
@@ -561,15 +570,26 @@ def identify_shaker(
             f"no model has every parameter determined; Model {int(best)} (lowest BIC) is shown"
             f" with {', '.join(chosen.undetermined) or 'a fit that did not converge'}"
         )
-    if chosen.outside_noise:
+    if (exceedance := chosen.misfit_exceedance) < MISFIT_FLAG_EXCEEDANCE:
         findings.append(
-            f"Model {int(best)} misses the data far outside its noise (reduced chi^2"
-            f" {chosen.reduced_chi2:.3g}): a value taken as known (the sensor, the wheel mass, m_comp)"
-            " may be wrong, or the tyre is not one of Models 1-3"
+            f"Model {int(best)} misses the data {'far ' if chosen.outside_noise else ''}outside its"
+            f" noise (reduced chi^2 {chosen.reduced_chi2:.3g}; noise alone gives that in"
+            f" {_share(exceedance)} of fits): a value taken as known (the sensor, the wheel mass,"
+            " m_comp) may be wrong, or the tyre is not one of Models 1-3 (a non-linear tyre); its"
+            " parameters may be biased beyond their 95 % intervals, which hold the noise alone"
         )
     return ShakerIdentification(
         dict(sorted(fits.items())), best, rate, hyst, selection, tuple(findings), tried
     )
+
+
+def _share(probability: float) -> str:
+    """A small probability as a percentage: ``0.35 %``, ``4.3e-04 %``, ``fewer than 1e-08 %``
+    (:func:`chi2_exceedance` computes none smaller than 1e-10)."""
+    if probability <= 0:
+        return "fewer than 1e-08 %"
+    percent = 100 * probability
+    return f"{percent:.2g} %" if percent >= 0.01 else f"{percent:.1e} %"
 
 
 @dataclass(frozen=True)
@@ -688,6 +708,7 @@ def _peak(
 ) -> tuple[float, float]:
     """Frequency and height of the largest ``|F_wfs / F_contact|`` of the model in ``band``."""
     from scipy.optimize import minimize_scalar
+
     tyre, rubber = _model_objects(model, values, wheel_mass_kg)
 
     def magnitude(f_hz: float | np.ndarray) -> np.ndarray:

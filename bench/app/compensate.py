@@ -28,6 +28,7 @@ cover is refused, naming it (:class:`CompensationRefusedError`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -44,6 +45,7 @@ from bench.analysis.measurement_compensation import (
 )
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.analysis.runs import ShakerAmplitudeResult
+from bench.analysis.shaker_models import LINEAR, RubberTerms
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
 from bench.analysis.validation import AnalysisInputError
 from bench.app.compensation_assumptions import (
@@ -55,6 +57,8 @@ from bench.app.compensation_assumptions import (
     shaker_at,
     valid_band,
 )
+from bench.models.benches import TyreModel
+from bench.models.parameters import Tyre
 from bench.store.compensated import OutputExistsError
 from bench.store.measurement import Measurement
 from bench.store.measurement_chain import MeasurementChain, Stated, merged
@@ -107,6 +111,22 @@ def _parameters(
     return (*names, *variances), full
 
 
+def _tyre_alternatives(
+    amplitudes: Mapping[float, ShakerAmplitudeResult], chosen_m: float
+) -> tuple[tuple[str, TyreModel, Tyre, RubberTerms], ...]:
+    """The identifications whose spread is the band's model-form part: each other amplitude's (the
+    tyre's amplitude dependence), and the chosen one without its rubber terms where it has any (a
+    road tyre that does not follow the rate and amplitude dependence the bench measured: its
+    stiffness rise was 2.5 N of the 3 N error of a linear tyre's class C road, outside the band)."""
+    fits = {r.label: r.identification.best_fit for r in amplitudes.values()}
+    chosen = amplitudes[chosen_m].label
+    alternatives = [(label, f.model, f.tyre, f.rubber) for label, f in fits.items() if label != chosen]
+    if fits[chosen].rubber != LINEAR:
+        fit = fits[chosen]
+        alternatives.append((f"{chosen} without its rubber terms", fit.model, fit.tyre, LINEAR))
+    return tuple(alternatives)
+
+
 def compensation_basis(
     analysis: IdentifiedCampaign, measurement: Measurement, pressure_bar: float | None
 ) -> tuple[CompensationBasis, tuple[Assumption, ...]]:
@@ -138,16 +158,7 @@ def compensation_basis(
         sensor=shaker.sensor,
         parameters=parameters,
         covariance=covariance,
-        alternatives=tuple(
-            (
-                r.label,
-                r.identification.best_fit.model,
-                r.identification.best_fit.tyre,
-                r.identification.best_fit.rubber,
-            )
-            for a, r in shaker.amplitudes.items()
-            if a != amplitude
-        ),
+        alternatives=_tyre_alternatives(shaker.amplitudes, amplitude),
         accelerometer_delay_s=delay_s,
         noise_wfs_n=noise_wfs_n,
         noise_accel_m_s2=noise_accel_m_s2,
@@ -302,7 +313,7 @@ def write_output(
         "design_band_hz": basis.band_hz,
         "accelerometer_delay_s": basis.accelerometer_delay_s,
         "accelerometer_offset_m_s2": compensation.accelerometer_offset_m_s2,
-        "amplitude_alternatives": ", ".join(label for label, *_ in basis.alternatives),
+        "tyre_alternatives": ", ".join(label for label, *_ in basis.alternatives),
         **_assumption_attributes(compensation.assumptions),
     }
     arrays = {
