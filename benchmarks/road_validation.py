@@ -33,7 +33,18 @@ from bench.models.setup import BenchSetup
 from bench.report.road_figures import road_compensation_figure
 from bench.simulated_road import other_sensors, validate_on_road
 from bench.store.measurement_chain import MeasurementChain, Stated
+from benchmarks.documented import Documented
 
+#: The demo's campaign runs on the simulated bench in real time, so its dwells differ a little from
+#: run to run: three runs printed figures up to 4.6 % apart (a per-octave error of 0.605 and 0.633 N;
+#: the rest within 1.2 %), so a figure may lie 10 % from the document's: a stale document (a band of
+#: 2.47 N where the command prints 3.82) still fails.
+DOCUMENTED = Documented(
+    arguments=("--figures", "{tmp}"),  # not over the documents' own figures
+    tables_in="docs/compensate.md",
+    quoted={"summary (README.md): ": "README.md", "model-compensated error: ": "docs/compensate.md"},
+    relative_tolerance=0.10,
+)
 CASES = (("B", 30.0), ("B", 60.0), ("B", 100.0), ("C", 30.0), ("C", 60.0), ("C", 100.0))
 #: The cases drawn.
 FIGURE_CASES = (("C", 60.0), ("B", 100.0))
