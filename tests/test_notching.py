@@ -18,6 +18,7 @@ import pytest
 from bench.store import open_campaign
 from sequences import DwellGrid, Hydraulics, Sequence, Sweep
 from tests.campaign_lab import bench_config, lab_campaign
+from tests.documented import assert_documented
 
 PROFILE = """
 [response_limits.plate]
@@ -54,6 +55,13 @@ def test_a_sweep_through_the_resonance_is_notched_there_and_records_the_notched_
     assert point.status == "done" and point.notched_by == "plate"
     assert 37.0 < point.notch_start_hz < 38.0 and 44.0 < point.notch_end_hz < 45.0
     assert 0.3 < point.notch_amplitude_mm < 0.45  # 0.9 x 400 N over 740-980 N per mm
+    # the span and depth come from the plan's model of the plant, the same on every run
+    notch = (
+        f"notched from {point.notch_start_hz:.1f} to {point.notch_end_hz:.1f} Hz"
+        f" (to {point.notch_amplitude_mm:.2f} mm)"
+    )
+    print(f"\n  the 1 mm sweep: {notch}")
+    assert_documented("docs/engine.md", notch)
     # the amplitude reached within the notch is the notch's: the servo overshoots by 2-3 % at
     # 38-44 Hz, and half the peak-to-peak of the 2 um rms noise adds about 1.5 %
     assert point.achieved_amplitude_mm == pytest.approx(point.notch_amplitude_mm, rel=0.06)

@@ -25,6 +25,7 @@ from sequences import (
 )
 from sequences.limits import TYRE_PRESSURE_RANGE_BAR
 from sequences.steps import STEP_TYPES
+from tests.documented import assert_documented
 
 LIMITS = BenchLimits()
 SETTLE_CYCLES, SETTLE_MIN_S, MEASURE_CYCLES, MEASURE_MIN_S, TAPER_S = 2, 0.2, 2, 1.0, 0.3
@@ -192,3 +193,14 @@ def test_the_shipped_files_are_listed_from_the_package():
     assert names == tuple(sorted(p.name for p in shipped_file("smoke.toml").parent.glob("*.toml")))
     expected = {"smoke.toml", "paper_shaker.toml", "paper_shaker_adaptive.toml", "paper_four_post.toml"}
     assert expected <= set(names)
+
+
+@pytest.mark.parametrize("name", ["paper_shaker.toml", "paper_four_post.toml", "hammer.toml", "smoke.toml"])
+def test_the_format_document_quotes_each_fixed_files_points_and_bench_time(name):
+    """docs/sequences.md's table of shipped files: the points and estimated bench time of each file
+    whose points are fixed (the adaptive file's depend on its verdicts), as ``wfsbench check``
+    counts them."""
+    sequence = _load(name)
+    row = f"| {sequence.points()} | {sequence.estimated_duration_s:.0f} s"
+    print(f"\n  {name}: {row}")
+    assert_documented("docs/sequences.md", row)

@@ -78,9 +78,10 @@ class ServoActuator:
     oil under compression (0.2 l in both chambers, the rest in manifold and hoses); piston, rod
     and load-cell adaptor 8 kg (with the 12 kg plate the bare bench's oil-column resonance is
     225 Hz); a two-stage valve with a 200 Hz first-order bandwidth; a cross-port bleed relieving
-    the load pressure at 800 1/s, which damps the oil-column mode to 12-20 % with any specimen; a
-    loop gain of 500 1/s, which leaves a gain margin of about 1.7 on the worst specimen (the
-    sidewall mode of Model 3 destabilises the loop near 900 1/s); rated flow for 1.2 m/s
+    the load pressure at 800 1/s, which damps the loop's modes at 100-300 Hz to 17-20 % (Model 3's
+    sidewall modes to 8-13 %); a loop gain of 500 1/s, which leaves a gain margin of 1.6 on the
+    worst specimen (Model 2 on either bench: unstable from 790 1/s; ``benchmarks/model_figures.py``
+    prints these); rated flow for 1.2 m/s
     (144 l/min at 20 cm^2). The result, uncorrected, with the wheel at 2.5 bar: -1.5 % at 1 Hz
     (the bleed under the tyre spring), within 1.5 % to 30 Hz, then +2.3 / +4.7 / +7.7 / +11.6 % at
     40 / 50 / 60 / 70 Hz; the bare plate +7.2 % and the quarter car +16 % at 70 Hz
