@@ -25,8 +25,10 @@ from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
 from tests.commands import wfsbench
+from tests.documented import assert_documented
 
 SETUP = BenchSetup.paper_shaker(2.5, nonlinear=False)
+DOCUMENT = "docs/analysis.md"
 CHECK_HZ = np.array([34.0, 40.0])
 
 
@@ -78,6 +80,14 @@ def test_a_check_measurement_is_combined_and_its_spread_reported(files):
     for r in amp["repeats"]:
         for channel, spread in r["spread"].items():
             assert spread <= 4 * r["noise"][channel], (channel, spread, r["noise"][channel])
+    spreads = [100 * v for r in amp["repeats"] for v in r["spread"].values()]
+    noises = [100 * v for r in amp["repeats"] for v in r["noise"].values()]
+    said = (
+        f"spread {min(spreads):.2g}-{max(spreads):.2g} % against a noise of"
+        f" {min(noises):.2g}-{max(noises):.2g} %"
+    )
+    print(f"\n  {said}")
+    assert_documented(DOCUMENT, said)
     model2 = next(m for m in amp["models"] if m["model"] == 2)["values"]
     assert model2["stiffness_n_per_m"] == pytest.approx(SETUP.tyre.stiffness_n_per_m, rel=0.02)
     assert model2["tread_mass_kg"] == pytest.approx(SETUP.tyre.tread_mass_kg, rel=0.03)
@@ -93,6 +103,9 @@ def test_the_combined_point_is_sqrt2_less_uncertain_and_the_original_analysis_is
     at = np.flatnonzero(np.isin(alone.frfs.wfs_per_z.freq_hz, CHECK_HZ))
     ratio = combined.frfs.wfs_per_z.sigma[at] / alone.frfs.wfs_per_z.sigma[at]
     assert np.all((ratio > 0.55) & (ratio < 0.85)), ratio  # 1/sqrt(2) = 0.71 for equal repeats
+    said = f"the combined points {ratio[0]:.2f} and {ratio[1]:.2f}x as uncertain"
+    print(f"\n  {said}")
+    assert_documented(DOCUMENT, said)
     # the original grid's analysis is there, not failed, with its tyre
     original = next(r for r in both.runs if r.run_id == "grid-2.5")
     assert original.status == "complete" and original.name == "shaker"
@@ -102,5 +115,13 @@ def test_repeats_of_a_tyre_whose_pressure_drifted_are_flagged(files):
     analysis = analyze_campaign(files["drifted"])
     amplitude = analysis.knowledge.shaker[2.5].nearest(2e-3)
     assert [r.outside_noise for r in amplitude.repeats] == [True, True]
+    spreads = [100 * v for r in amplitude.repeats for v in r.spread.values()]
+    softer = 100 * (1 - 380e3 / SETUP.tyre.stiffness_n_per_m)
+    said = (
+        f"a check on a tyre {softer:.1f} % softer (its pressure drifted):"
+        f" {min(spreads):.2g}-{max(spreads):.2g} %"
+    )
+    print(f"\n  {said}")
+    assert_documented(DOCUMENT, said)
     check = next(r for r in analysis.runs if r.run_id == "check-2.5")
     assert "FLAG 2 mm repeats of dwell 2 mm at 34 Hz differ far outside their noise" in "\n".join(check.lines)

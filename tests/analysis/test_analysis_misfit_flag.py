@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from bench.analysis import analyse_shaker_campaign
-from bench.analysis.lsq import MISFIT_FLAG_EXCEEDANCE
+from bench.analysis.lsq import MISFIT_FLAG_EXCEEDANCE, OUTSIDE_NOISE_QUANTILE
 from bench.models.benches import TyreModel
 from bench.models.setup import BenchSetup
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
@@ -78,4 +78,12 @@ def test_a_non_linear_model_3_tyre_is_covered_or_flagged_in_every_seed():
         "docs/analysis.md",
         f"a non-linear Model-3 tyre with a 123 Hz sidewall: k, d and m_T covered in"
         f" {'/'.join(str(c) for c in covered.values())} of {SEEDS} seeds, flagged in {flagged} of {SEEDS}",
+    )
+    # the former threshold: far outside the noise (noise alone gives the misfit in under 0.1 % of fits)
+    far_outside = sum(e < 1 - OUTSIDE_NOISE_QUANTILE for e in exceedances)
+    print(f"  far outside the noise (the former threshold): {far_outside} of {SEEDS}")
+    assert_documented(
+        "docs/analysis.md",
+        f"At the old threshold ({100 * (1 - OUTSIDE_NOISE_QUANTILE):.1f} %) {far_outside} of the {SEEDS}"
+        " were flagged",
     )

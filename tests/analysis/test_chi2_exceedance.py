@@ -11,6 +11,7 @@ from bench.analysis.lsq import (
     chi2_exceedance,
     chi2_far_outside_noise,
 )
+from tests.documented import assert_documented
 
 DRAWS = 400_000
 
@@ -47,7 +48,11 @@ def test_estimated_variances_widen_the_limit():
     """Three free-run points (5 degrees of freedom): the chi^2 distribution's 99.9 % quantile is
     passed by about 0.9 % of good fits when each variance has 16 degrees of freedom."""
     limit = chi2_distribution.ppf(0.999, 5)
-    assert 0.008 < chi2_exceedance(limit, 5, 16) < 0.011
+    exceedance = chi2_exceedance(limit, 5, 16)
+    assert 0.008 < exceedance < 0.011
+    said = f"99.9 % quantile ({limit:.1f}) is exceeded by {100 * exceedance:.2f} % of good free runs"
+    print(f"\n  {said}")
+    assert_documented("docs/analysis.md", said)
     assert not chi2_far_outside_noise(limit, 5, 16)
     assert chi2_far_outside_noise(40.0, 5, 16) and not chi2_beyond_noise(40.0, 5, 16)
     assert chi2_beyond_noise(1e4, 5, 16)
