@@ -41,8 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.cli.job_options import ONE_THREAD_ENVIRONMENT
+
 ROOT = Path(__file__).resolve().parents[1]
-_ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+#: The measurements run as the commands do: on one thread of linear algebra (the commands set it
+#: before numpy loads, :func:`bench.cli.job_options.one_numerical_thread`; a value the environment
+#: holds is kept).
+_ENV = {**ONE_THREAD_ENVIRONMENT, **os.environ, "PYTHONPATH": str(ROOT)}
 HOUR_S = 3600.0
 #: The sensor noise each distinct hour adds on its shifted road (rms per sample): the campaign's level.
 NOISE_N, NOISE_M_S2 = 1.0, 0.05
