@@ -9,5 +9,8 @@ threads that spin beside them halved the speed of a campaign on the 2-core machi
 
 import os
 
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+#: The libraries' thread counts the package sets to one (a value the environment holds is kept).
+ONE_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+for _variable in ONE_THREAD_VARIABLES:
     os.environ.setdefault(_variable, "1")

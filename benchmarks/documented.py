@@ -24,3 +24,4 @@ class Documented:
     tables_in: str | None = None
     quoted: dict[str, str] = field(default_factory=dict)
     relative_tolerance: float = 0.0
+    percent_points: float = 0.0

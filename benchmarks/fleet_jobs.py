@@ -41,13 +41,14 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.cli.job_options import ONE_THREAD_ENVIRONMENT
+from bench import ONE_THREAD_VARIABLES
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The measurements run as the commands do: on one thread of linear algebra (the commands set it
-#: before numpy loads, :func:`bench.cli.job_options.one_numerical_thread`; a value the environment
-#: holds is kept).
-_ENV = {**ONE_THREAD_ENVIRONMENT, **os.environ, "PYTHONPATH": str(ROOT)}
+#: The measurements run as the commands do: on one thread of linear algebra. Importing ``bench``
+#: sets it before numpy loads (``bench.ONE_THREAD_VARIABLES``); a measurement's process loads numpy
+#: first (this module), so it gets the setting from its environment. A value the environment holds
+#: is kept.
+_ENV = {**dict.fromkeys(ONE_THREAD_VARIABLES, "1"), **os.environ, "PYTHONPATH": str(ROOT)}
 HOUR_S = 3600.0
 #: The sensor noise each distinct hour adds on its shifted road (rms per sample): the campaign's level.
 NOISE_N, NOISE_M_S2 = 1.0, 0.05
@@ -162,12 +163,27 @@ def run_again(job: str, directory: Path, out: Path, workers: int) -> float:
     return time.perf_counter() - start
 
 
-def report(job: str, files: list[Path], runs: dict, workers: int) -> None:
-    """Print a job's figures, each against the one-process baseline measured in the same run."""
+def written_per_measurement(out: Path, n: int) -> str:
+    """What the compensation wrote per measurement into ``out`` (the one-process run's folder): both
+    outputs together, and each, in MB (the sizes do not depend on how many measurements were done)."""
+    from bench.fleet.job import HDF5_SUFFIX, MDF4_SUFFIX
+
+    hdf5, mdf4 = (
+        sum(f.stat().st_size for f in out.rglob(f"*{suffix}")) / n / 1e6
+        for suffix in (HDF5_SUFFIX, MDF4_SUFFIX)
+    )
+    return f"written {hdf5 + mdf4:.1f} MB: the HDF5 output {hdf5:.1f} MB, the MDF4 copy {mdf4:.1f} MB"
+
+
+def report(job: str, files: list[Path], runs: dict, workers: int, out: Path) -> None:
+    """Print a job's figures, each against the one-process baseline measured in the same run (``out``:
+    that baseline's output folder)."""
     one, dask, again_s = runs["one"], runs["dask"], runs["again_s"]
     n, size_bytes = len(files), sum(f.stat().st_size for f in files)
     what = f"{n} one-hour measurements" if job == "compensate" else f"{n} campaign files"
     print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {one['statuses']}")
+    if job == "compensate":
+        print(f"  per measurement: {written_per_measurement(out, n)}")
     print(
         f"  one process (baseline): {one['wall_s']:.1f} s wall, {one['cpu_s']:.1f} s processor;"
         f" {one['cpu_s'] / n:.3f} s processor per file; peak memory {one['max_rss_mb']:.0f} MB"
@@ -209,7 +225,7 @@ def main() -> None:
                 "dask": run_fresh(job, "dask", args.dir, work / f"{job}-dask", args.workers),
                 "again_s": run_again(job, args.dir, work / f"{job}-one", args.workers),
             }
-            report(job, files, runs, args.workers)
+            report(job, files, runs, args.workers, work / f"{job}-one")
     finally:
         shutil.rmtree(work)
     print(f"\nload (1 min) after: {_load():.2f}")

@@ -57,6 +57,8 @@ DOCUMENTED = Documented(
     },
 )
 PRESSURES_BAR = sorted(PAPER_TYRE_STIFFNESS_N_PER_M)
+#: The largest loop gain the gain margin's search tries, as a multiple of the configured one.
+MAX_LOOP_GAIN_FACTOR = 10
 #: The shaker's band, finely enough for a peak's height to 1e-4 and its frequency to 0.01 Hz.
 FREQ_HZ = np.arange(0.5, 70.0 + 1e-9, 0.01)
 #: The amplitude control's table: uncorrected error at 2 mm at these frequencies.
@@ -220,6 +222,8 @@ def actuator() -> None:
         gain = a.loop_gain_per_s
         while _loop_poles(replace(a, loop_gain_per_s=gain), setup).real.max() < 0:
             gain += 5.0
+            if gain > MAX_LOOP_GAIN_FACTOR * a.loop_gain_per_s:
+                raise SystemExit(f"the loop stays stable up to {gain:g} 1/s on {setup.kind}: no margin found")
         unstable_from[setup] = gain
     print(
         "loop damping: damps the loop's modes at 100-300 Hz to"

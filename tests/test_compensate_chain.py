@@ -449,4 +449,23 @@ def test_every_root_attribute_of_the_output_is_documented_and_every_documented_o
     }
     with h5py.File(out, "r") as f:
         written = set(f.attrs)
-    assert written == documented
+    # written only when the identification used is flagged (this campaign's is not)
+    assert written == documented - {"identification_source"}
+
+
+def test_an_identification_the_analysis_flagged_is_said_with_the_band(analysis):
+    """The band's parameter part holds the fit's noise alone: a fit flagged as missing its data
+    (a model that leaves something out) is said among the assumptions, with the flag's words."""
+    from bench.app.compensate import _flagged_identification
+
+    shaker = analysis.knowledge.shaker[2.5]
+    chosen = next(iter(shaker.amplitudes.values()))
+    assert _flagged_identification(chosen, 2.5) == ()  # the campaign's fits are not flagged
+    finding = "Model 2 misses the data outside its noise (reduced chi^2 1.8; ...)"
+    flagged = replace(chosen, identification=replace(chosen.identification, findings=(finding,)))
+    (said,) = _flagged_identification(flagged, 2.5)
+    assert (said.key, said.source) == ("identification", "campaign")
+    assert said.line == (
+        f"campaign: the tyre at 2.5 bar, {chosen.label} is flagged: {finding}; the band holds its"
+        " parameters' noise, not what the flag names"
+    )

@@ -348,10 +348,12 @@ def test_a_class_c_road_at_60_km_h_runs_records_and_is_analysed(tmp_path, identi
     (analysis,) = [a for a in outcome.analyses if a.run_id == run.run_id]
     assert analysis.name == "road_replay"
     r = analysis.results
-    # measured: raw 313.5 N, model-compensated 16.2 N against a contact force of 865.5 N rms (the
-    # non-linear tyre linearised by one 2 mm identification, the accelerometer's 0.375 ms lag not
-    # measured without a four-post sweep): better than a tenth of the raw error in 0-30 Hz, and
-    # below it in every octave
+    # the errors docs/analysis.md quotes from one run (printed with -s; the bench runs in real time
+    # and they vary): the non-linear tyre linearised by one 2 mm identification, the accelerometer's
+    # 0.375 ms lag not measured without a four-post sweep; better than a tenth of the raw error in
+    # 0-30 Hz, and below it in every octave
+    summary = r["summary"] if isinstance(r["summary"], str) else "\n".join(r["summary"])
+    print("\n" + summary)
     assert r["rms_error_model_compensated_n"] < 0.1 * r["rms_error_raw_n"]
     assert all(
         m < w

@@ -29,6 +29,7 @@ from bench.models.setup import BenchSetup
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from tests.campaign_files import StoredRun, write_campaign
 from tests.commands import wfsbench
+from tests.documented import assert_documented
 
 SETUP = BenchSetup.paper_shaker(2.5, nonlinear=False)
 FREQS_HZ = np.array([10.0, 25.0, 40.0])
@@ -104,6 +105,10 @@ def test_a_nominal_plate_mass_one_kilogram_off_moves_the_tread_mass_by_one_kilog
         )
     assert tread[12.0] == pytest.approx(SETUP.tyre.tread_mass_kg, abs=0.01)
     assert tread[13.0] - tread[12.0] == pytest.approx(-1.0, abs=0.01)
+    # what docs/analysis.md quotes (printed with -s)
+    text = f"analysed as 13 kg gives a tread mass of {tread[13.0]:.4f} kg for {SETUP.tyre.tread_mass_kg:g}"
+    print(f"\n  {text}")
+    assert_documented("docs/analysis.md", text)
 
 
 def test_the_docs_import_example_two_points_gives_ratios_not_an_empty_report(tmp_path):

@@ -18,7 +18,7 @@ each propagated through the filters sample by sample:
   amplitudes (1 / 2 / 5 mm), which differ where the rubber's friction damping matters (near the
   tread resonance), and a road's tyre deflection is none of them; nor need a road's tyre follow
   the rubber terms the bench measured. The compensator of each alternative (each other amplitude,
-  and the chosen tyre without its rubber terms) gives a force too; the largest deviation from the
+  and the chosen model fitted without rubber terms) gives a force too; the largest deviation from the
   chosen one is taken as the half-width of a rectangular distribution (variance
   ``max_j d_j[n]^2 / 3``);
 - **the sensors' noise**, white at the levels the campaign's dwells show (the residual rms of
@@ -38,6 +38,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -62,6 +63,18 @@ FFT_BLOCK = 16384
 SENSOR_PARAMETERS = {"sensor_eigenfrequency_hz": "eigenfrequency_hz", "sensor_damping_ratio": "damping_ratio"}
 
 
+class TyreAlternative(NamedTuple):
+    """An identification beside the chosen one whose compensation the band's model-form part holds:
+    another amplitude's (``linear_fit`` False), or the chosen amplitude's model fitted without the
+    rubber terms the chosen fit has (``linear_fit`` True)."""
+
+    label: str
+    model: TyreModel
+    tyre: Tyre
+    rubber: RubberTerms
+    linear_fit: bool = False
+
+
 @dataclass(frozen=True)
 class CompensationBasis:
     """What the compensation of a measurement rests on, whatever its sample rate.
@@ -69,11 +82,11 @@ class CompensationBasis:
     ``model``, ``tyre``, ``rubber``, ``sensor``: the identification chosen (``label`` says which:
     pressure and amplitude); ``parameters`` and ``covariance``: the uncertain parameters (names of
     :class:`Tyre` or :class:`RubberTerms` fields, ``wheel_mass_kg``, or :data:`SENSOR_PARAMETERS`)
-    and their covariance in their units; ``alternatives``: the identifications (label, model, tyre,
-    rubber) whose spread is the tyre's amplitude and rate dependence (the other amplitudes', the
-    chosen one without its rubber terms); ``accelerometer_delay_s``: the hub acceleration's lag the
-    filters undo; ``noise_wfs_n`` and ``noise_accel_m_s2``: the
-    sensors' white noise (rms per sample); ``band_hz``: the filters' design band;
+    and their covariance in their units; ``alternatives``: the identifications
+    (:class:`TyreAlternative`) whose spread is the tyre's amplitude and rate dependence (the other
+    amplitudes', the chosen model fitted without rubber terms); ``accelerometer_delay_s``: the hub
+    acceleration's lag the filters undo; ``noise_wfs_n`` and ``noise_accel_m_s2``: the sensors'
+    white noise (rms per sample); ``band_hz``: the filters' design band;
     ``filter_s`` and ``latency_s``: their length and latency in time; ``valid_band_hz``: where the
     campaign verified the compensation (lowest, upper frequency)."""
 
@@ -84,7 +97,7 @@ class CompensationBasis:
     sensor: WfsSensor
     parameters: tuple[str, ...]
     covariance: np.ndarray
-    alternatives: tuple[tuple[str, TyreModel, Tyre, RubberTerms], ...]
+    alternatives: tuple[TyreAlternative, ...]
     accelerometer_delay_s: float
     noise_wfs_n: float
     noise_accel_m_s2: float
@@ -201,8 +214,10 @@ def design_filters(basis: CompensationBasis, fs_hz: float) -> CompensationFilter
         sens_f[:, j] = (up.taps_wfs - down.taps_wfs) / (2 * step)
         sens_a[:, j] = (up.taps_accel - down.taps_accel) / (2 * step)
     dev_f, dev_a = np.zeros((n_taps, len(basis.alternatives))), np.zeros((n_taps, len(basis.alternatives)))
-    for j, (_, model, tyre, rubber) in enumerate(basis.alternatives):
-        other = _design(basis, fs_hz, shape, model, (tyre, rubber, basis.sensor))
+    for j, alternative in enumerate(basis.alternatives):
+        other = _design(
+            basis, fs_hz, shape, alternative.model, (alternative.tyre, alternative.rubber, basis.sensor)
+        )
         dev_f[:, j] = other.taps_wfs - comp.taps_wfs
         dev_a[:, j] = other.taps_accel - comp.taps_accel
     noise = basis.noise_wfs_n**2 * np.sum(comp.taps_wfs**2) + basis.noise_accel_m_s2**2 * np.sum(

@@ -151,9 +151,10 @@ class ShakerIdentification:
     chose it, as reports word it;
     ``frequency_dependent_stiffness`` and ``hysteretic_damping`` say whether the data needed those
     rubber terms (chosen on Model 2, or on Model 3 when it is the best, and kept for all models);
-    ``findings``: what the user must know about the chosen fit (none determined, far outside the
-    noise); ``tried``: every fit made on the way, by model and rubber terms ``(model,
-    stiffness rise, hysteretic)`` (Model 2 with each of the four combinations among them)."""
+    ``findings``: what the user must know about the chosen fit (none determined, outside its noise:
+    its parameters may be biased beyond their intervals); ``tried``: every fit made on the way, by
+    model and rubber terms ``(model, stiffness rise, hysteretic)`` (Model 2 with each of the four
+    combinations among them)."""
 
     fits: dict[TyreModel, TyreFit]
     best: TyreModel
@@ -584,12 +585,12 @@ def identify_shaker(
 
 
 def _share(probability: float) -> str:
-    """A small probability as a percentage: ``0.35 %``, ``4.3e-04 %``, ``fewer than 1e-08 %``
+    """A small probability as a percentage: ``0.348 %``, ``4.3e-04 %``, ``fewer than 1e-08 %``
     (:func:`chi2_exceedance` computes none smaller than 1e-10)."""
     if probability <= 0:
         return "fewer than 1e-08 %"
     percent = 100 * probability
-    return f"{percent:.2g} %" if percent >= 0.01 else f"{percent:.1e} %"
+    return f"{percent:.3g} %" if percent >= 0.01 else f"{percent:.1e} %"
 
 
 @dataclass(frozen=True)

@@ -41,11 +41,11 @@ from bench.analysis.measurement_compensation import (
     CompensationBasis,
     CompensationFilters,
     CompensationStream,
+    TyreAlternative,
     design_filters,
 )
 from bench.analysis.records import HUB_ACCELERATION, WFS_FORCE
 from bench.analysis.runs import ShakerAmplitudeResult
-from bench.analysis.shaker_models import LINEAR, RubberTerms
 from bench.analysis.tyre_fit import PLATE_MASS_OFFSET
 from bench.analysis.validation import AnalysisInputError
 from bench.app.compensation_assumptions import (
@@ -57,8 +57,6 @@ from bench.app.compensation_assumptions import (
     shaker_at,
     valid_band,
 )
-from bench.models.benches import TyreModel
-from bench.models.parameters import Tyre
 from bench.store.compensated import OutputExistsError
 from bench.store.measurement import Measurement
 from bench.store.measurement_chain import MeasurementChain, Stated, merged
@@ -113,17 +111,23 @@ def _parameters(
 
 def _tyre_alternatives(
     amplitudes: Mapping[float, ShakerAmplitudeResult], chosen_m: float
-) -> tuple[tuple[str, TyreModel, Tyre, RubberTerms], ...]:
+) -> tuple[TyreAlternative, ...]:
     """The identifications whose spread is the band's model-form part: each other amplitude's (the
-    tyre's amplitude dependence), and the chosen one without its rubber terms where it has any (a
-    road tyre that does not follow the rate and amplitude dependence the bench measured: its
-    stiffness rise was 2.5 N of the 3 N error of a linear tyre's class C road, outside the band)."""
-    fits = {r.label: r.identification.best_fit for r in amplitudes.values()}
-    chosen = amplitudes[chosen_m].label
-    alternatives = [(label, f.model, f.tyre, f.rubber) for label, f in fits.items() if label != chosen]
-    if fits[chosen].rubber != LINEAR:
-        fit = fits[chosen]
-        alternatives.append((f"{chosen} without its rubber terms", fit.model, fit.tyre, LINEAR))
+    tyre's amplitude dependence), and, where the chosen fit has rubber terms (a stiffness rise, a
+    hysteretic loss), the same model fitted to the same data without them (a road tyre that does not
+    follow the rate and amplitude dependence the bench measured: a linear tyre's road on class C at
+    60 km/h lay outside the band without it)."""
+    alternatives = []
+    for amplitude_m, result in amplitudes.items():
+        fit = result.identification.best_fit
+        if amplitude_m != chosen_m:
+            alternatives.append(TyreAlternative(result.label, fit.model, fit.tyre, fit.rubber))
+    chosen = amplitudes[chosen_m]
+    ident = chosen.identification
+    linear = ident.tried.get((ident.best, False, False))
+    if (ident.frequency_dependent_stiffness or ident.hysteretic_damping) and linear is not None:
+        label = f"{chosen.label} fitted without rubber terms"
+        alternatives.append(TyreAlternative(label, linear.model, linear.tyre, linear.rubber, linear_fit=True))
     return tuple(alternatives)
 
 
@@ -167,7 +171,22 @@ def compensation_basis(
         latency_s=latency_s,
         valid_band_hz=valid_band_hz,
     )
-    return basis, (pressure, lag, bandwidth, noise_wfs, noise_accel, band)
+    flagged = _flagged_identification(chosen, identified_bar)
+    return basis, (pressure, lag, bandwidth, noise_wfs, noise_accel, band, *flagged)
+
+
+def _flagged_identification(chosen: ShakerAmplitudeResult, pressure_bar: float) -> tuple[Assumption, ...]:
+    """What the campaign's analysis flagged about the identification the compensation rests on
+    (its findings: a fit outside its noise, parameters not determined), said with the band, whose
+    parameter part holds the fit's noise alone: a model error the flag names is not in it."""
+    findings = chosen.identification.findings
+    if not findings:
+        return ()
+    text = (
+        f"the tyre at {pressure_bar:g} bar, {chosen.label} is flagged: {'; '.join(findings)}; the band"
+        " holds its parameters' noise, not what the flag names"
+    )
+    return (Assumption("identification", "campaign", text, {}),)
 
 
 def with_stated_chain(
@@ -313,7 +332,8 @@ def write_output(
         "design_band_hz": basis.band_hz,
         "accelerometer_delay_s": basis.accelerometer_delay_s,
         "accelerometer_offset_m_s2": compensation.accelerometer_offset_m_s2,
-        "tyre_alternatives": ", ".join(label for label, *_ in basis.alternatives),
+        "amplitude_alternatives": ", ".join(a.label for a in basis.alternatives if not a.linear_fit),
+        "linear_fit_alternative": next((a.label for a in basis.alternatives if a.linear_fit), ""),
         **_assumption_attributes(compensation.assumptions),
     }
     arrays = {

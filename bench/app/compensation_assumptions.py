@@ -65,10 +65,11 @@ class Assumption:
     """One thing a compensation rests on that the measurement does not show by itself, as the
     output states it (text, JSON, the output file's attributes).
 
-    ``key``: ``tyre_pressure``, ``hub_lag``, ``bandwidth``, ``noise_wfs``, ``noise_accel`` or
-    ``valid_band``; ``source``: ``stated`` (the command line, the measurement's mapping or record),
-    ``campaign`` (what the campaign identified), ``measured`` (estimated from the measurement) or
-    ``assumed`` (nothing stated: a default taken); ``text``: the sentence printed; ``values``: its
+    ``key``: ``tyre_pressure``, ``hub_lag``, ``bandwidth``, ``noise_wfs``, ``noise_accel``,
+    ``valid_band`` or ``identification`` (the identification used is flagged); ``source``:
+    ``stated`` (the command line, the measurement's mapping or record), ``campaign`` (what the
+    campaign identified), ``measured`` (estimated from the measurement) or ``assumed`` (nothing
+    stated: a default taken); ``text``: the sentence printed; ``values``: its
     numbers by name, the unit in the name (None: not known), the same names in the JSON and as the
     output file's attributes."""
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode
 from bench.cli.file_progress import FileBar
-from bench.cli.job_options import add_job_options, job_executor, one_numerical_thread
+from bench.cli.job_options import add_job_options, job_executor
 
 if TYPE_CHECKING:
     from bench.archive.build import IndexSummary
@@ -41,7 +41,6 @@ def summary_lines(summary: IndexSummary, out: Path) -> list[str]:
 
 
 def _index(args: argparse.Namespace) -> int:
-    one_numerical_thread()
     from bench.archive.build import build_index
     from bench.archive.store import IndexDirError
     from bench.locks import InUseError

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from bench.cli.analysis import add_reanalyse_option
 from bench.cli.exit_codes import ExitCode, unreadable_file_code
-from bench.cli.job_options import add_job_options, one_numerical_thread
+from bench.cli.job_options import add_job_options
 
 
 class _StopError(Exception):
@@ -137,7 +137,6 @@ def _is_job(args: argparse.Namespace) -> bool:
 
 
 def _compensate(args: argparse.Namespace) -> int:
-    one_numerical_thread()
     if _is_job(args):
         from bench.cli.compensate_job import run_job
 

@@ -14,6 +14,7 @@ from bench.models.setup import BenchSetup
 from bench.simulated_campaign import simulate_dwells
 from simulators.plant import PlantSimulator, SensorRealism, SineDwell
 from tests.analysis.conftest import analyse_runs
+from tests.documented import assert_documented
 
 FS = 1000.0
 
@@ -102,6 +103,13 @@ def test_four_post_valid_bands(four_post_analysis, capsys):
             f" lag {1e3 * mass.accelerometer_delay_s:.3f} ms;"
             + "".join(f" {k} {b.upper_hz:.1f} Hz ({b.limited_by})" for k, b in bands.items())
         )
+    # what docs/analysis.md quotes (seeded)
+    assert_documented(
+        "docs/analysis.md",
+        f"Model {int(setup.model)} car: raw {bands['raw'].lowest_hz:.2f}-{bands['raw'].upper_hz:.4g} Hz,"
+        f" hub acceleration {bands['accel'].lowest_hz:.2f}-{bands['accel'].upper_hz:.4g} Hz, model-based"
+        f" {bands['model'].lowest_hz:.2f}-{bands['model'].upper_hz:.4g} Hz, m_wheel {mass.mass_kg:.2f} kg",
+    )
     assert bands["raw"].upper_hz <= 6.0
     assert bands["accel"].upper_hz >= 12.0
     assert bands["model"].upper_hz >= 25.0

@@ -19,6 +19,7 @@ from bench.analysis.validation import AnalysisInputError
 from bench.models.benches import TyreModel, quarter_car
 from bench.models.parameters import Suspension, WfsSensor, paper_tyre
 from tests.analysis.conftest import OTHER_SUSPENSION, OTHER_TYRE, analyse_runs, same_tyre_campaign
+from tests.documented import assert_documented
 
 FS = 1000.0
 SUSPENSION_TRUTH = {
@@ -26,6 +27,15 @@ SUSPENSION_TRUTH = {
     "suspension_stiffness_n_per_m": "stiffness_n_per_m",
     "suspension_damping_ns_per_m": "damping_ns_per_m",
     "body_mass_kg": "body_mass_kg",
+}
+#: The names docs/analysis.md quotes the errors by.
+SHORT = {
+    "unsprung_mass_above_kg": "m_h",
+    "suspension_stiffness_n_per_m": "k_s",
+    "suspension_damping_ns_per_m": "d_s",
+    "body_mass_kg": "m_B",
+    "body": "body mode",
+    "wheel": "wheel mode",
 }
 
 
@@ -99,8 +109,10 @@ def _check_recovered(setup, fit, capsys, label):
         assert abs(found - true) <= ci, name
     assert fit.converged and fit.reduced_chi2 < 30
     assert not set(fit.undetermined) & set(SUSPENSION_TRUTH)
+    text = f"{label}: " + ", ".join(f"{SHORT[k]} {100 * v:+.2f} %" for k, v in errors.items())
     with capsys.disabled():
-        print(f"\n  quarter car {label}: " + ", ".join(f"{k} {100 * v:+.2f} %" for k, v in errors.items()))
+        print(f"\n  quarter car {text}")
+    assert_documented("docs/analysis.md", text)  # seeded
 
 
 def test_paper_quarter_car_recovered(four_post_analysis, capsys):
@@ -109,7 +121,7 @@ def test_paper_quarter_car_recovered(four_post_analysis, capsys):
     Model 2 tyre instead, the Model 3 car fits with a reduced chi^2 above 1000: the mismatch shows.)"""
     setup, result = four_post_analysis
     fit = result.quarter_car
-    _check_recovered(setup, fit, capsys, f"paper {setup.model.name}")
+    _check_recovered(setup, fit, capsys, f"paper's car, Model {int(setup.model)} tyre")
     frfs = result.frfs
     # the post displacement is the cleanest channel: H1 for every response, compensated forces included
     assert all(s.estimator == "h1" for s in frfs.sweeps.values())
@@ -126,7 +138,7 @@ def test_other_quarter_car_recovered(
     setup, sweep = four_post_other_car
     campaign = analyse_runs([shaker_other_tyre_nonlinear], free_run)
     fit = _identify(sweep, four_post_free_run, campaign, setup.sensor).quarter_car
-    _check_recovered(setup, fit, capsys, "other")
+    _check_recovered(setup, fit, capsys, "another car")
 
 
 def test_band_above_the_wheel_mode_leaves_body_and_spring_undetermined(

@@ -24,6 +24,7 @@ from bench.report.text import summary_lines
 from bench.simulated_campaign import SHAKER_GRID_HZ, simulate_dwells
 from simulators.plant import HalfSinePulse, PlantSimulator, SensorRealism
 from tests.analysis.conftest import same_tyre_campaign
+from tests.documented import assert_documented
 
 
 def _campaign(records, free_run, setup):
@@ -124,6 +125,11 @@ def test_four_post_result_and_summary(four_post_analysis):
     high = m.reliable & (m.freq_hz > 20.0)
     assert np.abs(m.value[high]).max() < 2 * truth.unsprung_mass_above_kg
     assert result.unreliable_bins > 0  # the flanks of a 0.1-30 Hz sweep over 60 s
+    # the bins reliable in all three FRFs over Z: what docs/analysis.md quotes (seeded)
+    frfs = result.frfs
+    over_z = frfs.wfs_per_z.reliable & frfs.contact_per_z.reliable & frfs.accel_per_z.reliable
+    f = frfs.wfs_per_z.freq_hz[over_z]
+    assert_documented("docs/analysis.md", f"the reliable band over Z is {f.min():.3g}-{f.max():.4g} Hz")
     text = "\n".join(summary_lines(result))
     for band, name in (
         (result.valid_band_raw, "raw"),
