@@ -466,6 +466,6 @@ def test_an_identification_the_analysis_flagged_is_said_with_the_band(analysis):
     (said,) = _flagged_identification(flagged, 2.5)
     assert (said.key, said.source) == ("identification", "campaign")
     assert said.line == (
-        f"campaign: the tyre at 2.5 bar, {chosen.label} is flagged: {finding}; the band holds its"
-        " parameters' noise, not what the flag names"
+        f"campaign: the tyre at 2.5 bar, {chosen.label} is flagged: {finding}; the band's part for its"
+        " parameters holds their noise alone, not what the flag names"
     )

@@ -183,8 +183,8 @@ def _flagged_identification(chosen: ShakerAmplitudeResult, pressure_bar: float) 
     if not findings:
         return ()
     text = (
-        f"the tyre at {pressure_bar:g} bar, {chosen.label} is flagged: {'; '.join(findings)}; the band"
-        " holds its parameters' noise, not what the flag names"
+        f"the tyre at {pressure_bar:g} bar, {chosen.label} is flagged: {'; '.join(findings)}; the band's"
+        " part for its parameters holds their noise alone, not what the flag names"
     )
     return (Assumption("identification", "campaign", text, {}),)
 
