@@ -196,7 +196,10 @@ def test_a_rerun_over_unchanged_files_starts_no_worker_of_its_local_cluster(camp
         "2.5",
     ]
     code, started = _pythons_started(command)
-    assert code == 0 and len(started) >= 2  # the first run: its cluster's worker processes, seen
+    # the first run starts its cluster: its processes seen (its workers and their resource tracker;
+    # beside four busy processes the job once ended, its one file done in its own process, with only
+    # the tracker spawned)
+    assert code == 0 and len(started) >= 1
     first = duckdb.sql(f"SELECT path, status, error FROM read_parquet('{out}/summary.parquet')").fetchall()
     assert [status for _, status, _ in first] == ["compensated"], first  # nothing left to try again
     code, started = _pythons_started(command)
