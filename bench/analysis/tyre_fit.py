@@ -46,6 +46,7 @@ from bench.analysis.dwell import NOISE_ESTIMATE_DOF
 from bench.analysis.frf import Frf
 from bench.analysis.lsq import (
     MISFIT_FLAG_EXCEEDANCE,
+    OUTSIDE_NOISE_QUANTILE,
     Z95,
     FitStatistics,
     LsqResult,
@@ -135,7 +136,7 @@ class TyreFit(FitStatistics):
     @property
     def outside_noise(self) -> bool:
         """The fit misses the data by far more than its noise (see :func:`far_outside_noise`)."""
-        return far_outside_noise(self.lsq, NOISE_ESTIMATE_DOF)
+        return self.misfit_exceedance < 1.0 - OUTSIDE_NOISE_QUANTILE
 
     @property
     def misfit_exceedance(self) -> float:
