@@ -20,7 +20,8 @@ from pathlib import Path
 from bench.app.analyze import analyze_campaign
 from bench.app.report import write_report
 from bench.demo import run_demo
-from bench.report.figures import write_figures
+from bench.report.figure_files import write_figures
+from bench.report.figure_list import campaign_figure_specs
 from bench.store import open_campaign
 from benchmarks.timing import best_time_s
 
@@ -57,7 +58,8 @@ def main() -> None:
         t_report = best_time_s(lambda: write_report(campaign, work / "report"), args.repeats)
         t_analysis = best_time_s(lambda: analyze_campaign(campaign), args.repeats)
         analysis = analyze_campaign(campaign)
-        t_figures = best_time_s(lambda: write_figures(analysis, work / "figures"), args.repeats)
+        specs = campaign_figure_specs(analysis)
+        t_figures = best_time_s(lambda: write_figures(specs, work / "figures"), args.repeats)
         page = work / "report" / "report.html"
         pngs = sorted((work / "report").glob("*.png"))
         mb = 1e6

@@ -73,8 +73,8 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
     with AnalysisProcess(_fresh()) as process:
         process.submit(broken)
         process.submit(free_run)
-        flagged, _ = process.next_result(RESULT_TIMEOUT_S)
-        analysed, _ = process.next_result(RESULT_TIMEOUT_S)
+        flagged, _, _ = process.next_result(RESULT_TIMEOUT_S)
+        analysed, _, _ = process.next_result(RESULT_TIMEOUT_S)
     assert flagged.error.startswith("AttributeError") and flagged.lines[0].startswith("FLAG analysis failed")
     assert [f.code for f in flagged.flags] == [FlagCode.ANALYSIS_FAILED]  # the flag's code came along
     assert analysed.name == "plate_mass" and not analysed.error

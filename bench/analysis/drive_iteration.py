@@ -35,7 +35,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import rainflow
-from scipy.signal import csd, welch
 
 from bench.analysis.flags import FlagCode, flag
 from bench.analysis.plate_mass import base_acceleration_signal
@@ -93,6 +92,8 @@ def broadband_drive(
     else:
         if target is None:
             raise ValueError("a shaped drive needs the target whose density it follows")
+        from scipy.signal import welch  # loaded where the analysis first needs it
+
         segment = _segment(target.size, sample_rate_hz)
         ft, psd = welch(target - np.mean(target), fs=sample_rate_hz, nperseg=segment)
         amplitude[inside] = np.sqrt(np.interp(f[inside], ft, psd))
@@ -133,6 +134,8 @@ def estimate_frf(drive_mm: np.ndarray, response: np.ndarray, fs_hz: float) -> Fr
     y = np.asarray(response, dtype=float)
     if x.size != y.size or x.size < 64:
         raise ValueError(f"drive and response must be one length of at least 64 samples ({x.size}, {y.size})")
+    from scipy.signal import csd, welch  # loaded where the analysis first needs it
+
     nperseg = _segment(x.size, fs_hz)
     f, gxx = welch(x - x.mean(), fs=fs_hz, nperseg=nperseg)
     _, gyy = welch(y - y.mean(), fs=fs_hz, nperseg=nperseg)

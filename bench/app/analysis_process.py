@@ -6,14 +6,16 @@ the heartbeat and the engine's loop while the next run is under way; here it run
 interpreter (:mod:`bench.app.child_process`) holding a :class:`~bench.app.run_analysis.RunAnalyser`.
 The bench reads each run's records from its campaign file
 (:func:`~bench.app.run_analysis.run_inputs`; the file is the bench's own while it records) and sends
-them; the child sends back, for each, the analysis, what it changed in the campaign's knowledge and
-the analysis's record. Both ways the messages are pickles, one after the other, on the child's
-standard input and output: first the campaign's knowledge, then one
+them; the child sends back, for each, the analysis, what it changed in the campaign's knowledge,
+the analysis's record and the report's figures the run changed. Both ways the messages are
+pickles, one after the other, on the child's standard input and output: first the campaign's
+knowledge, then one
 :class:`~bench.app.run_analysis.RunInputs` per run; back, for each run in the order they were sent,
 its ``RunAnalysis``, what it changed in the campaign's knowledge
 (:func:`~bench.app.analysis_record.knowledge_changes`) and the record the campaign file keeps of it
-(:func:`~bench.app.analysis_record.record_text`: made here, off the bench's path), the changes of
-which :class:`AnalysisProcess` applies to the knowledge it was given. Only the changes travel: the
+(:func:`~bench.app.analysis_record.record_text`: made here, off the bench's path) and the figures
+(:class:`~bench.app.kept_figures.FigureDrawer`: drawn here too), the changes of which
+:class:`AnalysisProcess` applies to the knowledge it was given. Only the changes travel: the
 whole knowledge grows with every run, and unpickling it after each would hold the interpreter's lock
 (and wake its garbage collector) for tens of milliseconds.
 
@@ -38,7 +40,13 @@ from typing import IO
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.app.analysis_record import KnowledgeChanges, analyse_and_record, apply_changes
 from bench.app.child_process import Child, start_child
+from bench.app.kept_figures import FigureDrawer
 from bench.app.run_analysis import RunAnalyser, RunInputs
+from bench.report.figure_list import KeptFigure
+
+#: What the child sends back for each run: its analysis, the changes it made to the campaign's
+#: knowledge, its record's text and the figures it changed.
+AnalysisReply = tuple[RunAnalysis, KnowledgeChanges, str, tuple[KeptFigure, ...]]
 
 #: How long closing waits for the child to end once its input is closed (s).
 STOP_TIMEOUT_S = 10.0
@@ -63,7 +71,7 @@ class AnalysisProcess:
         self.knowledge = knowledge
         self._process: Child | None = None
         self._outbox: queue.Queue[object] = queue.Queue()  # to the child; _END closes its input
-        self._results: queue.Queue[tuple[RunAnalysis, KnowledgeChanges, str] | BaseException] = queue.Queue()
+        self._results: queue.Queue[AnalysisReply | BaseException] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self.outstanding = 0  # runs sent and not yet taken back
 
@@ -101,10 +109,11 @@ class AnalysisProcess:
         self._outbox.put(run)
         self.outstanding += 1
 
-    def next_result(self, timeout_s: float | None) -> tuple[RunAnalysis, str] | None:
-        """The next analysis and its record's text (:mod:`bench.app.analysis_record`), its changes
-        applied to :attr:`knowledge`, waiting up to ``timeout_s`` (None: until it comes; 0: only if
-        it is there); None if none came. AnalysisProcessError if the child ended before answering."""
+    def next_result(self, timeout_s: float | None) -> tuple[RunAnalysis, str, tuple[KeptFigure, ...]] | None:
+        """The next analysis, its record's text (:mod:`bench.app.analysis_record`) and the figures it
+        changed (:mod:`bench.app.kept_figures`), its changes applied to :attr:`knowledge`, waiting up
+        to ``timeout_s`` (None: until it comes; 0: only if it is there); None if none came.
+        AnalysisProcessError if the child ended before answering."""
         if self.outstanding == 0:
             return None
         try:
@@ -115,9 +124,9 @@ class AnalysisProcess:
             self._results.put(result)  # every later call fails alike
             raise AnalysisProcessError(f"the analysis process ended: {result}")
         self.outstanding -= 1
-        outcome, changes, record = result
+        outcome, changes, record, figures = result
         apply_changes(self.knowledge, changes)
-        return outcome, record
+        return outcome, record, figures
 
     def _send_all(self, process: Child) -> None:
         """The sender thread: everything queued, in order, until _END closes the child's input. A
@@ -193,12 +202,25 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
     """The child's side: the knowledge, then one analysis per run until its input closes. An
     analysis that fails in a way the analyser does not flag itself is sent back flagged too."""
     analyser = RunAnalyser(read_message(stdin))
+    drawer = FigureDrawer(analyser.knowledge)
     while True:
         try:
             run: RunInputs = read_message(stdin)
         except EOFError:
             return
-        write_message(stdout, analyse_and_record(analyser, run, flag_defects=True))
+        outcome, changes, record = analyse_and_record(analyser, run, flag_defects=True)
+        write_message(stdout, (outcome, changes, record, _figures_after(drawer, run, analyser.knowledge)))
+
+
+def _figures_after(
+    drawer: FigureDrawer, run: RunInputs, knowledge: CampaignKnowledge
+) -> tuple[KeptFigure, ...]:
+    """The figures ``run`` changed, drawn; none when drawing fails: a kept figure only saves the
+    report its drawing, and the report draws (and reports the failure of) every figure not kept."""
+    try:
+        return drawer.after(run, knowledge)
+    except Exception:  # any failure of the plotting library, whatever it raises
+        return ()
 
 
 def child_main(stdin: IO[bytes], stdout: IO[bytes]) -> None:

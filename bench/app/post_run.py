@@ -25,6 +25,7 @@ from bench.analysis.runs import plate_mass_distrust
 from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError
 from bench.app.run_analysis import run_inputs, runs_to_analyse
 from bench.engine import events as ev
+from bench.report.figure_list import KeptFigure
 from bench.store import CampaignFile, open_campaign
 from sequences.runs import RunKind
 
@@ -150,8 +151,9 @@ class PostRunAnalysis:
         finally:
             self._publishing = False
 
-    def _done(self, outcome: RunAnalysis, record: str = "") -> None:
-        """Publish ``outcome`` with its ``record`` (none for an analysis the process never made)."""
+    def _done(self, outcome: RunAnalysis, record: str = "", figures: tuple[KeptFigure, ...] = ()) -> None:
+        """Publish ``outcome`` with its ``record`` and the ``figures`` it changed (none for an
+        analysis the process never made)."""
         run_id, _, publish = self._sent.pop(0)
         if outcome.error:
             log.warning("analysis of %s failed: %s", run_id, outcome.error)
@@ -160,9 +162,10 @@ class PostRunAnalysis:
         if publish:
             results = {"summary": "\n".join(outcome.lines), **outcome.results}
             why = outcome.error or "; ".join(outcome.omitted)
-            self.publish(
-                ev.AnalysisDone(run_id, outcome.name, outcome.lines, results, outcome.status, why, record)
+            done = ev.AnalysisDone(
+                run_id, outcome.name, outcome.lines, results, outcome.status, why, record, figures
             )
+            self.publish(done)
 
     def _lost(self, reason: str) -> None:
         """The analysis process is gone: every run sent and not answered is published as a

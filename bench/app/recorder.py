@@ -49,15 +49,21 @@ class Recorder:
             case ev.RunFinished():
                 self._finish(event)
             case ev.AnalysisDone():
-                run = self._finished[event.run_id]
-                run.write_results(event.name, event.results)
-                if event.record:
-                    run.write_analysis_record(event.record)
+                self._analysed(event)
             case ev.SequenceFinished():
                 self.campaign.add_event(
                     "sequence finished", event.reason or event.status, status=event.status
                 )
                 self.campaign.flush()
+
+    def _analysed(self, event: ev.AnalysisDone) -> None:
+        """The run's analysis beside it: its results, its record and the figures it changed."""
+        run = self._finished[event.run_id]
+        run.write_results(event.name, event.results)
+        if event.record:
+            run.write_analysis_record(event.record)
+        for figure in event.figures:
+            run.write_figure(figure.name, figure.png, figure.shows_sha256)
 
     def _begin(self, event: ev.RunStarted) -> None:
         if event.run_id in self.campaign.run_ids:

@@ -1,8 +1,10 @@
 """``wfsbench report``: a campaign file's figures and its self-contained HTML page in a directory.
 
-The file is analysed in memory (:func:`~bench.app.analyze.analyze_campaign`; nothing is written
-into it), the figures are drawn to ``DIR/<name>.png`` and the page to ``DIR/report.html``. A
-``DIR`` that cannot hold them (a file, under a file, not writable) is refused before the analysis.
+The file's analysis is read from its records, or fitted again in memory
+(:func:`~bench.app.analyze.analyze_campaign`; nothing is written into the file); the figures go to
+``DIR/<name>.png``, each as the post-run analysis drew and kept it when it shows the same values
+(:mod:`bench.app.kept_figures`), else drawn here, and the page to ``DIR/report.html``. A ``DIR``
+that cannot hold them (a file, under a file, not writable) is refused before the analysis.
 """
 
 from __future__ import annotations
@@ -13,10 +15,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench.app.analyze import analyze_campaign
+from bench.app.kept_figures import kept_pngs
+from bench.report.figure_files import write_figures
+from bench.report.figure_list import campaign_figure_specs
 
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge
-    from bench.report.figures import FigureFile
+    from bench.report.figure_list import FigureFile
 
 REPORT_PAGE = "report.html"
 
@@ -32,6 +37,11 @@ class WrittenReport:
     page: Path
     figures: tuple[FigureFile, ...]
     analysis: CampaignAnalysis
+
+    @property
+    def drawn(self) -> tuple[str, ...]:
+        """The figures drawn for this report (the others were kept by the post-run analysis)."""
+        return tuple(figure.name for figure in self.figures if not figure.kept)
 
 
 def check_report_dir(out_dir: Path) -> None:
@@ -64,16 +74,18 @@ def write_report(
     first (:func:`check_report_dir`), so an unusable one costs no analysis; a write that fails
     anyway raises :class:`ReportDirError` too. ``knowledge``: the post-run analysis of the campaign
     that wrote the file, whose runs are then not analysed again; else the analysis stored after each
-    run, or (``reanalyse``, or none stored) a new fit (:func:`analyze_campaign`)."""
+    run, or (``reanalyse``, or none stored) a new fit (:func:`analyze_campaign`). A figure the
+    post-run analysis kept is taken when it shows the same values, except with ``reanalyse``, which
+    draws every figure again."""
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
     analysis = analyze_campaign(campaign_path, knowledge=knowledge, reanalyse=reanalyse)
-    # the plotting library is loaded once there is something to draw: a file refused costs no import
-    from bench.report.figures import write_figures
+    specs = campaign_figure_specs(analysis)
+    kept = {} if reanalyse else kept_pngs(Path(campaign_path), specs)
     from bench.report.html import report_html
 
     try:
-        figures = tuple(write_figures(analysis, out_dir))
+        figures = tuple(write_figures(specs, out_dir, kept))
         page = out_dir / REPORT_PAGE
         page.write_text(report_html(analysis, figures), encoding="utf-8")
     except OSError as exc:

@@ -29,7 +29,7 @@ from matplotlib.figure import Figure
 from bench.archive import columns as c
 from bench.archive.store import IndexDirError, check_part, part_paths
 from bench.report.axes import DPI
-from bench.report.figures import FigureFile
+from bench.report.figure_list import FigureFile
 
 # the report page's style and builders, so that both pages look alike
 from bench.report.html import PAGE_STYLE, figure_html, table_html

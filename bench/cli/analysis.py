@@ -93,6 +93,8 @@ def _report(args: argparse.Namespace) -> int:
         return unreadable_file_code(exc)
     for figure in written.figures:
         print(f"figure {figure.path}")
+    kept = len(written.figures) - len(written.drawn)
+    print(f"{kept} figures as the post-run analysis drew them, {len(written.drawn)} drawn")
     print(f"report {written.page}")
     return ExitCode.OK
 

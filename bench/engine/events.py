@@ -12,13 +12,16 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from bench.engine.states import RunState, Trigger
 from sequences.channels import Channel
 from sequences.points import PointAttempt
+
+if TYPE_CHECKING:
+    from bench.report.figure_list import KeptFigure
 
 log = logging.getLogger(__name__)
 
@@ -266,7 +269,9 @@ class AnalysisDone:
     ``status`` how far it got (``complete``, ``partial`` or ``failed``: the analysis's
     :class:`~bench.analysis.campaign.AnalysisStatus`) and, when not complete, ``why``; ``record``:
     the analysis kept as a record (JSON text, :mod:`bench.app.analysis_record`; empty when the
-    analysis process was lost before it made one)."""
+    analysis process was lost before it made one); ``figures``: the report's figures whose values
+    the run changed, drawn by the analysis process, to be kept beside the run
+    (:mod:`bench.app.kept_figures`)."""
 
     run_id: str
     name: str
@@ -275,6 +280,7 @@ class AnalysisDone:
     status: str
     why: str = ""
     record: str = ""
+    figures: tuple[KeptFigure, ...] = ()
 
     @property
     def complete(self) -> bool:

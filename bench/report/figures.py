@@ -13,13 +13,17 @@ paper's Figs. 3, 6, 7/9 and 8 from the analysis results.
   true contact force, each valid band shaded (Figs. 7 and 9).
 - ``four_post_hub``: |F_WFS - F_contact| / |Z| against m_wheel |a_hub| / |Z| over frequency: the
   force difference the mass below the sensor makes (Fig. 8, in the frequency domain).
+- ``road_replay_<run>`` and ``drive_iteration_<run>``: :mod:`~bench.report.replay_figures` and
+  :mod:`~bench.report.iteration_figures`.
+
+Which figures an analysis supports, and what each shows, is :mod:`bench.report.figure_list`'s;
+:data:`DRAWERS` is the drawing function of each kind.
 """
 
 from __future__ import annotations
 
+import io
 from collections.abc import Callable
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -28,10 +32,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from bench.analysis.campaign import CampaignAnalysis
-from bench.analysis.drive_iteration import by_step
 from bench.analysis.frf import Frf, ValidBand
-from bench.analysis.records import HAMMER_FORCE, WFS_FORCE
+from bench.analysis.hammer import HammerResult
+from bench.analysis.records import HAMMER_FORCE, WFS_FORCE, HammerRecord, SweepRecord
 from bench.analysis.runs import (
     ForceDifferenceTrace,
     FourPostResult,
@@ -42,6 +45,7 @@ from bench.analysis.runs import (
 from bench.analysis.shaker_models import shaker_response
 from bench.models.parameters import WfsSensor
 from bench.report.axes import DPI, frequency_axes, new_figure
+from bench.report.figure_list import FigureKind, FigureSpec
 from bench.report.iteration_figures import drive_iteration_figure
 from bench.report.replay_figures import road_replay_figure
 
@@ -56,26 +60,11 @@ PHASE_MARGIN_DEG = 10.0
 _MODEL_STYLES = {1: ":", 2: "-", 3: "--"}
 
 
-@dataclass(frozen=True)
-class FigureFile:
-    """A written figure: ``name`` (file stem), ``title`` and ``caption`` for the page, ``path``."""
-
-    name: str
-    title: str
-    caption: str
-    path: Path
-
-
-def _pressure_tag(pressure_bar: float) -> str:
-    return f"{pressure_bar:g}".replace(".", "p") + "bar"
-
-
 # ---------------------------------------------------------------------------------------- hammer
 
 
-def hammer_figure(analysis: CampaignAnalysis) -> Figure:
+def hammer_figure(result: HammerResult, record: HammerRecord) -> Figure:
     """Decay in time (analysed span shaded) and amplitude spectrum with the eigenfrequency marked."""
-    record, result = analysis.hammer_record, analysis.knowledge.hammer
     fs = record.sample_rate_hz
     force = np.asarray(record.channels[WFS_FORCE], dtype=float)
     t_ms = 1e3 * np.arange(force.size) / fs
@@ -479,101 +468,25 @@ def _time_panel(ax: Axes, trace: ForceDifferenceTrace) -> None:
 # ---------------------------------------------------------------------------------------- all
 
 
-def _figures(analysis: CampaignAnalysis) -> list[tuple[str, str, str, Callable[[], Figure]]]:
-    """(name, title, caption, draw) of every figure the analysis supports."""
-    k = analysis.knowledge
-    out = []
-    if k.hammer is not None and analysis.hammer_record is not None:
-        out.append(
-            (
-                "hammer",
-                "Hammer test (Fig. 3)",
-                "Left to right in time: the blow and the sensor's free decay (shaded: the span the"
-                " logarithmic decrement uses); below, its spectrum with the identified eigenfrequency.",
-                lambda: hammer_figure(analysis),
-            )
-        )
-    for pressure, result in sorted((p, r) for p, r in k.shaker.items() if r.amplitudes):
-        tag = _pressure_tag(pressure)
-        out.append(
-            (
-                f"shaker_{tag}",
-                f"Shaker at {pressure:g} bar (Fig. 6)",
-                "Measured F_WFS/F_contact per dwell with 95 % bars (hollow: not settled, unused) and"
-                " the three tyre models fitted to them, one column per amplitude (the selected model"
-                " thicker); the strip along the frequency axis is the raw valid band.",
-                lambda p=pressure, r=result: shaker_figure(p, r),
-            )
-        )
-        out.append(
-            (
-                f"shaker_compensated_{tag}",
-                f"Shaker at {pressure:g} bar: raw and compensated",
-                "The raw ratio against the model-compensated one, one column per amplitude; within the"
-                " dashed tolerances the WFS force is the contact force; the strips along the frequency"
-                " axis are the valid bands, raw (red) and model-compensated (green).",
-                lambda p=pressure, r=result: shaker_compensated_figure(p, r),
-            )
-        )
-    if k.four_post is not None:
-        car = k.four_post
-        out.append(
-            (
-                "four_post_ratios",
-                "Four-post: raw and compensated ratios (Figs. 7 and 9)",
-                "Measured over true contact force, raw, with the hub-acceleration compensation and"
-                " with the model compensator; each valid band shaded in its colour.",
-                lambda: four_post_ratios_figure(car),
-            )
-        )
-        out.append(
-            (
-                "four_post_hub",
-                "Four-post: force difference and hub acceleration (Fig. 8)",
-                "Where the two curves agree, the difference between WFS and contact force is the"
-                " inertia of the mass below the sensor.",
-                lambda: four_post_hub_figure(
-                    car,
-                    None
-                    if analysis.sweep_record is None
-                    else force_difference_trace(analysis.sweep_record, car),
-                ),
-            )
-        )
-
-    for run_id, replay in k.road_replays.items():
-        out.append(
-            (
-                f"road_replay_{run_id}",
-                f"Road replay {run_id}",
-                "The WFS force raw, hub-acceleration compensated and model-compensated against the"
-                " post's contact force (post force less m_comp z''), in time and as power spectral"
-                " densities; the errors' panel gives each force's rms error in 0-30 Hz.",
-                lambda r=run_id, x=replay: road_replay_figure(r, x),
-            )
-        )
-    for step_run_id, runs in by_step(k.drive_iterations).items():
-        results = [result for _, result in runs]
-        out.append(
-            (
-                f"drive_iteration_{step_run_id}",
-                f"Drive iteration {step_run_id}",
-                "The rms error of the matched response against the target per iteration (and the share"
-                " of samples inside the target's 95 % band), the damage ratio rig / road per iteration"
-                " (the band 0.9-1.1 shaded), and the target and the last response overlaid.",
-                lambda r=step_run_id, x=results: drive_iteration_figure(r, x),
-            )
-        )
-    return out
+def _four_post_hub(result: FourPostResult, sweep: SweepRecord | None) -> Figure:
+    """The force-difference figure, with its panel in time when the sweep's record is at hand."""
+    return four_post_hub_figure(result, None if sweep is None else force_difference_trace(sweep, result))
 
 
+#: The function that draws each kind of figure from its spec's ``shows``.
+DRAWERS: dict[FigureKind, Callable[..., Figure]] = {
+    FigureKind.HAMMER: hammer_figure,
+    FigureKind.SHAKER: shaker_figure,
+    FigureKind.SHAKER_COMPENSATED: shaker_compensated_figure,
+    FigureKind.FOUR_POST_RATIOS: four_post_ratios_figure,
+    FigureKind.FOUR_POST_HUB: _four_post_hub,
+    FigureKind.ROAD_REPLAY: road_replay_figure,
+    FigureKind.DRIVE_ITERATION: drive_iteration_figure,
+}
 
-def write_figures(analysis: CampaignAnalysis, out_dir: Path) -> list[FigureFile]:
-    """Draw every figure the analysis supports into ``out_dir/<name>.png``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written = []
-    for name, title, caption, draw in _figures(analysis):
-        path = out_dir / f"{name}.png"
-        draw().savefig(path, dpi=DPI)
-        written.append(FigureFile(name, title, caption, path))
-    return written
+
+def figure_png(spec: FigureSpec) -> bytes:
+    """The figure ``spec`` names, drawn, as PNG bytes."""
+    buffer = io.BytesIO()
+    DRAWERS[spec.kind](*spec.shows).savefig(buffer, format="png", dpi=DPI)
+    return buffer.getvalue()

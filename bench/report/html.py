@@ -23,7 +23,7 @@ from bench.analysis.frf import ValidBand
 from bench.analysis.lsq import Z95
 from bench.analysis.road_replay import FORCES
 from bench.analysis.road_validation import ERROR_BAND_HZ, OCTAVE_CENTRES_HZ
-from bench.report.figures import FigureFile
+from bench.report.figure_list import FigureFile
 from bench.report.metadata import metadata_html
 
 PAGE_STYLE = """

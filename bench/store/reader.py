@@ -329,6 +329,26 @@ def _analysis_name(spec: Channel) -> str:
     return standard_name(spec.role)
 
 
+@dataclass(frozen=True)
+class StoredFigure:
+    """A figure kept beside a run (docs/hdf5.md): its ``png`` bytes, the SHA-256 of what it shows and
+    of the PNG as written. A member that is not laid out as a figure reads as empty bytes and
+    digests, which match nothing: it is drawn again."""
+
+    png: bytes
+    shows_sha256: str
+    png_sha256: str
+
+
+def _stored_figure(item: object) -> StoredFigure:
+    if not (isinstance(item, h5py.Dataset) and item.ndim == 1 and item.dtype == np.uint8):
+        return StoredFigure(b"", "", "")
+    attrs = {name: item.attrs.get(name) for name in (s.FIGURE_SHOWS, s.FIGURE_PNG)}
+    if not all(isinstance(value, str) for value in attrs.values()):
+        return StoredFigure(b"", "", "")
+    return StoredFigure(item[()].tobytes(), attrs[s.FIGURE_SHOWS], attrs[s.FIGURE_PNG])
+
+
 class RunView:
     """One checked run: attributes, channel specs, points, events; samples read on demand."""
 
@@ -375,6 +395,7 @@ class RunView:
         }
         self._results = _member(path, group, s.RESULTS, h5py.Group)
         self._analysis = group.get(s.ANALYSIS)
+        self._figures = group.get(s.FIGURES)
         if self._analysis is not None and not (
             isinstance(self._analysis, h5py.Dataset)
             and self._analysis.shape == ()
@@ -407,6 +428,14 @@ class RunView:
                 )
         self.channel_specs = tuple(specs)
         return datasets
+
+    def figures(self) -> dict[str, StoredFigure]:
+        """The figures the post-run analysis kept beside the run, by name (none before they were
+        kept, or when the analysis drew none after this run)."""
+        if not isinstance(self._figures, h5py.Group):
+            return {}
+        with _reading(self.path, self._figures.name):
+            return {name: _stored_figure(item) for name, item in self._figures.items()}
 
     @property
     def analysis_record(self) -> str | None:

@@ -64,6 +64,13 @@ LINK = "link"
 RESULTS = "results"
 #: A run's analysis record: one JSON text (bench/app/analysis_record.py), written once.
 ANALYSIS = "analysis"
+#: A run's figures as the post-run analysis drew them after the run (bench/app/kept_figures.py): per
+#: figure a 1-D uint8 dataset of PNG bytes named as the figure, with the attributes below.
+FIGURES = "figures"
+#: Attribute of a kept figure: the SHA-256 of what it shows (the values drawn and the software).
+FIGURE_SHOWS = "shows_sha256"
+#: Attribute of a kept figure: the SHA-256 of its PNG bytes, so that a damaged copy is not taken.
+FIGURE_PNG = "png_sha256"
 
 CHANNEL_DTYPES = ("f4", "u4", "u2")
 POINT_STATUSES = tuple(PointStatus)

@@ -25,6 +25,7 @@ the old one had not done. Either way a point can be marked done once only.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 import zlib
@@ -523,6 +524,18 @@ class RunWriter:
         """Store the run's analysis record (a JSON text, docs/hdf5.md) as ``analysis``; written once,
         also after :meth:`finish` (the analysis runs after the run)."""
         _write_analysis_record(self._campaign.path, self._group, text)
+        self._campaign.flush()
+
+    def write_figure(self, name: str, png: bytes, shows_sha256: str) -> None:
+        """Keep a figure the post-run analysis drew after the run as ``figures/<name>`` (PNG bytes;
+        docs/hdf5.md), with the SHA-256 of what it shows; a name is written once per run."""
+        figures = self._group.require_group(s.FIGURES)
+        if name in figures:
+            where = f"{figures.name}/{name}"
+            raise StoreError(self._campaign.path, where, "exists already: a figure is kept once")
+        dataset = figures.create_dataset(name, data=np.frombuffer(png, dtype=np.uint8))
+        dataset.attrs[s.FIGURE_SHOWS] = shows_sha256
+        dataset.attrs[s.FIGURE_PNG] = hashlib.sha256(png).hexdigest()
         self._campaign.flush()
 
     def flush(self) -> None:
