@@ -20,6 +20,8 @@ import pytest
 from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M
+from bench.report.analysis_document import GivenDoc
+from bench.report.json_out import read_analysis_json
 from bench.store import StoreError, add_results, open_campaign
 from tests.commands import wfsbench
 from tests.test_campaign_cli import ROOT, SMOKE
@@ -80,49 +82,42 @@ def test_analyze_prints_text_and_json_and_stores_new_results_beside_the_raw_data
 
     run = wfsbench("analyze", str(smoke_file), "--json", "--reanalyse")
     assert run.returncode == ExitCode.OK, run.stderr
-    doc = json.loads(run.stdout)
-    assert (doc["schema"], doc["version"]) == ("wfs-bench-analysis", 2)
-    assert doc["file"] == str(smoke_file) and doc["sequence_name"] == "smoke"
+    tree = json.loads(run.stdout)
+    assert (tree["schema"], tree["version"]) == ("wfs-bench-analysis", 3)
+    doc = read_analysis_json(run.stdout)
+    assert doc.file == str(smoke_file) and doc.sequence_name == "smoke"
     masses = default_bench_config("shaker").masses  # the stored configuration is the default one
-    assert doc["given"] == {"sensor_mass_kg": masses.sensor_kg, "wheel_mass_kg": masses.wheel_below_sensor_kg}
-    assert doc["hammer"] is None and doc["sensor"]["from_hammer_test"] is False
-    assert doc["four_post"] is None  # the smoke sweep runs on the shaker bench: recorded, not analysed
-    (shaker,) = doc["shaker"]
+    assert doc.given == GivenDoc(sensor_mass_kg=masses.sensor_kg, wheel_mass_kg=masses.wheel_below_sensor_kg)
+    assert doc.hammer is None and doc.sensor.from_hammer_test is False
+    assert doc.four_post is None  # the smoke sweep runs on the shaker bench: recorded, not analysed
+    (shaker,) = doc.shaker
     # the simulated plate weighs 12 kg; three settled dwells fix m_comp to well under 1 %
-    assert shaker["free_run"]["m_comp_kg"] == pytest.approx(masses.plate_kg, rel=0.01)
-    (amp,) = shaker["amplitudes"]
-    assert amp["amplitude_m"] == pytest.approx(2e-3)
-    assert amp["n_dwells"] == 4 and amp["freq_range_hz"] == [10.0, 50.0]
+    assert shaker.free_run.m_comp_kg == pytest.approx(masses.plate_kg, rel=0.01)
+    (amp,) = shaker.amplitudes
+    assert amp.amplitude_m == pytest.approx(2e-3)
+    assert amp.n_dwells == 4 and amp.freq_range_hz == (10.0, 50.0)
     # the simulated tyre at 2.5 bar: 390 kN/m, tread mass 6 kg (the demo's tolerances: 2 %, 3 %)
-    assert amp["selected_model"] == 2
-    model2 = next(m for m in amp["models"] if m["model"] == 2)
-    assert not model2["undetermined"] and set(model2["values"]) == set(model2["ci95"])
-    assert model2["values"]["stiffness_n_per_m"] == pytest.approx(PAPER_TYRE_STIFFNESS_N_PER_M[2.5], rel=0.02)
-    assert model2["values"]["tread_mass_kg"] == pytest.approx(6.0, rel=0.03)
+    assert amp.selected_model == 2
+    model2 = next(m for m in amp.models if m.model == 2)
+    assert not model2.undetermined and set(model2.values) == set(model2.ci95)
+    assert model2.values["stiffness_n_per_m"] == pytest.approx(PAPER_TYRE_STIFFNESS_N_PER_M[2.5], rel=0.02)
+    assert model2.values["tread_mass_kg"] == pytest.approx(6.0, rel=0.03)
     # raw, the ratio is already 2.4 at 30 Hz (tread resonance near 41 Hz): only 10 Hz passes;
     # compensated, every dwell passes up to the grid's end
-    raw, compensated = amp["valid_band_raw"], amp["valid_band_compensated"]
-    assert (raw["determined"], raw["upper_hz"], raw["n_points"], raw["limited_by"]) == (
-        False,
-        None,
-        1,
-        "amplitude",
-    )
-    assert (compensated["lowest_hz"], compensated["upper_hz"], compensated["limited_by"]) == (
-        10.0,
-        50.0,
-        "end of data",
-    )
-    kinds = {r["kind"]: r for r in doc["runs"]}
-    assert kinds["free_run"]["results_name"] == "plate_mass-reanalysis-2"
-    assert kinds["sweep"]["analysis"] == "sweep" and kinds["sweep"]["error"] is None
+    raw, compensated = amp.valid_band_raw, amp.valid_band_compensated
+    assert (raw.determined, raw.upper_hz, raw.n_points, raw.limited_by) == (False, None, 1, "amplitude")
+    compensated_ends = (compensated.lowest_hz, compensated.upper_hz, compensated.limited_by)
+    assert compensated_ends == (10.0, 50.0, "end of data")
+    kinds = {r.kind: r for r in doc.runs}
+    assert kinds["free_run"].results_name == "plate_mass-reanalysis-2"
+    assert kinds["sweep"].analysis == "sweep" and kinds["sweep"].error is None
 
     # the raw data is untouched; the post-run result and both re-analyses sit side by side, equal
     assert _raw_digest(smoke_file) == raw_before
     stored = _free_run_results(smoke_file)
     assert set(stored) == {"plate_mass", "plate_mass-reanalysis-1", "plate_mass-reanalysis-2"}
     assert len(set(stored.values())) == 1
-    assert stored["plate_mass"] == shaker["free_run"]["m_comp_kg"]
+    assert stored["plate_mass"] == shaker.free_run.m_comp_kg
 
 
 def test_report_writes_every_figure_and_one_self_contained_page(smoke_file, tmp_path):

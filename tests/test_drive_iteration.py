@@ -40,8 +40,10 @@ from bench.models.benches import TyreModel
 from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinearity, tyre_at_pressure
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
-from bench.report.figures import write_figures
-from bench.report.json_out import analysis_json
+from bench.report.analysis_document import AnalysisDocument
+from bench.report.figure_files import write_figures
+from bench.report.figure_list import campaign_figure_specs
+from bench.report.json_out import read_analysis_json
 from bench.simulated_road import simulate_road
 from bench.store import open_campaign
 from sequences import SequenceError, load_sequence, shipped_file
@@ -287,9 +289,8 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     # in analyze --json: the errors per iteration, as the post-run analysis gave them; in the report
     # a figure of them; in show each drive with its checksum
     shown = analyze_campaign(path)
-    (figure,) = [
-        f for f in write_figures(shown, tmp_path / "report") if f.name.startswith("drive_iteration_")
-    ]
+    drawn = [s for s in campaign_figure_specs(shown) if s.name.startswith("drive_iteration_")]
+    (figure,) = write_figures(drawn, tmp_path / "report")
     assert figure.name == "drive_iteration_iterate-s002-drive_iteration"
     assert figure.path.stat().st_size > 10_000
     assert main(["show", str(path)]) == 0
@@ -307,11 +308,11 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     assert iterations[0] is None  # the identification's run
     assert [i["rms_error_pct"] for i in iterations[1:]] == pytest.approx(errors, rel=1e-12)
     assert [i["stop_rules_met"] for i in iterations[1:]] == [False] * (len(errors) - 1) + [True]
-    (entry,) = analysis_json(shown)["drive_iterations"]
-    assert entry["step_run_id"] == "iterate-s002-drive_iteration"
-    assert entry["rms_error_pct"] == pytest.approx(errors, rel=1e-12)
-    assert [i["drive_crc32"] for i in entry["iterations"]] == [r.drive["crc32"] for r in runs[1:]]
-    assert [i["stop_rules_met"] for i in entry["iterations"]] == [False] * (len(errors) - 1) + [True]
+    (entry,) = AnalysisDocument.of(shown).drive_iterations
+    assert entry.step_run_id == "iterate-s002-drive_iteration"
+    assert entry.rms_error_pct == pytest.approx(errors, rel=1e-12)
+    assert [i.drive_crc32 for i in entry.iterations] == [r.drive["crc32"] for r in runs[1:]]
+    assert [i.stop_rules_met for i in entry.iterations] == [False] * (len(errors) - 1) + [True]
 
     # the final drive exported as drive files, each of which a road replay plays: the CSV file's
     # samples exactly (the same CRC-32), the RPC III file's within its 16-bit quantisation
@@ -504,7 +505,7 @@ def test_the_shipped_road_iteration_runs_and_its_errors_are_in_the_analysis_json
     assert main(run) == ExitCode.OK
     capsys.readouterr()
     assert main(["analyze", str(out), "--json"]) == ExitCode.OK
-    (entry,) = json.loads(capsys.readouterr().out)["drive_iterations"]
-    errors = entry["rms_error_pct"]
+    (entry,) = read_analysis_json(capsys.readouterr().out).drive_iterations
+    errors = entry.rms_error_pct
     assert 2 <= len(errors) <= 6 and errors[0] > 5.0 > errors[-1]
-    assert entry["iterations"][-1]["in_band_pct"] >= 90.0
+    assert entry.iterations[-1].in_band_pct >= 90.0

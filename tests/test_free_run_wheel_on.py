@@ -6,7 +6,6 @@ wheel removed gives no flag."""
 
 from __future__ import annotations
 
-import json
 import subprocess
 from pathlib import Path
 
@@ -24,6 +23,8 @@ from bench.app.run import run_campaign
 from bench.cli.exit_codes import ExitCode
 from bench.config import default_bench_config
 from bench.models.parameters import WfsSensor
+from bench.report.analysis_document import AnalysisDocument
+from bench.report.json_out import read_analysis_json
 from bench.store import open_campaign
 from tests.campaign_files import StoredRun, write_campaign
 from tests.commands import wfsbench
@@ -99,37 +100,38 @@ def test_a_free_run_with_the_wheel_on_stops_the_sequence_before_its_grid(stopped
         assert [(r.kind, r.status) for r in campaign.runs] == [("free_run", "complete")]
 
 
-def _analysis_json(path: Path) -> dict:
-    """``analyze --json`` of a file that other tests read too: printed, nothing stored in it."""
+def _analysis_document(path: Path) -> AnalysisDocument:
+    """``analyze --json`` of a file that other tests read too (printed, nothing stored in it), read
+    back by its types."""
     run = wfsbench("analyze", str(path), "--json", "--no-store")
     assert run.returncode == 0, run.stderr
-    return json.loads(run.stdout)
+    return read_analysis_json(run.stdout)
 
 
 def test_a_free_run_with_the_wheel_on_is_flagged_with_every_fit_made_on_its_m_comp(wheel_on_file):
-    doc = _analysis_json(wheel_on_file)
-    (shaker,) = doc["shaker"]
-    free = shaker["free_run"]
+    doc = _analysis_document(wheel_on_file)
+    (shaker,) = doc.shaker
+    free = shaker.free_run
     # the tyre's 390 kN/m left in F/Z: residuals of thousands of sigma, not a rigid mass (the figure
     # docs/analysis.md quotes from one run, printed with -s: the bench runs in real time and varies)
-    print(f"\n  wheel-on free run: reduced chi^2 {free['residual_reduced_chi2']:.2g}")
-    assert free["residual_reduced_chi2"] > 1e4
-    assert any("beyond any noise" in f and "rigid" in f for f in free["flags"]), free["flags"]
-    flagged = {f["run_id"] for f in doc["flags"] if "m_comp misses the free run" in f["flag"]}
-    assert flagged == {r["run_id"] for r in doc["runs"] if r["analysis"] in ("plate_mass", "shaker")}
-    (amplitude,) = shaker["amplitudes"]
-    assert any("rests on an m_comp its free run does not describe" in f for f in amplitude["findings"])
+    print(f"\n  wheel-on free run: reduced chi^2 {free.residual_reduced_chi2:.2g}")
+    assert free.residual_reduced_chi2 > 1e4
+    assert any("beyond any noise" in f and "rigid" in f for f in free.flags), free.flags
+    flagged = {f.run_id for f in doc.flags if "m_comp misses the free run" in f.flag}
+    assert flagged == {r.run_id for r in doc.runs if r.analysis in ("plate_mass", "shaker")}
+    (amplitude,) = shaker.amplitudes
+    assert any("rests on an m_comp its free run does not describe" in f for f in amplitude.findings)
     # the selected model follows the measured tread resonance instead of absorbing it into m_comp:
     # before, Model 1 was chosen with a peak of 1 against a measured 8
     # (the largest measured ratio rests on the wheel-on free run's m_comp, 12.97-13.28 kg over runs
     # as its windows fall on the unpaced bench's timing: 3.9-5.5 seen; a model that absorbed the
     # resonance reads 1)
-    top = amplitude["largest_measured"]["ratio"]
+    top = amplitude.largest_measured.ratio
     assert top > 2
-    assert amplitude["selected_model"] != 1
+    assert amplitude.selected_model != 1
     # the model's peak reaches the measured one (within 5 %: the largest measured point carries
     # its noise, and the model passes through the points, not above the largest)
-    assert amplitude["model_peak"]["ratio"] >= 0.95 * top
+    assert amplitude.model_peak.ratio >= 0.95 * top
 
 
 def test_the_ratio_rms_error_is_each_models_against_the_measured_ratio(wheel_on_file):
@@ -155,11 +157,11 @@ def test_the_ratio_rms_error_is_each_models_against_the_measured_ratio(wheel_on_
 
 
 def test_a_free_run_with_the_wheel_removed_is_not_flagged(smoke_campaign):
-    doc = _analysis_json(smoke_campaign)
-    free = doc["shaker"][0]["free_run"]
-    assert free["flags"] == []
-    assert free["residual_reduced_chi2"] < 10
-    assert not doc["shaker"][0]["amplitudes"][0]["findings"]
+    doc = _analysis_document(smoke_campaign)
+    free = doc.shaker[0].free_run
+    assert free.flags == ()
+    assert free.residual_reduced_chi2 < 10
+    assert not doc.shaker[0].amplitudes[0].findings
 
 
 def test_m_comp_of_a_plate_with_a_spring_keeps_its_noise_interval():

@@ -34,8 +34,9 @@ from bench.engine.engine import Engine
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
 from bench.replay_drive import load_drives
-from bench.report.figures import write_figures
-from bench.report.json_out import analysis_json
+from bench.report.analysis_document import AnalysisDocument
+from bench.report.figure_files import write_figures
+from bench.report.figure_list import campaign_figure_specs
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 from bench.store import CampaignWriter, open_campaign
 from bench.store.drive_files import read_drive_file
@@ -365,13 +366,12 @@ def test_a_class_c_road_at_60_km_h_runs_records_and_is_analysed(tmp_path, identi
     # shown: in the analysis JSON and the report's figure (the file analysed with what the campaign
     # established as it ran, as `wfsbench report` after `wfsbench run` does)
     shown = analyze_campaign(path, knowledge=identified)
-    (entry,) = analysis_json(shown)["road_replays"]
-    assert entry["run_id"] == run.run_id
-    assert entry["errors"]["raw"]["rms_n"] == r["rms_error_raw_n"]
-    assert entry["errors"]["model_compensated"]["octave_rms_n"] == r["octave_rms_error_model_compensated_n"]
-    (figure,) = [
-        f for f in write_figures(shown, tmp_path / "report") if f.name == f"road_replay_{run.run_id}"
-    ]
+    (entry,) = AnalysisDocument.of(shown).road_replays
+    assert entry.run_id == run.run_id
+    assert entry.errors.raw.rms_n == r["rms_error_raw_n"]
+    assert list(entry.errors.model_compensated.octave_rms_n) == r["octave_rms_error_model_compensated_n"]
+    drawn = [s for s in campaign_figure_specs(shown) if s.name == f"road_replay_{run.run_id}"]
+    (figure,) = write_figures(drawn, tmp_path / "report")
     assert figure.path.stat().st_size > 10_000
 
 

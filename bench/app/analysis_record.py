@@ -37,7 +37,11 @@ from bench.store.typed import TypedFormatError, from_json_tree, to_json_tree
 #: The record's layout version: raised whenever a reader of the previous one would misread a record
 #: (a result type's field renamed, retyped or given another meaning). A record of another format is
 #: not read: its campaign is analysed again. 2: a shaker amplitude's band conditions; 3: a run's flags, typed.
-RECORD_FORMAT = 3
+#: 4: a mapping of string keys is a JSON object, no longer a list of [key, value] pairs.
+RECORD_FORMAT = 4
+#: The formats this version reads: 3 holds the same data as 4, its mappings as pairs (which the
+#: codec reads too).
+READ_FORMATS = (3, RECORD_FORMAT)
 #: What an analysis changed in the campaign's knowledge, by field: ("set", value) for a field given
 #: a new value, ("extend", items) for items appended to a list, ("update", items) for a dict's new or
 #: replaced entries.
@@ -79,16 +83,18 @@ def record_text(record: AnalysisRecord) -> str:
 
 
 def parse_record(text: str) -> AnalysisRecord:
-    """The record :func:`record_text` wrote; :class:`TypedFormatError` when ``text`` is not one of
-    this format (the message says what is wrong)."""
+    """The record :func:`record_text` wrote, or one of an earlier format this version reads
+    (:data:`READ_FORMATS`); :class:`TypedFormatError` when ``text`` is none of these (the message
+    says what is wrong)."""
     try:
         tree = json.loads(text)
     except json.JSONDecodeError as err:
         raise TypedFormatError(f"not JSON: {err}") from err
     if not isinstance(tree, dict):
         raise TypedFormatError("not a JSON object")
-    if tree.get("format") != RECORD_FORMAT:
-        raise TypedFormatError(f"record format {tree.get('format')!r}, this version reads {RECORD_FORMAT}")
+    if tree.get("format") not in READ_FORMATS:
+        read = " and ".join(str(n) for n in READ_FORMATS)
+        raise TypedFormatError(f"record format {tree.get('format')!r}, this version reads {read}")
     members = {"format", "software_version", "inputs_sha256", "order", "outcome", "changes"}
     if set(tree) != members:
         raise TypedFormatError(f"members {sorted(tree)}, not {sorted(members)}")

@@ -7,14 +7,15 @@ runs fitted again in memory where a run stores none this version reads or ``--re
 nothing is written to the file. The few scalars a run's results store by themselves (m_comp, the
 hammer's eigenfrequency) are listed beside it as they are (``source`` ``stored``).
 
-Parameter names are the keys of the analysis JSON (docs/analysis-json.md), their units in the
-names; docs/index.md lists which each analysis gives.
+The values are read from the analysis document's types (:mod:`bench.report.analysis_document`);
+parameter names are the keys of the analysis JSON (docs/analysis-json.md), their units in the names;
+docs/index.md lists which each analysis gives.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
@@ -24,26 +25,22 @@ from bench.store import CampaignFile, RunView
 
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis
+    from bench.report.analysis_document import (
+        AmplitudeDoc,
+        AmplitudeRowDoc,
+        BandDoc,
+        FlagDoc,
+        FourPostDoc,
+        FreeRunDoc,
+        HammerDoc,
+        ModelFitDoc,
+        QuarterCarDoc,
+        RatiosOnlyDoc,
+        RepeatDoc,
+        ShakerPressureDoc,
+    )
 
 Row = dict[str, Any]
-
-#: Keys of the analysis JSON's ``hammer`` object given as values (none has an interval).
-HAMMER_VALUES = (
-    "eigenfrequency_hz",
-    "damped_frequency_hz",
-    "damping_ratio_half_power",
-    "damping_ratio_log_decrement",
-    "stiffness_n_per_m",
-    "damping_ns_per_m",
-)
-#: The four-post quarter car's values that have a 95 % interval of their own: key -> its interval's key.
-QUARTER_CAR_MODES = {
-    "body_frequency_hz": "body_frequency_ci95_hz",
-    "wheel_frequency_hz": "wheel_frequency_ci95_hz",
-    "body_damping_ratio": None,
-    "wheel_damping_ratio": None,
-    "unsprung_mass_above_kg": None,
-}
 
 
 def timestamp(text: str) -> datetime | None:
@@ -121,93 +118,132 @@ def _value(parameter: str, value: float | None, ci95: float | None = None, **ext
     }
 
 
-def hammer_values(hammer: Mapping[str, Any]) -> Iterator[Row]:
-    for key in HAMMER_VALUES:
-        yield _value(key, hammer[key])
+def hammer_values(hammer: HammerDoc) -> Iterator[Row]:
+    """The bare sensor's frequencies, damping ratios, stiffness and damping (none has an interval)."""
+    yield _value("eigenfrequency_hz", hammer.eigenfrequency_hz)
+    yield _value("damped_frequency_hz", hammer.damped_frequency_hz)
+    yield _value("damping_ratio_half_power", hammer.damping_ratio_half_power)
+    yield _value("damping_ratio_log_decrement", hammer.damping_ratio_log_decrement)
+    yield _value("stiffness_n_per_m", hammer.stiffness_n_per_m)
+    yield _value("damping_ns_per_m", hammer.damping_ns_per_m)
 
 
-def free_run_values(free_run: Mapping[str, Any]) -> Iterator[Row]:
+def free_run_values(free_run: FreeRunDoc) -> Iterator[Row]:
     """m_comp (its 95 % half-width from its standard uncertainty) and the fit's misfit."""
-    sigma = free_run["m_comp_sigma_kg"]
-    nominal = free_run["nominal"]
-    yield _value(
-        "m_comp_kg", free_run["m_comp_kg"], None if sigma is None else Z95 * sigma, determined=not nominal
-    )
-    yield _value("residual_rms_n_per_m", free_run["residual_rms_n_per_m"])
-    yield _value("residual_reduced_chi2", free_run["residual_reduced_chi2"])
-    yield from repeat_values(free_run["repeats"])
+    sigma = free_run.m_comp_sigma_kg
+    ci95 = None if sigma is None else Z95 * sigma
+    yield _value("m_comp_kg", free_run.m_comp_kg, ci95, determined=not free_run.nominal)
+    yield _value("residual_rms_n_per_m", free_run.residual_rms_n_per_m)
+    yield _value("residual_reduced_chi2", free_run.residual_reduced_chi2)
+    yield from repeat_values(free_run.repeats)
 
 
-def band_values(name: str, band: Mapping[str, Any], **extra: Any) -> Iterator[Row]:
+def band_values(name: str, band: BandDoc, **extra: Any) -> Iterator[Row]:
     """A valid band as its lowest and upper frequency (``<name>_lowest_hz``, ``<name>_upper_hz``);
     the upper end is null and not determined when the band has no width."""
-    yield _value(f"{name}_lowest_hz", band["lowest_hz"], **extra)
-    yield _value(f"{name}_upper_hz", band["upper_hz"], determined=band["determined"], **extra)
+    yield _value(f"{name}_lowest_hz", band.lowest_hz, **extra)
+    yield _value(f"{name}_upper_hz", band.upper_hz, determined=band.determined, **extra)
 
 
-def repeat_values(repeats: list[Mapping[str, Any]], **extra: Any) -> Iterator[Row]:
+def repeat_values(repeats: tuple[RepeatDoc, ...], **extra: Any) -> Iterator[Row]:
     """The repeatability of each point measured more than once: per channel the relative rms
     spread of the repeats (``repeat_spread.<channel>``) and the spread their noise alone gives
     (``repeat_noise.<channel>``), at the point's ``freq_hz``."""
     for repeat in repeats:
-        for kind in ("spread", "noise"):
-            for channel, value in sorted(repeat[kind].items()):
-                yield _value(f"repeat_{kind}.{channel}", value, freq_hz=repeat["freq_hz"], **extra)
+        for kind, by_channel in (("spread", repeat.spread), ("noise", repeat.noise)):
+            for channel, value in sorted(by_channel.items()):
+                yield _value(f"repeat_{kind}.{channel}", value, freq_hz=repeat.freq_hz, **extra)
 
 
-def shaker_values(pressure: Mapping[str, Any]) -> Iterator[Row]:
-    """One tyre pressure: per amplitude every model's values with their intervals (the selected
-    model marked), the model's peak, the valid bands and the repeatability; the amplitudes without a
-    tyre fit (their raw band, repeatability); the amplitude dependence of Model 2."""
-    for amp in pressure["amplitudes"]:
-        at = {"amplitude_m": amp["amplitude_m"]}
-        for fit in amp["models"]:
-            model = {**at, "model": fit["model"], "selected": fit["model"] == amp["selected_model"]}
-            for name, value in fit["values"].items():
-                yield _value(
-                    name, value, fit["ci95"].get(name), determined=name not in fit["undetermined"], **model
-                )
-            yield _value("bic", fit["bic"], **model)
-            yield _value("ratio_relative_rms", fit["ratio_relative_rms"], **model)
-        if (peak := amp["model_peak"]) is not None:
-            selected = {**at, "model": amp["selected_model"], "selected": True}
-            yield _value("peak_freq_hz", peak["freq_hz"], peak["freq_ci95_hz"], **selected)
-            yield _value("peak_ratio", peak["ratio"], peak["ratio_ci95"], **selected)
-        yield from band_values("valid_band_raw", amp["valid_band_raw"], **at)
-        yield from band_values("valid_band_compensated", amp["valid_band_compensated"], **at)
-        yield from repeat_values(amp["repeats"], **at)
-    for amp in pressure["ratios_only"]:
-        at = {"amplitude_m": amp["amplitude_m"]}
-        yield from band_values("valid_band_raw", amp["valid_band_raw"], **at)
-        yield from repeat_values(amp["repeats"], **at)
-    for row in pressure["amplitude_dependence"] or ():
-        at = {"amplitude_m": row["amplitude_m"], "model": 2}
-        for key in ("stiffness_change", "equivalent_damping_ns_per_m", "damping_change"):
-            yield _value(key, row[key], **at)
+def fitted_values(fit: ModelFitDoc | QuarterCarDoc, **extra: Any) -> Iterator[Row]:
+    """A fit's parameters by name with their 95 % half-widths; those it names undetermined are
+    marked so, whatever their number."""
+    for name, value in fit.values.items():
+        yield _value(name, value, fit.ci95.get(name), determined=name not in fit.undetermined, **extra)
 
 
-def four_post_values(four_post: Mapping[str, Any]) -> Iterator[Row]:
+def model_values(fit: ModelFitDoc, **extra: Any) -> Iterator[Row]:
+    """A tyre model's parameters, its BIC and its rms error against the measured ratio."""
+    yield from fitted_values(fit, **extra)
+    yield _value("bic", fit.bic, **extra)
+    yield _value("ratio_relative_rms", fit.ratio_relative_rms, **extra)
+
+
+def amplitude_values(amp: AmplitudeDoc) -> Iterator[Row]:
+    """One amplitude with a tyre fit: every model (the selected one marked), the selected model's
+    peak, the valid bands and the repeatability."""
+    at = {"amplitude_m": amp.amplitude_m}
+    for fit in amp.models:
+        yield from model_values(fit, **at, model=fit.model, selected=fit.model == amp.selected_model)
+    if (peak := amp.model_peak) is not None:
+        selected = {**at, "model": amp.selected_model, "selected": True}
+        yield _value("peak_freq_hz", peak.freq_hz, peak.freq_ci95_hz, **selected)
+        yield _value("peak_ratio", peak.ratio, peak.ratio_ci95, **selected)
+    yield from band_values("valid_band_raw", amp.valid_band_raw, **at)
+    yield from band_values("valid_band_compensated", amp.valid_band_compensated, **at)
+    yield from repeat_values(amp.repeats, **at)
+
+
+def ratios_only_values(amp: RatiosOnlyDoc) -> Iterator[Row]:
+    """An amplitude without a tyre fit: its raw valid band and the repeatability."""
+    at = {"amplitude_m": amp.amplitude_m}
+    yield from band_values("valid_band_raw", amp.valid_band_raw, **at)
+    yield from repeat_values(amp.repeats, **at)
+
+
+def amplitude_dependence_values(rows: tuple[AmplitudeRowDoc, ...]) -> Iterator[Row]:
+    """Model 2 per amplitude: its stiffness's and damping's change against the smallest amplitude."""
+    for row in rows:
+        at = {"amplitude_m": row.amplitude_m, "model": 2}
+        yield _value("stiffness_change", row.stiffness_change, **at)
+        yield _value("equivalent_damping_ns_per_m", row.equivalent_damping_ns_per_m, **at)
+        yield _value("damping_change", row.damping_change, **at)
+
+
+def shaker_values(pressure: ShakerPressureDoc) -> Iterator[Row]:
+    """One tyre pressure: each amplitude with a tyre fit, each without one, and the amplitude
+    dependence of Model 2."""
+    for amp in pressure.amplitudes:
+        yield from amplitude_values(amp)
+    for ratios in pressure.ratios_only:
+        yield from ratios_only_values(ratios)
+    yield from amplitude_dependence_values(pressure.amplitude_dependence or ())
+
+
+def quarter_car_values(car: QuarterCarDoc) -> Iterator[Row]:
+    """The quarter car's parameters, and its modes (the frequencies with their intervals)."""
+    yield from fitted_values(car)
+    yield _value("body_frequency_hz", car.body_frequency_hz, car.body_frequency_ci95_hz)
+    yield _value("wheel_frequency_hz", car.wheel_frequency_hz, car.wheel_frequency_ci95_hz)
+    yield _value("body_damping_ratio", car.body_damping_ratio)
+    yield _value("wheel_damping_ratio", car.wheel_damping_ratio)
+    yield _value("unsprung_mass_above_kg", car.unsprung_mass_above_kg)
+
+
+def four_post_values(four_post: FourPostDoc) -> Iterator[Row]:
     """m_wheel, the accelerometer's delay, the quarter car with its modes, the three valid bands."""
-    sigma = four_post["m_wheel_sigma_kg"]
-    yield _value("m_wheel_kg", four_post["m_wheel_kg"], None if sigma is None else Z95 * sigma)
-    yield _value("accelerometer_delay_s", four_post["accelerometer_delay_s"])
-    yield _value("measured_amplitude_m", four_post["measured_amplitude_m"])
-    car = four_post["quarter_car"]
-    for name, value in car["values"].items():
-        yield _value(name, value, car["ci95"].get(name), determined=name not in car["undetermined"])
-    for name, ci_key in QUARTER_CAR_MODES.items():
-        yield _value(name, car[name], car[ci_key] if ci_key else None)
-    for band in ("valid_band_raw", "valid_band_hub_compensated", "valid_band_model_compensated"):
-        yield from band_values(band, four_post[band])
+    sigma = four_post.m_wheel_sigma_kg
+    yield _value("m_wheel_kg", four_post.m_wheel_kg, None if sigma is None else Z95 * sigma)
+    yield _value("accelerometer_delay_s", four_post.accelerometer_delay_s)
+    yield _value("measured_amplitude_m", four_post.measured_amplitude_m)
+    yield from quarter_car_values(four_post.quarter_car)
+    yield from band_values("valid_band_raw", four_post.valid_band_raw)
+    yield from band_values("valid_band_hub_compensated", four_post.valid_band_hub_compensated)
+    yield from band_values("valid_band_model_compensated", four_post.valid_band_model_compensated)
+
+
+def flag_row(flag: FlagDoc) -> Row:
+    """A flag of a run's analysis: its code as the parameter, its line as the text."""
+    return {"entry": c.FLAG, "source": "analysis", "parameter": flag.code, "text": flag.flag}
 
 
 def analysis_rows(analysis: CampaignAnalysis) -> dict[str, list[Row]]:
     """The analysis's values and flags by the run they belong to: the hammer result to the last
     hammer run, each free run's m_comp to that run, each tyre pressure's identification to the
     dwell grid after which it was made, the four-post result to its sweep."""
-    from bench.report.json_out import analysis_json, free_run_json
+    from bench.report.analysis_document import AnalysisDocument, FreeRunDoc
 
-    doc = analysis_json(analysis)
+    doc = AnalysisDocument.of(analysis)
     out: dict[str, list[Row]] = {}
     succeeded = [run for run in analysis.runs if not run.error]
 
@@ -219,24 +255,20 @@ def analysis_rows(analysis: CampaignAnalysis) -> dict[str, list[Row]]:
         ]
         return runs[-1] if runs else None
 
-    def add(run_id: str | None, rows: Iterator[Row]) -> None:
+    def add(run_id: str | None, rows: Iterable[Row]) -> None:
         if run_id is not None:
             out.setdefault(run_id, []).extend(rows)
 
-    if doc["hammer"] is not None:
-        add(last("hammer"), hammer_values(doc["hammer"]))
+    if doc.hammer is not None:
+        add(last("hammer"), hammer_values(doc.hammer))
     for plate in analysis.knowledge.plate_masses:
-        add(plate.run_id, free_run_values(free_run_json(plate.result)))
-    for pressure in doc["shaker"]:
-        add(last("shaker", pressure["tyre_pressure_bar"]), shaker_values(pressure))
-    if doc["four_post"] is not None:
-        add(last("four_post"), four_post_values(doc["four_post"]))
-    for run in analysis.runs:
-        flags = (
-            {"entry": c.FLAG, "source": "analysis", "parameter": str(flag.code), "text": flag.line}
-            for flag in run.flags
-        )
-        add(run.run_id, flags)
+        add(plate.run_id, free_run_values(FreeRunDoc.of(plate.result)))
+    for pressure in doc.shaker:
+        add(last("shaker", pressure.tyre_pressure_bar), shaker_values(pressure))
+    if doc.four_post is not None:
+        add(last("four_post"), four_post_values(doc.four_post))
+    for flag in doc.flags:
+        add(flag.run_id, [flag_row(flag)])
     return out
 
 

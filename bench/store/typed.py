@@ -1,4 +1,5 @@
-"""Typed values as JSON, read back by their type: the codec of the analysis record.
+"""Typed values as JSON, read back by their type: the codec of the analysis record and of the
+analysis JSON (:mod:`bench.report.analysis_document`).
 
 :func:`to_json_tree` turns a value into plain JSON data by its type hint, :func:`from_json_tree`
 rebuilds the value from the same hint, so a reader gets the result classes back, not a tree of keys
@@ -10,8 +11,11 @@ to look up. The layout follows the type:
 - ``numpy.ndarray``: ``{"dtype": "float64", "shape": [...], "data": [...]}``, the elements in C
   order as above (a complex array as ``"real"`` and ``"imag"`` lists);
 - ``tuple[X, ...]``, ``list[X]`` and fixed tuples: a list of the items;
-- ``dict[K, V]`` and ``Mapping[K, V]``: a list of ``[key, value]`` pairs (keys are any of these
-  types: floats and tuples are no JSON object keys), in the mapping's order;
+- ``dict[str, V]`` and ``Mapping[str, V]``: an object, its members in the mapping's order (read
+  back from a list of ``[key, value]`` pairs too: the layout of every mapping before, which the
+  analysis records of format 3 hold);
+- ``dict[K, V]`` and ``Mapping[K, V]`` of other keys: a list of ``[key, value]`` pairs (keys are any
+  of these types: floats and tuples are no JSON object keys), in the mapping's order;
 - ``X | None``: X, or ``null``; ``float | numpy.ndarray``: as its value is;
 - ``typing.Any``: JSON's own values (a scalar, a list, an object of string keys; numpy scalars and
   arrays as their Python values and lists, tuples as lists, a non-finite float as
@@ -180,6 +184,8 @@ def _read_sequence(tree: Any, hint: object, where: str) -> Any:
 
 def _write_mapping(value: object, hint: object, where: str) -> Any:
     key_hint, value_hint = typing.get_args(hint)
+    if key_hint is str:
+        return _write_object(value, value_hint, where)  # type: ignore[arg-type]
     pairs = []
     for key, item in value.items():  # type: ignore[attr-defined]
         place = f"{where}[{key!r}]"
@@ -189,13 +195,26 @@ def _write_mapping(value: object, hint: object, where: str) -> Any:
 
 def _read_mapping(tree: Any, hint: object, where: str) -> Any:
     key_hint, value_hint = typing.get_args(hint)
+    if key_hint is str and isinstance(tree, dict):
+        return {key: from_json_tree(item, value_hint, f"{where}[{key!r}]") for key, item in tree.items()}
     if not isinstance(tree, list) or not all(isinstance(p, list) and len(p) == 2 for p in tree):
-        raise TypedFormatError(f"{where}: not a list of [key, value] pairs")
+        layouts = "neither an object nor a list" if key_hint is str else "not a list"
+        raise TypedFormatError(f"{where}: {layouts} of [key, value] pairs")
     out = {}
     for i, (key, item) in enumerate(tree):
         place = f"{where}[{i}]"
         out[from_json_tree(key, key_hint, place)] = from_json_tree(item, value_hint, place)
     return out
+
+
+def _write_object(value: Mapping[Any, Any], value_hint: object, where: str) -> dict[str, Any]:
+    """A mapping of string keys as a JSON object (another key would become text unseen)."""
+    tree = {}
+    for key, item in value.items():
+        if not isinstance(key, str):
+            raise TypeError(f"{where}: key {key!r} of a mapping of strings")
+        tree[str(key)] = to_json_tree(item, value_hint, f"{where}[{key!r}]")
+    return tree
 
 
 @functools.cache

@@ -15,7 +15,7 @@ from bench.analysis.dwell import dwell_phasors
 from bench.analysis.runs import analyse_shaker_campaign, nominal_free_run
 from bench.models.parameters import WfsSensor
 from bench.models.setup import BenchSetup
-from bench.report.json_out import amplitude_json
+from bench.report.analysis_document import AmplitudeDoc
 from bench.report.text import summary_lines
 from bench.simulated_campaign import FREE_RUN_GRID_HZ, SHAKER_GRID_HZ, simulate_dwells
 
@@ -60,7 +60,7 @@ def test_a_measured_plate_mass_gives_no_condition(grid):
     result = analyse_shaker_campaign(grid, free, wheel_mass_kg=29.0, sensor=WfsSensor())
     amp = result.amplitudes[AMPLITUDE_M]
     assert amp.band_conditions == () and amp.plate_mass_tolerance_kg is None
-    assert amplitude_json(amp)["band_conditions"] == []
+    assert AmplitudeDoc.of(amp).band_conditions == ()
 
 
 def test_the_band_holds_within_the_stated_tolerance_and_fails_well_beyond_it(grid):
@@ -73,8 +73,8 @@ def test_the_band_holds_within_the_stated_tolerance_and_fails_well_beyond_it(gri
     assert f"{1000 * tolerance_kg:.3g} g" in condition and "0.5 kg off:" in condition
     text = "\n".join(summary_lines(result))
     assert f"model-compensated band {condition}" in text
-    doc = amplitude_json(amp)
-    assert doc["band_conditions"] == [condition] and doc["plate_mass_tolerance_kg"] == tolerance_kg
+    doc = AmplitudeDoc.of(amp)
+    assert doc.band_conditions == (condition,) and doc.plate_mass_tolerance_kg == tolerance_kg
 
     for nominal_kg in (TRUE_PLATE_KG + 0.8 * tolerance_kg, TRUE_PLATE_KG - 0.8 * tolerance_kg):
         _, off = _analysed(grid, nominal_kg)
