@@ -18,13 +18,14 @@ import numpy as np
 import pytest
 
 from bench.app.analyze import analyze_campaign
-from bench.app.kept_figures import FigureDrawer, shows_sha256
+from bench.app.kept_figures import PNG_SIGNATURE, FigureDrawer, shows_sha256
 from bench.app.report import write_report
 from bench.app.run_analysis import initial_knowledge, run_inputs
 from bench.config import default_bench_config
 from bench.report.figure_list import FigureKind, FigureSpec
-from bench.store import open_campaign
+from bench.store import CampaignWriter, StoreError, open_campaign
 from bench.store import schema as s
+from sequences.channels import Channel
 from tests.commands import wfsbench
 
 H5DUMP = shutil.which("h5dump")
@@ -145,3 +146,21 @@ def test_what_a_figure_shows_is_digested_by_value_whatever_the_number_type():
     assert _digest((1, 2)) == _digest([1, 2]) != _digest((2, 1))
     with pytest.raises(TypeError, match="a figure shows a object"):
         _digest(object())
+
+
+def test_a_figure_is_kept_once_per_run(tmp_path):
+    writer = CampaignWriter.create(
+        tmp_path / "c.h5", software_version="0", config_toml="", sequence_toml="", sequence_name="s"
+    )
+    channels = [Channel("fz_wfs_n", "N")]
+    run = writer.begin_run(
+        "001", kind="free_run", step={}, conditions={}, channels=channels, sample_rate_hz=1e3
+    )
+    run.finish("complete")
+    run.write_figure("hammer", PNG_SIGNATURE, "0" * 64)
+    with pytest.raises(StoreError, match="exists already: a figure is kept once"):
+        run.write_figure("hammer", PNG_SIGNATURE, "1" * 64)
+    writer.close()
+    with open_campaign(tmp_path / "c.h5") as campaign:
+        (kept,) = campaign.runs[0].figures().values()
+    assert kept.png == PNG_SIGNATURE and kept.shows_sha256 == "0" * 64

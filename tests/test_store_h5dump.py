@@ -137,6 +137,8 @@ def _matches(doc: Documented, obj: DumpedObject) -> bool:
             and obj.space == "unlimited"
             and obj.filters == ["shuffle", "gzip"]
         )
+    if doc.kind == "bytes":
+        return obj.kind == "dataset" and obj.dtype == "u1" and obj.space == "simple" and obj.filters == []
     if doc.kind == "number":
         return obj.kind == "attribute" and obj.dtype in _ATOMIC.values()
     # text: a scalar dataset of one string; else an attribute of the type named
@@ -183,6 +185,7 @@ def dumped(tmp_path_factory) -> dict[str, DumpedObject]:
     run.finish("complete")
     run.write_results("free_run", {"m_comp_kg": 12.0, "fit": {"freqs_hz": np.arange(5.0), "notes": ["ok"]}})
     run.write_analysis_record('{"format": 1}')  # the store keeps the text; its reader checks it
+    run.write_figure("shaker_2p5bar", b"\x89PNG\r\n\x1a\n not drawn", "0" * 64)  # kept as bytes
     replay = writer.begin_run(  # a road replay: its drive attribute
         "002",
         kind="road_replay",
