@@ -48,9 +48,10 @@ from sequences.response_limits import (
     LimitProfile,
     ResponseLimit,
 )
+from sequences.runs import RigKind
 from sequences.toml_text import load_toml, toml_error_where, toml_table, toml_value
 
-BENCH_KINDS = ("shaker", "four_post")
+BENCH_KINDS = tuple(rig.value for rig in RigKind)
 ACTUATOR_TRANSPORTS = ("simulated", "tcp", "rtu")
 WFS_TRANSPORTS = ("simulated", "serial")
 TARE_POLICIES = ("before_each_run", "once", "never")
@@ -223,7 +224,7 @@ class InterlockActions:
 class BenchConfig:
     """A whole bench configuration; ``source`` is its file (or ``<default>``)."""
 
-    kind: str = "shaker"
+    kind: RigKind = RigKind.SHAKER
     actuator: ActuatorConfig = field(default_factory=ActuatorConfig)
     wfs: WfsConfig = field(default_factory=WfsConfig)
     limits: BenchLimits = field(default_factory=BenchLimits)
@@ -347,9 +348,9 @@ def _aux_entry(aux: AuxInput) -> dict[str, object]:
 
 #: Per kind, the limits, masses and specimen of the simulated benches where they differ from the
 #: defaults.
-KIND_DEFAULTS: dict[str, dict[str, object]] = {
-    "shaker": {},
-    "four_post": {
+KIND_DEFAULTS: dict[RigKind, dict[str, object]] = {
+    RigKind.SHAKER: {},
+    RigKind.FOUR_POST: {
         "limits": BenchLimits(
             stroke_mm=40.0,
             velocity_mm_s=1000.0,
@@ -366,9 +367,10 @@ KIND_DEFAULTS: dict[str, dict[str, object]] = {
 }
 
 
-def default_bench_config(kind: str = "shaker") -> BenchConfig:
-    """The simulated bench of ``kind`` with every default."""
-    return BenchConfig(kind=kind, **KIND_DEFAULTS[kind])
+def default_bench_config(kind: str = RigKind.SHAKER) -> BenchConfig:
+    """The simulated bench of ``kind`` (a :class:`~sequences.runs.RigKind` or its word) with every default."""
+    rig = RigKind(kind)
+    return BenchConfig(kind=rig, **KIND_DEFAULTS[rig])
 
 
 def load_bench_config(path: str | Path | None) -> BenchConfig:
@@ -504,12 +506,12 @@ class _Reader:
         for name in data:
             if name not in top:
                 self.add(name, f"unknown key; allowed: {', '.join(top)}")
-        kind = self.text(data, "", "kind", "shaker", BENCH_KINDS)
+        kind = self.text(data, "", "kind", RigKind.SHAKER, BENCH_KINDS)
         base = default_bench_config(kind)
         actuator, wfs = self.actuator(data), self.wfs(data)
         limits = self.limits(data, base)
         config = BenchConfig(
-            kind=kind,
+            kind=RigKind(kind),
             actuator=actuator,
             wfs=wfs,
             limits=limits,

@@ -37,12 +37,13 @@ from bench.models.parameters import PAPER_TYRE_STIFFNESS_N_PER_M, Tyre
 from bench.report.text import summary_lines
 from bench.store import open_campaign
 from sequences import load_sequence, shipped_file
+from sequences.runs import RigKind
 
 #: The demo's sequences, in the paper's order, each with the kind of bench it runs on.
 DEMO_SEQUENCES = (
-    ("hammer.toml", "shaker"),
-    ("paper_shaker.toml", "shaker"),
-    ("paper_four_post.toml", "four_post"),
+    ("hammer.toml", RigKind.SHAKER),
+    ("paper_shaker.toml", RigKind.SHAKER),
+    ("paper_four_post.toml", RigKind.FOUR_POST),
 )
 
 

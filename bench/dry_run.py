@@ -45,7 +45,7 @@ from drivers.setpoints import DriveSetpoint, equivalent_sine
 from sequences.channels import Role
 from sequences.errors import problems_text
 from sequences.limits import peak_acceleration_m_s2, peak_velocity_mm_s
-from sequences.runs import RunKind
+from sequences.runs import RigKind, RunKind
 from sequences.steps import (
     ACTION_BENCH_KIND,
     DriveIteration,
@@ -284,7 +284,7 @@ def bench_model(config: BenchConfig, pressure_bar: float, *, specimen: bool) -> 
     if not specimen:
         return BenchSetup(BenchKind.FREE_RUN, rig=rig)
     return BenchSetup(
-        BenchKind.SHAKER if config.kind == "shaker" else BenchKind.QUARTER_CAR,
+        BenchKind.SHAKER if config.kind == RigKind.SHAKER else BenchKind.QUARTER_CAR,
         TyreModel(config.specimen.tyre_model),
         tyre_at(pressure_bar, config.masses.wheel_below_sensor_kg),
         sensor=config.wfs_sensor,
@@ -587,8 +587,8 @@ def _predict_road_replay(
 ) -> Predicted:
     """The drive sample by sample on a four-post bench; refused on any other."""
     config = world.config
-    if config.kind != "four_post":
-        return [], [ActionRefusal(index, step.kind, "a road replay", "four_post", config.kind)]
+    if config.kind != RigKind.FOUR_POST:
+        return [], [ActionRefusal(index, step.kind, "a road replay", RigKind.FOUR_POST, config.kind)]
     assert drives is not None
     drive = drives[index]
     setpoint = replace(drive.setpoint, mean_mm=step.mean_mm)
@@ -603,8 +603,8 @@ def _predict_drive_iteration(
     the check each later drive gets before its upload (:func:`drive_check`): those drives follow
     from the rig's response, unknown until it is measured."""
     config = world.config
-    if config.kind != "four_post":
-        return [], [ActionRefusal(index, step.kind, "a drive iteration", "four_post", config.kind)]
+    if config.kind != RigKind.FOUR_POST:
+        return [], [ActionRefusal(index, step.kind, "a drive iteration", RigKind.FOUR_POST, config.kind)]
     planned = (drives or {}).get(index)
     setup = world.setup(free_run=False)
     world.drive_checks[index] = drive_check(world, setup, index, step)

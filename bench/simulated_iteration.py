@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.analysis.campaign import CampaignAnalysis
+from bench.analysis.campaign import AnalysisKind, CampaignAnalysis
 from bench.analysis.drive_iteration import compared_span, rig_response
 from bench.analysis.records import WFS_FORCE, WHEEL_CHANNELS, record_channels
 from bench.analysis.road_validation import band_rms
@@ -35,6 +35,7 @@ from bench.simulated_campaign import TRUTH_CHANNEL
 from bench.simulated_road import BENCH_CHAIN, simulate_road
 from bench.store import open_campaign
 from bench.store.measurement import MEASUREMENT_CHANNELS, Measurement
+from sequences.runs import RunKind
 
 #: The CSV columns :func:`write_targets` writes beside the time: the road's raw WFS force and its
 #: true contact force.
@@ -132,8 +133,8 @@ def iterate(
     plan = plan_campaign(sequence, config_path)
     path = folder / f"{name}.h5"
     outcome = run_campaign(plan, path)
-    results = [a.results for a in outcome.analyses if a.name == "drive_iteration"]
-    (step_,) = [s for s in plan.sequence.steps if s.kind == "drive_iteration"]
+    results = [a.results for a in outcome.analyses if a.name == AnalysisKind.DRIVE_ITERATION]
+    (step_,) = [s for s in plan.sequence.steps if s.kind == RunKind.DRIVE_ITERATION]
     contact = []
     with open_campaign(path) as campaign:
         for run in campaign.runs[1:]:

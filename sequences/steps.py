@@ -20,7 +20,7 @@ from enum import StrEnum
 from typing import ClassVar
 
 from sequences.errors import AnswerError
-from sequences.runs import RunKind
+from sequences.runs import RigKind, RunKind
 
 #: Stated times of the steps that do not excite: the controller's hydraulic pressure ramp, a tare
 #: (the acquisition averages about a second at rest, plus the command round trips) and a slow move
@@ -72,11 +72,11 @@ PROMPT_ACTIONS = tuple(action.value for action in PromptAction)
 #: The bench on which a prompt action can be done at all (the others: on any bench): a wheel is
 #: fitted to the shaker, a car driven onto the four posts.
 ACTION_BENCH_KIND = {
-    PromptAction.REMOVE_WHEEL: "shaker",
-    PromptAction.FIT_WHEEL: "shaker",
-    PromptAction.CAR_ON_POSTS: "four_post",
-    PromptAction.CAR_OFF_POSTS: "four_post",
-    PromptAction.SET_DAMPER: "four_post",
+    PromptAction.REMOVE_WHEEL: RigKind.SHAKER,
+    PromptAction.FIT_WHEEL: RigKind.SHAKER,
+    PromptAction.CAR_ON_POSTS: RigKind.FOUR_POST,
+    PromptAction.CAR_OFF_POSTS: RigKind.FOUR_POST,
+    PromptAction.SET_DAMPER: RigKind.FOUR_POST,
 }
 _YES = ("yes", "y", "ok", "done", "true")
 _NO = ("no", "n", "false")

@@ -4,18 +4,21 @@ it (docs/architecture.md, *Adding a run kind*)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from bench.app.analysis_plan import ANALYSIS_NEEDS
 from bench.app.check import RUN_DESCRIPTIONS
 from bench.app.run_analysis import ANALYSES, INPUT_READERS, RunAnalyser, RunInputs, initial_knowledge
 from bench.app.show import EXCITATIONS
-from bench.config import default_bench_config
+from bench.config import BENCH_KINDS, KIND_DEFAULTS, default_bench_config
 from bench.dry_run import PREDICTIONS
+from bench.engine import events as ev
 from bench.engine.engine import STEP_ACTIONS
 from bench.engine.procedures import PROCEDURES
-from sequences.runs import RunKind
-from sequences.steps import STEP_TYPES
+from sequences.runs import EventKind, RigKind, RunKind
+from sequences.steps import ACTION_BENCH_KIND, STEP_TYPES
 
 #: Each layer's table keyed by the run kind.
 TABLES = {
@@ -58,3 +61,18 @@ def test_a_run_of_any_kind_without_its_records_is_flagged_not_raised(kind):
     run = RunInputs(f"r-{kind}", kind, {"bench": "four_post"})
     outcome = RunAnalyser(initial_knowledge(default_bench_config())).analyse(run)
     assert outcome.error and outcome.lines[0].startswith("FLAG analysis failed"), outcome
+
+
+def test_every_stored_event_kind_is_documented_and_the_engine_stores_only_those():
+    """The ``kind`` words of the campaign file's events are one enum, each described in docs/hdf5.md;
+    the engine's events that the recorder stores as they are say which of them they are."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "hdf5.md").read_text(encoding="utf-8")
+    assert [kind for kind in EventKind if f"`{kind}`" not in text] == []
+    stored = [cls for cls in vars(ev).values() if isinstance(cls, type) and "stored_as" in vars(cls)]
+    assert stored and all(isinstance(cls.stored_as, EventKind) for cls in stored)
+
+
+def test_the_rig_is_one_enum_from_the_configuration_to_the_prompts():
+    assert tuple(RigKind) == BENCH_KINDS and set(KIND_DEFAULTS) == set(RigKind)
+    assert set(ACTION_BENCH_KIND.values()) <= set(RigKind)
+    assert default_bench_config("four_post").kind is RigKind.FOUR_POST

@@ -24,7 +24,7 @@ from bench.analysis.records import MIN_FIT_POINTS
 from bench.config import BenchConfig
 from sequences import DwellGrid, FreeRun, Prompt, RoadReplay, Sequence, SineDwell, Sweep
 from sequences.channels import Role
-from sequences.runs import RunKind
+from sequences.runs import RigKind, RunKind
 from sequences.steps import PromptAction
 
 #: What a campaign file the sequence runs into may hold already.
@@ -48,7 +48,7 @@ class _Walk:
 
     def grid(self, index: int, step: DwellGrid | SineDwell) -> None:
         """A dwell grid: the tyre fit on the shaker (a four-post bench's grid is recorded only)."""
-        if self.config.kind != "shaker":
+        if self.config.kind != RigKind.SHAKER:
             return
         key = f"steps[{index}] {step.kind}"
         if self.pressure_bar is None:
@@ -77,7 +77,7 @@ class _Walk:
 
     def sweep(self, index: int, step: Sweep) -> None:
         key = f"steps[{index}] {step.kind}"
-        if self.config.kind == "shaker":
+        if self.config.kind == RigKind.SHAKER:
             self.lines.append(f"{key}: recorded, not analysed (the sweep analysis is the four-post bench's)")
             return
         if not self.free_run:

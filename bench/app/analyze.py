@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 from bench.config import BenchConfig, ConfigError, default_bench_config, parse_bench_config
 from bench.engine.run_ids import RUN_ID
 from bench.store import add_results, open_campaign
+from sequences.runs import RigKind, RunKind, RunStatus
 
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis, CampaignKnowledge, RunAnalysis
@@ -127,12 +128,15 @@ def analyze_campaign(
             runs = tuple(replay_campaign(campaign, analyser, analyse if keep_records else None))
         masses = config.masses
         hammer = next(
-            (run for run in campaign.runs if run.kind == "hammer" and run.status == "complete"), None
+            (run for run in campaign.runs if run.kind == RunKind.HAMMER and run.status == RunStatus.COMPLETE),
+            None,
         )
         four_post = [  # the last is the one the knowledge's four-post result comes from
             run
             for run in campaign.runs
-            if run.kind == "sweep" and run.status == "complete" and run.conditions.get("bench") == "four_post"
+            if run.kind == RunKind.SWEEP
+            and run.status == RunStatus.COMPLETE
+            and run.conditions.get("bench") == RigKind.FOUR_POST
         ]
         return CampaignAnalysis(
             path=path,

@@ -29,7 +29,7 @@ from bench.app.run_analysis import RunInputs
 from bench.report import figure_list
 from bench.report.figure_list import FigureSpec, KeptFigure, figure_specs
 from bench.store import open_campaign
-from sequences.runs import RunKind
+from sequences.runs import RigKind, RunKind
 
 #: The modules whose code decides how a figure looks: a change to any of them makes every kept
 #: figure stale.
@@ -109,7 +109,11 @@ class FigureDrawer:
         and the four-post one from the last four-post sweep, as the report draws them."""
         if run.hammer is not None and self._hammer is None:
             self._hammer = run.hammer
-        if run.sweep is not None and run.kind == RunKind.SWEEP and run.conditions.get("bench") == "four_post":
+        if (
+            run.sweep is not None
+            and run.kind == RunKind.SWEEP
+            and run.conditions.get("bench") == RigKind.FOUR_POST
+        ):
             self._sweep = run.sweep
         changed = [
             (spec, digest)

@@ -76,7 +76,7 @@ class PostRunAnalysis:
         if isinstance(event, ev.RunStarted):
             pressure = event.conditions.get("tyre_pressure_bar")
             pending = self._pending_grid
-            if pending is not None and (event.kind != "dwell_grid" or pressure != pending[1]):
+            if pending is not None and (event.kind != RunKind.DWELL_GRID or pressure != pending[1]):
                 self._send_pending_grid()
             self._started = (event.run_id, event.kind, pressure)
         elif isinstance(event, ev.SequenceFinished):
@@ -85,7 +85,7 @@ class PostRunAnalysis:
             self._take_results(wait=True)
         elif isinstance(event, ev.RunFinished) and event.status == "complete":
             run_id, kind, pressure = self._started
-            if kind == "dwell_grid":
+            if kind == RunKind.DWELL_GRID:
                 self._pending_grid = (run_id, pressure)
             else:
                 self._send_run(run_id)

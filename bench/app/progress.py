@@ -25,6 +25,7 @@ from bench.app.live_display import progress_display, redraws_in_place
 from bench.app.pace import NOTHING_DONE, DoneBefore, SequencePace
 from bench.engine import events as ev
 from drivers.wfs_frame import Status
+from sequences.runs import RunKind
 
 #: Shortest interval (s, wall clock) between two redraws of the live display while samples come in.
 REDRAW_PERIOD_S = 0.2
@@ -192,7 +193,7 @@ class Progress:
 
     def _run_text(self, event: ev.RunStarted) -> str:
         step = event.step
-        if event.kind == "hammer":
+        if event.kind == RunKind.HAMMER:
             return "hammer blows"
         sweep = f"sweep {step.get('start_hz', math.nan):g}-{step.get('end_hz', math.nan):g} Hz"
         return ", ".join([sweep, f"{step.get('amplitude_mm', math.nan):g} mm", *self._pressure_text()])

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from bench.engine import events as ev
 from bench.store import CampaignWriter, RunWriter
+from sequences.runs import EventKind
 
 
 class Recorder:
@@ -31,13 +32,21 @@ class Recorder:
                 self._point(event)
             case ev.GridRefined():
                 for freq_hz, reason in event.added:
-                    self._event("refined", f"point added at {freq_hz:g} Hz: {reason}", freq_hz=freq_hz)
+                    self._event(
+                        EventKind.REFINED, f"point added at {freq_hz:g} Hz: {reason}", freq_hz=freq_hz
+                    )
             case ev.PromptAnswered():
                 self._event(
-                    "prompt", event.text, prompt_id=event.prompt_id, answer=event.answer, unit=event.unit
+                    EventKind.PROMPT,
+                    event.text,
+                    prompt_id=event.prompt_id,
+                    answer=event.answer,
+                    unit=event.unit,
                 )
             case ev.StateChanged():
-                self._event("state", f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value)
+                self._event(
+                    EventKind.STATE, f"{event.old.value} -> {event.new.value}", trigger=event.trigger.value
+                )
             case (
                 ev.InterlockTripped()
                 | ev.HostStalled()
@@ -52,7 +61,7 @@ class Recorder:
                 self._analysed(event)
             case ev.SequenceFinished():
                 self.campaign.add_event(
-                    "sequence finished", event.reason or event.status, status=event.status
+                    EventKind.SEQUENCE_FINISHED, event.reason or event.status, status=event.status
                 )
                 self.campaign.flush()
 
@@ -93,13 +102,13 @@ class Recorder:
             if index > position:
                 run.append({name: column[position:index] for name, column in event.columns.items()})
                 position = index
-            run.add_event("gap", f"{missing} frames lost on the WFS link", missing=missing)
+            run.add_event(EventKind.GAP, f"{missing} frames lost on the WFS link", missing=missing)
         run.append({name: column[position:] for name, column in event.columns.items()})
 
     def _point(self, event: ev.PointDone) -> None:
         self._open_run(event.run_id).add_point(event)  # the event is the point attempt the file records
 
-    def _event(self, kind: str, text: str, **fields: object) -> None:
+    def _event(self, kind: EventKind, text: str, **fields: object) -> None:
         """An event of the run being recorded, or of the campaign between runs."""
         if self._run is not None and self._run.is_open:
             self._run.add_event(kind, text, **fields)

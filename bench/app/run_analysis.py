@@ -75,7 +75,7 @@ from bench.report.text import summary_lines
 from bench.store import CampaignFile, RunView
 from bench.store.measurement import Measurement
 from bench.store.measurement_chain import CAMPAIGN_LAG, MeasurementChain, Stated
-from sequences.runs import RunKind
+from sequences.runs import EventKind, RigKind, RunKind
 
 #: The plate a four-post free run weighs, as :class:`PlateMassRun` names it.
 POST_PLATE = "four-post post"
@@ -90,7 +90,7 @@ def initial_knowledge(config: BenchConfig) -> CampaignKnowledge:
         sensor=config.wfs_sensor,
         wheel_mass_kg=config.masses.wheel_below_sensor_kg,
         sensor_source=SensorSource.CONFIGURATION if config.sensor.stated else SensorSource.DEFAULT,
-        plate_mass_kg=config.masses.plate_kg if config.kind == "shaker" else None,
+        plate_mass_kg=config.masses.plate_kg if config.kind == RigKind.SHAKER else None,
     )
 
 
@@ -124,7 +124,9 @@ def run_event_notes(run: RunView) -> tuple[str, ...]:
     (:func:`lost_frames_note`) and each limit it reached (a ``limit`` event: an amplitude excursion,
     a response limit's alarm), flagged."""
     limits = tuple(
-        flag(FlagCode.LIMIT_REACHED, f"limit reached: {e.text}") for e in run.events if e.kind == "limit"
+        flag(FlagCode.LIMIT_REACHED, f"limit reached: {e.text}")
+        for e in run.events
+        if e.kind == EventKind.LIMIT
     )
     lost = lost_frames_note(run)
     return ((lost,) if lost else ()) + limits
@@ -133,7 +135,7 @@ def run_event_notes(run: RunView) -> tuple[str, ...]:
 def lost_frames_note(run: RunView) -> str:
     """What ``run`` lost on the WFS link, from its ``gap`` events and its points table (empty: no
     frame was lost)."""
-    gaps = [e for e in run.events if e.kind == "gap"]
+    gaps = [e for e in run.events if e.kind == EventKind.GAP]
     if not gaps:
         return ""
     lost = sum(int(e.fields.get("missing", 0)) for e in gaps)
@@ -187,7 +189,7 @@ def _read_grids(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunI
 
 def _read_sweep(run: RunView, campaign: CampaignFile, inputs: RunInputs) -> RunInputs:
     """A four-post sweep's record; a sweep on the shaker is not analysed, so nothing is read."""
-    if inputs.conditions.get("bench") != "four_post":
+    if inputs.conditions.get("bench") != RigKind.FOUR_POST:
         return inputs
     return dataclasses.replace(inputs, sweep=run.sweep_record())
 
@@ -289,7 +291,7 @@ class RunAnalyser:
         k = self.knowledge
         records = list(run.dwells)
         result = analyse_free_run(records)
-        if run.conditions.get("bench") == "four_post":
+        if run.conditions.get("bench") == RigKind.FOUR_POST:
             k.post_free_run = records
             k.plate_masses.append(PlateMassRun(run.run_id, POST_PLATE, result))
         else:
@@ -415,7 +417,7 @@ class RunAnalyser:
 
     def _four_post(self, run: RunInputs) -> Analysed:
         k = self.knowledge
-        if run.conditions.get("bench") != "four_post":
+        if run.conditions.get("bench") != RigKind.FOUR_POST:
             note = (
                 "sweep on the shaker bench: recorded, not analysed (the shaker's identification comes"
                 " from its dwell grids; the sweep analysis is the four-post bench's)"
@@ -486,7 +488,7 @@ def _grids_end(run: RunView, following: list[RunView]) -> bool:
     pressure = run.conditions.get("tyre_pressure_bar")
     return (
         not following
-        or following[0].kind != "dwell_grid"
+        or following[0].kind != RunKind.DWELL_GRID
         or (following[0].conditions.get("tyre_pressure_bar") != pressure)
     )
 
@@ -500,7 +502,7 @@ def runs_to_analyse(campaign: CampaignFile) -> list[RunView]:
     return [
         run
         for i, run in enumerate(complete)
-        if run.kind != "dwell_grid" or _grids_end(run, complete[i + 1 : i + 2])
+        if run.kind != RunKind.DWELL_GRID or _grids_end(run, complete[i + 1 : i + 2])
     ]
 
 

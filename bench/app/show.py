@@ -44,7 +44,7 @@ from sequences import (
 from sequences.loader import step_from_fields
 from sequences.metadata import LABELS
 from sequences.points import PointStatus
-from sequences.runs import RunKind
+from sequences.runs import EventKind, RunKind
 
 SCHEMA = "wfs-bench-show"
 #: Version 1 only gains keys; renaming or removing one, or changing its meaning, makes version 2.
@@ -170,7 +170,9 @@ def _recorded_excitation(run: RunView) -> Excitation:
     """The excitation of a run whose step is of no known form: a sweep's from its step's
     ``start_hz``, ``end_hz`` and ``amplitude_mm`` (which every sweep record has), else from the
     points it did (their nominal amplitudes, their frequencies)."""
-    if run.kind == "sweep" and all(isinstance(run.step.get(k), int | float) for k in ("start_hz", "end_hz")):
+    if run.kind == RunKind.SWEEP and all(
+        isinstance(run.step.get(k), int | float) for k in ("start_hz", "end_hz")
+    ):
         amplitude = run.step.get("amplitude_mm")
         amplitudes = [float(amplitude)] if isinstance(amplitude, int | float) else []
         return amplitudes, [float(run.step["start_hz"]), float(run.step["end_hz"])]
@@ -208,8 +210,8 @@ def _run(run: RunView) -> dict[str, Any]:
         "conditions": finite_or_none(run.conditions),
         "samples": run.n_samples,
         "sample_rate_hz": run.sample_rate_hz,
-        "frames_lost": sum(int(e.fields.get("missing", 0)) for e in run.events if e.kind == "gap"),
-        "gaps": sum(e.kind == "gap" for e in run.events),
+        "frames_lost": sum(int(e.fields.get("missing", 0)) for e in run.events if e.kind == EventKind.GAP),
+        "gaps": sum(e.kind == EventKind.GAP for e in run.events),
         "resumes": run.resumes,
         "resumed_by": run.resumed_by,
         # a drive iteration's drive samples stay in the file (wfsbench export --format drive)

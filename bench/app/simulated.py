@@ -20,6 +20,7 @@ from bench.models.setup import BenchSetup
 from drivers.register_map import load_register_map
 from sequences import Prompt
 from sequences.channels import DEFAULT_AUX_INPUTS, Role, standard_name
+from sequences.runs import RigKind
 from simulators.bench_sim import UNPACED_BLOCK_S, BenchRunner, SimulatedBench
 from simulators.controller_server import ControllerServer
 from simulators.plant import PlantSimulator, SensorRealism
@@ -58,7 +59,7 @@ class SimulatedLabSettings:
     the controller serves (the configuration's; None: the drivers'), so that a map without the
     optional registers serves a controller without what they do."""
 
-    kind: str = "shaker"
+    kind: RigKind = RigKind.SHAKER
     paced: bool = False
     flow_control: bool = False
     wfs_hold_s: float | None = None

@@ -19,9 +19,11 @@ from collections.abc import Iterable, Iterator, Mapping
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
+from bench.analysis.campaign import AnalysisKind
 from bench.analysis.lsq import Z95
 from bench.archive import columns as c
 from bench.store import CampaignFile, RunView
+from sequences.runs import EventKind
 
 if TYPE_CHECKING:
     from bench.analysis.campaign import CampaignAnalysis
@@ -78,7 +80,7 @@ def run_columns(run: RunView) -> Row:
         "run_reason": run.reason,
         "run_started": timestamp(run.started),
         "run_finished": timestamp(run.finished),
-        "run_interlocks": sum(1 for event in run.events if event.kind == "interlock"),
+        "run_interlocks": sum(1 for event in run.events if event.kind == EventKind.INTERLOCK),
         "tyre_pressure_bar": float(pressure) if isinstance(pressure, int | float) else None,
     }
 
@@ -260,13 +262,13 @@ def analysis_rows(analysis: CampaignAnalysis) -> dict[str, list[Row]]:
             out.setdefault(run_id, []).extend(rows)
 
     if doc.hammer is not None:
-        add(last("hammer"), hammer_values(doc.hammer))
+        add(last(AnalysisKind.HAMMER), hammer_values(doc.hammer))
     for plate in analysis.knowledge.plate_masses:
         add(plate.run_id, free_run_values(FreeRunDoc.of(plate.result)))
     for pressure in doc.shaker:
-        add(last("shaker", pressure.tyre_pressure_bar), shaker_values(pressure))
+        add(last(AnalysisKind.SHAKER, pressure.tyre_pressure_bar), shaker_values(pressure))
     if doc.four_post is not None:
-        add(last("four_post"), four_post_values(doc.four_post))
+        add(last(AnalysisKind.FOUR_POST), four_post_values(doc.four_post))
     for flag in doc.flags:
         add(flag.run_id, [flag_row(flag)])
     return out

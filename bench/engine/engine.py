@@ -49,6 +49,7 @@ from bench.engine.stops import RunOutcome, RunStoppedError, stop_with_taper
 from bench.engine.timing import EngineTiming
 from drivers.errors import CommandRejectedError, LimitError, LinkError
 from sequences import AnswerError, Hydraulics, MeanPosition, Prompt, Sequence, Tare
+from sequences.runs import RigKind
 from sequences.steps import MEASUREMENT_TYPES
 
 #: The bench condition a prompt's answer establishes, by the prompt's action: (name, value), where a
@@ -131,7 +132,7 @@ class Engine:
         timing: EngineTiming | None = None,
         bus: ev.EventBus | None = None,
         tare: str = "never",
-        bench_kind: str = "shaker",
+        bench_kind: RigKind = RigKind.SHAKER,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """``tare``: "before_each_run" (the WFS is tared, at rest, before each run's stream starts),

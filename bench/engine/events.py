@@ -19,6 +19,7 @@ import numpy as np
 from bench.engine.states import RunState, Trigger
 from sequences.channels import Channel
 from sequences.points import PointAttempt
+from sequences.runs import EventKind
 
 if TYPE_CHECKING:
     from bench.report.figure_list import KeptFigure
@@ -103,7 +104,7 @@ class AmplitudeChecked:
     frames were lost on the link, and ``lost`` says why the window was not decided on (the same
     command is measured again over the next window; empty: it was decided on)."""
 
-    stored_as: ClassVar[str] = "amplitude"
+    stored_as: ClassVar[EventKind] = EventKind.AMPLITUDE
 
     run_id: str
     index: int
@@ -139,7 +140,7 @@ class ResonanceTracked:
     (:mod:`bench.engine.tracking`): the window's end (run sample), the drive frequency, the
     resonance estimated there, the ratio's magnitude and phase, the damping ratio."""
 
-    stored_as: ClassVar[str] = "track"
+    stored_as: ClassVar[EventKind] = EventKind.TRACK
 
     run_id: str
     index: int
@@ -190,7 +191,7 @@ class HostStalled:
     controller's watchdog that tripped while the host stood still) stops its stream before they come,
     and its stall's losses are then not known."""
 
-    stored_as: ClassVar[str] = "host stall"
+    stored_as: ClassVar[EventKind] = EventKind.HOST_STALL
 
     run_id: str
     stalled_s: float
@@ -217,7 +218,7 @@ class LimitReached:
     response limit's level, "wfs_fz alarm", or a graded interlock), why, and its ``action``
     (indicate: recorded only; hold: the sequence pauses; stop: it ends, aborted)."""
 
-    stored_as: ClassVar[str] = "limit"
+    stored_as: ClassVar[EventKind] = EventKind.LIMIT
 
     run_id: str
     name: str
@@ -233,7 +234,7 @@ class LimitReached:
 class InterlockTripped:
     """Interlock ``name`` tripped for ``reason``, during run ``run_id`` (None: between runs)."""
 
-    stored_as: ClassVar[str] = "interlock"
+    stored_as: ClassVar[EventKind] = EventKind.INTERLOCK
 
     name: str
     reason: str

@@ -31,7 +31,7 @@ from bench.export.common import done_points, output_folder
 from bench.store import CampaignFile, RunView
 from bench.store.csv_mapping import IMPORTED_KINDS
 from bench.store.csv_units import channel_si_unit, unit_named
-from sequences.runs import RunKind
+from sequences.runs import RigKind, RunKind
 
 TIME_COLUMN = "time_s"
 MAPPING = "mapping.toml"
@@ -152,7 +152,7 @@ def write_csv(campaign: CampaignFile, runs: tuple[RunView, ...], out: Path) -> l
         # a run without a done point has nothing the import could take; a kind it does not import
         # (a tracked dwell, a road replay) has its file without a mapping
         if done_points(run) and run.kind in IMPORTED_KINDS:
-            by_bench.setdefault(run.conditions.get("bench", "shaker"), []).append(run)
+            by_bench.setdefault(run.conditions.get("bench", RigKind.SHAKER), []).append(run)
     mappings = []
     with output_folder(out) as folder:
         for run in runs:

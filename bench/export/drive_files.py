@@ -17,6 +17,7 @@ from bench.engine.run_ids import step_run_id
 from bench.export.common import ExportError, output_folder
 from bench.store import RunView
 from bench.store.rpc3 import Rpc3Channel, time_history_bytes
+from sequences.runs import RunKind
 
 RPC3_SUFFIX = ".drv"
 CSV_SUFFIX = ".csv"
@@ -26,7 +27,7 @@ def drive_samples(run: RunView) -> np.ndarray:
     """The drive ``run`` played (mm, float32 as the controller took it); ExportError when the run
     recorded none or its samples do not give its CRC-32."""
     samples = run.drive.get("samples_mm")
-    if run.kind != "drive_iteration" or samples is None:
+    if run.kind != RunKind.DRIVE_ITERATION or samples is None:
         raise ExportError(f"{run.path}: run {run.run_id}: no drive of a drive iteration recorded")
     values = np.asarray(samples, dtype="<f4")
     if f"{zlib.crc32(values.tobytes()):08x}" != run.drive.get("crc32"):
@@ -40,7 +41,7 @@ def final_runs(runs: tuple[RunView, ...]) -> tuple[RunView, ...]:
     """Of ``runs``, each drive iteration's last run with a drive (the final drive of its step)."""
     last: dict[str, RunView] = {}
     for run in runs:
-        if run.kind == "drive_iteration" and int(run.drive.get("iteration", 0)) > 0:
+        if run.kind == RunKind.DRIVE_ITERATION and int(run.drive.get("iteration", 0)) > 0:
             last[step_run_id(run.run_id)] = run
     return tuple(last.values())
 

@@ -26,6 +26,7 @@ from bench.store.schema import campaign_key
 from bench.store.typed import TypedFormatError
 from sequences import parse_sequence
 from sequences.points import PointStatus
+from sequences.runs import EventKind
 
 #: How often the file is read again (s).
 POLL_S = 1.0
@@ -59,7 +60,7 @@ def file_state(path: Path) -> dict[str, Any]:
             lines.append(f"run {run.run_id} ({run.kind}): {run.status}{why}")
             for event in run.events:
                 lines.append(f"  {event.kind}: {event.text}")
-                if event.kind == "interlock":
+                if event.kind == EventKind.INTERLOCK:
                     tripped[str(event.fields.get("name", event.text))] = str(event.fields.get("reason", ""))
             record = run.analysis_record
             if record is not None:

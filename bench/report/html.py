@@ -25,6 +25,7 @@ from bench.analysis.road_replay import FORCES
 from bench.analysis.road_validation import ERROR_BAND_HZ, OCTAVE_CENTRES_HZ
 from bench.report.figure_list import FigureFile
 from bench.report.metadata import metadata_html
+from sequences.runs import RunKind
 
 PAGE_STYLE = """
 body { font-family: sans-serif; max-width: 72em; margin: 1em auto; padding: 0 1em; color: #222;
@@ -412,9 +413,9 @@ def run_heading(run: RunAnalysis, pressure_bar: float | None) -> str:
     has none: the bare sensor, no wheel)."""
     if pressure_bar is not None:
         tyre = f"tyre at {pressure_bar:g} bar"
-    elif run.kind == "hammer":
+    elif run.kind == RunKind.HAMMER:
         tyre = "bare sensor, no tyre"
-    elif run.kind == "free_run":
+    elif run.kind == RunKind.FREE_RUN:
         tyre = "no wheel on the bench"
     else:
         tyre = "tyre pressure not recorded"

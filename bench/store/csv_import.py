@@ -33,7 +33,7 @@ from bench.store.temporary import temporary_beside
 from bench.store.writer import CampaignWriter
 from sequences.channels import Channel, role_of_standard_name
 from sequences.points import PointAttempt
-from sequences.runs import RunKind
+from sequences.runs import EventKind, RunKind
 from sequences.toml_text import load_toml
 
 
@@ -258,7 +258,7 @@ def import_campaign(
             metadata=metadata,
         ) as campaign:
             campaign.add_event(
-                "import", f"imported from CSV with {mapping.path.name}", mapping=str(mapping.path)
+                EventKind.IMPORT, f"imported from CSV with {mapping.path.name}", mapping=str(mapping.path)
             )
             for run in runs:
                 _write_run(campaign, run, mapping)
@@ -303,7 +303,7 @@ def _write_run(campaign: CampaignWriter, run: ImportedRun, mapping: ImportMappin
         start, hold_start, hold_end, end = _samples(f, table)
         writer.append({name: table.columns[name][start:end].astype(np.float32) for name in run.channels})
         writer.add_event(
-            "import",
+            EventKind.IMPORT,
             f"point {index} from {f.file.name}, samples {start} to {end}",
             file=str(f.file),
             rows=end - start,

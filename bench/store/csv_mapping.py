@@ -25,7 +25,7 @@ from bench.store.csv_units import (
     known_units,
     unit_named,
 )
-from sequences.runs import RUN_KINDS, RunKind
+from sequences.runs import RUN_KINDS, RigKind, RunKind
 from sequences.toml_text import load_toml, toml_error_where
 
 #: The kinds of run a CSV export can hold: a tracked dwell's track is the engine's looks at its
@@ -207,7 +207,7 @@ def load_mapping(path: str | Path) -> ImportMapping:
     name = r.string(source, "source.name", required=True)
     if name is not None and not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         r.add("source.name", f"{name!r}: use letters, digits, '_', '.' and '-' only")
-    bench = r.choice(source, "source.bench", ("shaker", "four_post"), "shaker")
+    bench = r.choice(source, "source.bench", tuple(RigKind), RigKind.SHAKER)
     defaults = _RunDefaults(
         timing=r.timing(r.table(data, "time"), "time") if "time" in data else None,
         channels=r.channels(r.table(data, "channels"), "channels") if "channels" in data else None,
@@ -290,7 +290,7 @@ def pressure_needed(kind: str, bench: str) -> str | None:
     analysis takes the grids (or the shaker identification) of that pressure."""
     if kind == RunKind.DWELL_GRID:
         return "a dwell grid is analysed with the other grids of its tyre pressure"
-    if kind == RunKind.SWEEP and bench == "four_post":
+    if kind == RunKind.SWEEP and bench == RigKind.FOUR_POST:
         return "a four-post sweep is analysed with the shaker identification at its tyre pressure"
     return None
 

@@ -38,6 +38,7 @@ from bench.store.csv_units import UNITS, channel_si_unit, known_units, unit_name
 from bench.store.measurement_chain import MeasurementChain
 from bench.store.reader import open_campaign
 from bench.store.spool import SpooledChannel
+from sequences.runs import RunKind
 
 #: Bytes of an MDF file asammdf reads at a time (its fragments): a few blocks of samples.
 MDF_FRAGMENT_BYTES = 4 << 20
@@ -181,7 +182,7 @@ def _campaign_run(path: Path, run_id: str | None) -> Measurement:
             raise MissingChannelError(
                 f"{path}: run {run_id}: no {', '.join(missing)} channel (it has {', '.join(channels)})"
             )
-        if run.kind == "free_run" or run.conditions.get("wheel_fitted") is False:
+        if run.kind == RunKind.FREE_RUN or run.conditions.get("wheel_fitted") is False:
             raise NotOnTheTyreError(
                 f"{path}: run {run_id} ({run.kind}) was recorded without the wheel on the bench: its WFS"
                 " measured no tyre's contact force, there is nothing to compensate"

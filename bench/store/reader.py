@@ -40,7 +40,7 @@ from bench.store.results import read_tree
 from bench.store.schema import StoreError
 from sequences.channels import Channel, Role, standard_name
 from sequences.points import PointAttempt, PointStatus, Verdict
-from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
+from sequences.runs import FINISH_STATUSES, RUN_KINDS, EventKind, RunStatus
 
 #: The recorded channel of the WFS frame counter (``bench.engine.channels``): the true sample times.
 SEQ_CHANNEL = "seq"
@@ -81,7 +81,8 @@ _SWEEP_KEYS = ("start_hz", "end_hz", "duration_s", "amplitude_mm")
 @dataclass(frozen=True, slots=True)
 class Event:
     """One row of an ``events`` table; ``sample`` is the run's recorded length when it happened
-    (-1 for campaign-level events)."""
+    (-1 for campaign-level events); ``kind`` as stored (an :class:`~sequences.runs.EventKind`'s word
+    when this software wrote it; another program's word is kept as it is)."""
 
     time_unix_s: float
     sample: int
@@ -540,7 +541,7 @@ class RunView:
         """The track of a tracked dwell: its looks (the run's ``track`` events) and how it ended
         (its track point's verdict and note)."""
         self._require(("tracked_dwell",), "track record")
-        looks = [e.fields for e in self.events if e.kind == "track"]
+        looks = [e.fields for e in self.events if e.kind == EventKind.TRACK]
         done = [p for run, p in self._done_points() if p.verdict in (Verdict.TRACKED, Verdict.STOPPED)]
 
         def column(name: str) -> np.ndarray:

@@ -48,7 +48,7 @@ from bench.store.schema import StoreError
 from sequences.channels import Channel
 from sequences.metadata import merged, metadata_value, specimen_conflicts
 from sequences.points import PointAttempt, PointStatus
-from sequences.runs import FINISH_STATUSES, RUN_KINDS, RunStatus
+from sequences.runs import FINISH_STATUSES, RUN_KINDS, EventKind, RunStatus
 
 _DTYPE_LIMITS = {"u4": (0, 2**32 - 1), "u2": (0, 2**16 - 1)}
 
@@ -171,7 +171,9 @@ class CampaignWriter:
         if filled:
             file.attrs.update(filled)
             shown = ", ".join(f"{name} = {value!r}" for name, value in filled.items())
-            writer.add_event("metadata", f"recorded what the campaign had left empty: {shown}", **filled)
+            writer.add_event(
+                EventKind.METADATA, f"recorded what the campaign had left empty: {shown}", **filled
+            )
             writer.flush()
         return writer
 
@@ -297,10 +299,10 @@ class CampaignWriter:
         resumer = {name: self.metadata[name] for name in s.RUN_METADATA_FIELDS if self.metadata[name]}
         if ended["status"] == RunStatus.INCOMPLETE:
             text = f"writing resumed after sample {usable}"
-            self._run.add_event("resumed", text, samples=usable, **resumer)
+            self._run.add_event(EventKind.RESUMED, text, samples=usable, **resumer)
         else:
             self._run.add_event(
-                "resumed",
+                EventKind.RESUMED,
                 f"writing resumed after sample {usable}; the run had ended {ended['status']}"
                 + (f": {ended['reason']}" if ended["reason"] else ""),
                 samples=usable,
@@ -311,7 +313,7 @@ class CampaignWriter:
         self.flush()
         return self._run
 
-    def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
+    def add_event(self, kind: EventKind, text: str, /, **fields: Any) -> None:
         """A campaign-level event (``/events``), for what happens between runs: prompts and their
         answers, hydraulics, tare. ``sample`` is -1 there."""
         _append_event(self._file[s.EVENTS], path=self.path, sample=-1, kind=kind, text=text, fields=fields)
@@ -487,7 +489,7 @@ class RunWriter:
             self._done |= {row.index}
         self._campaign.flush_if_due()
 
-    def add_event(self, kind: str, text: str, /, **fields: Any) -> None:
+    def add_event(self, kind: EventKind, text: str, /, **fields: Any) -> None:
         """An event of this run (prompt and answer, interlock, state change, link gap, ...), at the
         current sample position; ``fields`` are stored as JSON."""
         self._check_open(f"{self._group.name}/{s.EVENTS}")
