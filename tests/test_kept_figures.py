@@ -144,7 +144,7 @@ def test_what_a_figure_shows_is_digested_by_value_whatever_the_number_type():
     assert _digest(1, values) != _digest(1, {**values, "k_t": 2.5e5 * (1 + 1e-15)})
     assert _digest(1, values) != _digest(1, {**values, "curve": np.linspace(0.0, 1.0, 5).astype(np.float32)})
     assert _digest((1, 2)) == _digest([1, 2]) != _digest((2, 1))
-    with pytest.raises(TypeError, match="a figure shows a object"):
+    with pytest.raises(TypeError, match="object has no digest by value"):
         _digest(object())
 
 

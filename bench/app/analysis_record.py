@@ -19,17 +19,15 @@ a record of another format), and the reader then refits and says so.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.app.run_analysis import RunAnalyser, RunInputs
+from bench.app.value_digest import value_sha256
 from bench.app.version import software_version
 from bench.store import RunView
 from bench.store.typed import TypedFormatError, from_json_tree, to_json_tree
@@ -235,29 +233,7 @@ def stored_analysis(runs: Iterable[RunView], knowledge: CampaignKnowledge) -> St
 
 
 def inputs_sha256(value: object) -> str:
-    """The SHA-256 of what an analysis read (its :class:`~bench.app.run_analysis.RunInputs`): every
-    array's type, shape and bytes and every other value's text, field by field in order."""
-    digest = hashlib.sha256()
-    _digest(digest, value)
-    return digest.hexdigest()
-
-
-def _digest(digest: Any, value: object) -> None:
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        for field in dataclasses.fields(value):
-            digest.update(field.name.encode())
-            _digest(digest, getattr(value, field.name))
-    elif isinstance(value, np.ndarray):
-        array = np.ascontiguousarray(value)
-        digest.update(f"{array.dtype.str}{array.shape}".encode())
-        digest.update(array.tobytes())
-    elif isinstance(value, Mapping):
-        for key, item in value.items():
-            digest.update(repr(key).encode())
-            _digest(digest, item)
-    elif isinstance(value, list | tuple):
-        digest.update(f"[{len(value)}".encode())
-        for item in value:
-            _digest(digest, item)
-    else:
-        digest.update(repr(value).encode())
+    """The SHA-256 of what an analysis read (its :class:`~bench.app.run_analysis.RunInputs`), by
+    value (:mod:`bench.app.value_digest`): every array's type, shape and bytes, every other value's
+    value, field by field in order."""
+    return value_sha256(value)

@@ -12,20 +12,16 @@ one; ``--reanalyse`` draws them all.
 
 from __future__ import annotations
 
-import dataclasses
-import enum
 import functools
 import hashlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from bench.analysis.campaign import CampaignKnowledge
 from bench.analysis.records import HammerRecord, SweepRecord
 from bench.app.run_analysis import RunInputs
+from bench.app.value_digest import value_sha256
 from bench.report import figure_list
 from bench.report.figure_list import FigureSpec, KeptFigure, figure_specs
 from bench.store import open_campaign
@@ -53,43 +49,9 @@ def drawing_sha256() -> str:
 
 
 def shows_sha256(spec: FigureSpec) -> str:
-    """The SHA-256 of what the figure ``spec`` shows: its name, kind and drawn values (arrays by
-    type, shape and bytes; numbers by value, whatever their Python or numpy type), and the drawing
-    code (:func:`drawing_sha256`)."""
-    digest = hashlib.sha256(drawing_sha256().encode())
-    _digest(digest, (spec.name, str(spec.kind), spec.shows))
-    return digest.hexdigest()
-
-
-def _digest(digest: Any, value: object) -> None:
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, enum.Enum):
-        digest.update(f"{type(value).__name__}.{value.name}".encode())
-    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
-        digest.update(type(value).__name__.encode())
-        for field in dataclasses.fields(value):
-            digest.update(field.name.encode())
-            _digest(digest, getattr(value, field.name))
-    elif isinstance(value, np.ndarray):
-        array = np.ascontiguousarray(value)
-        digest.update(f"{array.dtype.str}{array.shape}".encode())
-        digest.update(array.tobytes())
-    elif isinstance(value, Mapping):
-        digest.update(f"{{{len(value)}".encode())
-        for key, item in value.items():
-            _digest(digest, key)
-            _digest(digest, item)
-    elif isinstance(value, list | tuple):
-        digest.update(f"[{len(value)}".encode())
-        for item in value:
-            _digest(digest, item)
-    elif isinstance(value, int | float) and not isinstance(value, bool):
-        digest.update(repr(float(value)).encode())
-    elif value is None or isinstance(value, bool | str | complex):
-        digest.update(repr(value).encode())
-    else:
-        raise TypeError(f"a figure shows a {type(value).__name__}, which has no digest")
+    """The SHA-256 of what the figure ``spec`` shows: the drawing code (:func:`drawing_sha256`), its
+    name and kind and the values drawn, by value (:mod:`bench.app.value_digest`)."""
+    return value_sha256((spec.name, str(spec.kind), spec.shows), drawing_sha256())
 
 
 class FigureDrawer:
