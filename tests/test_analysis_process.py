@@ -51,7 +51,7 @@ def test_the_process_analyses_as_this_process_does_and_brings_the_knowledge_back
     with AnalysisProcess(_fresh()) as process:
         for run in inputs:
             process.submit(run)
-        there = [process.next_result(RESULT_TIMEOUT_S)[0] for _ in inputs]
+        there = [process.next_result(RESULT_TIMEOUT_S).outcome for _ in inputs]
         assert process.outstanding == 0 and process.next_result(0) is None
     assert [a.name for a in here] == ["plate_mass", "shaker", "sweep"]
     assert [(a.run_id, a.lines, a.results, a.flags) for a in here] == [
@@ -73,12 +73,27 @@ def test_an_input_the_analysis_cannot_take_is_flagged_and_the_next_run_is_analys
     with AnalysisProcess(_fresh()) as process:
         process.submit(broken)
         process.submit(free_run)
-        flagged, _, _ = process.next_result(RESULT_TIMEOUT_S)
-        analysed, _, _ = process.next_result(RESULT_TIMEOUT_S)
+        flagged = process.next_result(RESULT_TIMEOUT_S).outcome
+        analysed = process.next_result(RESULT_TIMEOUT_S).outcome
     assert flagged.error.startswith("AttributeError") and flagged.lines[0].startswith("FLAG analysis failed")
     assert [f.code for f in flagged.flags] == [FlagCode.ANALYSIS_FAILED]  # the flag's code came along
     assert analysed.name == "plate_mass" and not analysed.error
     assert list(process.knowledge.analysed_runs) == ["broken-free_run", free_run.run_id]
+
+
+def test_an_input_whose_record_cannot_be_made_is_answered_and_the_next_run_is_analysed(smoke_campaign):
+    """A value in a run's conditions that has no digest (a set) leaves that run without a record, as
+    a result the record cannot hold does; the process answers it and goes on."""
+    with open_campaign(smoke_campaign) as campaign:
+        free_run = run_inputs(runs_to_analyse(campaign)[0], campaign)
+    odd = RunInputs("odd-free_run", "free_run", {"note": {1, 2}})
+    with AnalysisProcess(_fresh()) as process:
+        process.submit(odd)
+        process.submit(free_run)
+        first = process.next_result(RESULT_TIMEOUT_S)
+        second = process.next_result(RESULT_TIMEOUT_S)
+    assert first.outcome.run_id == "odd-free_run" and first.record == ""
+    assert second.outcome.name == "plate_mass" and second.record.startswith('{"format":')
 
 
 def test_the_analysis_process_runs_as_batch_work_at_the_benchs_priority():
@@ -86,7 +101,7 @@ def test_the_analysis_process_runs_as_batch_work_at_the_benchs_priority():
     of its results, and a lower one starves it on a busy host."""
     with AnalysisProcess(_fresh()) as process:
         process.submit(RunInputs("r", "free_run", {}))
-        assert process.next_result(RESULT_TIMEOUT_S)[0].error  # answered: it has set its policy
+        assert process.next_result(RESULT_TIMEOUT_S).outcome.error  # answered: it has set its policy
         pid = process._process.pid
         policy, child = os.sched_getscheduler(pid), os.getpriority(os.PRIO_PROCESS, pid)
     assert policy == SCHEDULING_POLICY == os.SCHED_BATCH

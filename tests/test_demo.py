@@ -54,6 +54,9 @@ def test_demo_campaign_recovers_the_simulated_tyres(capsys, tmp_path):
     for name in ["hammer", *shaker, "four_post_ratios", "four_post_hub"]:
         assert (tmp_path / "report" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
         assert f'<figure id="{name}"><img' in html, name
+    # the report again: every figure as the post-run analysis drew it beside its run, none drawn
+    assert main(["report", str(tmp_path / "campaign.h5"), "--out", str(tmp_path / "again")]) == 0
+    assert "9 figures as the post-run analysis drew them, 0 drawn" in capsys.readouterr().out.splitlines()
     # no address outside the embedded figures (whose base64 may spell anything by chance)
     page_text = re.sub(r'src="data:image/png;base64,[A-Za-z0-9+/=]+"', "", html)
     assert "http" not in page_text and 'src="data:image/png;base64,' in html

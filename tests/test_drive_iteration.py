@@ -30,6 +30,7 @@ from bench.app.analyze import analyze_campaign
 from bench.app.devices import open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import plan_campaign
+from bench.app.report import write_report
 from bench.app.resume_check import ResumeMismatchError, check_resume
 from bench.app.run import run_campaign, run_on_engine
 from bench.cli.exit_codes import ExitCode
@@ -41,8 +42,6 @@ from bench.models.parameters import DamperNonlinearity, Suspension, TyreNonlinea
 from bench.models.road import road_drive
 from bench.models.setup import BenchKind, BenchSetup
 from bench.report.analysis_document import AnalysisDocument
-from bench.report.figure_files import write_figures
-from bench.report.figure_list import campaign_figure_specs
 from bench.report.json_out import read_analysis_json
 from bench.simulated_road import simulate_road
 from bench.store import open_campaign
@@ -289,10 +288,9 @@ def test_a_drive_iteration_records_each_drive_as_a_run_and_stops_at_its_rms_erro
     # in analyze --json: the errors per iteration, as the post-run analysis gave them; in the report
     # a figure of them; in show each drive with its checksum
     shown = analyze_campaign(path)
-    drawn = [s for s in campaign_figure_specs(shown) if s.name.startswith("drive_iteration_")]
-    (figure,) = write_figures(drawn, tmp_path / "report")
+    (figure,) = [f for f in write_report(path, tmp_path / "report").figures if f.name.startswith("drive_")]
     assert figure.name == "drive_iteration_iterate-s002-drive_iteration"
-    assert figure.path.stat().st_size > 10_000
+    assert figure.kept and figure.path.stat().st_size > 10_000  # as the post-run analysis drew it
     assert main(["show", str(path)]) == 0
     listed = capsys.readouterr().out
     sha = runs[1].drive["sha256"]

@@ -18,14 +18,17 @@ import numpy as np
 import pytest
 
 from bench.app.analyze import analyze_campaign
-from bench.app.kept_figures import PNG_SIGNATURE, FigureDrawer, shows_sha256
+from bench.app.kept_figures import PNG_SIGNATURE, DrawnFigures, FigureDrawer, shows_sha256
 from bench.app.report import write_report
 from bench.app.run_analysis import initial_knowledge, run_inputs
 from bench.config import default_bench_config
+from bench.models.benches import TyreModel
+from bench.report import figures
 from bench.report.figure_list import FigureKind, FigureSpec
 from bench.store import CampaignWriter, StoreError, open_campaign
 from bench.store import schema as s
 from sequences.channels import Channel
+from sequences.runs import RunKind
 from tests.commands import wfsbench
 
 H5DUMP = shutil.which("h5dump")
@@ -129,9 +132,34 @@ def test_the_drawer_draws_what_changed_once_and_counts_a_known_campaign_as_drawn
         grid = run_inputs(next(run for run in campaign.runs if run.kind == "dwell_grid"), campaign)
     drawer = FigureDrawer(initial_knowledge(default_bench_config()))
     drawn = drawer.after(grid, analysis.knowledge)
-    assert {figure.name: figure.png for figure in drawn} == refit_pngs
-    assert drawer.after(grid, analysis.knowledge) == ()
-    assert FigureDrawer(analysis.knowledge).after(grid, analysis.knowledge) == ()
+    assert {figure.name: figure.png for figure in drawn.kept} == refit_pngs and drawn.failed == ()
+    assert drawer.after(grid, analysis.knowledge) == DrawnFigures()
+    assert FigureDrawer(analysis.knowledge).after(grid, analysis.knowledge) == DrawnFigures()
+    # a run analysed again, whose figures its campaign kept already: none drawn, none again after
+    again = FigureDrawer(initial_knowledge(default_bench_config()))
+    assert again.after(grid, analysis.knowledge, draw=False) == DrawnFigures()
+    assert again.after(grid, analysis.knowledge) == DrawnFigures()
+
+
+def test_a_figure_that_fails_to_draw_is_said_and_the_others_are_kept(smoke_campaign, refit_pngs, monkeypatch):
+    analysis = analyze_campaign(smoke_campaign)
+    with open_campaign(smoke_campaign) as campaign:
+        grid = run_inputs(next(run for run in campaign.runs if run.kind == "dwell_grid"), campaign)
+    drawing = figures.figure_png
+
+    def failing(spec: FigureSpec) -> bytes:
+        if spec.name == "shaker_2p5bar":
+            raise RuntimeError("no canvas")
+        return drawing(spec)
+
+    monkeypatch.setattr(figures, "figure_png", failing)
+    drawer = FigureDrawer(initial_knowledge(default_bench_config()))
+    drawn = drawer.after(grid, analysis.knowledge)
+    assert [(f.name, f.png) for f in drawn.kept] == [
+        ("shaker_compensated_2p5bar", refit_pngs["shaker_compensated_2p5bar"])
+    ]
+    assert drawn.failed == ("figure shaker_2p5bar not drawn: RuntimeError: no canvas",)
+    assert drawer.after(grid, analysis.knowledge) == DrawnFigures()  # tried again once its values change
 
 
 def _digest(*shows: object) -> str:
@@ -144,6 +172,10 @@ def test_what_a_figure_shows_is_digested_by_value_whatever_the_number_type():
     assert _digest(1, values) != _digest(1, {**values, "k_t": 2.5e5 * (1 + 1e-15)})
     assert _digest(1, values) != _digest(1, {**values, "curve": np.linspace(0.0, 1.0, 5).astype(np.float32)})
     assert _digest((1, 2)) == _digest([1, 2]) != _digest((2, 1))
+    # a record read back: every NaN numpy's own, enums as their values
+    made_nan = np.array([0.0, 1.0]) / np.array([0.0, 1.0])
+    assert _digest(made_nan) == _digest(np.array([np.nan, 1.0]))
+    assert _digest(TyreModel.WHEEL_TREAD, RunKind.SWEEP) == _digest(2, "sweep")
     with pytest.raises(TypeError, match="object has no digest by value"):
         _digest(object())
 

@@ -10,7 +10,8 @@ them; the child sends back, for each, the analysis, what it changed in the campa
 the analysis's record and the report's figures the run changed. Both ways the messages are
 pickles, one after the other, on the child's standard input and output: first the campaign's
 knowledge, then one
-:class:`~bench.app.run_analysis.RunInputs` per run; back, for each run in the order they were sent,
+:class:`~bench.app.run_analysis.RunInputs` per run with whether to draw its figures (not for a run
+analysed again whose figures its campaign kept already); back, for each run in the order they were sent,
 its ``RunAnalysis``, what it changed in the campaign's knowledge
 (:func:`~bench.app.analysis_record.knowledge_changes`) and the record the campaign file keeps of it
 (:func:`~bench.app.analysis_record.record_text`: made here, off the bench's path) and the figures
@@ -35,18 +36,24 @@ import queue
 import struct
 import subprocess
 import threading
-from typing import IO
+from typing import IO, NamedTuple
 
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.app.analysis_record import KnowledgeChanges, analyse_and_record, apply_changes
 from bench.app.child_process import Child, start_child
-from bench.app.kept_figures import FigureDrawer
+from bench.app.kept_figures import DrawnFigures, FigureDrawer
 from bench.app.run_analysis import RunAnalyser, RunInputs
-from bench.report.figure_list import KeptFigure
 
-#: What the child sends back for each run: its analysis, the changes it made to the campaign's
-#: knowledge, its record's text and the figures it changed.
-AnalysisReply = tuple[RunAnalysis, KnowledgeChanges, str, tuple[KeptFigure, ...]]
+
+class AnalysisReply(NamedTuple):
+    """What the child sends back for each run: its analysis, the changes it made to the campaign's
+    knowledge, its record's text, the figures the run changed and why any of those could not be
+    drawn (:class:`~bench.app.kept_figures.DrawnFigures`)."""
+
+    outcome: RunAnalysis
+    changes: KnowledgeChanges
+    record: str
+    figures: DrawnFigures
 
 #: How long closing waits for the child to end once its input is closed (s).
 STOP_TIMEOUT_S = 10.0
@@ -101,15 +108,15 @@ class AnalysisProcess:
         for thread in self._threads:
             thread.join(STOP_TIMEOUT_S)
 
-    def submit(self, run: RunInputs) -> None:
+    def submit(self, run: RunInputs, *, draw: bool = True) -> None:
         """Queue ``run`` to be analysed after those sent before it. It never waits for the child: a
         sender thread writes to its input, which it reads between analyses."""
         if self._process is None:
             raise AnalysisProcessError("the analysis process is not running")
-        self._outbox.put(run)
+        self._outbox.put((run, draw))
         self.outstanding += 1
 
-    def next_result(self, timeout_s: float | None) -> tuple[RunAnalysis, str, tuple[KeptFigure, ...]] | None:
+    def next_result(self, timeout_s: float | None) -> AnalysisReply | None:
         """The next analysis, its record's text (:mod:`bench.app.analysis_record`) and the figures it
         changed (:mod:`bench.app.kept_figures`), its changes applied to :attr:`knowledge`, waiting up
         to ``timeout_s`` (None: until it comes; 0: only if it is there); None if none came.
@@ -124,9 +131,8 @@ class AnalysisProcess:
             self._results.put(result)  # every later call fails alike
             raise AnalysisProcessError(f"the analysis process ended: {result}")
         self.outstanding -= 1
-        outcome, changes, record, figures = result
-        apply_changes(self.knowledge, changes)
-        return outcome, record, figures
+        apply_changes(self.knowledge, result.changes)
+        return result
 
     def _send_all(self, process: Child) -> None:
         """The sender thread: everything queued, in order, until _END closes the child's input. A
@@ -202,25 +208,33 @@ def _serve(stdin: IO[bytes], stdout: IO[bytes]) -> None:
     """The child's side: the knowledge, then one analysis per run until its input closes. An
     analysis that fails in a way the analyser does not flag itself is sent back flagged too."""
     analyser = RunAnalyser(read_message(stdin))
-    drawer = FigureDrawer(analyser.knowledge)
+    drawer = _figure_drawer(analyser.knowledge)
     while True:
         try:
-            run: RunInputs = read_message(stdin)
+            run, draw = read_message(stdin)
         except EOFError:
             return
         outcome, changes, record = analyse_and_record(analyser, run, flag_defects=True)
-        write_message(stdout, (outcome, changes, record, _figures_after(drawer, run, analyser.knowledge)))
+        write_message(stdout, AnalysisReply(outcome, changes, record, _figures(drawer, run, analyser, draw)))
 
 
-def _figures_after(
-    drawer: FigureDrawer, run: RunInputs, knowledge: CampaignKnowledge
-) -> tuple[KeptFigure, ...]:
-    """The figures ``run`` changed, drawn; none when drawing fails: a kept figure only saves the
-    report its drawing, and the report draws (and reports the failure of) every figure not kept."""
+def _figure_drawer(knowledge: CampaignKnowledge) -> FigureDrawer | str:
+    """The process's figure drawer, or why there is none (a kept figure only spares the report its
+    drawing: a failure here is said, never the process's end)."""
     try:
-        return drawer.after(run, knowledge)
-    except Exception:  # any failure of the plotting library, whatever it raises
-        return ()
+        return FigureDrawer(knowledge)
+    except Exception as exc:  # any defect of the figures' code, whatever it raises
+        return f"figures not drawn by the analysis process: {type(exc).__name__}: {exc}"
+
+
+def _figures(drawer: FigureDrawer | str, run: RunInputs, analyser: RunAnalyser, draw: bool) -> DrawnFigures:
+    """The figures ``run``'s analysis changed (:meth:`FigureDrawer.after`), or why none were drawn."""
+    if isinstance(drawer, str):
+        return DrawnFigures(failed=(drawer,))
+    try:
+        return drawer.after(run, analyser.knowledge, draw=draw)
+    except Exception as exc:  # a defect of the figures' code (each figure's own failure is caught there)
+        return DrawnFigures(failed=(f"figures not drawn: {type(exc).__name__}: {exc}",))
 
 
 def child_main(stdin: IO[bytes], stdout: IO[bytes]) -> None:

@@ -133,16 +133,16 @@ def analyse_and_record(
         outcome = RunAnalysis.failed(run.run_id, run.kind, f"{type(exc).__name__}: {exc}")
         analyser.knowledge.analysed_runs[run.run_id] = outcome
     changes = knowledge_changes(before, analyser.knowledge)
-    record = AnalysisRecord(
-        outcome=outcome,
-        changes=changes,
-        order=list(analyser.knowledge.analysed_runs).index(run.run_id),
-        software_version=software_version(),
-        inputs_sha256=inputs_sha256(run),
-    )
     try:
+        record = AnalysisRecord(
+            outcome=outcome,
+            changes=changes,
+            order=list(analyser.knowledge.analysed_runs).index(run.run_id),
+            software_version=software_version(),
+            inputs_sha256=inputs_sha256(run),
+        )
         text = record_text(record)
-    except (TypeError, ValueError):  # a result the record cannot hold: a defect, never the run's loss
+    except (TypeError, ValueError):  # what the record cannot hold: a defect, never the run's loss
         if not flag_defects:
             raise
         text = ""

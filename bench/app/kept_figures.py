@@ -5,7 +5,7 @@ costs (seconds of matplotlib for a whole campaign). The analysis process draws t
 each run, while the bench waits on the next run in real time: :class:`FigureDrawer` draws every
 figure whose values changed with the run, and the recorder keeps each beside the run
 (``figures/<name>``, docs/hdf5.md) with the SHA-256 of what it shows (:func:`shows_sha256`: the
-values drawn, and the drawing code and plotting library that drew them). The report takes a kept
+values drawn, and the code and libraries that draw them). The report takes a kept
 figure only when the figure it would draw shows the same (:func:`kept_pngs`) and draws every other
 one; ``--reanalyse`` draws them all.
 """
@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import hashlib
 from collections.abc import Iterable
+from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -27,24 +28,31 @@ from bench.report.figure_list import FigureSpec, KeptFigure, figure_specs
 from bench.store import open_campaign
 from sequences.runs import RigKind, RunKind
 
-#: The modules whose code decides how a figure looks: a change to any of them makes every kept
-#: figure stale.
-DRAWING_MODULES = ("axes.py", "figure_list.py", "figures.py", "iteration_figures.py", "replay_figures.py")
+#: The packages of ``bench`` whose code decides how a figure looks: the figures' own, and what they
+#: compute as they draw (model curves, the force-difference trace, spectra). A change to any of their
+#: modules makes every kept figure stale.
+DRAWING_PACKAGES = ("report", "analysis", "models", "numerics")
+#: The libraries that draw and compute a figure: another version of any makes every kept figure stale.
+DRAWING_LIBRARIES = ("matplotlib", "numpy", "scipy")
 #: The first bytes of every PNG file.
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 @functools.cache
 def drawing_sha256() -> str:
-    """The SHA-256 of the drawing code (:data:`DRAWING_MODULES`) and the plotting library's version."""
+    """The SHA-256 of the code that draws a figure: every module of :data:`DRAWING_PACKAGES` (by
+    path and bytes) and the versions of :data:`DRAWING_LIBRARIES`."""
     digest = hashlib.sha256()
-    folder = Path(figure_list.__file__).parent
-    for name in DRAWING_MODULES:
-        digest.update((folder / name).read_bytes())
-    try:
-        digest.update(version("matplotlib").encode())
-    except PackageNotFoundError:  # an unreleased matplotlib: its figures are never taken as kept
-        digest.update(b"matplotlib of no version")
+    root = Path(figure_list.__file__).parents[1]
+    for package in DRAWING_PACKAGES:
+        for module in sorted((root / package).rglob("*.py")):
+            digest.update(module.relative_to(root).as_posix().encode())
+            digest.update(module.read_bytes())
+    for library in DRAWING_LIBRARIES:
+        try:
+            digest.update(f"{library} {version(library)}".encode())
+        except PackageNotFoundError:  # a library of no release: its figures are never taken as kept
+            digest.update(f"{library} of no version".encode())
     return digest.hexdigest()
 
 
@@ -52,6 +60,15 @@ def shows_sha256(spec: FigureSpec) -> str:
     """The SHA-256 of what the figure ``spec`` shows: the drawing code (:func:`drawing_sha256`), its
     name and kind and the values drawn, by value (:mod:`bench.app.value_digest`)."""
     return value_sha256((spec.name, str(spec.kind), spec.shows), drawing_sha256())
+
+
+@dataclass(frozen=True)
+class DrawnFigures:
+    """What the drawer gave after a run: the ``kept`` figures, and for each figure it could not
+    draw, why (``failed``: the report draws it, and says why it cannot, itself)."""
+
+    kept: tuple[KeptFigure, ...] = ()
+    failed: tuple[str, ...] = ()
 
 
 class FigureDrawer:
@@ -62,13 +79,17 @@ class FigureDrawer:
     def __init__(self, knowledge: CampaignKnowledge) -> None:
         self._hammer: HammerRecord | None = None
         self._sweep: SweepRecord | None = None
-        #: figure name -> what it showed when last drawn
+        #: figure name -> what it showed when last drawn (or tried)
         self._drawn = {spec.name: shows_sha256(spec) for spec in figure_specs(knowledge, None, None)}
 
-    def after(self, run: RunInputs, knowledge: CampaignKnowledge) -> tuple[KeptFigure, ...]:
+    def after(self, run: RunInputs, knowledge: CampaignKnowledge, *, draw: bool = True) -> DrawnFigures:
         """The figures ``knowledge`` (after ``run``'s analysis) supports that show other values than
-        when this drawer last drew them. The hammer figure is drawn from the first hammer run's blow
-        and the four-post one from the last four-post sweep, as the report draws them."""
+        when this drawer last drew them, each drawn once: a figure that fails is said in
+        ``failed`` and tried again only when its values change. Not ``draw``: a run analysed again
+        whose figures its campaign kept already; they count as drawn. The hammer figure is drawn
+        from the first hammer blow this process analysed and the four-post ones from the last
+        four-post sweep; where the report reads another (a file with two hammer runs), its digest
+        differs and the report draws it."""
         if run.hammer is not None and self._hammer is None:
             self._hammer = run.hammer
         if (
@@ -82,15 +103,19 @@ class FigureDrawer:
             for spec in figure_specs(knowledge, self._hammer, self._sweep)
             if self._drawn.get(spec.name) != (digest := shows_sha256(spec))
         ]
-        if not changed:
-            return ()
+        for spec, digest in changed:
+            self._drawn[spec.name] = digest
+        if not (changed and draw):
+            return DrawnFigures()
         from bench.report.figures import figure_png  # the plotting library, once there is a figure
 
-        kept = []
+        kept, failed = [], []
         for spec, digest in changed:
-            kept.append(KeptFigure(spec.name, digest, figure_png(spec)))
-            self._drawn[spec.name] = digest
-        return tuple(kept)
+            try:
+                kept.append(KeptFigure(spec.name, digest, figure_png(spec)))
+            except Exception as exc:  # any failure of the plotting library: this figure only
+                failed.append(f"figure {spec.name} not drawn: {type(exc).__name__}: {exc}")
+        return DrawnFigures(tuple(kept), tuple(failed))
 
 
 def kept_pngs(campaign_path: Path, specs: Iterable[FigureSpec]) -> dict[str, bytes]:

@@ -23,13 +23,15 @@ from pathlib import Path
 from bench.analysis.campaign import CampaignKnowledge, RunAnalysis
 from bench.analysis.runs import plate_mass_distrust
 from bench.app.analysis_process import AnalysisProcess, AnalysisProcessError
+from bench.app.kept_figures import DrawnFigures
 from bench.app.run_analysis import run_inputs, runs_to_analyse
 from bench.engine import events as ev
-from bench.report.figure_list import KeptFigure
 from bench.store import CampaignFile, open_campaign
 from sequences.runs import RunKind
 
 log = logging.getLogger(__name__)
+#: What an analysis the process never made drew.
+NO_FIGURES = DrawnFigures()
 
 
 class PostRunAnalysis:
@@ -128,7 +130,7 @@ class PostRunAnalysis:
 
     def _send(self, run_id: str, campaign: CampaignFile, *, publish: bool) -> None:
         run = campaign.run(run_id)
-        self._process.submit(run_inputs(run, campaign))
+        self._process.submit(run_inputs(run, campaign), draw=publish)
         self._sent.append((run_id, run.kind, publish))
 
     def _take_results(self, *, wait: bool, until_kind: str | None = None) -> None:
@@ -147,23 +149,25 @@ class PostRunAnalysis:
                     return
                 if result is None:
                     return
-                self._done(*result)
+                self._done(result.outcome, result.record, result.figures)
         finally:
             self._publishing = False
 
-    def _done(self, outcome: RunAnalysis, record: str = "", figures: tuple[KeptFigure, ...] = ()) -> None:
+    def _done(self, outcome: RunAnalysis, record: str = "", figures: DrawnFigures = NO_FIGURES) -> None:
         """Publish ``outcome`` with its ``record`` and the ``figures`` it changed (none for an
-        analysis the process never made)."""
+        analysis the process never made); a figure not drawn is logged (the report draws it)."""
         run_id, _, publish = self._sent.pop(0)
         if outcome.error:
             log.warning("analysis of %s failed: %s", run_id, outcome.error)
+        for why in figures.failed:
+            log.warning("analysis of %s: %s", run_id, why)
         if not record:
             log.warning("analysis of %s not kept as a record: readers will fit it again", run_id)
         if publish:
             results = {"summary": "\n".join(outcome.lines), **outcome.results}
             why = outcome.error or "; ".join(outcome.omitted)
             done = ev.AnalysisDone(
-                run_id, outcome.name, outcome.lines, results, outcome.status, why, record, figures
+                run_id, outcome.name, outcome.lines, results, outcome.status, why, record, figures.kept
             )
             self.publish(done)
 

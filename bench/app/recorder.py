@@ -9,9 +9,13 @@ unrecorded.
 
 from __future__ import annotations
 
+import logging
+
 from bench.engine import events as ev
-from bench.store import CampaignWriter, RunWriter
+from bench.store import CampaignWriter, RunWriter, StoreError
 from sequences.runs import EventKind
+
+log = logging.getLogger(__name__)
 
 
 class Recorder:
@@ -72,7 +76,11 @@ class Recorder:
         if event.record:
             run.write_analysis_record(event.record)
         for figure in event.figures:
-            run.write_figure(figure.name, figure.png, figure.shows_sha256)
+            try:
+                run.write_figure(figure.name, figure.png, figure.shows_sha256)
+            except StoreError as exc:  # a kept figure spares the report its drawing: never the run's end
+                log.warning("figure not kept: %s", exc)
+        run.flush()
 
     def _begin(self, event: ev.RunStarted) -> None:
         if event.run_id in self.campaign.run_ids:

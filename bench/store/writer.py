@@ -530,7 +530,8 @@ class RunWriter:
 
     def write_figure(self, name: str, png: bytes, shows_sha256: str) -> None:
         """Keep a figure the post-run analysis drew after the run as ``figures/<name>`` (PNG bytes;
-        docs/hdf5.md), with the SHA-256 of what it shows; a name is written once per run."""
+        docs/hdf5.md), with the SHA-256 of what it shows; a name is written once per run. Durable at
+        the next :meth:`flush` (the figures of one analysis are flushed together)."""
         figures = self._group.require_group(s.FIGURES)
         if name in figures:
             where = f"{figures.name}/{name}"
@@ -538,7 +539,6 @@ class RunWriter:
         dataset = figures.create_dataset(name, data=np.frombuffer(png, dtype=np.uint8))
         dataset.attrs[s.FIGURE_SHOWS] = shows_sha256
         dataset.attrs[s.FIGURE_PNG] = hashlib.sha256(png).hexdigest()
-        self._campaign.flush()
 
     def flush(self) -> None:
         self._campaign.flush()
