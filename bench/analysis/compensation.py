@@ -33,7 +33,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from bench.analysis.fir import (
     STOP_BAND_FACTOR,
@@ -138,7 +137,9 @@ def _coloured_noise_covariance(X: np.ndarray, res: np.ndarray, fs: float) -> np.
     residual. For noise flat over a band ``B`` this reduces to ``(X'X)^-1 RSS / (2 B N / fs)``: one
     correction for the band-limiting, not two.
     """
+    from scipy.linalg import solve_triangular
     from scipy.signal import welch
+
     n = X.shape[0]
     f_psd, psd = welch(res, fs=fs, nperseg=min(n, 4096))
     spec = np.fft.rfft(X, axis=0)

@@ -32,8 +32,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
-from scipy.special import fdtri
 
 from bench.analysis.frf import Frf, phasor_ratio
 from bench.analysis.validation import AnalysisInputError, as_sample_rate, as_signals
@@ -115,6 +113,8 @@ def _fit_window(
     """Least-squares fit of ``y`` (samples x channels) at times ``t`` with ``X`` the design of ``t``
     (the rows of a longer window's design are the same numbers); ``contiguous``: ``t`` is evenly
     spaced (no frame lost), so the noise near the fundamental can be taken from a periodogram."""
+    from scipy.linalg import solve_triangular  # loaded where the analysis first fits
+
     w_dt = w * (t[1] - t[0]) if t.size > 1 else 0.0
     # QR instead of the normal equations: (X'X)^-1 = R^-1 R^-T without squaring X's condition
     q, r = np.linalg.qr(X)
@@ -134,6 +134,8 @@ def _residual_growth_limit(fit: _Fit, half: _Fit, n_channels: int) -> np.ndarray
     """Largest ratio of the first half's residual rms to the last half's that stationary noise
     exceeds with probability ``SETTLING_FALSE_ALARM / n_channels`` (F test, effective dof), and
     at least ``MIN_RESIDUAL_GROWTH``."""
+    from scipy.special import fdtri  # loaded where the analysis first fits
+
     rho = np.clip(fit.residual_lag1, 0.0, 0.95)
     dof = np.maximum(half.dof * (1 - rho**2) / (1 + rho**2), 1.0)
     quantile = np.sqrt(fdtri(dof, dof, 1 - SETTLING_FALSE_ALARM / n_channels))

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, toeplitz
 
 from bench.analysis.validation import AnalysisInputError
 
@@ -75,6 +74,8 @@ def design_fir(
     w = np.asarray(weight, dtype=float)
     basis = _fourier_basis(f.tobytes(), float(fs_hz), n_taps)
     if ridge > 0:
+        from scipy.linalg import cho_factor, cho_solve, toeplitz  # loaded where a filter is designed
+
         # B^T B sums W_k cos(w_k (n - m)): a Toeplitz matrix, its first column Re(W @ basis)
         gram = toeplitz((w @ basis).real) + ridge * np.mean(w) * f.size * np.eye(n_taps)
         return cho_solve(cho_factor(gram), (np.conj(basis).T @ (w * d)).real)

@@ -6,7 +6,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm, matrix_balance
 
 
 @dataclass(frozen=True)
@@ -84,6 +83,8 @@ class LinearSystem:
         Unlike a zero-order hold this adds no half-sample delay, so a sine sampled at 10 kHz is
         reproduced with an amplitude error of order (w dt)^2 and no phase error.
         """
+        from scipy.linalg import expm, matrix_balance  # loaded where a model is first discretised
+
         n, m = len(self.states), len(self.inputs)
         aug = np.zeros((n + 2 * m, n + 2 * m))
         aug[:n, :n] = self.A * dt_s
