@@ -8,8 +8,10 @@ port went unread between two reads (``WfsReader.longest_unread_s``) and the fram
 - idle: nothing else runs (the baseline, measured in the same run);
 - the analysis of a whole campaign (the paper's shaker grids at three pressures, the free run, the
   hammer test) in this process, on a thread, as the bench did it before;
-- the same analysis as the bench does it now: each run's records read here
-  (``run_inputs``), the analysis in a process of its own (``bench.app.analysis_process``);
+- the same analysis in a process of its own (``bench.app.analysis_process``), each run's records
+  read here (``run_inputs``);
+- the same again with the objects alive at its start frozen out of the garbage collector's passes,
+  as a sequence runs on the bench now (``bench.app.collector``);
 - the report (figures and page) rendered in this process, on a thread;
 - the report rendered by ``wfsbench report`` in another process, as a user would beside a run.
 
@@ -28,6 +30,8 @@ on the unpaced simulated bench into a temporary file.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import gc
 import subprocess
 import sys
 import tempfile
@@ -38,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.app.analysis_process import AnalysisProcess
+from bench.app.collector import collector_frozen
 from bench.app.lab_process import LabProcess
 from bench.app.plan import plan_campaign
 from bench.app.report import write_report
@@ -125,8 +130,16 @@ class Phase:
     bytes_overrun: int
 
 
-def phase(lab: LabProcess, reader: WfsReader, work: Callable[[], None]) -> Phase:
-    """The figures of ``work``, run on a thread while the reader streams."""
+def phase(lab: LabProcess, reader: WfsReader, work: Callable[[], None], *, frozen: bool = False) -> Phase:
+    """The figures of ``work``, run on a thread while the reader streams. ``frozen``: with the objects
+    alive before it frozen out of the garbage collector's passes, as a sequence runs on the bench
+    (whose one collection at a sequence's start comes before any stream; here it comes before the
+    figures are taken)."""
+    with collector_frozen() if frozen else contextlib.nullcontext():
+        return _measured(lab, reader, work)
+
+
+def _measured(lab: LabProcess, reader: WfsReader, work: Callable[[], None]) -> Phase:
     missing, overrun = reader.counters.frames_missing, lab.bytes_overrun()
     reader.longest_unread_s, reader.largest_backlog_bytes = 0.0, 0
     worker = threading.Thread(target=work)
@@ -147,10 +160,14 @@ def main() -> None:
         campaign = args.campaign or make_campaign(Path(folder))
         with open_campaign(campaign) as opened:
             print(f"campaign {campaign}: runs analysed {[r.run_id for r in runs_to_analyse(opened)]}")
+        def in_process() -> None:
+            analyse_in_process(campaign)
+
         phases: list[tuple[str, Callable[[], None]]] = [
             ("idle", lambda: time.sleep(IDLE_S)),
             ("analysis, this process (a thread)", lambda: analyse_here(campaign)),
-            ("analysis, its own process (as the bench does)", lambda: analyse_in_process(campaign)),
+            ("analysis, its own process (as the bench did)", in_process),
+            ("analysis, its own process, collector frozen (as the bench does)", in_process),
             ("report, this process (a thread)", lambda: report_here(campaign, Path(folder) / "r1")),
             ("report, wfsbench report beside", lambda: report_in_process(campaign, Path(folder) / "r2")),
         ]
@@ -165,7 +182,7 @@ def main() -> None:
                 measured: dict[str, list[Phase]] = {name: [] for name, _ in phases}
                 for _ in range(args.repeats):
                     for name, work in phases:
-                        measured[name].append(phase(lab, reader, work))
+                        measured[name].append(phase(lab, reader, work, frozen="frozen" in name))
                 idle_stall = max(p.stall_s for p in measured["idle"])
                 for name, results in measured.items():
                     walls = [p.wall_s for p in results]
@@ -183,6 +200,28 @@ def main() -> None:
             finally:
                 reader.stop_stream()
                 drain.close()
+        print(full_collection_text())
+
+
+def full_collection_text() -> str:
+    """How long a full garbage collection holds this process's interpreter lock (best of 3), with
+    every object alive now tracked and with them frozen out of it (``bench.app.collector``)."""
+
+    def best_ms() -> float:
+        times = []
+        for _ in range(3):
+            start = time.perf_counter()
+            gc.collect()
+            times.append(time.perf_counter() - start)
+        return 1e3 * min(times)
+
+    tracked, tracked_ms = len(gc.get_objects()), best_ms()
+    with collector_frozen():
+        frozen, frozen_ms = len(gc.get_objects()), best_ms()
+    return (
+        f"a full collection of this process: {tracked_ms:.1f} ms over {tracked} tracked objects;"
+        f" with them frozen: {frozen_ms:.2f} ms over {frozen}"
+    )
 
 
 if __name__ == "__main__":

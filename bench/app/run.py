@@ -17,6 +17,7 @@ from pathlib import Path
 
 from bench import locks
 from bench.analysis.campaign import CampaignKnowledge
+from bench.app.collector import collector_frozen
 from bench.app.devices import open_bench
 from bench.app.engine_build import build_engine
 from bench.app.plan import CampaignPlan
@@ -133,6 +134,7 @@ def _run_on(
     with (
         _campaign_writer(plan, out_path, out_path.exists()) as campaign,
         PostRunAnalysis(out_path, engine.bus.publish, knowledge) as analysis,
+        collector_frozen(),
     ):
         own = [
             Recorder(campaign),
