@@ -72,15 +72,14 @@ class Recorder:
     def _analysed(self, event: ev.AnalysisDone) -> None:
         """The run's analysis beside it: its results, its record and the figures it changed."""
         run = self._finished[event.run_id]
-        run.write_results(event.name, event.results)
-        if event.record:
-            run.write_analysis_record(event.record)
-        for figure in event.figures:
+        for figure in event.figures:  # made durable with the record's flush: no flush of their own
             try:
                 run.write_figure(figure.name, figure.png, figure.shows_sha256)
             except StoreError as exc:  # a kept figure spares the report its drawing: never the run's end
                 log.warning("figure not kept: %s", exc)
-        run.flush()
+        run.write_results(event.name, event.results)
+        if event.record:
+            run.write_analysis_record(event.record)
 
     def _begin(self, event: ev.RunStarted) -> None:
         if event.run_id in self.campaign.run_ids:
