@@ -11,6 +11,10 @@ batch's results as they are done (in any order):
   at most :data:`TASKS_IN_FLIGHT_PER_WORKER` tasks per worker at once, each result released once
   taken, so the client holds the batches under way, not the job. The cluster is started (or the
   scheduler connected) only when the first batch exists: a job with nothing to do starts no worker.
+
+A job names the modules its work imports at its first batch (``worker_imports``: the analysis, the
+file readers, scipy's parts): a local cluster's workers are forked from one process that imported
+them once, so no worker pays for them again (docs/index.md, *Where a local cluster's time went*).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import logging
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
@@ -33,18 +37,26 @@ Result = TypeVar("Result")
 
 
 class Executor(Protocol):
-    """Runs ``work`` on each batch of ``batches``, yielding each batch's results as it is done."""
+    """Runs ``work`` on each batch of ``batches``, yielding each batch's results as it is done.
+    ``worker_imports``: modules ``work`` imports at its first batch, beyond its own module."""
 
     def run(
-        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+        self,
+        work: Callable[[list[Item]], list[Result]],
+        batches: Iterator[list[Item]],
+        worker_imports: Sequence[str] = (),
     ) -> Iterator[list[Result]]: ...
 
 
 class InProcess:
-    """Every batch in this process, one after another: no cluster to start (small jobs)."""
+    """Every batch in this process, one after another: no cluster to start (small jobs); the first
+    batch imports what it needs."""
 
     def run(
-        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+        self,
+        work: Callable[[list[Item]], list[Result]],
+        batches: Iterator[list[Item]],
+        worker_imports: Sequence[str] = (),
     ) -> Iterator[list[Result]]:
         for batch in batches:
             yield work(batch)
@@ -74,7 +86,10 @@ class OnDask:
         self.done_here = 0  # batches done in this process while the local cluster started
 
     def run(
-        self, work: Callable[[list[Item]], list[Result]], batches: Iterator[list[Item]]
+        self,
+        work: Callable[[list[Item]], list[Result]],
+        batches: Iterator[list[Item]],
+        worker_imports: Sequence[str] = (),
     ) -> Iterator[list[Result]]:
         first = next(batches, None)
         if first is None:
@@ -87,16 +102,20 @@ class OnDask:
                 yield from _on(client, work, first, batches)
                 self._before_close(client)
         else:
-            yield from self._local(work, first, batches)
+            yield from self._local(work, first, batches, (work.__module__, *worker_imports))
 
     def _local(
-        self, work: Callable[[list[Item]], list[Result]], first: list[Item], rest: Iterator[list[Item]]
+        self,
+        work: Callable[[list[Item]], list[Result]],
+        first: list[Item],
+        rest: Iterator[list[Item]],
+        preload: Sequence[str],
     ) -> Iterator[list[Result]]:
         """Batches done here while the local cluster starts on a thread, the rest on it."""
         from dask.distributed import Client
 
         with contextlib.ExitStack() as stack, ThreadPoolExecutor(1) as starter:
-            starting = starter.submit(lambda: stack.enter_context(local_cluster(self.workers)))
+            starting = starter.submit(lambda: stack.enter_context(local_cluster(self.workers, preload)))
             batch: list[Item] | None = first
             while batch is not None and not starting.done():
                 yield work(batch)
@@ -117,14 +136,13 @@ class OnDask:
 def _on(
     client: Client, work: Callable[[list[Item]], list[Result]], first: list[Item], rest: Iterator[list[Item]]
 ) -> Iterator[list[Result]]:
-    from dask import delayed
     from dask.distributed import as_completed
 
     workers = max(1, len(client.scheduler_info(n_workers=-1)["workers"]))
     limit = TASKS_IN_FLIGHT_PER_WORKER * workers
     running = as_completed()
     for batch in itertools.chain([first], rest):
-        running.add(client.compute(delayed(work, pure=False)(batch)))
+        running.add(client.submit(work, batch, pure=False))
         while running.count() >= limit:
             yield _take(next(running))
     for future in running:
@@ -137,14 +155,28 @@ def _take(future: Any) -> list[Any]:
     return outcomes
 
 
-#: What the local cluster changes of Dask's defaults for its workers (docs/index.md, *Why two workers
-#: gave 0.98x*, measured by ``benchmarks/dask_overhead.py``): no statistical profiler (a thread that
-#: walks the running task's stack every 10 ms, for a dashboard the local cluster does not serve), and
-#: no ``MALLOC_TRIM_THRESHOLD_`` in the workers' environment (setting it also fixes glibc's mmap
-#: threshold, so that every large array is mapped, faulted in and unmapped anew).
+#: What the local cluster changes of Dask's defaults (docs/index.md, *Where a local cluster's time
+#: went*, measured by ``benchmarks/dask_overhead.py`` and ``benchmarks/fleet_jobs.py``):
+#:
+#: - no statistical profiler (a thread that walks the running task's stack every 10 ms, for a
+#:   dashboard the local cluster does not serve);
+#: - no ``MALLOC_TRIM_THRESHOLD_`` in the workers' environment (setting it also fixes glibc's mmap
+#:   threshold, so that every large array is mapped, faulted in and unmapped anew);
+#: - the system monitor (processor, memory, disk and network counters for the dashboard, in the
+#:   scheduler, each nanny and each worker) every 5 s instead of 0.5 s, without the disks, and the
+#:   event loops' responsiveness tick every 0.5 s instead of 20 ms: with a 1-second task, these
+#:   took 1-2 % of a core in every process of the cluster;
+#: - the workers forked from one process that imported the job's modules (``forkserver``), not
+#:   started as fresh interpreters that each import them again (``spawn``).
+#:
+#: Each worker's memory is still watched every 100 ms by its nanny, against the machine's share.
 LOCAL_WORKER_SETTINGS = {
     "distributed.worker.profile.enabled": False,
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.admin.system-monitor.disk": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.worker.multiprocessing-method": "forkserver",
 }
 
 
@@ -164,20 +196,30 @@ def dask_client(scheduler: str | None, workers: int) -> Iterator[Client]:
 
 
 @contextlib.contextmanager
-def local_cluster(workers: int) -> Iterator[LocalCluster]:
+def local_cluster(workers: int, preload: Sequence[str] = ()) -> Iterator[LocalCluster]:
     """A local cluster of ``workers`` processes of one thread each on this machine, with
-    :data:`LOCAL_WORKER_SETTINGS` (started here, stopped on leaving)."""
+    :data:`LOCAL_WORKER_SETTINGS` (started here, stopped on leaving); its workers are forked with
+    the modules ``preload`` imported."""
     import dask
     from dask.distributed import LocalCluster
 
-    with (
-        dask.config.set(LOCAL_WORKER_SETTINGS),
-        LocalCluster(
+    with dask.config.set(LOCAL_WORKER_SETTINGS):
+        _preload_forkserver(preload)
+        with LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
             silence_logs=logging.ERROR,
-        ) as cluster,
-    ):
-        yield cluster
+        ) as cluster:
+            yield cluster
+
+
+def _preload_forkserver(modules: Sequence[str]) -> None:
+    """The process the workers are forked from imports Dask's worker and ``modules`` once, when it
+    starts (this process's first local cluster; it serves every later one unchanged). Dask sets
+    its own list (Dask and its optional packages) when it first asks for the context: this asks
+    first, then replaces it."""
+    from distributed.utils import get_mp_context
+
+    get_mp_context().set_forkserver_preload(["distributed", *modules])

@@ -36,6 +36,22 @@ from bench.cluster import Executor
 
 #: Files a worker indexes per task: enough to make a task's overhead small against its files.
 FILES_PER_TASK = 4
+#: What indexing a file imports on first use, beyond this module: the analysis (scipy's fits and
+#: filters), and pandas with pyarrow's layer over it (pyarrow imports them to build a table from
+#: Python values); a local cluster's workers start with them imported
+#: (:mod:`bench.cluster`; ``tests/fleet/test_worker_imports.py`` keeps the list whole).
+WORKER_IMPORTS = (
+    "bench.app.analyze",
+    "bench.app.run_analysis",
+    "pandas",
+    "pyarrow.pandas_compat",
+    "pyarrow.vendored.version",
+    "scipy.interpolate",
+    "scipy.ndimage",
+    "scipy.optimize",
+    "scipy.signal",
+    "scipy.stats",
+)
 
 
 class FileStatus(enum.StrEnum):
@@ -252,7 +268,7 @@ class _Run:
         writer = store.PartWriter(self.out_dir, store.next_generation(self.out_dir))
         tasks = self._tasks()
         batches = iter(lambda: list(islice(tasks, files_per_task)), [])
-        for outcomes in executor.run(index_files, batches):
+        for outcomes in executor.run(index_files, batches, WORKER_IMPORTS):
             for outcome in outcomes:
                 self._take(outcome, writer)
         for path, held in self.held.items():

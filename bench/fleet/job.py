@@ -27,7 +27,7 @@ from bench import locks
 from bench.archive.files import FileStat, find_files, within
 from bench.cluster import Executor
 from bench.fleet.summary import TRIED_AGAIN, Row, Status, read_summary, write_summary
-from bench.fleet.worker import MeasurementOutcome, MeasurementTask, Settings, compensate_files
+from bench.fleet.worker import WORKER_IMPORTS, MeasurementOutcome, MeasurementTask, Settings, compensate_files
 from bench.store.channel_file import MDF_SUFFIXES
 
 #: The measurement files a folder is searched for (any case).
@@ -116,7 +116,7 @@ class _Job:
     def run(self, executor: Executor) -> JobSummary:
         tasks = self._tasks()
         batches = iter(lambda: list(islice(tasks, FILES_PER_TASK)), [])
-        for outcomes in executor.run(compensate_files, batches):
+        for outcomes in executor.run(compensate_files, batches, WORKER_IMPORTS):
             for outcome in outcomes:
                 self._take(outcome)
         for path, row in self.held.items():

@@ -25,6 +25,20 @@ from bench.analysis.records import WFS_FORCE
 from bench.archive.files import FileStat
 from bench.fleet.summary import Row, Status
 
+#: What compensating a measurement imports on first use, beyond this module: the campaign's
+#: analysis, the compensation, the MDF4 reader and writer, scipy's filters and pyarrow's pandas
+#: layer; a local cluster's workers start with them imported (:mod:`bench.cluster`;
+#: ``tests/fleet/test_worker_imports.py`` keeps the list whole).
+WORKER_IMPORTS = (
+    "asammdf",
+    "bench.app.analyze",
+    "bench.app.compensate",
+    "bench.app.run_analysis",
+    "pyarrow.pandas_compat",
+    "pyarrow.vendored.version",
+    "scipy.optimize",
+    "scipy.signal",
+)
 
 @dataclass(frozen=True)
 class Settings:
