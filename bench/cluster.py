@@ -23,7 +23,7 @@ import contextlib
 import itertools
 import logging
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 if TYPE_CHECKING:
@@ -63,7 +63,7 @@ class InProcess:
 
 
 class OnDask:
-    """Each batch a ``dask.delayed`` task on the cluster of ``scheduler`` (``tcp://host:8786``), or
+    """Each batch a task (``client.submit``) on the cluster of ``scheduler`` (``tcp://host:8786``), or
     without one on a local cluster of ``workers`` processes started for the job; or on the cluster
     of an open ``client``. ``started``: whether a cluster was started or connected.
 
@@ -111,21 +111,38 @@ class OnDask:
         rest: Iterator[list[Item]],
         preload: Sequence[str],
     ) -> Iterator[list[Result]]:
-        """Batches done here while the local cluster starts on a thread, the rest on it."""
+        """Batches done here while the local cluster starts, the rest on it. Both wait on threads
+        of this process: the batch under way here goes on when the cluster is up, and the cluster
+        takes the next batch at once (its workers never wait for this process's batch)."""
         from dask.distributed import Client
 
-        with contextlib.ExitStack() as stack, ThreadPoolExecutor(1) as starter:
+        with (
+            contextlib.ExitStack() as stack,
+            ThreadPoolExecutor(1, "cluster-start") as starter,
+            ThreadPoolExecutor(1, "batch-here") as here,
+        ):
             starting = starter.submit(lambda: stack.enter_context(local_cluster(self.workers, preload)))
             batch: list[Item] | None = first
-            while batch is not None and not starting.done():
-                yield work(batch)
+            under_way = None
+            while batch is not None:
+                under_way = here.submit(work, batch)
+                wait([under_way, starting], return_when=FIRST_COMPLETED)
+                if not under_way.done():
+                    break  # the cluster is up: the batch under way goes on here
+                yield under_way.result()
                 self.done_here += 1
-                batch = next(rest, None)
+                under_way, batch = None, next(rest, None)
+                if starting.done():
+                    break
             # the client in this thread (it is this thread's current client); a job done meanwhile
             # still closes what started
             client = stack.enter_context(Client(starting.result()))
+            batch = next(rest, None) if under_way is not None else batch
             if batch is not None:
                 yield from _on(client, work, batch, rest)
+            if under_way is not None:
+                yield under_way.result()
+                self.done_here += 1
             self._before_close(client)
 
     def _before_close(self, client: Client) -> None:

@@ -3,10 +3,11 @@
 ``wfsbench index`` of ``--campaigns`` distinct small campaign files; and each job again over its
 unchanged folder, as a user runs it (the command in a fresh interpreter, ``--workers 2``).
 
-The data is made once into ``--dir`` and kept: the paper's campaign at 2.5 bar
-(:mod:`tests.campaign_files`), an hour of class C road at 60 km/h on the paper's quarter car
-(simulated once) made into distinct hours (each its own circular shift of the road and its own
-seeded sensor noise, :func:`distinct_hour`), and the archive's campaigns (:mod:`tests.archive_files`).
+The data is made once into ``--dir`` and kept: the paper's campaign at 2.5 bar with its analysis
+stored beside its runs, as the bench stores it (:mod:`tests.campaign_files`), an hour of class C
+road at 60 km/h on the paper's quarter car (simulated once) made into distinct hours (each its own
+circular shift of the road and its own seeded sensor noise, :func:`distinct_hour`), and the
+archive's campaigns (:mod:`tests.archive_files`).
 Each measurement runs in a fresh process into a new output folder, so that every figure includes
 the imports and none profits from another's warm caches:
 
@@ -14,15 +15,19 @@ the imports and none profits from another's warm caches:
 - ``dask``: the job as the command runs it with ``--workers``: a local ``dask.distributed`` cluster
   of that many processes of one thread each (:class:`bench.cluster.OnDask`: started while the job's
   first files are done in its own process, stopped at its end; all of it in the wall time); the
-  peak memory (resident) of each worker, the processor time of the workers and of the client
-  (scheduler and nannies live in the client's process), the files done in the client meanwhile;
+  peak memory (resident) of each worker, the processor time of the workers, of the process they are
+  forked from and of the client (scheduler and nannies live in the client's process), the batches
+  done in the client meanwhile;
 - ``again``: the command over the folder just done: nothing changed, nothing read, no cluster.
 
 Per file: processor time, wall time, bytes of input; docs/compensate.md and docs/index.md turn
-them into the cost model. The machine is shared: each ratio is against the baseline measured in the
-same run, and the 1-minute load average is printed before and after.
+them into the cost model. The machine is shared and its speed drifts by tens of percent over
+minutes: the one-process and the cluster runs alternate ``--repeats`` times, each ratio is against
+the baseline measured just before it, and the median of the ratios is printed with each pair's; the
+1-minute load average is printed before and after. Peak memory is each process's own high-water
+mark (``VmHWM``: ``ru_maxrss`` would carry the peak of the process that started it across ``exec``).
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fleet_jobs.py [--hours 40] [--campaigns 200]``
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fleet_jobs.py [--hours 40] [--campaigns 200] [--repeats 3]``
 """
 
 from __future__ import annotations
@@ -30,8 +35,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -50,12 +55,32 @@ ROOT = Path(__file__).resolve().parents[1]
 #: is kept.
 _ENV = {**dict.fromkeys(ONE_THREAD_VARIABLES, "1"), **os.environ, "PYTHONPATH": str(ROOT)}
 HOUR_S = 3600.0
+#: The campaign the measurements are compensated with, its analysis stored as the bench stores it.
+CAMPAIGN = "campaign-analysed.h5"
 #: The sensor noise each distinct hour adds on its shifted road (rms per sample): the campaign's level.
 NOISE_N, NOISE_M_S2 = 1.0, 0.05
 
 
 def _load() -> float:
     return float(Path("/proc/loadavg").read_text().split()[0])
+
+
+def peak_memory_mb() -> float:
+    """This process's peak resident memory (``VmHWM``), MB."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmHWM in /proc/self/status")
+
+
+def forked_from_cpu_s(client) -> float:
+    """The processor time of the processes this one started that are not the cluster's workers (the
+    process the workers are forked from, multiprocessing's resource tracker), s."""
+    import psutil
+
+    workers = set(client.run(os.getpid).values())
+    others = [child for child in psutil.Process().children(recursive=True) if child.pid not in workers]
+    return sum(sum(child.cpu_times()[:2]) for child in others)
 
 
 def distinct_hour(base: dict[str, np.ndarray], i: int) -> dict[str, np.ndarray]:
@@ -72,13 +97,13 @@ def distinct_hour(base: dict[str, np.ndarray], i: int) -> dict[str, np.ndarray]:
 def prepare(directory: Path, hours: int, campaigns: int) -> None:
     """The campaign, the hours and the archive in ``directory`` (what exists is kept)."""
     from tests.archive_files import write_archive
-    from tests.campaign_files import paper_corner_runs, write_campaign
+    from tests.campaign_files import paper_corner_runs, write_analysed_campaign
     from tests.fleet.roads import CAR, road_channels, write_mdf4
 
     directory.mkdir(parents=True, exist_ok=True)
-    if not (directory / "campaign.h5").exists():
-        partial = write_campaign(directory / "campaign.h5.partial", paper_corner_runs(CAR))
-        partial.rename(directory / "campaign.h5")
+    if not (directory / CAMPAIGN).exists():
+        partial = write_analysed_campaign(directory / f"{CAMPAIGN}.partial", paper_corner_runs(CAR))
+        partial.rename(directory / CAMPAIGN)
     roads = directory / "roads"
     roads.mkdir(exist_ok=True)
     todo = [i for i in range(hours) if not (roads / f"hour-{i:03d}.mf4").exists()]
@@ -99,7 +124,7 @@ def _job(job: str, directory: Path, out: Path, executor):
         from bench.fleet.job import compensate_many, identification
         from bench.fleet.worker import Settings
 
-        settings = Settings(str(directory / "campaign.h5"), "", pressure_bar=2.5)
+        settings = Settings(str(directory / CAMPAIGN), "", pressure_bar=2.5)
         summary = compensate_many(
             [directory / "roads"], out, replace(settings, identification=identification(settings)), executor
         )
@@ -119,11 +144,9 @@ def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> di
 
         def look(client) -> None:
             """The workers' peak memory and processor time, before the cluster stops."""
-            figures["workers_max_rss_mb"] = sorted(
-                rss / 1024
-                for rss in client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss).values()
-            )
+            figures["workers_max_rss_mb"] = sorted(client.run(peak_memory_mb).values())
             figures["workers_cpu_s"] = sum(client.run(time.process_time).values())
+            figures["forked_from_cpu_s"] = forked_from_cpu_s(client)
 
         executor = OnDask(None, workers, before_close=look)
         figures["statuses"] = _job(job, directory, out, executor)
@@ -134,7 +157,7 @@ def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> di
         **figures,
         "wall_s": time.perf_counter() - start,
         "cpu_s": time.process_time() - cpu,
-        "max_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "max_rss_mb": peak_memory_mb(),
     }
 
 
@@ -149,7 +172,7 @@ def run_fresh(job: str, mode: str, directory: Path, out: Path, workers: int) -> 
 def run_again(job: str, directory: Path, out: Path, workers: int) -> float:
     """The command over the folder it has done, in a fresh interpreter, as a user runs it: wall s."""
     if job == "compensate":
-        arguments = ["compensate", str(directory / "campaign.h5"), str(directory / "roads")]
+        arguments = ["compensate", str(directory / CAMPAIGN), str(directory / "roads")]
         arguments += ["--pressure", "2.5"]
     else:
         arguments = ["index", str(directory / "archive")]
@@ -175,24 +198,32 @@ def written_per_measurement(out: Path, n: int) -> str:
     return f"written {hdf5 + mdf4:.1f} MB: the HDF5 output {hdf5:.1f} MB, the MDF4 copy {mdf4:.1f} MB"
 
 
-def report(job: str, files: list[Path], runs: dict, workers: int, out: Path) -> None:
-    """Print a job's figures, each against the one-process baseline measured in the same run (``out``:
-    that baseline's output folder)."""
-    one, dask, again_s = runs["one"], runs["dask"], runs["again_s"]
+def report(
+    job: str, files: list[Path], pairs: list[dict], *, again_s: float, workers: int, out: Path
+) -> None:
+    """Print a job's figures: each cluster run against the one-process baseline measured just before
+    it, the median of those ratios, and the processor and memory figures of the pair that gave the
+    median (``out``: a baseline's output folder)."""
     n, size_bytes = len(files), sum(f.stat().st_size for f in files)
     what = f"{n} one-hour measurements" if job == "compensate" else f"{n} campaign files"
-    print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {one['statuses']}")
+    print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {pairs[0]['one']['statuses']}")
     if job == "compensate":
         print(f"  per measurement: {written_per_measurement(out, n)}")
+    ratios = [pair["one"]["wall_s"] / pair["dask"]["wall_s"] for pair in pairs]
+    for i, (pair, ratio) in enumerate(zip(pairs, ratios, strict=True), 1):
+        print(
+            f"  pair {i}: one process {pair['one']['wall_s']:.1f} s, local Dask cluster of {workers}"
+            f" processes {pair['dask']['wall_s']:.1f} s (its start and stop included): {ratio:.2f}x"
+        )
+    median = statistics.median(ratios)
+    one, dask = pairs[min(range(len(pairs)), key=lambda i: abs(ratios[i] - median))].values()
+    print(f"  median: {median:.2f}x the baseline's speed over {len(pairs)} pairs")
     print(
-        f"  one process (baseline): {one['wall_s']:.1f} s wall, {one['cpu_s']:.1f} s processor;"
-        f" {one['cpu_s'] / n:.3f} s processor per file; peak memory {one['max_rss_mb']:.0f} MB"
-    )
-    print(
-        f"  local Dask cluster, {workers} processes: {dask['wall_s']:.1f} s wall, its start and stop"
-        f" included: {one['wall_s'] / dask['wall_s']:.2f}x the baseline's speed; processor: workers"
-        f" {dask['workers_cpu_s']:.1f} s, client {dask['cpu_s']:.1f} s ({dask['done_here']} tasks done in"
-        f" it while the cluster started)"
+        f"  the median pair: one process {one['cpu_s']:.1f} s processor, {one['cpu_s'] / n:.3f} s per file,"
+        f" peak memory {one['max_rss_mb']:.0f} MB; the cluster's processor: workers"
+        f" {dask['workers_cpu_s']:.1f} s,"
+        f" the process they are forked from {dask['forked_from_cpu_s']:.1f} s, client {dask['cpu_s']:.1f} s"
+        f" ({dask['done_here']} tasks done in it while the cluster started)"
     )
     print(f"  peak memory per worker: {', '.join(f'{m:.0f}' for m in dask['workers_max_rss_mb'])} MB")
     print(f"  again over the unchanged folder (the command, --workers {workers}): {again_s:.2f} s wall")
@@ -204,6 +235,7 @@ def main() -> None:
     parser.add_argument("--campaigns", type=int, default=200)
     parser.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()) / "wfsbench-fleet")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=3, help="one-process and cluster runs alternated")
     parser.add_argument("--jobs", nargs="+", default=["compensate", "index"], choices=["compensate", "index"])
     parser.add_argument("--measure", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
@@ -220,12 +252,13 @@ def main() -> None:
         for job in args.jobs:
             files = sorted((args.dir / ("roads" if job == "compensate" else "archive")).iterdir())
             files = [f for f in files if f.suffix in (".mf4", ".h5") and not f.name.startswith(".")]
-            runs = {
-                "one": run_fresh(job, "one", args.dir, work / f"{job}-one", args.workers),
-                "dask": run_fresh(job, "dask", args.dir, work / f"{job}-dask", args.workers),
-                "again_s": run_again(job, args.dir, work / f"{job}-one", args.workers),
-            }
-            report(job, files, runs, args.workers, work / f"{job}-one")
+            pairs = []
+            for i in range(args.repeats):
+                one = run_fresh(job, "one", args.dir, work / f"{job}-one-{i}", args.workers)
+                dask = run_fresh(job, "dask", args.dir, work / f"{job}-dask-{i}", args.workers)
+                pairs.append({"one": one, "dask": dask})
+            again_s = run_again(job, args.dir, work / f"{job}-one-0", args.workers)
+            report(job, files, pairs, again_s=again_s, workers=args.workers, out=work / f"{job}-one-0")
     finally:
         shutil.rmtree(work)
     print(f"\nload (1 min) after: {_load():.2f}")
