@@ -22,10 +22,12 @@ the imports and none profits from another's warm caches:
 
 Per file: processor time, wall time, bytes of input; docs/compensate.md and docs/index.md turn
 them into the cost model. The machine is shared and its speed drifts by tens of percent over
-minutes: the one-process and the cluster runs alternate ``--repeats`` times, each ratio is against
-the baseline measured just before it, and the median of the ratios is printed with each pair's; the
-1-minute load average is printed before and after. Peak memory is each process's own high-water
-mark (``VmHWM``: ``ru_maxrss`` would carry the peak of the process that started it across ``exec``).
+minutes: the one-process run, the cluster's and ``plain`` (the files split between ``--workers``
+plain processes run at once, no Dask: the machine's own capacity for the job) are repeated in turn
+``--repeats`` times, each ratio is against the baseline measured just before it, and the medians of
+the ratios are printed with each repeat's; the 1-minute load average is printed before and after.
+Peak memory is each process's own high-water mark (``VmHWM``: ``ru_maxrss`` would carry the peak of
+the process that started it across ``exec``).
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fleet_jobs.py [--hours 40] [--campaigns 200] [--repeats 3]``
 """
@@ -119,23 +121,44 @@ def prepare(directory: Path, hours: int, campaigns: int) -> None:
     write_archive(directory / "archive", campaigns)
 
 
-def _job(job: str, directory: Path, out: Path, executor):
+def _root(job: str, directory: Path) -> Path:
+    """The folder a job reads: the hours or the archive."""
+    return directory / ("roads" if job == "compensate" else "archive")
+
+
+def shares(job: str, directory: Path, n: int) -> list[Path]:
+    """``n`` folders of symbolic links that split the job's files between them, every ``n``-th file
+    to each (made once, beside the data)."""
+    files = sorted(f for f in _root(job, directory).iterdir() if f.suffix in (".mf4", ".h5"))
+    files = [f for f in files if not f.name.startswith(".")]
+    folders = [directory / "shares" / f"{job}-{n}" / str(i) for i in range(n)]
+    for i, folder in enumerate(folders):
+        if not folder.exists():
+            partial = folder.with_name(folder.name + ".partial")
+            shutil.rmtree(partial, ignore_errors=True)
+            partial.mkdir(parents=True)
+            for f in files[i::n]:
+                (partial / f.name).symlink_to(f)
+            partial.rename(folder)
+    return folders
+
+
+def _job(job: str, directory: Path, root: Path, out: Path, executor):
     if job == "compensate":
         from bench.fleet.job import compensate_many, identification
         from bench.fleet.worker import Settings
 
         settings = Settings(str(directory / CAMPAIGN), "", pressure_bar=2.5)
-        summary = compensate_many(
-            [directory / "roads"], out, replace(settings, identification=identification(settings)), executor
-        )
+        settings = replace(settings, identification=identification(settings))
+        summary = compensate_many([root], out, settings, executor)
         return summary.statuses
     from bench.archive.build import build_index
 
-    return build_index([directory / "archive"], out, executor).statuses
+    return build_index([root], out, executor).statuses
 
 
-def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> dict:
-    """One measurement in this (fresh) process."""
+def measure(job: str, mode: str, directory: Path, out: Path, *, workers: int, root: Path) -> dict:
+    """One measurement in this (fresh) process, of the files under ``root``."""
     from bench.cluster import InProcess, OnDask
 
     start, cpu = time.perf_counter(), time.process_time()
@@ -149,10 +172,10 @@ def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> di
             figures["forked_from_cpu_s"] = forked_from_cpu_s(client)
 
         executor = OnDask(None, workers, before_close=look)
-        figures["statuses"] = _job(job, directory, out, executor)
+        figures["statuses"] = _job(job, directory, root, out, executor)
         figures["done_here"] = executor.done_here
     else:
-        figures["statuses"] = _job(job, directory, out, InProcess())
+        figures["statuses"] = _job(job, directory, root, out, InProcess())
     return {
         **figures,
         "wall_s": time.perf_counter() - start,
@@ -161,12 +184,38 @@ def measure(job: str, mode: str, directory: Path, out: Path, workers: int) -> di
     }
 
 
+def _command(job: str, mode: str, directory: Path, out: Path, *, workers: int, root: Path) -> list[str]:
+    return [
+        *(sys.executable, __file__, "--measure", job, mode, "--dir", str(directory), "--out", str(out)),
+        *("--workers", str(workers), "--root", str(root)),
+    ]
+
+
 def run_fresh(job: str, mode: str, directory: Path, out: Path, workers: int) -> dict:
-    command = [sys.executable, __file__, "--measure", job, mode, "--dir", str(directory), "--out", str(out)]
-    done = subprocess.run(
-        [*command, "--workers", str(workers)], capture_output=True, text=True, check=True, env=_ENV
-    )
+    command = _command(job, mode, directory, out, workers=workers, root=_root(job, directory))
+    done = subprocess.run(command, capture_output=True, text=True, check=True, env=_ENV)
     return json.loads(done.stdout.splitlines()[-1])
+
+
+def run_plain(job: str, directory: Path, out: Path, workers: int) -> dict:
+    """The job's files split between ``workers`` plain processes (no Dask) run at once, each its
+    share in one process: the machine's own capacity for the job. Wall s (the last to end) and the
+    processes' processor s."""
+    start = time.perf_counter()
+    running = [
+        subprocess.Popen(
+            _command(job, "one", directory, out / str(i), workers=workers, root=share),
+            stdout=subprocess.PIPE,
+            env=_ENV,
+        )
+        for i, share in enumerate(shares(job, directory, workers))
+    ]
+    outputs = [process.communicate()[0] for process in running]
+    wall_s = time.perf_counter() - start
+    if any(process.returncode for process in running):
+        raise RuntimeError(f"a plain process of the {job} failed")
+    figures = [json.loads(output.splitlines()[-1]) for output in outputs]
+    return {"wall_s": wall_s, "cpu_s": sum(figure["cpu_s"] for figure in figures)}
 
 
 def run_again(job: str, directory: Path, out: Path, workers: int) -> float:
@@ -199,27 +248,33 @@ def written_per_measurement(out: Path, n: int) -> str:
 
 
 def report(
-    job: str, files: list[Path], pairs: list[dict], *, again_s: float, workers: int, out: Path
+    job: str, files: list[Path], repeats: list[dict], *, again_s: float, workers: int, out: Path
 ) -> None:
-    """Print a job's figures: each cluster run against the one-process baseline measured just before
-    it, the median of those ratios, and the processor and memory figures of the pair that gave the
-    median (``out``: a baseline's output folder)."""
+    """Print a job's figures: each cluster run and each plain run against the one-process baseline
+    measured just before them, the medians of those ratios, and the processor and memory figures of
+    the repeat that gave the cluster's median (``out``: a baseline's output folder)."""
     n, size_bytes = len(files), sum(f.stat().st_size for f in files)
     what = f"{n} one-hour measurements" if job == "compensate" else f"{n} campaign files"
-    print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {pairs[0]['one']['statuses']}")
+    print(f"\n{job}: {what}, {size_bytes / n / 1e6:.1f} MB each; outcomes {repeats[0]['one']['statuses']}")
     if job == "compensate":
         print(f"  per measurement: {written_per_measurement(out, n)}")
-    ratios = [pair["one"]["wall_s"] / pair["dask"]["wall_s"] for pair in pairs]
-    for i, (pair, ratio) in enumerate(zip(pairs, ratios, strict=True), 1):
+    ratios = [repeat["one"]["wall_s"] / repeat["dask"]["wall_s"] for repeat in repeats]
+    plain = [repeat["one"]["wall_s"] / repeat["plain"]["wall_s"] for repeat in repeats]
+    for i, (repeat, ratio) in enumerate(zip(repeats, ratios, strict=True), 1):
         print(
-            f"  pair {i}: one process {pair['one']['wall_s']:.1f} s, local Dask cluster of {workers}"
-            f" processes {pair['dask']['wall_s']:.1f} s (its start and stop included): {ratio:.2f}x"
+            f"  run {i}: one process {repeat['one']['wall_s']:.1f} s, local Dask cluster of {workers}"
+            f" processes {repeat['dask']['wall_s']:.1f} s (its start and stop included): {ratio:.2f}x;"
+            f" {workers} plain processes, each its share: {repeat['plain']['wall_s']:.1f} s,"
+            f" {plain[i - 1]:.2f}x"
         )
     median = statistics.median(ratios)
-    one, dask = pairs[min(range(len(pairs)), key=lambda i: abs(ratios[i] - median))].values()
-    print(f"  median: {median:.2f}x the baseline's speed over {len(pairs)} pairs")
+    capacity = statistics.median(plain)
+    print(f"  median of the {workers} plain processes: {capacity:.2f}x (the machine's capacity for the job)")
+    middle = repeats[min(range(len(repeats)), key=lambda i: abs(ratios[i] - median))]
+    one, dask = middle["one"], middle["dask"]
+    print(f"  median of the cluster: {median:.2f}x the baseline's speed over {len(repeats)} repeats")
     print(
-        f"  the median pair: one process {one['cpu_s']:.1f} s processor, {one['cpu_s'] / n:.3f} s per file,"
+        f"  the median repeat: one process {one['cpu_s']:.1f} s processor, {one['cpu_s'] / n:.3f} s per file,"
         f" peak memory {one['max_rss_mb']:.0f} MB; the cluster's processor: workers"
         f" {dask['workers_cpu_s']:.1f} s,"
         f" the process they are forked from {dask['forked_from_cpu_s']:.1f} s, client {dask['cpu_s']:.1f} s"
@@ -239,9 +294,10 @@ def main() -> None:
     parser.add_argument("--jobs", nargs="+", default=["compensate", "index"], choices=["compensate", "index"])
     parser.add_argument("--measure", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--root", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
-        print(json.dumps(measure(*args.measure, args.dir, args.out, args.workers)))
+        print(json.dumps(measure(*args.measure, args.dir, args.out, workers=args.workers, root=args.root)))
         return
     made = time.perf_counter()
     prepare(args.dir, args.hours, args.campaigns)
@@ -250,15 +306,16 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="fleet-jobs-"))
     try:
         for job in args.jobs:
-            files = sorted((args.dir / ("roads" if job == "compensate" else "archive")).iterdir())
+            files = sorted(_root(job, args.dir).iterdir())
             files = [f for f in files if f.suffix in (".mf4", ".h5") and not f.name.startswith(".")]
-            pairs = []
+            repeats = []
             for i in range(args.repeats):
                 one = run_fresh(job, "one", args.dir, work / f"{job}-one-{i}", args.workers)
                 dask = run_fresh(job, "dask", args.dir, work / f"{job}-dask-{i}", args.workers)
-                pairs.append({"one": one, "dask": dask})
+                plain = run_plain(job, args.dir, work / f"{job}-plain-{i}", args.workers)
+                repeats.append({"one": one, "dask": dask, "plain": plain})
             again_s = run_again(job, args.dir, work / f"{job}-one-0", args.workers)
-            report(job, files, pairs, again_s=again_s, workers=args.workers, out=work / f"{job}-one-0")
+            report(job, files, repeats, again_s=again_s, workers=args.workers, out=work / f"{job}-one-0")
     finally:
         shutil.rmtree(work)
     print(f"\nload (1 min) after: {_load():.2f}")
