@@ -54,17 +54,16 @@ FIRST_FILE = textwrap.dedent(
 )
 
 
-def _first_file(job: str, path: Path, campaign: Path, out: Path) -> dict:
-    done = subprocess.run(
-        [sys.executable, "-c", FIRST_FILE, job, str(path), str(campaign), str(out)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-        check=False,
-    )
+def _fresh(script: str, *args: str) -> dict:
+    """``script`` run in a fresh interpreter with ``args``: the JSON of its last line."""
+    command = [sys.executable, "-c", script, *args]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=300, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.splitlines()[-1])
+
+
+def _first_file(job: str, path: Path, campaign: Path, out: Path) -> dict:
+    return _fresh(FIRST_FILE, job, str(path), str(campaign), str(out))
 
 
 def _packages(modules: list[str]) -> str:
@@ -109,16 +108,7 @@ WORKERS_BEFORE_A_TASK = textwrap.dedent(
 
 @pytest.mark.validation
 def test_a_local_clusters_workers_start_with_the_jobs_modules_imported_forked_from_one_process():
-    done = subprocess.run(
-        [sys.executable, "-c", WORKERS_BEFORE_A_TASK],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
-    seen = json.loads(done.stdout.splitlines()[-1])
+    seen = _fresh(WORKERS_BEFORE_A_TASK)
     assert len(seen["workers"]) == 2
     for worker in seen["workers"]:
         assert worker["imported"] == seen["wanted"]  # before any task
