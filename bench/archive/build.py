@@ -39,7 +39,7 @@ FILES_PER_TASK = 4
 #: What indexing a file imports on first use, beyond this module: the analysis (scipy's fits and
 #: filters), and pandas with pyarrow's layer over it (pyarrow imports them to build a table from
 #: Python values); a local cluster's workers start with them imported
-#: (:mod:`bench.cluster`; ``tests/fleet/test_worker_imports.py`` keeps the list whole).
+#: (:mod:`bench.cluster`; ``tests/fleet/test_worker_imports.py``, validation tier, keeps the list whole).
 WORKER_IMPORTS = (
     "bench.app.analyze",
     "bench.app.run_analysis",

@@ -28,7 +28,7 @@ from bench.fleet.summary import Row, Status
 #: What compensating a measurement imports on first use, beyond this module: the campaign's
 #: analysis, the compensation, the MDF4 reader and writer, scipy's filters and pyarrow's pandas
 #: layer; a local cluster's workers start with them imported (:mod:`bench.cluster`;
-#: ``tests/fleet/test_worker_imports.py`` keeps the list whole).
+#: ``tests/fleet/test_worker_imports.py``, validation tier, keeps the list whole).
 WORKER_IMPORTS = (
     "asammdf",
     "bench.app.analyze",

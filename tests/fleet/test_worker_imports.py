@@ -17,6 +17,10 @@ import pytest
 from tests.archive_files import write_archive
 from tests.fleet.roads import road_channels, write_mdf4
 
+#: Each test starts a fresh interpreter (and one a cluster): with the fleet's jobs on a cluster, in
+#: the validation tier.
+pytestmark = pytest.mark.validation
+
 ROOT = Path(__file__).resolve().parents[2]
 #: The packages of the project: imported lazily at a first file is cheap; what is listed is not.
 OWN_PACKAGES = {"bench", "drivers", "sequences", "simulators"}
@@ -70,7 +74,6 @@ def _packages(modules: list[str]) -> str:
     return f"imported at the first file: {sorted({name.split('.')[0] for name in modules})}"
 
 
-@pytest.mark.slow
 def test_indexing_a_first_file_imports_no_package_beyond_the_index_worker_imports(tmp_path):
     (path,) = write_archive(tmp_path / "archive", 1)
     seen = _first_file("index", path, path, tmp_path / "out")
@@ -78,7 +81,6 @@ def test_indexing_a_first_file_imports_no_package_beyond_the_index_worker_import
     assert seen["new"] == [], _packages(seen["new"])
 
 
-@pytest.mark.slow
 def test_compensating_a_first_measurement_imports_no_package_beyond_the_compensation_worker_imports(
     campaign, tmp_path
 ):
@@ -106,7 +108,6 @@ WORKERS_BEFORE_A_TASK = textwrap.dedent(
 )
 
 
-@pytest.mark.validation
 def test_a_local_clusters_workers_start_with_the_jobs_modules_imported_forked_from_one_process():
     seen = _fresh(WORKERS_BEFORE_A_TASK)
     assert len(seen["workers"]) == 2
