@@ -181,8 +181,8 @@ def _take(future: Any) -> list[Any]:
 #:   threshold, so that every large array is mapped, faulted in and unmapped anew);
 #: - the system monitor (processor, memory, disk and network counters for the dashboard, in the
 #:   scheduler, each nanny and each worker) every 5 s instead of 0.5 s, without the disks, and the
-#:   event loops' responsiveness tick every 0.5 s instead of 20 ms: with a 1-second task, these
-#:   took 1-2 % of a core in every process of the cluster;
+#:   event loops' responsiveness tick every 0.5 s instead of 20 ms: they ran in every process of
+#:   the cluster for a dashboard and warnings the local cluster does not serve;
 #: - the workers forked from one process that imported the job's modules (``forkserver``), not
 #:   started as fresh interpreters that each import them again (``spawn``).
 #:
