@@ -91,6 +91,11 @@ class MechanicalNetwork:
         self._validate()
         self._free = [m.name for m in self.masses]
         self._index = {name: i for i, name in enumerate(self._free)}
+        self._nodes = {*self._free, *self.fixed, *([self.base.name] if self.base is not None else [])}
+        self._links = {link.name: link for link in self.links}
+        self._input_names = (BASE_INPUTS if self.base is not None else ()) + tuple(
+            f"f_{node}" for node in self.force_inputs
+        )
         self._assemble()
         self._rows = {}
 
@@ -120,8 +125,7 @@ class MechanicalNetwork:
     @property
     def input_names(self) -> tuple[str, ...]:
         """Inputs of the state-space form: base motion (if any), then external forces."""
-        base = BASE_INPUTS if self.base is not None else ()
-        return base + tuple(f"f_{node}" for node in self.force_inputs)
+        return self._input_names
 
     @property
     def output_names(self) -> tuple[str, ...]:
@@ -188,42 +192,40 @@ class MechanicalNetwork:
         )
 
     def _row(self, name: str) -> _OutputRow:
-        """The output's coefficient row; built once, all rows together (they share link rows)."""
-        if not self._rows:
-            self._rows = self._output_rows()
-        if name not in self._rows:
-            raise ValueError(f"unknown output {name!r}; available: {self.output_names}")
-        return self._rows[name]
+        """The output's coefficient row, built on its first use: a describing-function balance
+        asks for two outputs of a network it builds anew at every iteration."""
+        row = self._rows.get(name)
+        if row is None:
+            row = self._rows[name] = self._build_row(name)
+        return row
 
-    def _output_rows(self) -> dict[str, _OutputRow]:
-        rows: dict[str, _OutputRow] = {}
-        nodes = list(self._free) + list(self.fixed)
-        if self.base is not None:
-            nodes.append(self.base.name)
-        for node in nodes:
-            for order, prefix in enumerate("zva"):
-                rows[f"{prefix}_{node}"] = self._motion_row(node, order)
-        link_rows = {link.name: self._link_force_row(link) for link in self.links}
-        for name, row in link_rows.items():
-            rows[f"f_{name}"] = row
-        if self.base is not None:
-            contact = self._motion_row(self.base.name, 2)
-            contact = _OutputRow(contact.q, contact.v, contact.a, contact.u * self.base.contact_mass_kg)
-            for link in self.links:
-                sign = (link.lower == self.base.name) - (link.upper == self.base.name)
-                if sign:
-                    r = link_rows[link.name]
-                    contact = _OutputRow(
-                        contact.q + sign * r.q,
-                        contact.v + sign * r.v,
-                        contact.a,
-                        contact.u + sign * r.u,
-                    )
-            rows["f_contact"] = contact
-            plate = _OutputRow(contact.q, contact.v, contact.a, contact.u.copy())
-            plate.u[2] += self.base.plate_mass_kg
-            rows["f_plate"] = plate
-        return rows
+    def _build_row(self, name: str) -> _OutputRow:
+        if self.base is not None and name in ("f_contact", "f_plate"):
+            contact = self._contact_row()
+            if name == "f_contact":
+                return contact
+            u = contact.u.copy()
+            u[2] += self.base.plate_mass_kg
+            return _OutputRow(contact.q, contact.v, contact.a, u)
+        kind, _, subject = name.partition("_")
+        if len(kind) == 1 and kind in "zva" and subject in self._nodes:
+            return self._motion_row(subject, "zva".index(kind))
+        if kind == "f" and subject in self._links:
+            return self._link_force_row(self._links[subject])
+        raise ValueError(f"unknown output {name!r}; available: {self.output_names}")
+
+    def _contact_row(self) -> _OutputRow:
+        """The force the base exerts on the specimen: the tread's inertia and every link to the
+        base."""
+        assert self.base is not None
+        base = self._motion_row(self.base.name, 2)
+        q, v, a, u = base.q, base.v, base.a, base.u * self.base.contact_mass_kg
+        for link in self.links:
+            sign = (link.lower == self.base.name) - (link.upper == self.base.name)
+            if sign:
+                r = self._row(f"f_{link.name}")
+                q, v, u = q + sign * r.q, v + sign * r.v, u + sign * r.u
+        return _OutputRow(q, v, a, u)
 
     # ----------------------------------------------------------------------------- evaluation
     def frequency_response(

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 from textual import events
+from textual.actions import parse as parse_action
 from textual.app import App, ComposeResult, ScreenStackError
 from textual.binding import Binding
 from textual.containers import Horizontal
@@ -27,7 +28,7 @@ from bench.engine import events as ev
 from bench.engine.states import ACTIVE, RunState
 from bench.store import StoreError
 from bench.tui.dialogs import ConfirmDialog, HelpDialog, MetadataDialog, PromptDialog
-from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane
+from bench.tui.panes import BenchPane, ResultsPane, RunPane, SequencePane, show_text
 from bench.tui.session import (
     BenchFault,
     BenchOpened,
@@ -154,6 +155,7 @@ class WfsBenchApp(App):
         self.run_metadata: dict[str, str] = {}
         self.refreshes = 0  # redraws of the live view (the benchmark reads the rate)
         self.banner_text = ""  # what the banner says while it is shown
+        self._keys_shown: tuple[bool | None, ...] = ()  # the footer's keys: which can act
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -234,6 +236,15 @@ class WfsBenchApp(App):
             return not self._typing() and not isinstance(self.screen, HelpDialog)
         return True
 
+    def refresh_keys(self) -> None:
+        """Have the footer show the keys that can act now, once they changed: the footer is built
+        again at every refresh of the bindings, laying the whole screen out again, and the
+        session's messages come several a second while a sequence runs."""
+        acting = tuple(self.check_action(*parse_action(binding.action)[1:]) for binding in self.BINDINGS)
+        if acting != self._keys_shown:
+            self._keys_shown = acting
+            self.refresh_bindings()
+
     def _typing(self) -> bool:
         """Whether the keys go into a visible text input (a prompt's answer, a sequence's path)."""
         focused = self.focused
@@ -286,7 +297,7 @@ class WfsBenchApp(App):
             self.show_banner(f"E-STOP NOT CONFIRMED: {exc}; use the bench's own e-stop button")
             return
         self.show_banner("E-STOP: the actuator is stopped; x on the Bench screen (F2) resets")
-        self.refresh_bindings()
+        self.refresh_keys()
 
     async def action_quit(self) -> None:
         """Quit once no sequence runs; while one does, say what to do instead of ignoring the key."""
@@ -299,7 +310,7 @@ class WfsBenchApp(App):
         self.main.query_one(ContentSwitcher).current = pane
         self.screen_stack[0].set_focus(self._pane_focus())  # a hidden input keeps no keys
         self._show_tabs()
-        self.refresh_bindings()
+        self.refresh_keys()
         self.refresh_live()
 
     def action_help(self) -> None:
@@ -337,7 +348,7 @@ class WfsBenchApp(App):
             self.unopened = None
             self.clear_banner()
             self.main.query_one(BenchPane).show_opening()
-            self.refresh_bindings()
+            self.refresh_keys()
 
     def action_start(self) -> None:
         """Start the checked sequence; when the campaign file holds runs of it already, offer to
@@ -448,7 +459,7 @@ class WfsBenchApp(App):
 
     def _check(self, path: Path) -> None:
         self.plan = None
-        self.refresh_bindings()
+        self.refresh_keys()
         self.main.query_one(SequencePane).show_checking(str(path))
         self.session.check(path)
 
@@ -457,7 +468,7 @@ class WfsBenchApp(App):
     def on_session_message(self, message: SessionMessage) -> None:
         try:
             self._show(message.payload)
-            self.refresh_bindings()
+            self.refresh_keys()
         except (NoMatches, IndexError, ScreenStackError):  # the app is closing: its screens go first
             return
 
@@ -555,7 +566,7 @@ class WfsBenchApp(App):
         shown = f"[{TONE_STYLES[state_tone(state)]}]{state}[/]"
         if len(state) + 3 + len(self.bench_name) <= state_line.content_region.width:
             shown += f"   {self.bench_name}"
-        state_line.update(shown)
+        show_text(state_line, shown)
         trace = self.session.trace
         if self.pane == "run":
             run = self.main.query_one(RunPane)

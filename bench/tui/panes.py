@@ -36,6 +36,14 @@ LIVE_AGE_S = 2.0
 IDLE_NOTE = "the WFS streams during runs only"
 
 
+def show_text(widget: Static, text: str) -> None:
+    """Give ``widget`` the text ``text``, leaving it alone when it shows that already: an update
+    lays the screen out again, and the live lines are refreshed ten times a second, in the process
+    that reads the WFS."""
+    if widget.content != text:
+        widget.update(text)
+
+
 def metadata_text(given: dict[str, str]) -> str:
     """The operator and notes typed in (m), as the Sequence screen shows them."""
     if not given:
@@ -113,11 +121,12 @@ class BenchPane(Vertical):
         that ended interlocked never leaves every lamp green. The controller's own interlock and a
         failed sequence show as red lamps of their own."""
         state = controller.state if controller else "not read yet"
-        self.query_one("#bench-links", Static).update(
+        show_text(
+            self.query_one("#bench-links", Static),
             f"[b]{bench}[/b]   state [b]{engine_state}[/b]   controller {state}\n"
             + lamp(actuator_fault is None, f"controller link {actuator_fault or 'up'}")
             + "    "
-            + lamp(wfs_connected, "WFS link " + ("up" if wfs_connected else "down"))
+            + lamp(wfs_connected, "WFS link " + ("up" if wfs_connected else "down")),
         )
         lamps = [
             lamp(shown.ok, shown.text)
@@ -129,11 +138,12 @@ class BenchPane(Vertical):
                 failure=failure,
             )
         ]
-        self.query_one("#bench-lamps", Static).update("[b]interlocks[/b]  " + "   ".join(lamps))
-        self.query_one("#bench-values", Static).update(live_text(trace, running))
-        self.query_one("#bench-counters", Static).update(
+        show_text(self.query_one("#bench-lamps", Static), "[b]interlocks[/b]  " + "   ".join(lamps))
+        show_text(self.query_one("#bench-values", Static), live_text(trace, running))
+        show_text(
+            self.query_one("#bench-counters", Static),
             "[b]WFS link[/b]  "
-            + "   ".join(f"{name.replace('_', ' ')} {value}" for name, value in counters.items())
+            + "   ".join(f"{name.replace('_', ' ')} {value}" for name, value in counters.items()),
         )
 
 
@@ -263,7 +273,7 @@ class RunPane(Vertical):
                 f"state [b]{state}[/b]   points {pace.points_done}/{pace.total_points}{resumed}"
                 f"   elapsed {pace.elapsed_s:5.0f} s   {eta}"
             )
-        self.query_one("#run-progress", Static).update(text)
+        show_text(self.query_one("#run-progress", Static), text)
 
     def show_trace(self, trace: LiveTrace) -> None:
         if self._ended is not None:  # the plots were cleared at the end: no dwell is under way
