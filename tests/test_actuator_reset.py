@@ -30,6 +30,7 @@ def wfsbench(*args: str, answer: str = "") -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_a_run_names_the_interlock_and_the_reset_brings_the_controller_back(tmp_path):
     with served_lab() as (server, link, _device):

@@ -264,6 +264,7 @@ PAPER_SUBSET = (
 )
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_the_paper_campaign_subset_repeats_no_point_and_holds_40_to_70_hz_within_2_percent(tmp_path):
     """The paper shaker grids' 40-70 Hz points where the servo is furthest off: the 5 mm grid at

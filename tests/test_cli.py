@@ -73,6 +73,7 @@ def test_wfs_monitor_shows_duration_over_interval_lines_of_interval_seconds_each
     assert [b - a for a, b in itertools.pairwise(samples)] == [500, 500, 500], monitor
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_sim_serve_takes_the_operators_actions_on_its_standard_input(tmp_path):
     """The wheel removed at the served bench's terminal: a free run recorded against it through

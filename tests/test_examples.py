@@ -13,6 +13,7 @@ from bench.store import open_campaign
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "scripted_campaign.py"
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_the_scripted_campaign_runs_and_records_every_point(tmp_path):
     out = tmp_path / "scripted.h5"

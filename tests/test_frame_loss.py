@@ -226,7 +226,11 @@ def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "holds"),
-    [("tracked dwell", None), ("tracked dwell", (5,)), ("paced tracked dwell", (5,))],
+    [
+        ("tracked dwell", None),
+        ("tracked dwell", (5,)),
+        pytest.param("paced tracked dwell", (5,), marks=pytest.mark.validation),
+    ],
     ids=["10 in every hold", "350 in the track's first hold", "paced, 350 in the track's first hold"],
 )
 def test_bursts_lost_in_a_track_move_the_drive_only_on_windows_with_their_frames(

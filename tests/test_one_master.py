@@ -75,6 +75,7 @@ def _popen_wfsbench(*args: str) -> subprocess.Popen:
     )
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_a_second_run_against_the_same_bench_is_refused_and_the_first_loses_nothing(tmp_path, lab_devices):  # noqa: F811
     server, pty = lab_devices

@@ -64,6 +64,7 @@ def test_sigterm_mid_dwell_tapers_out_and_marks_the_run_aborted_with_the_signal(
     _assert_tapered_and_aborted(out, "aborted: terminated by SIGTERM")
 
 
+@pytest.mark.validation
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_the_terminal_closing_mid_dwell_tapers_out_and_marks_the_run_aborted(tmp_path):
     command, out = _command(tmp_path)

@@ -504,6 +504,7 @@ def terminal_env() -> dict[str, str]:
     return {**env, "TERM": "xterm-256color"}
 
 
+@pytest.mark.validation
 def test_the_command_on_a_terminal_shows_a_live_status_that_leaves_only_the_log(tmp_path):
     """Standard output a pseudo-terminal 200 columns wide: the status is drawn with its figures (the
     sweep under way, 7 of 8 points done), never wider than the terminal; at the end the screen holds
@@ -574,6 +575,7 @@ level = "off"
 """
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_ctrl_c_while_the_terminal_waits_for_an_answer_aborts_the_sequence(tmp_path, lab_devices):  # noqa: F811
     """Real devices (served on 127.0.0.1 and a pty) and no answers file: the prompt is read from
@@ -698,6 +700,7 @@ level = "off"
 """
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_the_terminal_s_question_starts_its_own_line_below_the_status(tmp_path, lab_devices):  # noqa: F811
     """Real devices and the command on a pseudo-terminal (its standard input and output): the

@@ -55,6 +55,7 @@ def test_opening_the_bench_stops_a_stream_left_running(lab, tmp_path):
     assert started_at_seq[0] > 100  # the frames of the stream left running came before
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_the_run_after_a_wfs_link_loss_works(lab, tmp_path):
     """The link is pulled and plugged back while the device streams; the next run completes. (The

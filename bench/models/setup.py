@@ -7,6 +7,7 @@ the friction damping depends on the tyre deflection amplitude, which depends on 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
@@ -50,6 +51,8 @@ class BenchKind(StrEnum):
 
 
 _BALANCE_TOLERANCE = 1e-5  # relative, on the deflection amplitude
+#: Describing-function balances kept: a dry run of the paper's shaker campaign asks about 2,000.
+_BALANCES_KEPT = 8192
 
 
 @dataclass(frozen=True)
@@ -124,27 +127,13 @@ class BenchSetup:
         deflection amplitude of the tyre's friction element (the tyre link, or the upper sidewall
         in Model 3), by Brent's method. Below the stick deflection the equivalent damping no longer
         changes, so a balance below it is the response at the stick deflection. Linear tyres are
-        returned unchanged.
+        returned unchanged. The balance depends on the setup and the operating point alone, and is
+        kept for the next who asks (a dry run asks the same points of a sequence at every check,
+        and the simulated plant those of each point it runs).
         """
-        from scipy.optimize import brentq
         if self.nonlinearity is None or not self.has_tyre or amplitude_m <= 0:
             return self.tyre
-        law = self.nonlinearity
-        lower = "z_sidewall" if self.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
-
-        def deflection_m(assumed_m: float) -> float:
-            network = self.network(law.linearised(self.tyre, freq_hz, assumed_m))
-            response = network.frequency_response(freq_hz, outputs=(lower, "z_rim"))
-            return float(np.abs(response[lower][0] - response["z_rim"][0])) * amplitude_m
-
-        x_stick = law.stick_deflection_m
-        at_stick = deflection_m(x_stick)
-        if at_stick <= x_stick:
-            return law.linearised(self.tyre, freq_hz, at_stick)
-        # The deflection with the least friction damping bounds the balance from above.
-        x_high = 2.0 * max(at_stick, deflection_m(1e3 * max(amplitude_m, x_stick)))
-        balance = brentq(lambda x: deflection_m(x) - x, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
-        return law.linearised(self.tyre, freq_hz, balance)
+        return _balanced_tyre(self, float(freq_hz), float(amplitude_m))
 
     def broadband_tyre(self, freq_hz: np.ndarray, drive_psd_m2_per_hz: np.ndarray) -> Tyre:
         """The equivalent linear tyre under a broadband Gaussian base drive of one-sided density
@@ -243,3 +232,27 @@ class BenchSetup:
 
     def with_tyre(self, tyre: Tyre) -> BenchSetup:
         return replace(self, tyre=tyre)
+
+
+@functools.lru_cache(maxsize=_BALANCES_KEPT)
+def _balanced_tyre(setup: BenchSetup, freq_hz: float, amplitude_m: float) -> Tyre:
+    """:meth:`BenchSetup.linear_tyre` of a setup with a non-linear tyre."""
+    from scipy.optimize import brentq
+
+    law = setup.nonlinearity
+    assert law is not None
+    lower = "z_sidewall" if setup.model is TyreModel.WHEEL_TREAD_SIDEWALL else "z_base"
+
+    def deflection_m(assumed_m: float) -> float:
+        network = setup.network(law.linearised(setup.tyre, freq_hz, assumed_m))
+        response = network.frequency_response(freq_hz, outputs=(lower, "z_rim"))
+        return float(np.abs(response[lower][0] - response["z_rim"][0])) * amplitude_m
+
+    x_stick = law.stick_deflection_m
+    at_stick = deflection_m(x_stick)
+    if at_stick <= x_stick:
+        return law.linearised(setup.tyre, freq_hz, at_stick)
+    # The deflection with the least friction damping bounds the balance from above.
+    x_high = 2.0 * max(at_stick, deflection_m(1e3 * max(amplitude_m, x_stick)))
+    balance = brentq(lambda x: deflection_m(x) - x, x_stick, x_high, rtol=_BALANCE_TOLERANCE)
+    return law.linearised(setup.tyre, freq_hz, balance)

@@ -26,6 +26,7 @@ def _two_cycle_grid(seed: int) -> list[DwellRecord]:
     return records
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_false_alarm_rate_of_good_two_cycle_dwells():
     """440 good dwells of two cycles each (20 seeds x 22 frequencies): at most 1 % flagged (the

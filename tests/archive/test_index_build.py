@@ -270,6 +270,7 @@ def _duckdb_file_rows(out: Path) -> dict[str, int]:
     return dict(rows)
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_a_run_killed_mid_way_leaves_the_index_as_it_was_for_a_reader_of_the_glob(
     archive, tmp_path, monkeypatch
