@@ -22,11 +22,13 @@ from tests.made_once import made_once
 sys.dont_write_bytecode = False
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The longest tests first: the slow ones (whole campaigns; in the validation tier, the
-    coverage over many seeds and the paper's campaign), then the terminal UI's (seconds each,
-    waiting on the app's refreshes), then the rest in their order. The test workers take tests in
-    this order, so a long test is not left to run alone at the end while the other workers idle."""
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The longest tests first on every test worker: the slow ones (whole campaigns; in the
+    validation tier, the coverage over many seeds and the paper's campaign), then the terminal
+    UI's (seconds each, waiting on the app's refreshes), then the rest in their order. The
+    scheduler (work stealing) hands each worker a contiguous share of the list and steals from
+    the shares' ends, so the tests are dealt to the shares in turn: each worker starts on its part
+    of the long tests, and no long test is left to run alone at the end while the others idle."""
 
     def rank(item: pytest.Item) -> int:
         if item.get_closest_marker("slow") or item.get_closest_marker("validation"):
@@ -34,6 +36,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         return 1 if item.path.parent.name == "tui" else 2
 
     items.sort(key=rank)  # stable: each group keeps its order
+    workers = getattr(config, "workerinput", {}).get("workercount", 1)
+    items[:] = [item for share in range(workers) for item in items[share::workers]]
 
 
 @pytest.fixture

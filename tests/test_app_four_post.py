@@ -42,6 +42,7 @@ def shaker_identifications() -> dict[float, ShakerCampaignResult]:
     return results
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 def test_four_post_run_is_analysed_with_the_tyre_at_its_pressure(tmp_path: Path, shaker_identifications):
     config = default_bench_config("four_post")

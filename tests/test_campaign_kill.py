@@ -105,6 +105,7 @@ def _links_of_gone_processes(before: set[Path]) -> list[Path]:
     return [d for d in made if not Path(f"/proc/{d.name.split('-')[2]}").exists()]
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_killed_run_leaves_a_readable_incomplete_file_that_resume_completes(tmp_path):

@@ -43,6 +43,7 @@ def _assert_tapered_and_aborted(out: Path, reason: str) -> None:
     assert np.abs(z_m[-round(fs / 10) :]).max() < 0.3e-3
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_sigterm_mid_dwell_tapers_out_and_marks_the_run_aborted_with_the_signal(tmp_path):

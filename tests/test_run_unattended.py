@@ -346,6 +346,7 @@ def test_ctrl_c_mid_dwell_tapers_out_keeps_the_file_and_marks_the_run_aborted(tm
         assert resumed_event.fields["ended"] == "aborted"
 
 
+@pytest.mark.validation
 @pytest.mark.slow
 @pytest.mark.skipif(H5DUMP is None, reason="h5dump (Debian hdf5-tools) not installed")
 def test_a_second_ctrl_c_during_the_taper_e_stops(tmp_path):

@@ -47,6 +47,7 @@ def done_points(recorded, after: int = 0) -> int:
     return sum(p.status == "done" for p in recorded.of(ev.PointDone)[after:])
 
 
+@pytest.mark.validation
 async def test_keys_act_after_a_sequence_resumed_through_the_dialog(paced_app: WfsBenchApp) -> None:
     """Twenty dwells, aborted after two, resumed through the "Resume it?" dialog: the progress
     counts the file's done points from the start, and ?, p, r, q and a act at once (no F4 first):
@@ -142,6 +143,7 @@ async def test_p_r_a_answer_from_a_prompts_field_and_say_why_when_they_cannot_ac
         await noted(pilot, app, "a: no sequence is running: nothing to abort")
 
 
+@pytest.mark.validation
 async def test_a_complete_sequence_is_not_offered_for_resume_and_the_log_tells_the_run(
     app: WfsBenchApp, caplog: pytest.LogCaptureFixture
 ) -> None:

@@ -8,11 +8,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bench.store import open_campaign
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.validation
 def test_documented_tmux_script_runs_smoke_to_results(tmp_path: Path) -> None:
     out = tmp_path / "smoke.h5"
     wfsbench = Path(sys.executable).with_name("wfsbench")

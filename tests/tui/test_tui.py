@@ -10,6 +10,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
+import pytest
 from rich.text import Text
 
 from bench.app.analysis_plan import analysis_limits
@@ -468,6 +469,7 @@ async def answer_smoke_prompts(pilot, app: WfsBenchApp) -> None:
     await press(pilot, *"2.5", "enter")
 
 
+@pytest.mark.validation
 async def test_a_pause_during_the_sweep_repeats_it_on_resume(app: WfsBenchApp, tmp_path: Path) -> None:
     """p while the smoke's sweep runs: the engine waits paused, r runs the sweep again from its
     start, and the sequence completes; the file holds the sweep once interrupted, once done."""
@@ -570,6 +572,7 @@ class AbortInTheFreeRun:
             self.app.session.abort()
 
 
+@pytest.mark.validation
 async def test_g_offers_to_resume_a_sequence_the_file_holds_runs_of(app: WfsBenchApp, tmp_path: Path) -> None:
     """After an abort, g asks whether to resume the sequence in the same file: n starts nothing,
     y resumes it (the free run's done point skipped) to its end, as wfsbench run --resume does."""
