@@ -204,6 +204,28 @@ def test_nonlinear_tyre_amplitudes_differ_near_the_peak_only():
         assert max(values) / min(values) < 1.03
 
 
+def test_a_kept_balance_is_the_one_solved_for_its_own_setup_and_operating_point():
+    """The balances are kept per setup and operating point: asked again, the same tyre comes back;
+    another pressure, amplitude or frequency has a balance of its own, the one solved afresh."""
+    from bench.models.setup import _balanced_tyre
+
+    at_2_5, at_1_5 = BenchSetup.paper_shaker(2.5), BenchSetup.paper_shaker(1.5)
+    first = at_2_5.linear_tyre(40.0, 0.002)
+    assert at_2_5.linear_tyre(40.0, 0.002) is first
+    others = {
+        "pressure": at_1_5.linear_tyre(40.0, 0.002),
+        "amplitude": at_2_5.linear_tyre(40.0, 0.005),
+        "frequency": at_2_5.linear_tyre(41.0, 0.002),
+    }
+    kept = {name: tyre.damping_ns_per_m for name, tyre in others.items()}
+    _balanced_tyre.cache_clear()
+    assert at_2_5.linear_tyre(40.0, 0.002) == first
+    assert at_1_5.linear_tyre(40.0, 0.002).damping_ns_per_m == kept["pressure"]
+    assert at_2_5.linear_tyre(40.0, 0.005).damping_ns_per_m == kept["amplitude"]
+    assert at_2_5.linear_tyre(41.0, 0.002).damping_ns_per_m == kept["frequency"]
+    assert len({first.damping_ns_per_m, *kept.values()}) == 4
+
+
 def test_nonlinear_stiffness_rises_with_frequency():
     law, tyre = TyreNonlinearity(), paper_tyre(2.5)
     k = [law.linearised(tyre, f, 0.002).stiffness_n_per_m for f in (1.0, 10.0, 70.0)]
