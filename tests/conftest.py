@@ -27,8 +27,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     validation tier, the coverage over many seeds and the paper's campaign), then the terminal
     UI's (seconds each, waiting on the app's refreshes), then the rest in their order. The
     scheduler (work stealing) hands each worker a contiguous share of the list and steals from
-    the shares' ends, so the tests are dealt to the shares in turn: each worker starts on its part
-    of the long tests, and no long test is left to run alone at the end while the others idle."""
+    the shares' ends, so the long tests are dealt to the shares in turn, each followed by its part
+    of the rest, kept in file order: each worker starts on its part of the long tests, no long
+    test is left to run alone at the end while the others idle, and a module's tests stay
+    together with the fixtures they share."""
 
     def rank(item: pytest.Item) -> int:
         if item.get_closest_marker("slow") or item.get_closest_marker("validation"):
@@ -37,7 +39,14 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
     items.sort(key=rank)  # stable: each group keeps its order
     workers = getattr(config, "workerinput", {}).get("workercount", 1)
-    items[:] = [item for share in range(workers) for item in items[share::workers]]
+    long = [item for item in items if rank(item) < 2]
+    rest = items[len(long) :]
+    cuts = [len(rest) * share // workers for share in range(workers + 1)]
+    items[:] = [
+        item
+        for share in range(workers)
+        for item in (*long[share::workers], *rest[cuts[share] : cuts[share + 1]])
+    ]
 
 
 @pytest.fixture

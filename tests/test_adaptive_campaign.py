@@ -56,7 +56,11 @@ def run_adaptive(tmp_path: Path, tyre: Tyre) -> tuple[Path, list[ev.Event]]:
 
 @pytest.mark.parametrize(
     "tyre",
-    [paper_tyre(1.5), paper_tyre(3.5), TYRE_60_HZ],
+    [
+        pytest.param(paper_tyre(1.5), marks=pytest.mark.validation),
+        pytest.param(paper_tyre(3.5), marks=pytest.mark.validation),
+        TYRE_60_HZ,
+    ],
     ids=["paper 1.5 bar", "paper 3.5 bar", "peak 60 Hz"],
 )
 def test_adaptive_grid_finds_the_peak_of_wfs_over_contact_force(tmp_path: Path, tyre: Tyre) -> None:

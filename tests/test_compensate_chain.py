@@ -29,6 +29,9 @@ from bench.store.measurement_chain import MeasurementChain, Stated
 from tests.campaign_files import paper_corner_runs, write_analysed_campaign
 from tests.made_once import made_once
 
+#: A long test module: in the validation tier (README.md, *Set up and run the tests*).
+pytestmark = pytest.mark.validation
+
 CAR = BenchSetup.paper_quarter_car(2.5, model=TyreModel.WHEEL_TREAD)
 ROAD = road_drive("C", speed_km_h=60, duration_s=20, sample_rate_hz=1000, seed=5)
 #: The road's sensors: an accelerometer of twice the bench's lag, a WFS three times as noisy.

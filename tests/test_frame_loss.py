@@ -182,8 +182,8 @@ def check_no_decision_on_lossy_windows(events: list[ev.Event]) -> None:
     ("kind", "losses"),
     [
         *((kind, losses) for kind in ("grid by repeats", "held grid") for losses in LOSSES),
-        ("paced held grid", "10 in every hold"),
-        ("paced held grid", "350 in the first hold"),
+        pytest.param("paced held grid", "10 in every hold", marks=pytest.mark.validation),
+        pytest.param("paced held grid", "350 in the first hold", marks=pytest.mark.validation),
     ],
 )
 def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, loss_free, kind, losses):
@@ -210,7 +210,7 @@ def test_bursts_lost_in_the_holds_of_a_grid_never_move_the_command(tmp_path, los
         ("adaptive grid", "10 in every hold"),
         ("adaptive grid", "350 in the first hold"),
         ("adaptive grid", "3000 in the first hold"),
-        ("paced adaptive grid", "350 in the first hold"),
+        pytest.param("paced adaptive grid", "350 in the first hold", marks=pytest.mark.validation),
     ],
 )
 def test_bursts_lost_in_an_adaptive_grid_wait_for_windows_with_their_frames(

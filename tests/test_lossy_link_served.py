@@ -36,6 +36,9 @@ from tests.commands import wfsbench
 from tests.served_lab import served_lab
 from tests.test_campaign_cli import _bench_toml
 
+#: A long test module: in the validation tier (README.md, *Set up and run the tests*).
+pytestmark = pytest.mark.validation
+
 LOSS_S, PERIOD_S = 0.35, 1.5
 #: A reply line of the WFS command set (drivers/wfs_commands.py): kept through a loss.
 REPLY = re.compile(rb"\$[\x20-\x7e]{1,%d}\r\n" % (MAX_REPLY_LEN - 3))
@@ -102,9 +105,7 @@ def test_a_grid_behind_a_line_that_loses_a_third_of_a_second_every_1_5_s(tmp_pat
             config.write_text(_bench_toml(server, line.path) + "[timing]\nhost_stall_s = 0.9\n")
             (tmp_path / "grid.toml").write_text(GRID)
             out = tmp_path / "lossy.h5"
-            run = wfsbench(
-                "run", str(tmp_path / "grid.toml"), "--bench", str(config), "--out", str(out)
-            )
+            run = wfsbench("run", str(tmp_path / "grid.toml"), "--bench", str(config), "--out", str(out))
         finally:
             line.close()
     assert run.returncode == ExitCode.INCOMPLETE, run.stdout + run.stderr

@@ -14,6 +14,9 @@ from bench.archive import columns as c
 from bench.archive.store import read_index
 from tests.archive.conftest import COPIES, SIMULATED
 
+#: A long test module: in the validation tier (README.md, *Set up and run the tests*).
+pytestmark = pytest.mark.validation
+
 DOC = Path(__file__).resolve().parents[2] / "docs" / "index.md"
 
 

@@ -25,6 +25,9 @@ from tests.documented import assert_documented
 from tests.fleet.roads import road_channels, write_csv, write_mdf4
 from tests.waiting import wait_until
 
+#: A long test module: in the validation tier (README.md, *Set up and run the tests*).
+pytestmark = pytest.mark.validation
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
